@@ -1,0 +1,154 @@
+//! The error type of `zeroset-field-core`: geometry, grids, masks and point-cloud files.
+//!
+//! Least-squares solvers have their own error, [`SolveError`](crate::lsq::SolveError), because
+//! it is the contract every solver crate shares.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in field-core, with enough context to act on.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A bounding box with a non-finite corner or `min > max` on some axis.
+    #[error("invalid bounding box on axis {axis}: min {min} and max {max} must be finite with min <= max")]
+    InvalidBounds {
+        /// The axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+        /// The lower coordinate given.
+        min: f64,
+        /// The upper coordinate given.
+        max: f64,
+    },
+    /// A grid with no cell (or, vertex-centred, fewer than two vertices) along some axis.
+    #[error("grid needs at least {needed} samples along axis {axis}, got {got}")]
+    GridTooSmall {
+        /// The axis.
+        axis: usize,
+        /// The number of samples needed.
+        needed: usize,
+        /// The number given.
+        got: usize,
+    },
+    /// A box mask that does not lie inside the grid's bounding box.
+    #[error(
+        "mask lies outside the bounding box on axis {axis}: mask [{lo}, {hi}], box [{min}, {max}]"
+    )]
+    MaskOutsideBox {
+        /// The axis.
+        axis: usize,
+        /// The mask's lower coordinate.
+        lo: f64,
+        /// The mask's upper coordinate.
+        hi: f64,
+        /// The box's lower coordinate.
+        min: f64,
+        /// The box's upper coordinate.
+        max: f64,
+    },
+    /// A box mask that contains no sample of the grid along some axis.
+    #[error("mask [{lo}, {hi}] contains no grid sample along axis {axis}")]
+    EmptyMask {
+        /// The axis.
+        axis: usize,
+        /// The mask's lower coordinate.
+        lo: f64,
+        /// The mask's upper coordinate.
+        hi: f64,
+    },
+    /// A mask given by grid indices that leaves the grid.
+    #[error("mask index range {lo}..={hi} on axis {axis} leaves the grid of {len} samples")]
+    MaskIndexOutOfRange {
+        /// The axis.
+        axis: usize,
+        /// First index.
+        lo: usize,
+        /// Last index.
+        hi: usize,
+        /// Samples on that axis.
+        len: usize,
+    },
+    /// Two arrays that must have matching shapes do not.
+    #[error("shape mismatch for {what}: expected {expected}, got {got}")]
+    ShapeMismatch {
+        /// What was being matched.
+        what: &'static str,
+        /// The expected size.
+        expected: usize,
+        /// The size given.
+        got: usize,
+    },
+    /// A point cloud with no points where at least one is needed.
+    #[error("point cloud is empty")]
+    EmptyCloud,
+    /// A coordinate or normal component that is NaN or infinite.
+    #[error("{source_name}: record {record} has a non-finite {field} ({value})")]
+    NonFinite {
+        /// The file (or "input" for in-memory data).
+        source_name: String,
+        /// The record (0-based point index; for text files the 1-based line is in `line`).
+        record: usize,
+        /// The 1-based line in a text file, if any.
+        line: Option<usize>,
+        /// Which value: "x", "y", "z", "nx", "ny", "nz", "azimuth", ...
+        field: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// A file could not be opened, read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating-system error.
+        source: std::io::Error,
+    },
+    /// A file whose format is not recognised from its extension or content.
+    #[error("{}: unknown point-cloud format (expected .ply, .xyz, .xyzn, .txt, .pts or .csv)", path.display())]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A malformed file: what was wrong and where.
+    #[error("{}{}: {reason}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// The 1-based line, for text formats.
+        line: Option<usize>,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A file that ends before all the records its header announces.
+    #[error("{}: truncated: header announces {expected} {element} records, file holds {got}", path.display())]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// The element ("vertex", ...).
+        element: String,
+        /// Records announced.
+        expected: usize,
+        /// Records present (at most; the last may be partial).
+        got: usize,
+    },
+    /// A PLY file without a required vertex property.
+    #[error("{}: PLY element 'vertex' has no property '{property}'", path.display())]
+    MissingProperty {
+        /// The file.
+        path: PathBuf,
+        /// The property, e.g. "z".
+        property: &'static str,
+    },
+    /// A CSV file whose header lacks a required column.
+    #[error("{}: CSV header has no column '{column}' (header: {header})", path.display())]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The column looked for.
+        column: String,
+        /// The header found.
+        header: String,
+    },
+}
+
+/// Shorthand for results with field-core's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

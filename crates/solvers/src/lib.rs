@@ -1,0 +1,1 @@
+//! Sparse and dense least-squares solvers (being written).

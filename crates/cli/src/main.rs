@@ -1,1 +1,69 @@
-fn main() {}
+//! `zeroset`: inspect point clouds and (later) run the fitting pipeline on them.
+//!
+//! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
+//! `run(&Args) -> anyhow::Result<()>`; `main` only parses, dispatches and reports errors.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod info;
+
+const EXAMPLES: &str = "\
+Examples:
+  zeroset info samples/bunny_2k.xyzn           describe the sample point cloud
+  zeroset info scan.ply                        PLY, ascii or binary
+  zeroset info points.dat --format csv         read a file whose extension says nothing
+  zeroset info SandStone_Foliations.csv        a GemPy table: formations and counts
+  zeroset info --help                          more on one subcommand";
+
+/// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
+/// zero set.
+#[derive(Debug, Parser)]
+#[command(name = "zeroset", version, after_help = EXAMPLES)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// The subcommands. To add one (e.g. `demo`): add a variant holding its `Args`, a module with
+/// `Args` and `run`, and an arm in [`run`].
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Describe a point-cloud file: format, point count, bounding box, normals, duplicates,
+    /// non-finite values, and GemPy formations.
+    #[command(after_help = info::EXAMPLES)]
+    Info(info::InfoArgs),
+    // Further subcommands go here.
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Info(args) => info::run(&args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {}", message(&err));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The error and its causes, `: `-separated, leaving out a cause whose text the message
+/// already holds (field-core's errors quote their I/O error).
+fn message(err: &anyhow::Error) -> String {
+    let mut text = err.to_string();
+    for cause in err.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+    }
+    text
+}

@@ -237,7 +237,9 @@ pub fn count_duplicates<const D: usize>(points: &[Point<D>]) -> usize {
             .unwrap_or(std::cmp::Ordering::Equal)
     };
     keys.sort_unstable_by(cmp);
-    keys.windows(2).filter(|w| cmp(&w[0], &w[1]).is_eq()).count()
+    keys.windows(2)
+        .filter(|w| cmp(&w[0], &w[1]).is_eq())
+        .count()
 }
 
 #[cfg(test)]
@@ -247,8 +249,18 @@ mod tests {
     #[test]
     fn stats_count_problems() {
         let cloud = PointCloud::from_raw(
-            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -0.0], [f64::NAN, 0.0, 0.0]],
-            Some(vec![[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]),
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 0.0, -0.0],
+                [f64::NAN, 0.0, 0.0],
+            ],
+            Some(vec![
+                [1.0, 0.0, 0.0],
+                [0.0, 2.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+            ]),
         )
         .unwrap();
         let s = cloud.stats();
@@ -263,8 +275,21 @@ mod tests {
     #[test]
     fn validate_names_the_record() {
         let err = PointCloud::new(vec![[0.0, 0.0], [0.0, f64::INFINITY]]).unwrap_err();
-        assert!(matches!(err, Error::NonFinite { record: 1, field: "y", .. }), "{err}");
-        assert!(matches!(PointCloud::<3>::new(vec![]), Err(Error::EmptyCloud)));
+        assert!(
+            matches!(
+                err,
+                Error::NonFinite {
+                    record: 1,
+                    field: "y",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert!(matches!(
+            PointCloud::<3>::new(vec![]),
+            Err(Error::EmptyCloud)
+        ));
         assert!(matches!(
             PointCloud::with_normals(vec![[0.0; 3]], vec![]),
             Err(Error::ShapeMismatch { .. })
@@ -273,7 +298,8 @@ mod tests {
 
     #[test]
     fn normals_flip_and_normalise() {
-        let mut c = PointCloud::with_normals(vec![[0.0; 2]; 2], vec![[3.0, 4.0], [0.0, 0.0]]).unwrap();
+        let mut c =
+            PointCloud::with_normals(vec![[0.0; 2]; 2], vec![[3.0, 4.0], [0.0, 0.0]]).unwrap();
         assert_eq!(c.normalize_normals(), 1);
         c.flip_normals();
         assert_eq!(c.normals().unwrap()[0], [-0.6, -0.8]);

@@ -10,7 +10,9 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum Error {
     /// A bounding box with a non-finite corner or `min > max` on some axis.
-    #[error("invalid bounding box on axis {axis}: min {min} and max {max} must be finite with min <= max")]
+    #[error(
+        "invalid bounding box on axis {axis}: min {min} and max {max} must be finite with min <= max"
+    )]
     InvalidBounds {
         /// The axis (0 = x, 1 = y, 2 = z).
         axis: usize,

@@ -41,6 +41,14 @@ pub mod io;
 pub mod lsq;
 pub mod mask;
 
+pub use basis::{Basis, BasisField, BasisRow, PolynomialBasis};
 pub use cloud::{CloudStats, PointCloud, PointCloud2, PointCloud3};
 pub use error::{Error, Result};
+pub use field::{ScalarField, ScalarField2, ScalarField3};
 pub use geometry::{Aabb, Aabb2, Aabb3, Point, Point2, Point3};
+pub use grid::{Centering, Grid, Grid2, Grid3};
+pub use lsq::{
+    LeastSquaresSolver, LeastSquaresSolverExt, LinearOperator, LsqMatrix, Monitor, Progress,
+    Solution, SolveError, SolveInfo, Stage,
+};
+pub use mask::{BoxMask, Face, Side};

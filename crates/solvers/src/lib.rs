@@ -1,1 +1,73 @@
-//! Sparse and dense least-squares solvers (being written).
+//! # zeroset-solvers
+//!
+//! Solvers of `min ‖A x − b‖₂` that provably agree, behind the
+//! [`LeastSquaresSolver`](zeroset_field_core::lsq::LeastSquaresSolver) trait of field-core:
+//!
+//! | solver | method | `A` as | accuracy | cost |
+//! |---|---|---|---|---|
+//! | [`Cgls`] | CG on the normal equations, implicit | any, incl. operators | `∝ cond(A)` per step | 2 products / iteration |
+//! | [`Lsqr`] | Golub–Kahan bidiagonalisation (Paige–Saunders) | any, incl. operators | stabler than CGLS | 2 products / iteration |
+//! | [`Pcg`] | preconditioned CG on `AᵀA` (or any SPD `K`) | any, incl. operators | `∝ cond(A)²` | 2 products / iteration |
+//! | [`DenseQr`] | Householder QR, column pivoting | dense (sparse densified) | backward stable | `2mn² − 2n³/3` |
+//! | [`NormalLu`] | LU of `AᵀA` | dense (sparse densified) | `∝ cond(A)²` | `mn² + n³/3` |
+//! | [`SparseQr`] | sparse Householder QR (COLAMD) | sparse | `∝ cond(A)` | fill-dependent |
+//! | [`SparseCholesky`] | Cholesky of `AᵀA` (AMD), symbolic analysis reused | sparse | `∝ cond(A)²` | fill-dependent; fastest here |
+//!
+//! Where `A` has full column rank the minimiser is unique and they all return it, to within
+//! their tolerances (the test suite holds them to it, on random and restoration-shaped
+//! problems). Where it does not, the direct solvers say which column is dependent
+//! ([`SolveError::RankDeficient`](zeroset_field_core::lsq::SolveError::RankDeficient)) and the
+//! iterative ones return the minimum-norm solution.
+//!
+//! Every solver validates its input (shapes, NaN/inf), reports residuals measured the same way,
+//! calls an optional progress [`Monitor`](zeroset_field_core::lsq::Monitor) that can cancel, and
+//! is deterministic: the same bits for 1 or N threads (see [`kernels`]).
+//!
+//! ```
+//! use zeroset_field_core::lsq::LeastSquaresSolverExt;
+//! use zeroset_solvers::{Lsqr, SparseCholesky, problems::protrusion_problem};
+//!
+//! let p = protrusion_problem(8, 1.0);
+//! let direct = SparseCholesky::default().solve_with(&p.a, &p.b)?;
+//! let iterative = Lsqr::default().solve_with(&p.a, &p.b)?;
+//! let diff = direct.x.iter().zip(&iterative.x).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+//! assert!(diff < 1e-8, "{diff}");
+//! assert!(iterative.info.iterations > 0);
+//! # Ok::<(), zeroset_field_core::lsq::SolveError>(())
+//! ```
+
+#![warn(missing_docs)]
+
+mod common;
+mod dense;
+mod iterative;
+pub mod kernels;
+mod operator;
+mod pcg;
+pub mod precond;
+pub mod problems;
+mod sparse_cholesky;
+mod sparse_qr;
+
+pub use common::{DirectParams, IterativeParams, NORMAL_RANK_TOLERANCE};
+pub use dense::{DenseQr, NormalLu};
+pub use iterative::{Cgls, Lsqr};
+pub use pcg::{Pcg, PcgParams};
+pub use precond::{Diagonal, DirichletLaplacian, Preconditioner};
+pub use sparse_cholesky::{NormalAnalysis, Ordering, SparseCholesky, SparseCholeskyParams};
+pub use sparse_qr::SparseQr;
+
+use zeroset_field_core::lsq::LeastSquaresSolver;
+
+/// One of each solver with default parameters, in the order of the table above.
+pub fn all_solvers() -> Vec<Box<dyn LeastSquaresSolver>> {
+    vec![
+        Box::new(Cgls::default()),
+        Box::new(Lsqr::default()),
+        Box::new(Pcg::default()),
+        Box::new(DenseQr::default()),
+        Box::new(NormalLu::default()),
+        Box::new(SparseQr::default()),
+        Box::new(SparseCholesky::default()),
+    ]
+}

@@ -1,1 +1,403 @@
-//! Point-cloud file formats (being written).
+//! Point-cloud files: readers for PLY, XYZ text, CSV and GemPy geology tables, and an atomic
+//! PLY writer.
+//!
+//! | [`Format`] | Extensions | What is read | Normals |
+//! |---|---|---|---|
+//! | [`Format::Ply`] | `.ply` | `ascii`, `binary_little_endian` or `binary_big_endian`; element `vertex`, properties `x y z` of any scalar type; other properties and elements (faces) are skipped | `nx ny nz`, all three or none |
+//! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` | one point per line: 3 numbers (`x y z`) or at least 6 (`x y z nx ny nz`, further columns ignored), separated by whitespace or commas; `#` starts a comment; blank lines are skipped; every line has the same count | columns 4–6 |
+//! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored | columns `nx`, `ny`, `nz`, all three or none |
+//! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
+//!
+//! [`read_point_cloud`] picks the format with [`detect_format`] (the extension, then the CSV
+//! header) and returns a [`PointCloud3`]; [`read_point_cloud_with`] takes [`ReadOptions`] to force
+//! a format or to accept NaN and infinite values.
+//!
+//! ## Guarantees
+//!
+//! - Values are returned as stored (converted to `f64`): nothing is rescaled, reordered,
+//!   deduplicated or normalised. [`PointCloud::stats`](crate::cloud::PointCloud::stats) reports
+//!   duplicates and normals that are not unit length.
+//! - By default a NaN or infinite coordinate or normal component is an [`Error::NonFinite`]
+//!   naming the file, the 0-based record, the 1-based line (text formats) and the field.
+//! - A file with no point is an error ([`Error::Malformed`] naming the file), never an empty
+//!   cloud; a file that ends before the records its header announces is [`Error::Truncated`].
+//! - Every error names the file; text formats also name the 1-based line.
+//!
+//! Not guaranteed: normal orientation. Normals are returned as the file gives them; zeroset
+//! expects them to point out of the solid (see the [crate docs](crate)), and
+//! [`PointCloud::flip_normals`](crate::cloud::PointCloud::flip_normals) reverses them.
+//!
+//! Writing goes through [`write_atomic`]: the data is written to a temporary file in the target's
+//! directory and renamed over the target only once complete, so a failed write never leaves a
+//! half-written file behind. [`write_ply`] writes binary little-endian PLY with `double`
+//! properties, which every PLY reader accepts.
+
+use std::fmt;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::cloud::PointCloud3;
+use crate::error::{Error, Result};
+use crate::geometry::Point3;
+
+pub mod gempy;
+mod ply;
+mod table;
+mod xyz;
+
+pub use ply::write_ply;
+
+/// A point-cloud file format; see the [module docs](self) for what each one reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// Stanford PLY: ascii or binary, element `vertex` with `x y z [nx ny nz]`.
+    Ply,
+    /// Plain text, one point per line: `x y z` or `x y z nx ny nz`.
+    Xyz,
+    /// Comma-separated values with a header row naming `x, y, z [, nx, ny, nz]`.
+    Csv,
+    /// A GemPy geology table (surface points or orientations); see [`gempy`].
+    GemPy,
+}
+
+impl Format {
+    /// Every format, in the order of the module table.
+    pub const ALL: [Format; 4] = [Format::Ply, Format::Xyz, Format::Csv, Format::GemPy];
+
+    /// The format implied by the file extension (case-insensitive), without reading the file:
+    /// `.ply` → [`Format::Ply`]; `.xyz`, `.xyzn`, `.txt`, `.pts` → [`Format::Xyz`]; `.csv` →
+    /// [`Format::Csv`]. A `.csv` file may hold a GemPy table: [`detect_format`] reads the header
+    /// to tell. `None` for any other extension.
+    pub fn from_path(path: impl AsRef<Path>) -> Option<Format> {
+        let ext = path.as_ref().extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "ply" => Some(Format::Ply),
+            "xyz" | "xyzn" | "txt" | "pts" => Some(Format::Xyz),
+            "csv" => Some(Format::Csv),
+            _ => None,
+        }
+    }
+
+    /// The lower-case name used on the command line: `ply`, `xyz`, `csv` or `gempy`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Ply => "ply",
+            Format::Xyz => "xyz",
+            Format::Csv => "csv",
+            Format::GemPy => "gempy",
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The error of [`Format::from_str`]: the name given is not a format.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown format '{0}' (expected ply, xyz, csv or gempy)")]
+pub struct UnknownFormatName(pub String);
+
+impl FromStr for Format {
+    type Err = UnknownFormatName;
+
+    /// Parses `ply`, `xyz`, `csv` or `gempy` (case-insensitive).
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| UnknownFormatName(s.to_owned()))
+    }
+}
+
+/// The format of a file: the extension first ([`Format::from_path`]); a `.csv` file whose
+/// header names `formation` or `surface`, or all of `dip`, `azimuth` and `polarity`, is
+/// [`Format::GemPy`]. A file with an unknown extension that starts with the PLY magic line
+/// `ply` is [`Format::Ply`].
+///
+/// # Errors
+/// [`Error::UnknownFormat`] when neither the extension nor the content tells;
+/// [`Error::Io`] if a `.csv` file (or a file with an unknown extension) cannot be read;
+/// [`Error::Malformed`] for a `.csv` file whose header cannot be parsed.
+pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
+    let path = path.as_ref();
+    match Format::from_path(path) {
+        Some(Format::Csv) => {
+            let header = table::read_header(path)?;
+            Ok(if gempy::is_gempy_header(&header) {
+                Format::GemPy
+            } else {
+                Format::Csv
+            })
+        }
+        Some(format) => Ok(format),
+        None => {
+            let mut magic = [0u8; 4];
+            let mut file = File::open(path).map_err(io_error(path))?;
+            let n = read_prefix(&mut file, &mut magic).map_err(io_error(path))?;
+            match &magic[..n] {
+                [b'p', b'l', b'y', b'\n' | b'\r'] => Ok(Format::Ply),
+                _ => Err(Error::UnknownFormat {
+                    path: path.to_owned(),
+                }),
+            }
+        }
+    }
+}
+
+/// Reads up to `buf.len()` bytes, fewer only at the end of the file.
+fn read_prefix(r: &mut impl io::Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Options for [`read_point_cloud_with`]. `ReadOptions::default()` detects the format and
+/// rejects NaN and infinite values.
+///
+/// ```
+/// use zeroset_field_core::io::{Format, ReadOptions};
+/// let options = ReadOptions::default().with_format(Format::Xyz).with_allow_non_finite(true);
+/// assert_eq!(options.format, Some(Format::Xyz));
+/// ```
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct ReadOptions {
+    /// The format to read; `None` (the default) detects it with [`detect_format`].
+    pub format: Option<Format>,
+    /// Accept NaN and infinite coordinates and normal components (default `false`: they are
+    /// an [`Error::NonFinite`]). Use [`PointCloud::stats`](crate::cloud::PointCloud::stats) to
+    /// count them and [`PointCloud::validate`](crate::cloud::PointCloud::validate) to reject
+    /// them later.
+    pub allow_non_finite: bool,
+}
+
+impl ReadOptions {
+    /// These options, reading `format` instead of detecting it.
+    #[must_use]
+    pub fn with_format(mut self, format: Format) -> Self {
+        self.format = Some(format);
+        self
+    }
+
+    /// These options, accepting (`true`) or rejecting (`false`) non-finite values.
+    #[must_use]
+    pub fn with_allow_non_finite(mut self, allow: bool) -> Self {
+        self.allow_non_finite = allow;
+        self
+    }
+}
+
+/// Reads a point cloud, detecting the format ([`detect_format`]) and rejecting NaN and
+/// infinite values. Same as [`read_point_cloud_with`] with [`ReadOptions::default`].
+///
+/// ```no_run
+/// let cloud = zeroset_field_core::io::read_point_cloud("bunny.ply")?;
+/// println!("{} points, normals: {}", cloud.len(), cloud.normals().is_some());
+/// # Ok::<(), zeroset_field_core::Error>(())
+/// ```
+///
+/// # Errors
+/// See [`read_point_cloud_with`].
+pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
+    read_point_cloud_with(path, &ReadOptions::default())
+}
+
+/// Reads a point cloud with the given options.
+///
+/// A GemPy orientations table gives positions with normals ([`gempy::orientation_normal`]); a
+/// GemPy surface-points table gives positions only.
+///
+/// # Errors
+/// - [`Error::Io`]: the file cannot be opened or read.
+/// - [`Error::UnknownFormat`]: no format given and none detected.
+/// - [`Error::Malformed`]: the content does not parse (with the 1-based line for text
+///   formats), or the file holds no point (an empty file included).
+/// - [`Error::Truncated`]: a PLY file ends before the vertices its header announces.
+/// - [`Error::MissingProperty`]: a PLY vertex lacks `x`, `y` or `z`, or has some but not all
+///   of `nx ny nz`.
+/// - [`Error::MissingColumn`]: a CSV header lacks `x`, `y` or `z` (or a GemPy column).
+/// - [`Error::NonFinite`]: a NaN or infinite value, unless
+///   [`ReadOptions::allow_non_finite`].
+pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<PointCloud3> {
+    let path = path.as_ref();
+    let format = match options.format {
+        Some(format) => format,
+        None => detect_format(path)?,
+    };
+    let checker = FiniteCheck {
+        path,
+        allow: options.allow_non_finite,
+    };
+    let (positions, normals) = match format {
+        Format::Ply => ply::read(path, &checker)?,
+        Format::Xyz => xyz::read(path, &checker)?,
+        Format::Csv => table::read_xyz_table(path, &checker)?,
+        Format::GemPy => gempy::read_cloud(path, &checker)?,
+    };
+    if positions.is_empty() {
+        return Err(malformed(path, None, "the file holds no point"));
+    }
+    PointCloud3::from_raw(positions, normals)
+}
+
+/// Writes a file atomically: `write` fills a temporary file in the same directory as `path`,
+/// which is flushed to disk and then renamed over `path`. Readers of `path` see either the old
+/// file or the complete new one, never a partial write; on any error the temporary file is
+/// removed and an existing `path` is left untouched.
+///
+/// The new file gets default permissions (an existing file's are not copied).
+///
+/// ```no_run
+/// use std::io::Write;
+/// zeroset_field_core::io::write_atomic("out.txt", |w| writeln!(w, "hello"))?;
+/// # Ok::<(), zeroset_field_core::Error>(())
+/// ```
+///
+/// # Errors
+/// [`Error::Io`] naming `path`, for an error from `write` or from the file system (for
+/// instance a directory that does not exist).
+pub fn write_atomic<F>(path: impl AsRef<Path>, write: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> io::Result<()>,
+{
+    let path = path.as_ref();
+    let Some(name) = path.file_name() else {
+        return Err(Error::Io {
+            path: path.to_owned(),
+            source: io::Error::new(io::ErrorKind::InvalidInput, "not a file name"),
+        });
+    };
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let (tmp_path, file) = create_temp(dir, name).map_err(io_error(path))?;
+    let result = (|| {
+        let mut writer = BufWriter::new(file);
+        write(&mut writer)?;
+        let file = writer
+            .into_inner()
+            .map_err(io::IntoInnerError::into_error)?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(&tmp_path, path)
+    })();
+    if let Err(source) = result {
+        // Best effort: the temporary file may already be gone.
+        let _ = fs::remove_file(&tmp_path);
+        return Err(Error::Io {
+            path: path.to_owned(),
+            source,
+        });
+    }
+    Ok(())
+}
+
+/// Creates a new, uniquely named hidden file `.<name>.<pid>.<n>.tmp` in `dir`.
+fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File)> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let pid = std::process::id();
+    let mut last_error = None;
+    for _ in 0..64 {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let mut tmp_name = std::ffi::OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(format!(".{pid}.{n}.tmp"));
+        let tmp_path = dir.join(tmp_name);
+        match OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp_path)
+        {
+            Ok(file) => return Ok((tmp_path, file)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_error = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last_error.unwrap_or_else(|| io::Error::other("could not create a temporary file")))
+}
+
+/// Positions and, if the file has them, normals, before the cloud is assembled.
+pub(crate) type RawPoints = (Vec<Point3>, Option<Vec<Point3>>);
+
+/// Names of the position and normal fields, for [`Error::NonFinite`].
+pub(crate) const POSITION_FIELDS: [&str; 3] = ["x", "y", "z"];
+/// See [`POSITION_FIELDS`].
+pub(crate) const NORMAL_FIELDS: [&str; 3] = ["nx", "ny", "nz"];
+
+/// Rejects non-finite values unless allowed, naming the file, record, line and field.
+pub(crate) struct FiniteCheck<'a> {
+    pub(crate) path: &'a Path,
+    pub(crate) allow: bool,
+}
+
+impl FiniteCheck<'_> {
+    /// Checks `values`, whose fields are named by `fields`.
+    pub(crate) fn check(
+        &self,
+        record: usize,
+        line: Option<usize>,
+        fields: &[&'static str],
+        values: &[f64],
+    ) -> Result<()> {
+        if self.allow {
+            return Ok(());
+        }
+        match values.iter().position(|v| !v.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(Error::NonFinite {
+                source_name: self.path.display().to_string(),
+                record,
+                line,
+                field: fields[i],
+                value: values[i],
+            }),
+        }
+    }
+}
+
+/// Maps an I/O error to [`Error::Io`] naming `path`.
+pub(crate) fn io_error(path: &Path) -> impl FnOnce(io::Error) -> Error + '_ {
+    move |source| Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// An [`Error::Malformed`].
+pub(crate) fn malformed(path: &Path, line: Option<usize>, reason: impl Into<String>) -> Error {
+    Error::Malformed {
+        path: path.to_owned(),
+        line,
+        reason: reason.into(),
+    }
+}
+
+/// Opens a file for reading; a 0-byte file is [`Error::Malformed`]. Returns the file and its
+/// length in bytes.
+pub(crate) fn open_nonempty(path: &Path) -> Result<(File, u64)> {
+    let file = File::open(path).map_err(io_error(path))?;
+    let len = file.metadata().map_err(io_error(path))?.len();
+    if len == 0 {
+        return Err(malformed(path, None, "the file is empty (0 bytes)"));
+    }
+    Ok((file, len))
+}
+
+/// Parses a number as Rust does (`1`, `-2.5e-3`, `nan`, `inf`, ...), after trimming.
+pub(crate) fn parse_number(token: &str) -> Option<f64> {
+    token.trim().parse::<f64>().ok()
+}

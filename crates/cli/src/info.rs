@@ -1,0 +1,264 @@
+//! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it.
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::{Args, ValueEnum};
+use zeroset_field_core::io::gempy::{self, GeoModelData};
+use zeroset_field_core::io::{self, Format, ReadOptions};
+use zeroset_field_core::{CloudStats, Error, PointCloud3};
+
+/// Shown after `zeroset info --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  zeroset info samples/bunny_2k.xyzn
+  zeroset info scan.ply
+  zeroset info points.dat --format csv
+  zeroset info geology/greenstone/SandStone_Points.csv
+
+NaN and infinite values do not stop the report: they are counted and the first is named
+(record, line, field).";
+
+/// Arguments of `zeroset info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The point-cloud file: .ply (ascii or binary), .xyz/.xyzn/.txt/.pts (x y z [nx ny nz]
+    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table).
+    pub file: PathBuf,
+
+    /// Read the file as this format instead of detecting it from the extension and header.
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+}
+
+/// The `--format` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// Stanford PLY.
+    Ply,
+    /// Text, one point per line.
+    Xyz,
+    /// CSV with a header row.
+    Csv,
+    /// A GemPy surface-points or orientations table.
+    Gempy,
+}
+
+impl From<FormatArg> for Format {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Ply => Format::Ply,
+            FormatArg::Xyz => Format::Xyz,
+            FormatArg::Csv => Format::Csv,
+            FormatArg::Gempy => Format::GemPy,
+        }
+    }
+}
+
+/// Reads the file and prints the report on stdout.
+pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    let report = report(args)?;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(report.as_bytes()).and_then(|()| out.flush()) {
+        // `zeroset info f | head` closes the pipe early: not an error.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.context("cannot write to stdout"),
+    }
+}
+
+/// The report as text.
+fn report(args: &InfoArgs) -> anyhow::Result<String> {
+    let path = &args.file;
+    let format = match args.format {
+        Some(f) => f.into(),
+        None => io::detect_format(path).context("cannot tell the file's format")?,
+    };
+    let options = ReadOptions::default().with_format(format);
+    // Read strictly first, so that a non-finite value is named with its line; then read again
+    // accepting it, to count them all.
+    let (cloud, first_non_finite) = match io::read_point_cloud_with(path, &options) {
+        Ok(cloud) => (cloud, None),
+        Err(e @ Error::NonFinite { .. }) => {
+            let cloud = io::read_point_cloud_with(path, &options.with_allow_non_finite(true))
+                .context("cannot read point cloud")?;
+            (cloud, Some(e))
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context("cannot read point cloud")),
+    };
+    let geology = (format == Format::GemPy).then(|| gempy::read_gempy_file(path));
+
+    let mut s = String::new();
+    let stats = cloud.stats();
+    line(&mut s, "file", &path.display().to_string());
+    line(&mut s, "format", format.name());
+    let n = stats.count;
+    line(&mut s, "points", &format!("{n} point{}", plural(n)));
+    write_bounds(&mut s, &cloud);
+    write_normals(&mut s, &stats);
+    write_non_finite(&mut s, &stats, first_non_finite.as_ref());
+    let dup = stats.duplicate_points;
+    line(
+        &mut s,
+        "duplicates",
+        &if dup == 0 {
+            "none".to_owned()
+        } else {
+            format!("{dup} point{} repeat an earlier position", plural(dup))
+        },
+    );
+    match geology {
+        None => {}
+        Some(Ok(data)) => write_formations(&mut s, &data),
+        Some(Err(e)) => line(&mut s, "formations", &format!("not listed: {e}")),
+    }
+    Ok(s)
+}
+
+const LABEL_WIDTH: usize = 12;
+
+fn line(s: &mut String, label: &str, value: &str) {
+    let label = format!("{label}:");
+    let _ = writeln!(s, "{label:<LABEL_WIDTH$} {value}");
+}
+
+/// A continuation line, aligned under the values.
+fn more(s: &mut String, value: &str) {
+    let _ = writeln!(s, "{:<LABEL_WIDTH$} {value}", "");
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
+fn write_bounds(s: &mut String, cloud: &PointCloud3) {
+    match cloud.bounds() {
+        None => line(s, "bounds", "none (no finite point)"),
+        Some(b) => {
+            line(s, "bounds", &format!("min {}", point(b.min())));
+            more(s, &format!("max {}", point(b.max())));
+            more(
+                s,
+                &format!("extent {}, diagonal {}", point(b.extent()), g(b.diagonal())),
+            );
+        }
+    }
+}
+
+fn write_normals(s: &mut String, stats: &CloudStats<3>) {
+    if !stats.has_normals {
+        line(s, "normals", "no");
+        return;
+    }
+    let bad = stats.non_unit_normals;
+    let mut text = format!(
+        "yes; {bad} not unit length (tolerance {})",
+        g(CloudStats::<3>::UNIT_TOLERANCE)
+    );
+    if let Some((lo, hi)) = stats.normal_length_range {
+        let _ = write!(text, "; lengths from {lo:.7} to {hi:.7}");
+    }
+    line(s, "normals", &text);
+}
+
+fn write_non_finite(s: &mut String, stats: &CloudStats<3>, first: Option<&Error>) {
+    let (p, n) = (stats.non_finite_positions, stats.non_finite_normals);
+    if p == 0 && n == 0 {
+        line(s, "non-finite", "none");
+        return;
+    }
+    let mut text = format!("{p} position{}", plural(p));
+    if stats.has_normals {
+        let _ = write!(text, ", {n} normal{}", plural(n));
+    }
+    text.push_str(" with NaN or infinite values");
+    line(s, "non-finite", &text);
+    if let Some(Error::NonFinite {
+        record,
+        line: file_line,
+        field,
+        value,
+        ..
+    }) = first
+    {
+        let at = file_line
+            .map(|l| format!(" (line {l})"))
+            .unwrap_or_default();
+        more(s, &format!("first: record {record}{at}, {field} = {value}"));
+    }
+}
+
+fn write_formations(s: &mut String, data: &GeoModelData) {
+    let (table, count): (&str, fn(&gempy::FormationCount) -> usize) =
+        if data.orientations.is_empty() {
+            ("surface points", |c| c.surface_points)
+        } else {
+            ("orientations", |c| c.orientations)
+        };
+    let counts = data.formation_counts();
+    line(
+        s,
+        "formations",
+        &format!("{} ({table} per formation)", counts.len()),
+    );
+    let width = counts.iter().map(|c| c.name.len()).max().unwrap_or(0);
+    for c in &counts {
+        more(s, &format!("{:<width$}  {:>5}", c.name, count(c)));
+    }
+}
+
+/// `(x, y, z)` with 7 significant digits.
+fn point(p: [f64; 3]) -> String {
+    format!("({}, {}, {})", g(p[0]), g(p[1]), g(p[2]))
+}
+
+/// A number with 7 significant digits, like C's `%.7g`.
+fn g(v: f64) -> String {
+    const DIGITS: i32 = 7;
+    if v == 0.0 {
+        return "0".to_owned();
+    }
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    let exp = v.abs().log10().floor() as i32;
+    if (-4..DIGITS).contains(&exp) {
+        let decimals = usize::try_from(DIGITS - 1 - exp).unwrap_or(0);
+        trim_zeros(format!("{v:.decimals$}"))
+    } else {
+        let text = format!("{v:.prec$e}", prec = (DIGITS - 1) as usize);
+        match text.split_once('e') {
+            Some((mantissa, exponent)) => format!("{}e{exponent}", trim_zeros(mantissa.into())),
+            None => text,
+        }
+    }
+}
+
+fn trim_zeros(text: String) -> String {
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        text
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::g;
+
+    #[test]
+    fn seven_significant_digits() {
+        assert_eq!(g(0.0), "0");
+        assert_eq!(g(-0.0), "0");
+        assert_eq!(g(1.0), "1");
+        assert_eq!(g(-0.094668), "-0.094668");
+        assert_eq!(g(0.09468989819288254), "0.0946899");
+        assert_eq!(g(745312.75), "745312.8");
+        assert_eq!(g(6916017.0), "6916017");
+        assert_eq!(g(1e-4), "0.0001");
+        assert_eq!(g(1.5e-7), "1.5e-7");
+        assert_eq!(g(1.0e10), "1e10");
+        assert_eq!(g(f64::NAN), "NaN");
+    }
+}

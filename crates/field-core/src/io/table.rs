@@ -1,0 +1,218 @@
+//! CSV with a header row, shared by plain point tables and GemPy tables.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use csv::{ErrorKind, StringRecord, Trim};
+
+use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, malformed, open_nonempty};
+use crate::error::{Error, Result};
+
+/// A CSV file being read row by row, with its header trimmed.
+pub(super) struct Table {
+    path: PathBuf,
+    header: Vec<String>,
+    reader: csv::Reader<File>,
+    records: usize,
+}
+
+/// One data row.
+pub(super) struct Row {
+    /// 0-based index among data rows.
+    pub(super) record: usize,
+    /// 1-based line where the row starts.
+    pub(super) line: usize,
+    fields: StringRecord,
+}
+
+impl Table {
+    /// Opens a CSV file and reads its header; `#` lines are comments, fields are trimmed, and
+    /// every row must have as many fields as the header.
+    pub(super) fn open(path: &Path) -> Result<Self> {
+        let (file, _) = open_nonempty(path)?;
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(Trim::All)
+            .comment(Some(b'#'))
+            .flexible(false)
+            .from_reader(file);
+        let header = reader
+            .headers()
+            .map_err(|e| csv_error(path, e))?
+            .iter()
+            .enumerate()
+            // Spreadsheets often start UTF-8 files with a byte-order mark.
+            .map(|(i, h)| {
+                if i == 0 {
+                    h.trim_start_matches('\u{feff}')
+                } else {
+                    h
+                }
+            })
+            .map(|h| h.trim().to_owned())
+            .collect();
+        Ok(Self {
+            path: path.to_owned(),
+            header,
+            reader,
+            records: 0,
+        })
+    }
+
+    /// The file.
+    pub(super) fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The trimmed column names.
+    pub(super) fn header(&self) -> &[String] {
+        &self.header
+    }
+
+    /// The first column named (case-insensitively) by one of `names`, in the order of `names`.
+    pub(super) fn find(&self, names: &[&str]) -> Option<usize> {
+        find_column(&self.header, names)
+    }
+
+    /// [`Table::find`], or [`Error::MissingColumn`] naming `column`.
+    pub(super) fn require(&self, names: &[&str], column: &str) -> Result<usize> {
+        self.find(names).ok_or_else(|| self.missing(column))
+    }
+
+    /// [`Error::MissingColumn`] for `column`, quoting the header.
+    pub(super) fn missing(&self, column: &str) -> Error {
+        Error::MissingColumn {
+            path: self.path.clone(),
+            column: column.to_owned(),
+            header: self.header.join(","),
+        }
+    }
+
+    /// The next data row, or `None` at the end.
+    pub(super) fn next_row(&mut self) -> Result<Option<Row>> {
+        let mut fields = StringRecord::new();
+        let more = self
+            .reader
+            .read_record(&mut fields)
+            .map_err(|e| csv_error(&self.path, e))?;
+        if !more {
+            return Ok(None);
+        }
+        let line = fields
+            .position()
+            .map_or(0, |p| usize::try_from(p.line()).unwrap_or(usize::MAX));
+        let record = self.records;
+        self.records += 1;
+        Ok(Some(Row {
+            record,
+            line,
+            fields,
+        }))
+    }
+
+    /// The text in column `col` of `row`.
+    pub(super) fn text<'r>(&self, row: &'r Row, col: usize) -> &'r str {
+        row.fields.get(col).unwrap_or_default()
+    }
+
+    /// The number in column `col` of `row`; NaN and infinities parse (the caller checks them).
+    pub(super) fn number(&self, row: &Row, col: usize) -> Result<f64> {
+        let text = self.text(row, col);
+        let name = &self.header[col];
+        if text.is_empty() {
+            return Err(malformed(
+                &self.path,
+                Some(row.line),
+                format!("empty value in column '{name}'"),
+            ));
+        }
+        super::parse_number(text).ok_or_else(|| {
+            malformed(
+                &self.path,
+                Some(row.line),
+                format!("not a number in column '{name}': '{text}'"),
+            )
+        })
+    }
+
+    /// Reads columns `cols` of `row` as numbers.
+    pub(super) fn numbers<const N: usize>(&self, row: &Row, cols: [usize; N]) -> Result<[f64; N]> {
+        let mut out = [0.0; N];
+        for (o, c) in out.iter_mut().zip(cols) {
+            *o = self.number(row, c)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The first column of `header` named (case-insensitively) by one of `names`.
+pub(super) fn find_column(header: &[String], names: &[&str]) -> Option<usize> {
+    names
+        .iter()
+        .find_map(|n| header.iter().position(|h| h.eq_ignore_ascii_case(n)))
+}
+
+/// The trimmed header of a CSV file.
+pub(super) fn read_header(path: &Path) -> Result<Vec<String>> {
+    Ok(Table::open(path)?.header)
+}
+
+/// Maps a `csv` error to [`Error::Io`] or [`Error::Malformed`] with the line.
+fn csv_error(path: &Path, e: csv::Error) -> Error {
+    let line = e
+        .position()
+        .map(|p| usize::try_from(p.line()).unwrap_or(usize::MAX));
+    let reason = match e.kind() {
+        ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!("found {len} fields, expected {expected_len} as in the header"),
+        ErrorKind::Utf8 { err, .. } => format!("invalid UTF-8 in field {}", err.field() + 1),
+        ErrorKind::Io(_) => match e.into_kind() {
+            ErrorKind::Io(source) => {
+                return Error::Io {
+                    path: path.to_owned(),
+                    source,
+                };
+            }
+            _ => unreachable!("kind checked above"),
+        },
+        _ => e.to_string(),
+    };
+    malformed(path, line, reason)
+}
+
+/// Reads a CSV point table: columns `x y z` and optionally `nx ny nz` (any case).
+pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+    let mut table = Table::open(path)?;
+    let pos = [
+        table.require(&["x"], "x")?,
+        table.require(&["y"], "y")?,
+        table.require(&["z"], "z")?,
+    ];
+    let nrm = [
+        table.find(&["nx"]),
+        table.find(&["ny"]),
+        table.find(&["nz"]),
+    ];
+    let nrm = match nrm {
+        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+        [None, None, None] => None,
+        _ => {
+            let missing = nrm.iter().position(Option::is_none).unwrap_or(0);
+            return Err(table.missing(NORMAL_FIELDS[missing]));
+        }
+    };
+    let mut positions = Vec::new();
+    let mut normals = nrm.map(|_| Vec::new());
+    while let Some(row) = table.next_row()? {
+        let p = table.numbers(&row, pos)?;
+        check.check(row.record, Some(row.line), &POSITION_FIELDS, &p)?;
+        positions.push(p);
+        if let (Some(cols), Some(normals)) = (nrm, normals.as_mut()) {
+            let n = table.numbers(&row, cols)?;
+            check.check(row.record, Some(row.line), &NORMAL_FIELDS, &n)?;
+            normals.push(n);
+        }
+    }
+    Ok((positions, normals))
+}

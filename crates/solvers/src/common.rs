@@ -1,0 +1,215 @@
+//! What every solver shares: input checks, the residual report, iteration parameters and
+//! progress reporting.
+
+use std::ops::ControlFlow;
+use std::sync::Arc;
+use std::time::Instant;
+
+use zeroset_field_core::lsq::{
+    LinearOperator, LsqMatrix, Monitor, Progress, SolveError, SolveInfo, Stage,
+};
+
+use crate::kernels::norm2;
+use crate::operator::Prepared;
+use crate::precond::Preconditioner;
+
+/// Checks `b` against `A` and prepares `A`. Returns the prepared matrix.
+pub(crate) fn prepare<'a>(a: LsqMatrix<'a>, b: &[f64]) -> Result<Prepared<'a>, SolveError> {
+    let (m, _) = a.shape();
+    if b.len() != m {
+        return Err(SolveError::ShapeMismatch {
+            what: "right-hand side b",
+            expected: m,
+            got: b.len(),
+        });
+    }
+    if let Some((index, &value)) = b.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(SolveError::NonFinite {
+            what: "right-hand side",
+            index,
+            value,
+        });
+    }
+    Prepared::new(a)
+}
+
+/// `(‖b − Ax‖/‖b‖, ‖Aᵀ(b − Ax)‖/(‖A‖ ‖b − Ax‖))`, measured exactly.
+pub(crate) fn residuals(a: &Prepared<'_>, a_norm: f64, x: &[f64], b: &[f64]) -> (f64, f64) {
+    let (m, n) = a.shape();
+    let mut r = vec![0.0; m];
+    a.apply(x, &mut r);
+    r.iter_mut().zip(b).for_each(|(ri, bi)| *ri = bi - *ri);
+    let mut atr = vec![0.0; n];
+    a.apply_transpose(&r, &mut atr);
+    let (rn, bn) = (norm2(&r), norm2(b));
+    let rel = if bn > 0.0 { rn / bn } else { rn };
+    let normal = if rn > 0.0 && a_norm > 0.0 {
+        norm2(&atr) / (a_norm * rn)
+    } else {
+        0.0
+    };
+    (rel, normal)
+}
+
+/// Builds the report after a solve: residuals are re-measured on the original `A`, so every
+/// solver's report means the same thing.
+pub(crate) fn finish(
+    solver: &'static str,
+    a: &Prepared<'_>,
+    x: Vec<f64>,
+    b: &[f64],
+    iterations: usize,
+    start: Instant,
+    details: Vec<(&'static str, f64)>,
+) -> zeroset_field_core::lsq::Solution {
+    let a_norm = a.norm_estimate();
+    let (rel, normal) = residuals(a, a_norm, &x, b);
+    let mut info = SolveInfo::new(solver, iterations, rel, normal, start.elapsed());
+    info.details = details;
+    zeroset_field_core::lsq::Solution { x, info }
+}
+
+/// Parameters shared by the iterative least-squares solvers (CGLS, LSQR).
+///
+/// The stopping rule is Paige and Saunders': stop when
+/// `‖r‖ ≤ btol·‖b‖ + atol·‖A‖·‖x‖` (a compatible system is solved) or when
+/// `‖Aᵀr‖ ≤ atol·‖A‖·‖r‖` (a least-squares solution is found).
+#[derive(Clone, Debug)]
+pub struct IterativeParams {
+    /// Relative accuracy of `A` (default `1e-10`).
+    pub atol: f64,
+    /// Relative accuracy of `b` (default `1e-10`).
+    pub btol: f64,
+    /// Iteration limit; `None` means `max(2n, 100)`.
+    pub max_iterations: Option<usize>,
+    /// A right preconditioner `M`: the solver works on `A M⁻¹` and returns `x = M⁻¹ y`.
+    pub preconditioner: Option<Arc<dyn Preconditioner>>,
+    /// Progress callback, called every iteration; it may cancel.
+    pub monitor: Option<Monitor>,
+}
+
+impl Default for IterativeParams {
+    fn default() -> Self {
+        Self {
+            atol: 1e-10,
+            btol: 1e-10,
+            max_iterations: None,
+            preconditioner: None,
+            monitor: None,
+        }
+    }
+}
+
+impl IterativeParams {
+    /// Sets `atol = btol = tol`.
+    pub fn with_tolerance(mut self, tol: f64) -> Self {
+        self.atol = tol;
+        self.btol = tol;
+        self
+    }
+
+    /// Sets the iteration limit.
+    pub fn with_max_iterations(mut self, max: usize) -> Self {
+        self.max_iterations = Some(max);
+        self
+    }
+
+    /// Sets the right preconditioner.
+    pub fn with_preconditioner(mut self, p: Arc<dyn Preconditioner>) -> Self {
+        self.preconditioner = Some(p);
+        self
+    }
+
+    /// Sets the progress callback.
+    pub fn with_monitor(mut self, m: Monitor) -> Self {
+        self.monitor = Some(m);
+        self
+    }
+
+    pub(crate) fn limit(&self, n: usize) -> usize {
+        self.max_iterations.unwrap_or((2 * n).max(100))
+    }
+}
+
+/// Default relative pivot threshold of the normal-equation solvers: a pivot (`u_kk` or `l_kk²`)
+/// at or below `τ·(AᵀA)_kk` marks column `k` as dependent.
+pub const NORMAL_RANK_TOLERANCE: f64 = 1e-12;
+
+/// Parameters shared by the direct solvers.
+#[derive(Clone, Debug, Default)]
+pub struct DirectParams {
+    /// Relative pivot threshold below which a column counts as dependent; `None` picks a
+    /// default suited to the factorisation (documented on each solver).
+    pub rank_tolerance: Option<f64>,
+    /// Progress callback, called between stages (analyse, factorise, solve); it may cancel.
+    pub monitor: Option<Monitor>,
+}
+
+impl DirectParams {
+    /// Sets the rank tolerance.
+    pub fn with_rank_tolerance(mut self, tol: f64) -> Self {
+        self.rank_tolerance = Some(tol);
+        self
+    }
+
+    /// Sets the progress callback.
+    pub fn with_monitor(mut self, m: Monitor) -> Self {
+        self.monitor = Some(m);
+        self
+    }
+}
+
+/// Reports a direct solver's stage to the monitor; `Err(Cancelled)` if it says stop.
+pub(crate) fn stage(
+    monitor: &Option<Monitor>,
+    solver: &'static str,
+    stage: Stage,
+    done: usize,
+) -> Result<(), SolveError> {
+    report(monitor, solver, stage, done, 3, f64::NAN, f64::NAN)
+}
+
+/// Reports progress; `Err(Cancelled)` if the monitor says stop.
+pub(crate) fn report(
+    monitor: &Option<Monitor>,
+    solver: &'static str,
+    stage: Stage,
+    iteration: usize,
+    max_iterations: usize,
+    rel_residual: f64,
+    rel_normal_residual: f64,
+) -> Result<(), SolveError> {
+    if let Some(m) = monitor {
+        let p = Progress::new(
+            solver,
+            stage,
+            iteration,
+            max_iterations,
+            rel_residual,
+            rel_normal_residual,
+        );
+        if let ControlFlow::Break(()) = m.report(&p) {
+            return Err(SolveError::Cancelled {
+                iterations: iteration,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The error for an iterative solver that ran out of iterations, with exact residuals and the
+/// last iterate.
+pub(crate) fn no_convergence(
+    a: &Prepared<'_>,
+    x: Vec<f64>,
+    b: &[f64],
+    iterations: usize,
+) -> SolveError {
+    let (rel_residual, rel_normal_residual) = residuals(a, a.norm_estimate(), &x, b);
+    SolveError::NoConvergence {
+        iterations,
+        rel_residual,
+        rel_normal_residual,
+        x,
+    }
+}

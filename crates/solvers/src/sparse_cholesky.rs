@@ -82,6 +82,9 @@ fn factorization_error(solver: &'static str, e: impl std::fmt::Debug) -> SolveEr
 
 const NAME: &str = "sparse-cholesky";
 
+/// What a non-positive pivot is replaced by during factorisation (then reported).
+const TINY_PIVOT: f64 = 1e-200;
+
 /// `Aᵀ` as compressed columns: `A`'s compressed rows, reinterpreted.
 fn transpose_view<'r>(
     rows: &'r Compressed<'_>,
@@ -241,16 +244,21 @@ impl NormalAnalysis {
                     &mut l_val,
                     ata,
                     Side::Lower,
-                    LltRegularization::default(),
+                    // A non-positive pivot must not stop the factorisation: faer's error index
+                    // is not in a documented numbering. Replace it by a tiny value instead,
+                    // which the pivot check below then finds in factor order and names.
+                    LltRegularization {
+                        dynamic_regularization_delta: TINY_PIVOT,
+                        dynamic_regularization_epsilon: TINY_PIVOT,
+                    },
                     par,
                     MemStack::new(&mut buf),
                     Default::default(),
                 )
                 .map_err(|e| match e {
-                    DenseLltError::NonPositivePivot { index } => SolveError::RankDeficient {
-                        column: perm_fwd[index],
-                        pivot: 0.0,
-                        threshold: tau * diag[perm_fwd[index]],
+                    DenseLltError::NonPositivePivot { index } => SolveError::Factorization {
+                        solver: NAME,
+                        reason: format!("non-positive pivot {index} despite regularisation"),
                     },
                 })?;
             stage(monitor, NAME, Stage::Solve, 2)?;
@@ -267,7 +275,8 @@ impl NormalAnalysis {
         for (k, lkk) in self.factor_diagonal(&l_val).into_iter().enumerate() {
             let column = perm_fwd[k];
             let pivot = lkk * lkk;
-            let threshold = tau * diag[column];
+            // An empty column has (AᵀA)_kk = 0; its regularised pivot is caught by the floor.
+            let threshold = (tau * diag[column]).max(TINY_PIVOT);
             if pivot <= threshold || !pivot.is_finite() {
                 return Err(SolveError::RankDeficient {
                     column,

@@ -7,10 +7,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod demo;
 mod info;
 
 const EXAMPLES: &str = "\
 Examples:
+  zeroset demo                                 the main job on built-in sample data
   zeroset info samples/bunny_2k.xyzn           describe the sample point cloud
   zeroset info scan.ply                        PLY, ascii or binary
   zeroset info points.dat --format csv         read a file whose extension says nothing
@@ -34,12 +36,16 @@ enum Command {
     /// non-finite values, and GemPy formations.
     #[command(after_help = info::EXAMPLES)]
     Info(info::InfoArgs),
-    // Further subcommands go here.
+    /// Run the main job on built-in sample data: describe the bundled point cloud, then solve a
+    /// restoration least-squares problem with every solver and compare them.
+    #[command(after_help = demo::EXAMPLES)]
+    Demo(demo::DemoArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Demo(args) => demo::run(&args),
     }
 }
 

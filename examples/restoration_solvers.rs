@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use zeroset::core::lsq::{LeastSquaresSolver, LsqMatrix};
+use zeroset::solvers::kernels::max_abs_diff;
 use zeroset::solvers::{self, IterativeParams, problems::protrusion_problem};
 
 struct Args {
@@ -128,11 +129,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     reference = Some(s.x.clone());
                     0.0
                 }
-                Some(r) => r
-                    .iter()
-                    .zip(&s.x)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max),
+                Some(r) => max_abs_diff(r, &s.x),
             };
             let ms = median(times).as_secs_f64() * 1e3;
             csv.push_str(&format!(

@@ -10,6 +10,7 @@ use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix};
+use zeroset_solvers::kernels::max_abs_diff;
 use zeroset_solvers::problems::protrusion_problem;
 use zeroset_solvers::{
     Cgls, DenseQr, DirichletLaplacian, IterativeParams, Lsqr, NormalLu, Pcg, PcgParams,
@@ -124,11 +125,7 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
                 reference = Some(s.x.clone());
                 0.0
             }
-            Some(r) => r
-                .iter()
-                .zip(&s.x)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max),
+            Some(r) => max_abs_diff(r, &s.x),
         };
         spinner.suspend(|| {
             println!(

@@ -103,50 +103,28 @@ pub fn central_difference_gradient<const D: usize, F: ScalarField<D> + ?Sized>(
     })
 }
 
-impl<const D: usize, F: ScalarField<D> + ?Sized> ScalarField<D> for &F {
-    fn value(&self, p: &Point<D>) -> f64 {
-        (**self).value(p)
-    }
-    fn gradient(&self, p: &Point<D>) -> Point<D> {
-        (**self).gradient(p)
-    }
-    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
-        (**self).values(points, out)
-    }
-    fn bounds(&self) -> Option<Aabb<D>> {
-        (**self).bounds()
-    }
+/// Forwards every method through a pointer type, so that `&F`, `Box<F>` and `Arc<F>` are
+/// fields whenever `F` is (including `dyn ScalarField<D>`).
+macro_rules! forward_scalar_field {
+    ($($pointer:ty),*) => {$(
+        impl<const D: usize, F: ScalarField<D> + ?Sized> ScalarField<D> for $pointer {
+            fn value(&self, p: &Point<D>) -> f64 {
+                (**self).value(p)
+            }
+            fn gradient(&self, p: &Point<D>) -> Point<D> {
+                (**self).gradient(p)
+            }
+            fn values(&self, points: &[Point<D>], out: &mut [f64]) {
+                (**self).values(points, out)
+            }
+            fn bounds(&self) -> Option<Aabb<D>> {
+                (**self).bounds()
+            }
+        }
+    )*};
 }
 
-impl<const D: usize, F: ScalarField<D> + ?Sized> ScalarField<D> for Box<F> {
-    fn value(&self, p: &Point<D>) -> f64 {
-        (**self).value(p)
-    }
-    fn gradient(&self, p: &Point<D>) -> Point<D> {
-        (**self).gradient(p)
-    }
-    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
-        (**self).values(points, out)
-    }
-    fn bounds(&self) -> Option<Aabb<D>> {
-        (**self).bounds()
-    }
-}
-
-impl<const D: usize, F: ScalarField<D> + ?Sized> ScalarField<D> for std::sync::Arc<F> {
-    fn value(&self, p: &Point<D>) -> f64 {
-        (**self).value(p)
-    }
-    fn gradient(&self, p: &Point<D>) -> Point<D> {
-        (**self).gradient(p)
-    }
-    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
-        (**self).values(points, out)
-    }
-    fn bounds(&self) -> Option<Aabb<D>> {
-        (**self).bounds()
-    }
-}
+forward_scalar_field!(&F, Box<F>, std::sync::Arc<F>);
 
 /// `−f`: flips inside and outside. This is where a paper's positive-inside convention meets
 /// zeroset's negative-inside one.

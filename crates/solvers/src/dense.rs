@@ -30,14 +30,8 @@ fn dense_input<'p>(
     solver: &'static str,
     a: &'p Prepared<'_>,
 ) -> Result<std::borrow::Cow<'p, Mat<f64>>, SolveError> {
-    let (m, n) = a.shape();
-    if m < n {
-        return Err(SolveError::Underdetermined { nrows: m, ncols: n });
-    }
-    a.to_dense().ok_or(SolveError::Unsupported {
-        solver,
-        reason: "a matrix-free operator (it needs the entries of A)".into(),
-    })
+    a.require_direct(solver)?;
+    Ok(a.to_dense().expect("require_direct refused operators"))
 }
 
 fn column(b: &[f64]) -> Mat<f64> {

@@ -38,6 +38,14 @@ pub fn norm2(a: &[f64]) -> f64 {
     scale * dot(&scaled, &scaled).sqrt()
 }
 
+/// `max_i |aᵢ − bᵢ|`: how far two solutions are apart (0 for empty slices).
+pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 /// `y ← y + α x`.
 pub fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     y.par_chunks_mut(BLOCK)

@@ -101,9 +101,17 @@ pub(crate) enum Prepared<'a> {
     Operator(&'a dyn LinearOperator),
 }
 
+/// Compact, sorted compressed columns. faer admits unsorted inner indices (and column
+/// lengths apart from the pointers); faer's checked constructors, which the factorisations use,
+/// do not. Borrow when the input is already compact and sorted; otherwise copy each column,
+/// sorted, with repeated indices summed.
 fn compact_csc_col(a: faer::sparse::SparseColMatRef<'_, usize, f64>) -> Compressed<'_> {
     let s = a.symbolic();
-    if s.col_nnz().is_none() && s.col_ptr()[0] == 0 {
+    let sorted = (0..a.ncols()).all(|j| {
+        let rows = a.row_idx_of_col_raw(j);
+        rows.windows(2).all(|w| w[0] < w[1])
+    });
+    if sorted && s.col_nnz().is_none() && s.col_ptr()[0] == 0 {
         return Compressed {
             ptr: Cow::Borrowed(s.col_ptr()),
             idx: Cow::Borrowed(s.row_idx()),
@@ -113,9 +121,19 @@ fn compact_csc_col(a: faer::sparse::SparseColMatRef<'_, usize, f64>) -> Compress
     let mut ptr = vec![0];
     let mut idx = Vec::new();
     let mut val = Vec::new();
+    let mut column: Vec<(usize, f64)> = Vec::new();
     for j in 0..a.ncols() {
-        idx.extend(a.row_idx_of_col(j));
-        val.extend_from_slice(a.val_of_col(j));
+        column.clear();
+        column.extend(a.row_idx_of_col(j).zip(a.val_of_col(j).iter().copied()));
+        column.sort_by_key(|e| e.0);
+        for &(i, v) in &column {
+            if idx.len() > ptr[j] && idx.last() == Some(&i) {
+                *val.last_mut().expect("a previous entry") += v;
+            } else {
+                idx.push(i);
+                val.push(v);
+            }
+        }
         ptr.push(idx.len());
     }
     Compressed {
@@ -267,6 +285,24 @@ impl<'a> Prepared<'a> {
         };
         let s = SymbolicSparseColMat::new_checked(m, n, ptr, None, idx);
         Some(SparseColMat::new(s, val))
+    }
+
+    /// For a direct solver: `m ≥ n` and a matrix (not an operator).
+    ///
+    /// # Errors
+    /// [`SolveError::Underdetermined`] or [`SolveError::Unsupported`].
+    pub fn require_direct(&self, solver: &'static str) -> Result<(), SolveError> {
+        let (m, n) = self.shape();
+        if let Self::Operator(_) = self {
+            return Err(SolveError::Unsupported {
+                solver,
+                reason: "a matrix-free operator (it needs the entries of A)".into(),
+            });
+        }
+        if m < n {
+            return Err(SolveError::Underdetermined { nrows: m, ncols: n });
+        }
+        Ok(())
     }
 
     /// The transpose's compressed columns (= `A`'s compressed rows), for `AᵀA` products.

@@ -363,19 +363,13 @@ impl LeastSquaresSolver for SparseCholesky {
     fn solve(&self, a: LsqMatrix<'_>, b: &[f64]) -> Result<Solution, SolveError> {
         let start = Instant::now();
         let prepared = prepare(a, b)?;
-        let (m, n) = prepared.shape();
-        if m < n {
-            return Err(SolveError::Underdetermined { nrows: m, ncols: n });
-        }
+        prepared.require_direct(NAME)?;
         // Dense input goes through compressed storage like any other.
         let sparse_owned;
         let prepared = match prepared {
             p @ Prepared::Sparse { .. } => p,
             other => {
-                sparse_owned = other.to_csc().ok_or(SolveError::Unsupported {
-                    solver: NAME,
-                    reason: "a matrix-free operator (it needs the entries of A)".into(),
-                })?;
+                sparse_owned = other.to_csc().expect("require_direct refused operators");
                 Prepared::new(LsqMatrix::SparseCol(sparse_owned.as_ref()))?
             }
         };

@@ -44,14 +44,11 @@ impl LeastSquaresSolver for SparseQr {
         let start = Instant::now();
         let prepared = prepare(a, b)?;
         let (m, n) = prepared.shape();
-        if m < n {
-            return Err(SolveError::Underdetermined { nrows: m, ncols: n });
-        }
-        let csc = prepared.to_csc().ok_or(SolveError::Unsupported {
-            solver: NAME,
-            reason: "a matrix-free operator (it needs the entries of A)".into(),
-        })?;
-        let col_norms = prepared.column_norms().expect("matrix input");
+        prepared.require_direct(NAME)?;
+        let csc = prepared.to_csc().expect("require_direct refused operators");
+        let col_norms = prepared
+            .column_norms()
+            .expect("require_direct refused operators");
         let par = faer::get_global_parallelism();
 
         stage(&self.params.monitor, NAME, Stage::Analyze, 0)?;

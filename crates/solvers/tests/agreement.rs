@@ -501,3 +501,31 @@ fn underdetermined_systems_go_to_iterative_solvers() {
         .unwrap();
     assert!(s.info.rel_residual < 1e-10);
 }
+
+#[test]
+fn unsorted_sparse_columns_are_accepted_by_every_solver() {
+    use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+    // The manufactured matrix with each column's entries stored in reverse order.
+    let p = manufactured(5, 6, 6, 0.5);
+    let (m, n) = (p.a.nrows(), p.a.ncols());
+    let mut ptr = vec![0];
+    let (mut rows, mut vals) = (Vec::new(), Vec::new());
+    for j in 0..n {
+        let col: Vec<(usize, f64)> =
+            p.a.as_ref()
+                .row_idx_of_col(j)
+                .zip(p.a.val_of_col(j).iter().copied())
+                .collect();
+        for &(i, v) in col.iter().rev() {
+            rows.push(i);
+            vals.push(v);
+        }
+        ptr.push(rows.len());
+    }
+    let sym = SymbolicSparseColMatRef::new_unsorted_checked(m, n, &ptr, None, &rows);
+    let unsorted = SparseColMatRef::new(sym, &vals);
+    for s in all_solvers() {
+        let x = s.solve(LsqMatrix::SparseCol(unsorted), &p.b).unwrap().x;
+        assert!(max_rel_error(&x, &p.x) < 1e-8, "{}", s.name());
+    }
+}

@@ -10,6 +10,9 @@
 //! With `--write-mtx DIR` it also writes each solver's solution as
 //! `DIR/restoration_k{k}_x_{solver}.mtx`; `--csv FILE` writes the table as CSV.
 
+#[path = "common/mtx.rs"]
+mod mtx;
+
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -137,7 +140,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 label, s.info.iterations, s.info.rel_residual, s.info.rel_normal_residual, dx
             ));
             if let Some(dir) = &args.write_mtx {
-                write_vector(&dir.join(format!("restoration_k{k}_x_{label}.mtx")), &s.x)?;
+                mtx::write_vector(&dir.join(format!("restoration_k{k}_x_{label}.mtx")), &s.x)?;
             }
             println!(
                 "{:<6} {:<16} {:>11.2} {:>7} {:>11.2e} {:>11.2e} {:>11.2e}",
@@ -157,41 +160,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-fn write_vector(path: &std::path::Path, v: &[f64]) -> std::io::Result<()> {
-    use std::io::Write;
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(out, "%%MatrixMarket matrix array real general")?;
-    writeln!(out, "{} 1", v.len())?;
-    for x in v {
-        writeln!(out, "{x:.17e}")?;
-    }
-    Ok(())
-}
-
 fn write_problem(
     dir: &std::path::Path,
     k: usize,
     p: &solvers::problems::Problem,
 ) -> std::io::Result<()> {
-    use std::io::Write;
     std::fs::create_dir_all(dir)?;
-    let a = p.a.as_ref();
-    let (m, n) = (a.nrows(), a.ncols());
-    let mut out = std::io::BufWriter::new(std::fs::File::create(
-        dir.join(format!("restoration_k{k}_A.mtx")),
-    )?);
-    let nnz = a.symbolic().row_ptr()[m];
-    writeln!(out, "%%MatrixMarket matrix coordinate real general")?;
-    writeln!(
-        out,
-        "% zeroset protrusion-removal least-squares matrix, k={k}"
+    mtx::write_sparse(
+        &dir.join(format!("restoration_k{k}_A.mtx")),
+        p.a.as_ref(),
+        &format!("zeroset protrusion-removal least-squares matrix, k={k}"),
     )?;
-    writeln!(out, "{m} {n} {nnz}")?;
-    for i in 0..m {
-        for (j, v) in a.col_idx_of_row(i).zip(a.val_of_row(i)) {
-            writeln!(out, "{} {} {:.17e}", i + 1, j + 1, v)?;
-        }
-    }
-    out.flush()?;
-    write_vector(&dir.join(format!("restoration_k{k}_b.mtx")), &p.b)
+    mtx::write_vector(&dir.join(format!("restoration_k{k}_b.mtx")), &p.b)
 }

@@ -1,7 +1,20 @@
 //! # zeroset-bases
 //!
-//! Nothing here yet. This crate will hold the fitted field representations, each a
-//! [`Basis`](zeroset_field_core::basis::Basis) and a
+//! The fitted field representations, each a [`Basis`](zeroset_field_core::basis::Basis) and a
 //! [`ScalarField`](zeroset_field_core::field::ScalarField):
-//! radial basis functions with incremental constraints (Jiang–Turk), uniform tensor-product
-//! B-splines, multilevel low-rank splines (MRAS, Pan–Tong–Chen) and small neural fields.
+//!
+//! - [`bspline`] — uniform tensor-product B-splines (quadratic and cubic) on a grid, with exact
+//!   interpolation of grid samples (a parallel tridiagonal prefilter, mirror boundaries), analytic
+//!   gradients and Hessians, and the B-splines as a sparse [`Basis`](zeroset_field_core::basis::Basis).
+//! - [`tangent_plane`] — Hoppe et al.'s signed distance to the nearest sample's tangent plane
+//!   (optionally a weighted mean over `k` neighbours): no fit, a baseline (a field, not a basis).
+//! - [`field_file`] — the versioned, checksummed `.zsf` file of a B-spline field.
+//!
+//! Still to come: radial basis functions with incremental constraints (Jiang–Turk), multilevel
+//! low-rank splines (MRAS, Pan–Tong–Chen) and small neural fields.
+
+#![warn(missing_docs)]
+
+pub mod bspline;
+pub mod field_file;
+pub mod tangent_plane;

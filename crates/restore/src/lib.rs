@@ -1,6 +1,105 @@
 //! # zeroset-restore
 //!
-//! Nothing here yet. This crate will hold mask-based restoration of a scalar field
-//! (Ren–Fujita–Nakata): protrusion removal by a Laplace least-squares problem inside a box mask
-//! with Dirichlet and Neumann rows, and de-noising by coarse resampling and quadratic B-spline
-//! interpolation. The least-squares problems are solved by `zeroset-solvers`.
+//! Mask-based restoration of implicit surfaces (Ren–Fujita–Nakata 2022, "Interactive
+//! restoration of three-dimensional implicit surface with irregular parts"). A field is
+//! sampled on a grid; a box mask selects the part that went wrong; the samples inside are
+//! rewritten and the whole grid is interpolated by a C¹ quadratic B-spline
+//! ([`zeroset_bases::bspline`]), which is again a [`ScalarField`] — so restorations compose.
+//!
+//! - [`protrusion`] (§2.2): replace a protrusion by the least-squares solution of Laplace's
+//!   equation with the Dirichlet ring of the mask and a Neumann slope α across the face the
+//!   protrusion's base crosses. Exact and fast by default ([`laplace`]: a separable DST-I +
+//!   Givens QR solve, no iteration), or any [`LeastSquaresSolver`](zeroset_field_core::lsq::LeastSquaresSolver).
+//! - [`denoise`] (§2.3): resample the mask coarsely, interpolate, resample finely, interpolate.
+//!
+//! ```
+//! use zeroset_field_core::analytic::Sphere;
+//! use zeroset_field_core::geometry::Aabb;
+//! use zeroset_field_core::grid::Grid;
+//! use zeroset_field_core::mask::{BoxMask, Face, Side};
+//! use zeroset_restore::{denoise::Denoise, protrusion::Protrusion};
+//!
+//! let grid = Grid::cell_centered(Aabb::centered_cube(1.0)?, [20, 20, 20])?;
+//! let sphere = Sphere::new([0.0; 3], 0.6);
+//! let top = BoxMask::from_corners(&grid, [-0.3, -0.3, 0.4], [0.3, 0.3, 0.9])?;
+//! let side = BoxMask::from_corners(&grid, [0.3, -0.3, -0.3], [0.9, 0.3, 0.3])?;
+//! let once = Protrusion::new(Face::new(2, Side::Lower)).apply(&sphere, &grid, &top)?;
+//! let twice = Denoise::new([3, 3, 3]).apply(&once.field, &grid, &side)?;
+//! assert_eq!(twice.field.grid().counts(), [20, 20, 20]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! [`ScalarField`]: zeroset_field_core::field::ScalarField
+
+#![warn(missing_docs)]
+
+pub mod denoise;
+pub mod error;
+mod index;
+pub mod laplace;
+pub mod protrusion;
+
+pub use error::{RestoreError, Result};
+
+use zeroset_bases::bspline::BSplineField;
+use zeroset_field_core::grid::Grid;
+use zeroset_field_core::mask::BoxMask;
+
+/// A restored field and the report of the restoration that made it.
+#[derive(Debug, Clone)]
+pub struct Restored<const D: usize, R> {
+    /// The restored field: a quadratic B-spline (C¹) through the restored samples.
+    pub field: BSplineField<D>,
+    /// What the restoration did.
+    pub report: R,
+}
+
+/// Checks what every restoration needs: at least 3 cells per axis, one finite sample per grid
+/// point, a mask inside this grid that leaves something outside it.
+pub(crate) fn check_samples<const D: usize>(
+    grid: &Grid<D>,
+    f: &[f64],
+    mask: &BoxMask<D>,
+) -> Result<()> {
+    let counts = grid.counts();
+    for (axis, &c) in counts.iter().enumerate() {
+        if c < 3 {
+            return Err(zeroset_field_core::Error::GridTooSmall {
+                axis,
+                needed: 3,
+                got: c,
+            }
+            .into());
+        }
+    }
+    if f.len() != grid.len() {
+        return Err(zeroset_field_core::Error::ShapeMismatch {
+            what: "samples of the grid",
+            expected: grid.len(),
+            got: f.len(),
+        }
+        .into());
+    }
+    if let Some(index) = f.iter().position(|v| !v.is_finite()) {
+        return Err(RestoreError::NonFiniteSample {
+            index,
+            value: f[index],
+        });
+    }
+    let (lo, hi) = (mask.lo(), mask.hi());
+    for axis in 0..D {
+        if hi[axis] >= counts[axis] {
+            return Err(zeroset_field_core::Error::MaskIndexOutOfRange {
+                axis,
+                lo: lo[axis],
+                hi: hi[axis],
+                len: counts[axis],
+            }
+            .into());
+        }
+    }
+    if mask.len() == grid.len() {
+        return Err(RestoreError::MaskCoversGrid);
+    }
+    Ok(())
+}

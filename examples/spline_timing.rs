@@ -1,0 +1,200 @@
+//! Times the B-spline prefilter and evaluation on an `n³` grid, the set-up `PEERS.md` times
+//! scipy on (`spline_filter(order=2, mode='mirror')`, `map_coordinates(prefilter=False)` at 1M
+//! points), and optionally writes the data so that a Python script can run scipy on the very
+//! same input and compare.
+//!
+//! ```text
+//! cargo run --release --example spline_timing -- [--n 256] [--points 1000000] [--repeat 5]
+//!     [--mode mirror|reflect] [--order 2|3] [--write-dir DIR]
+//! ```
+//!
+//! The grid holds `sin(0.11 i)·cos(0.07 j) + sin(0.05 k + 0.02 i) + 0.1·u` with `u` uniform in
+//! `[−1, 1)` from a SplitMix64 stream seeded with 42; the points are continuous indices uniform in
+//! `[0, n−1]³` from the stream seeded with 43. Times are medians of `--repeat` runs after one
+//! warm-up; the prefilter is timed on a fresh copy of the grid each run (the copy is not timed).
+//! `--mode mirror` is `Boundary::WholeSample`, `--mode reflect` (or `grid-mirror`)
+//! `Boundary::HalfSample`.
+//!
+//! Prints one line `n=… points=… mode=… order=… threads=… prefilter_ms=… eval_ms=…`. With
+//! `--write-dir DIR` it writes raw little-endian f64 files (read them with `numpy.fromfile`):
+//! `DIR/grid.f64` (`n³`, C order), `DIR/coeffs.f64` (`n³`, C order), `DIR/points.f64` (`3 × P`,
+//! axis-major: all first coordinates, then all second, then all third — the `coordinates`
+//! array of `map_coordinates`) and `DIR/values.f64` (`P`).
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use zeroset::bases::bspline::{BSplineField, Boundary, Degree, prefilter};
+use zeroset::core::geometry::Aabb;
+use zeroset::core::grid::Grid;
+
+struct Args {
+    n: usize,
+    points: usize,
+    repeat: usize,
+    boundary: Boundary,
+    mode: String,
+    degree: Degree,
+    order: usize,
+    write_dir: Option<PathBuf>,
+}
+
+const USAGE: &str = "usage: spline_timing [--n 256] [--points 1000000] [--repeat 5] \
+[--mode mirror|reflect] [--order 2|3] [--write-dir DIR]";
+
+fn parse_args() -> Result<Args, String> {
+    let mut args = Args {
+        n: 256,
+        points: 1_000_000,
+        repeat: 5,
+        boundary: Boundary::WholeSample,
+        mode: "mirror".into(),
+        degree: Degree::Quadratic,
+        order: 2,
+        write_dir: None,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(flag) = it.next() {
+        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
+        match flag.as_str() {
+            "--n" => args.n = value()?.parse().map_err(|e| format!("--n: {e}"))?,
+            "--points" => args.points = value()?.parse().map_err(|e| format!("--points: {e}"))?,
+            "--repeat" => args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
+            "--mode" => {
+                args.mode = value()?;
+                args.boundary = match args.mode.as_str() {
+                    "mirror" => Boundary::WholeSample,
+                    "reflect" | "grid-mirror" => Boundary::HalfSample,
+                    other => return Err(format!("--mode: {other}: expected mirror or reflect")),
+                }
+            }
+            "--order" => {
+                args.order = value()?.parse().map_err(|e| format!("--order: {e}"))?;
+                args.degree = match args.order {
+                    2 => Degree::Quadratic,
+                    3 => Degree::Cubic,
+                    other => return Err(format!("--order: {other}: expected 2 or 3")),
+                }
+            }
+            "--write-dir" => args.write_dir = Some(value()?.into()),
+            "--help" | "-h" => return Err(USAGE.into()),
+            other => return Err(format!("unknown argument {other}\n{USAGE}")),
+        }
+    }
+    if args.n == 0 || args.repeat == 0 {
+        return Err("--n and --repeat must be positive".into());
+    }
+    Ok(args)
+}
+
+/// SplitMix64: a tiny seeded generator, so that the data is reproducible without extra crates.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v[v.len() / 2]
+}
+
+fn write_f64(path: &Path, values: impl IntoIterator<Item = f64>) -> std::io::Result<()> {
+    let bytes: Vec<u8> = values.into_iter().flat_map(f64::to_le_bytes).collect();
+    std::fs::write(path, bytes)
+}
+
+/// The thread count rayon uses: `RAYON_NUM_THREADS` if set, else the available parallelism.
+fn threads() -> usize {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .filter(|&t| t > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = parse_args()?;
+    let n = args.n;
+    let shape = [n, n, n];
+
+    let mut rng = SplitMix64(42);
+    let mut grid_values = vec![0.0; n * n * n];
+    for (l, v) in grid_values.iter_mut().enumerate() {
+        let (i, j, k) = ((l / (n * n)) as f64, ((l / n) % n) as f64, (l % n) as f64);
+        *v = (0.11 * i).sin() * (0.07 * j).cos()
+            + (0.05 * k + 0.02 * i).sin()
+            + 0.1 * (2.0 * rng.unit() - 1.0);
+    }
+    let mut rng = SplitMix64(43);
+    let hi = (n - 1) as f64;
+    let points: Vec<[f64; 3]> = (0..args.points)
+        .map(|_| std::array::from_fn(|_| hi * rng.unit()))
+        .collect();
+
+    // Prefilter: one warm-up, then the median of `repeat` runs on fresh copies.
+    let mut coefficients = Vec::new();
+    let mut times = Vec::with_capacity(args.repeat);
+    for r in 0..=args.repeat {
+        let mut data = grid_values.clone();
+        let start = Instant::now();
+        prefilter(&mut data, shape, args.degree, args.boundary)?;
+        let elapsed = start.elapsed();
+        if r > 0 {
+            times.push(elapsed);
+        }
+        coefficients = data;
+    }
+    let prefilter_time = median(times);
+
+    // Evaluation at continuous indices.
+    let grid = Grid::cell_centered(Aabb::new([0.0; 3], [1.0; 3])?, shape)?;
+    let field = BSplineField::from_coefficients(grid, coefficients, args.degree, args.boundary)?;
+    let mut values = vec![0.0; points.len()];
+    let mut times = Vec::with_capacity(args.repeat);
+    for r in 0..=args.repeat {
+        let start = Instant::now();
+        field.values_at_indices(&points, &mut values);
+        let elapsed = start.elapsed();
+        if r > 0 {
+            times.push(elapsed);
+        }
+    }
+    let eval_time = median(times);
+
+    println!(
+        "n={n} points={} mode={} order={} threads={} prefilter_ms={:.3} eval_ms={:.3}",
+        args.points,
+        args.mode,
+        args.order,
+        threads(),
+        prefilter_time.as_secs_f64() * 1e3,
+        eval_time.as_secs_f64() * 1e3,
+    );
+
+    if let Some(dir) = &args.write_dir {
+        std::fs::create_dir_all(dir)?;
+        write_f64(&dir.join("grid.f64"), grid_values.iter().copied())?;
+        write_f64(
+            &dir.join("coeffs.f64"),
+            field.coefficients().iter().copied(),
+        )?;
+        write_f64(
+            &dir.join("points.f64"),
+            (0..3).flat_map(|a| points.iter().map(move |p| p[a])),
+        )?;
+        write_f64(&dir.join("values.f64"), values.iter().copied())?;
+    }
+    Ok(())
+}

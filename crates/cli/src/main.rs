@@ -1,4 +1,4 @@
-//! `zeroset`: inspect point clouds and (later) run the fitting pipeline on them.
+//! `zeroset`: inspect point clouds, restore fields, and (later) run the whole pipeline on them.
 //!
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(&Args) -> anyhow::Result<()>`; `main` only parses, dispatches and reports errors.
@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod demo;
 mod info;
+mod restore;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -17,6 +18,9 @@ Examples:
   zeroset info scan.ply                        PLY, ascii or binary
   zeroset info points.dat --format csv         read a file whose extension says nothing
   zeroset info SandStone_Foliations.csv        a GemPy table: formations and counts
+  zeroset restore samples/bunny_2k.xyzn --mode protrusion \
+      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
+                                               remove the bunny's ears
   zeroset info --help                          more on one subcommand";
 
 /// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
@@ -40,12 +44,18 @@ enum Command {
     /// restoration least-squares problem with every solver and compare them.
     #[command(after_help = demo::EXAMPLES)]
     Demo(demo::DemoArgs),
+    /// Restore a field inside a box mask: remove a protrusion (least-squares Laplace with a
+    /// slope across the face it grows from) or de-noise (coarse resampling); writes a .zsf
+    /// field file.
+    #[command(after_help = restore::EXAMPLES)]
+    Restore(restore::RestoreArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Restore(args) => restore::run(&args),
     }
 }
 

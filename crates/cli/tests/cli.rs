@@ -166,3 +166,120 @@ fn gempy_table_lists_formations() {
     assert!(out.contains("Sand       1\n"), "{out}");
     assert!(out.contains("Shale      2\n"), "{out}");
 }
+
+const EARS: &str = "-0.095,0.145,-0.065:0.0,0.2,0.04";
+
+#[test]
+fn restore_removes_a_protrusion_then_denoises_the_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("no_ears.zsf");
+    let o = zeroset([
+        OsStr::new("restore"),
+        sample().as_os_str(),
+        OsStr::new("--mode"),
+        OsStr::new("protrusion"),
+        OsStr::new("--mask"),
+        OsStr::new(EARS),
+        OsStr::new("--face"),
+        OsStr::new("-y"),
+        OsStr::new("--alpha"),
+        OsStr::new("1"),
+        OsStr::new("-o"),
+        first.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("separable-dst"), "{}", stdout(&o));
+    let bytes = fs::read(&first).unwrap();
+    assert_eq!(&bytes[..8], b"ZSFIELD\0");
+    // The output is a field that the next restoration takes.
+    let second = dir.path().join("smooth.zsf");
+    let o = zeroset([
+        OsStr::new("restore"),
+        first.as_os_str(),
+        OsStr::new("--mode"),
+        OsStr::new("denoise"),
+        OsStr::new("--mask"),
+        OsStr::new("-0.05,0.05,-0.03:0.05,0.12,0.06"),
+        OsStr::new("--coarse"),
+        OsStr::new("6,6,4"),
+        OsStr::new("-o"),
+        second.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("field file"), "{}", stdout(&o));
+    // The input is untouched.
+    assert_eq!(fs::read(&first).unwrap(), bytes);
+}
+
+#[test]
+fn restore_refuses_bad_requests_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.zsf");
+    let run = |extra: &[&str]| {
+        let mut args: Vec<&OsStr> = vec![OsStr::new("restore"), sample_os()];
+        args.extend(extra.iter().map(OsStr::new));
+        args.extend([OsStr::new("-o"), out.as_os_str()]);
+        zeroset(args)
+    };
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "--mode",
+                "protrusion",
+                "--mask",
+                "-0.095,0.145,-0.065:0.0,0.5,0.04",
+            ],
+            "outside the bounding box",
+        ),
+        (
+            &[
+                "--mode",
+                "protrusion",
+                "--mask",
+                EARS,
+                "--face",
+                "-y",
+                "--alpha",
+                "inf",
+            ],
+            "alpha must be finite",
+        ),
+        (
+            &["--mode", "denoise", "--mask", EARS, "--coarse", "100,2,2"],
+            "coarse resolution 100",
+        ),
+        (&["--mode", "denoise", "--mask", EARS], "needs --coarse"),
+        (
+            &["--mode", "protrusion", "--mask", EARS, "--grid", "2,40,40"],
+            "at least 3 samples",
+        ),
+    ];
+    for (extra, expected) in cases {
+        let o = run(extra);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(expected), "{extra:?}: {}", stderr(&o));
+    }
+    assert!(!out.exists(), "a failed run must not leave an output");
+    // A corrupt field file is named as such.
+    let bad = dir.path().join("bad.zsf");
+    fs::write(&bad, b"ZSFIELD\0\x01\x00").unwrap();
+    let o = zeroset([
+        OsStr::new("restore"),
+        bad.as_os_str(),
+        OsStr::new("--mode"),
+        OsStr::new("denoise"),
+        OsStr::new("--mask"),
+        OsStr::new(EARS),
+        OsStr::new("--coarse"),
+        OsStr::new("2,2,2"),
+        OsStr::new("-o"),
+        out.as_os_str(),
+    ]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("truncated"), "{}", stderr(&o));
+}
+
+fn sample_os() -> &'static OsStr {
+    static SAMPLE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    SAMPLE.get_or_init(sample).as_os_str()
+}

@@ -1,0 +1,347 @@
+//! `zeroset restore`: mask-based restoration of a field (Ren–Fujita–Nakata) — protrusion
+//! removal or de-noising inside a box — written as a `.zsf` field file.
+//!
+//! The input is a field file (a previous `zeroset restore`, or any `.zsf`) or an oriented point
+//! cloud (PLY, xyzn, CSV…), which is turned into a field by Hoppe's tangent-plane distance
+//! averaged over nearby samples. The field is sampled on a grid, restored in the mask and
+//! interpolated by a quadratic B-spline; the result can be restored again.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use clap::{Args, ValueEnum};
+
+use zeroset_bases::bspline::BSplineField;
+use zeroset_bases::field_file::{is_field_file, read_field, write_field};
+use zeroset_bases::tangent_plane::TangentPlaneField;
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::{Aabb, Point};
+use zeroset_field_core::grid::Grid;
+use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
+use zeroset_field_core::mask::{BoxMask, Face, Side};
+use zeroset_restore::denoise::{Denoise, Resampling};
+use zeroset_restore::protrusion::{Convention, Protrusion};
+
+/// Shown after `zeroset restore --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  # remove the bunny's ears: the mask's bottom face (-y) is where they join the head
+  zeroset restore samples/bunny_2k.xyzn --mode protrusion \\
+      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
+  # flatter: a steeper slope across the face
+  zeroset restore samples/bunny_2k.xyzn --mode protrusion \\
+      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y --alpha 3 -o flat.zsf
+  # then smooth a region of the result (restorations compose)
+  zeroset restore no_ears.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
+      --coarse 6,6,4 -o smooth.zsf";
+
+/// Which restoration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// Replace a protrusion by a least-squares harmonic fill with a slope α across --face.
+    Protrusion,
+    /// Resample the mask coarsely (--coarse) and interpolate: removes jaggy noise.
+    Denoise,
+}
+
+/// Arguments of `zeroset restore`.
+#[derive(Debug, Args)]
+pub struct RestoreArgs {
+    /// A field file (.zsf) or an oriented point cloud (PLY, xyz/xyzn/pts, CSV).
+    pub input: PathBuf,
+
+    /// The box to restore, two opposite corners in world coordinates: x0,y0,z0:x1,y1,z1.
+    #[arg(long, value_parser = parse_mask, allow_hyphen_values = true)]
+    pub mask: [[f64; 3]; 2],
+
+    /// protrusion or denoise.
+    #[arg(long, value_enum)]
+    pub mode: Mode,
+
+    /// Protrusion: the mask face the protrusion's base crosses (+x, -x, +y, -y, +z, -z).
+    /// Without it the mask is filled harmonically from its boundary (no slope condition).
+    #[arg(long, value_parser = parse_face, allow_hyphen_values = true)]
+    pub face: Option<Face>,
+
+    /// Protrusion: the field's slope entering the mask across --face, in field units per unit
+    /// length (default: the field's own mean slope there). Larger = flatter.
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha: Option<f64>,
+
+    /// The data are positive inside (zeroset's convention is negative inside).
+    #[arg(long)]
+    pub positive_inside: bool,
+
+    /// Denoise: coarse cells per axis inside the mask, m,n,l (fewer = smoother).
+    #[arg(long, value_parser = parse_counts)]
+    pub coarse: Option<[usize; 3]>,
+
+    /// Denoise: sample the field at the coarse points (the paper's rule) instead of averaging
+    /// the fine samples over each coarse cell.
+    #[arg(long)]
+    pub point_resampling: bool,
+
+    /// Grid cells per axis, L,M,N (default: the field file's grid, or 64 along the longest
+    /// axis of a point cloud's box with near-cubic cells).
+    #[arg(long, value_parser = parse_counts)]
+    pub grid: Option<[usize; 3]>,
+
+    /// Point clouds: the number of nearest samples averaged by the tangent-plane field.
+    #[arg(long, default_value_t = 8)]
+    pub neighbours: usize,
+
+    /// Force the point-cloud format (ply, xyz, xyzn, pts, csv) when the extension says nothing.
+    #[arg(long)]
+    pub format: Option<String>,
+
+    /// The output field file (.zsf), written atomically.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Runs `zeroset restore`.
+pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
+    if args.output.extension().and_then(|e| e.to_str()) != Some("zsf") {
+        bail!(
+            "the output {} must be a .zsf field file",
+            args.output.display()
+        );
+    }
+    if same_file(&args.input, &args.output) {
+        bail!(
+            "the output would overwrite the input {}; choose another name",
+            args.input.display()
+        );
+    }
+    let start = Instant::now();
+    let (field, default_grid) = load(args)?;
+    let grid = match args.grid {
+        Some(counts) => {
+            Grid::cell_centered(default_grid.bounds(), counts).context("building the --grid")?
+        }
+        None => default_grid,
+    };
+    let [a, b] = args.mask;
+    let mask = BoxMask::from_corners(&grid, a, b).with_context(|| {
+        let bb = grid.bounds();
+        format!(
+            "the mask must lie in the field's box {:?} .. {:?}",
+            bb.min(),
+            bb.max()
+        )
+    })?;
+    let counts = grid.counts();
+    println!(
+        "grid {}×{}×{} cells over {:?} .. {:?}; mask cells {:?} ..= {:?} ({} cells)",
+        counts[0],
+        counts[1],
+        counts[2],
+        grid.bounds().min(),
+        grid.bounds().max(),
+        mask.lo(),
+        mask.hi(),
+        mask.len()
+    );
+    let restored: BSplineField<3> = match args.mode {
+        Mode::Protrusion => {
+            if args.coarse.is_some() {
+                bail!("--coarse applies to --mode denoise");
+            }
+            let params = Protrusion {
+                face: args.face,
+                alpha: args.alpha,
+                convention: if args.positive_inside {
+                    Convention::PositiveInside
+                } else {
+                    Convention::NegativeInside
+                },
+                ..Protrusion::default()
+            };
+            if args.face.is_none() {
+                println!("no --face: filling the mask harmonically from its boundary");
+            }
+            let out = params
+                .apply(field.as_ref(), &grid, &mask)
+                .context("protrusion removal")?;
+            let r = &out.report;
+            if let Some(alpha) = r.alpha {
+                println!(
+                    "alpha {alpha:.4}{}",
+                    if args.alpha.is_none() {
+                        " (the field's mean slope across the face)"
+                    } else {
+                        ""
+                    }
+                );
+            }
+            println!(
+                "{} unknowns, {} equations, solver {}: assembly {:.1} ms, solve {:.1} ms, \
+                 spline {:.1} ms; relative residual {:.3e}",
+                r.unknowns,
+                r.rows,
+                r.solve.solver,
+                r.assembly.as_secs_f64() * 1e3,
+                r.solve.elapsed.as_secs_f64() * 1e3,
+                r.interpolation.as_secs_f64() * 1e3,
+                r.solve.rel_residual
+            );
+            out.field
+        }
+        Mode::Denoise => {
+            if args.face.is_some() || args.alpha.is_some() {
+                bail!("--face and --alpha apply to --mode protrusion");
+            }
+            let Some(coarse) = args.coarse else {
+                bail!("--mode denoise needs --coarse m,n,l (coarse cells per axis in the mask)");
+            };
+            let resampling = if args.point_resampling {
+                Resampling::Point
+            } else {
+                Resampling::Area
+            };
+            let out = Denoise::new(coarse)
+                .with_resampling(resampling)
+                .apply(field.as_ref(), &grid, &mask)
+                .context("de-noising")?;
+            println!(
+                "coarse {:?} ({resampling:?} resampling): {:.1} ms, spline {:.1} ms",
+                out.report.coarse,
+                out.report.coarse_fit.as_secs_f64() * 1e3,
+                out.report.interpolation.as_secs_f64() * 1e3
+            );
+            out.field
+        }
+    };
+    write_field(&args.output, &restored)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "wrote {} in {:.2} s",
+        args.output.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The input as a field, and the grid to restore it on by default.
+fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)> {
+    let zsf = args.input.extension().and_then(|e| e.to_str()) == Some("zsf");
+    if zsf || is_field_file(&args.input) {
+        let field = read_field::<3>(&args.input)
+            .with_context(|| format!("reading {}", args.input.display()))?;
+        let grid = *field.grid();
+        println!(
+            "field file {}: {:?} B-spline",
+            args.input.display(),
+            field.degree()
+        );
+        return Ok((Box::new(field), grid));
+    }
+    let mut options = ReadOptions::default();
+    if let Some(format) = &args.format {
+        options = options.with_format(format.parse().context("--format")?);
+    }
+    let cloud = read_point_cloud_with(&args.input, &options)
+        .with_context(|| format!("reading {}", args.input.display()))?;
+    let field = TangentPlaneField::new(&cloud, args.neighbours)
+        .context("building the tangent-plane field (the cloud needs normals)")?;
+    let bounds = field.bounds().context("the point cloud has no extent")?;
+    println!(
+        "point cloud {}: {} points, tangent-plane field over {} neighbours",
+        args.input.display(),
+        cloud.len(),
+        field.k()
+    );
+    let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;
+    Ok((Box::new(field), grid))
+}
+
+/// `longest` cells along the longest axis, the others in proportion (at least 3).
+pub fn cubic_counts(bounds: &Aabb<3>, longest: usize) -> [usize; 3] {
+    let e = bounds.extent();
+    let m = e.iter().copied().fold(0.0, f64::max);
+    e.map(|x| ((x / m * longest as f64).round() as usize).max(3))
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+fn parse_triple<T: std::str::FromStr>(s: &str, what: &str) -> Result<[T; 3], String>
+where
+    T::Err: std::fmt::Display,
+{
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!(
+            "{what} needs three comma-separated numbers, got {s:?}"
+        ));
+    }
+    let mut out = Vec::with_capacity(3);
+    for p in parts {
+        out.push(p.parse::<T>().map_err(|e| format!("{what}: {p:?}: {e}"))?);
+    }
+    out.try_into().map_err(|_| "three values".to_string())
+}
+
+fn parse_mask(s: &str) -> Result<[[f64; 3]; 2], String> {
+    let Some((a, b)) = s.split_once(':') else {
+        return Err(format!(
+            "the mask is two corners x0,y0,z0:x1,y1,z1, got {s:?}"
+        ));
+    };
+    let a: Point<3> = parse_triple(a, "mask corner")?;
+    let b: Point<3> = parse_triple(b, "mask corner")?;
+    if a.iter().chain(&b).any(|v| !v.is_finite()) {
+        return Err("mask corners must be finite".into());
+    }
+    Ok([a, b])
+}
+
+fn parse_counts(s: &str) -> Result<[usize; 3], String> {
+    let c: [usize; 3] = parse_triple(s, "counts")?;
+    if c.contains(&0) {
+        return Err(format!("counts must be positive, got {s:?}"));
+    }
+    Ok(c)
+}
+
+fn parse_face(s: &str) -> Result<Face, String> {
+    let (side, axis) = match s.trim().split_at_checked(1) {
+        Some(("+", a)) => (Side::Upper, a),
+        Some(("-", a)) => (Side::Lower, a),
+        _ => return Err(format!("a face is +x, -x, +y, -y, +z or -z, got {s:?}")),
+    };
+    let axis = match axis {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        _ => return Err(format!("a face is +x, -x, +y, -y, +z or -z, got {s:?}")),
+    };
+    Ok(Face::new(axis, side))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_masks_faces_and_counts() {
+        assert_eq!(
+            parse_mask("0,1,2:3,4.5,-6").unwrap(),
+            [[0.0, 1.0, 2.0], [3.0, 4.5, -6.0]]
+        );
+        assert!(parse_mask("0,1:3,4,5").is_err());
+        assert!(parse_mask("0,1,2").is_err());
+        assert!(parse_mask("0,1,nan:1,2,3").is_err());
+        assert_eq!(parse_face("-z").unwrap(), Face::new(2, Side::Lower));
+        assert_eq!(parse_face("+x").unwrap(), Face::new(0, Side::Upper));
+        assert!(parse_face("z").is_err());
+        assert!(parse_face("+w").is_err());
+        assert_eq!(parse_counts("4,5,6").unwrap(), [4, 5, 6]);
+        assert!(parse_counts("4,0,6").is_err());
+    }
+}

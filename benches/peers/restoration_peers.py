@@ -20,10 +20,7 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime
 import math
-import os
-import platform
 import subprocess
 import sys
 import time
@@ -36,16 +33,22 @@ import scipy.io
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parent.parent  # benches/peers -> repo root
+from common import (
+    HERE,
+    REPO,
+    fmt_e,
+    fmt_int,
+    fmt_ms,
+    fmt_ratio,
+    loadavg,
+    machine_facts,
+    render_md,
+    render_text,
+    timed,
+)
+
 EXAMPLE = "restoration_solvers"
 SCIPY_SOLVERS = ("lsqr", "lsmr", "spsolve")
-THREAD_VARS = (
-    "OMP_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "RAYON_NUM_THREADS",
-)
 
 
 @dataclass
@@ -190,18 +193,6 @@ def residuals(a, a_fro: float, x: np.ndarray, b: np.ndarray) -> tuple[float, flo
     return rel, rel_n
 
 
-def timed(fn, repeat: int):
-    """One warm-up, then `repeat` timed runs; the upper median (as in the Rust example)."""
-    out = fn()
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    times.sort()
-    return out, times[len(times) // 2] * 1e3
-
-
 def scipy_rows(k: int, a, b: np.ndarray, repeat: int, skip_spsolve_above: int) -> list[Row]:
     n = a.shape[1]
     rows = []
@@ -209,14 +200,14 @@ def scipy_rows(k: int, a, b: np.ndarray, repeat: int, skip_spsolve_above: int) -
     def lsqr():
         return spla.lsqr(a, b, atol=1e-12, btol=1e-12, iter_lim=10 * n)
 
-    res, ms = timed(lsqr, repeat)
+    res, ms, _ = timed(lsqr, repeat)
     x, istop, itn = res[0], res[1], res[2]
     rows.append(Row(k, "scipy", "lsqr", ms, int(itn), x=x, note=f"istop={istop}"))
 
     def lsmr():
         return spla.lsmr(a, b, atol=1e-12, btol=1e-12, maxiter=10 * n)
 
-    res, ms = timed(lsmr, repeat)
+    res, ms, _ = timed(lsmr, repeat)
     x, istop, itn = res[0], res[1], res[2]
     rows.append(Row(k, "scipy", "lsmr", ms, int(itn), x=x, note=f"istop={istop}"))
 
@@ -227,7 +218,7 @@ def scipy_rows(k: int, a, b: np.ndarray, repeat: int, skip_spsolve_above: int) -
             ata = (a.T @ a).tocsc()
             return spla.spsolve(ata, a.T @ b)
 
-        x, ms = timed(normal, repeat)
+        x, ms, _ = timed(normal, repeat)
         rows.append(Row(k, "scipy", "spsolve", ms, None, x=np.asarray(x).ravel(), note="AᵀA x = Aᵀb, SuperLU"))
     else:
         rows.append(
@@ -238,38 +229,6 @@ def scipy_rows(k: int, a, b: np.ndarray, repeat: int, skip_spsolve_above: int) -
 
 # ---------------------------------------------------------------------------------------------
 # Step 3: tables
-
-
-def fmt_ms(v):
-    return "—" if v is None else f"{v:.2f}"
-
-
-def fmt_e(v):
-    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.2e}"
-
-
-def fmt_ratio(v):
-    return "—" if v is None or math.isnan(v) else f"{v:.2f}×"
-
-
-def fmt_int(v):
-    return "—" if v is None else str(v)
-
-
-def render_text(header: list[str], body: list[list[str]], left: int = 2) -> str:
-    w = [max(len(h), *(len(r[i]) for r in body)) if body else len(h) for i, h in enumerate(header)]
-    line = lambda cells: "  ".join(  # noqa: E731
-        c.ljust(w[i]) if i < left else c.rjust(w[i]) for i, c in enumerate(cells)
-    ).rstrip()
-    return "\n".join([line(header), line(["-" * x for x in w])] + [line(r) for r in body])
-
-
-def render_md(header: list[str], body: list[list[str]], left: int = 2) -> str:
-    esc = lambda c: c.replace("|", "\\|")  # noqa: E731
-    out = ["| " + " | ".join(esc(c) for c in header) + " |"]
-    out.append("|" + "|".join(":---" if i < left else "---:" for i in range(len(header))) + "|")
-    out += ["| " + " | ".join(esc(c) for c in r) + " |" for r in body]
-    return "\n".join(out)
 
 
 def results_table(rows: list[Row], best: str | None, agree_bad: set[str]):
@@ -311,54 +270,6 @@ def ratio_table(rows: list[Row], best: str | None):
 
 
 # ---------------------------------------------------------------------------------------------
-
-
-def loadavg() -> str:
-    try:
-        return " / ".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "?"
-
-
-def machine_facts(load_at_start: str) -> list[tuple[str, str]]:
-    cpu = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        affinity = str(len(os.sched_getaffinity(0)))
-    except AttributeError:
-        affinity = "?"
-
-    def cmd(*c):
-        try:
-            return subprocess.run(c, cwd=REPO, capture_output=True, text=True, timeout=30).stdout.strip() or "?"
-        except (OSError, subprocess.SubprocessError):
-            return "?"
-
-    commit = cmd("git", "rev-parse", "--short", "HEAD")
-    dirty = cmd("git", "status", "--porcelain", "--untracked-files=no")
-    facts = [
-        ("date", datetime.datetime.now().astimezone().isoformat(timespec="seconds")),
-        ("host", f"{platform.node()} ({platform.platform()})"),
-        ("cpu", cpu),
-        ("cpu count (os / affinity)", f"{os.cpu_count()} / {affinity}"),
-        ("python", sys.version.split()[0]),
-        ("numpy", np.__version__),
-        ("scipy", scipy.__version__),
-        ("rustc", cmd("rustc", "--version")),
-        ("zeroset commit", commit + (" (working tree modified)" if dirty not in ("", "?") else "")),
-    ]
-    facts += [(v, os.environ.get(v, "unset")) for v in THREAD_VARS]
-    facts += [
-        ("load average 1/5/15 min, before cargo", load_at_start),
-        ("load average 1/5/15 min, after scipy", loadavg()),
-    ]
-    return facts
 
 
 def main() -> None:
@@ -466,7 +377,12 @@ def main() -> None:
     if warnings:
         print("\nwarnings:\n" + "\n".join("  " + w for w in warnings))
 
-    facts = machine_facts(load_at_start)
+    facts = machine_facts(
+        [
+            ("load average 1/5/15 min, before cargo", load_at_start),
+            ("load average 1/5/15 min, after scipy", loadavg()),
+        ]
+    )
 
     # peers.csv
     with (out / "peers.csv").open("w", newline="") as f:

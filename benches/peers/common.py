@@ -1,0 +1,215 @@
+"""Helpers shared by the hand-run peer scripts in benches/peers (not run by CI).
+
+Deliberately imports neither numpy nor scipy at module level, so that a script can call
+`pin_blas_threads()` before its own `import numpy` (OpenBLAS reads its thread count once, at
+load time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent  # benches/peers -> repo root
+THREAD_VARS = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "RAYON_NUM_THREADS",
+)
+BLAS_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+# The environment as the script found it; cargo runs with this one, not with the BLAS pin.
+ORIGINAL_ENV = dict(os.environ)
+
+
+# ---------------------------------------------------------------------------------------------
+# BLAS threads
+
+
+def add_blas_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--blas-threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help="set OMP/OPENBLAS/MKL_NUM_THREADS=N for the scipy side (not for cargo); 0 = leave the "
+        "environment as it is; default: 1 unless those variables are already set",
+    )
+
+
+def pin_blas_threads() -> str:
+    """Reads --blas-threads from sys.argv and sets the BLAS thread variables accordingly.
+
+    Must run before numpy is imported. Returns a one-line description for the report."""
+    p = argparse.ArgumentParser(add_help=False)
+    add_blas_arg(p)
+    n = p.parse_known_args()[0].blas_threads
+    if n == 0:
+        return "left as found (--blas-threads 0)"
+    if n is None:
+        if any(v in os.environ for v in BLAS_VARS):
+            return "left as found (already set in the environment)"
+        n = 1
+    for v in BLAS_VARS:
+        os.environ[v] = str(n)
+    return f"set to {n} for the scipy side (--blas-threads)"
+
+
+# ---------------------------------------------------------------------------------------------
+# running and timing
+
+
+def run_logged(cmd: list[str], capture: bool = False) -> str:
+    """Runs `cmd` in the repository root with the original environment; exits on failure.
+
+    With `capture`, stdout is captured (and echoed) and returned."""
+    print(f"$ (cd {REPO} && {' '.join(cmd)})", flush=True)
+    t = time.perf_counter()
+    res = subprocess.run(
+        cmd, cwd=REPO, env=ORIGINAL_ENV, stdout=subprocess.PIPE if capture else None, text=True
+    )
+    if capture and res.stdout:
+        print(res.stdout, end="", flush=True)
+    if res.returncode != 0:
+        sys.exit(f"command failed with exit status {res.returncode}: {' '.join(cmd)}")
+    print(f"(took {time.perf_counter() - t:.1f} s)", flush=True)
+    return res.stdout or ""
+
+
+def timed(fn, repeat: int, warmup: bool = True):
+    """Optionally one warm-up, then `repeat` timed runs; returns (last result, upper median ms,
+    all times in ms). The upper median `sorted[n // 2]` is the rule of the Rust examples."""
+    out = fn() if warmup else None
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append((time.perf_counter() - t) * 1e3)
+    return out, sorted(times)[len(times) // 2], times
+
+
+# ---------------------------------------------------------------------------------------------
+# formatting
+
+
+def fmt_ms(v):
+    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.2f}"
+
+
+def fmt_e(v):
+    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.2e}"
+
+
+def fmt_ratio(v):
+    return "—" if v is None or math.isnan(v) else f"{v:.2f}×"
+
+
+def fmt_int(v):
+    return "—" if v is None else str(v)
+
+
+def num(v) -> str:
+    """A CSV cell: empty for missing values, full precision otherwise."""
+    return "" if v is None or (isinstance(v, float) and math.isnan(v)) else repr(v)
+
+
+def render_text(header: list[str], body: list[list[str]], left: int = 2, left_last: bool = False) -> str:
+    """Plain-text table: the first `left` columns (and the last one with `left_last`) left-aligned."""
+    w = [max(len(h), *(len(r[i]) for r in body)) if body else len(h) for i, h in enumerate(header)]
+    is_left = lambda i: i < left or (left_last and i == len(header) - 1)  # noqa: E731
+    line = lambda cells: "  ".join(  # noqa: E731
+        c.ljust(w[i]) if is_left(i) else c.rjust(w[i]) for i, c in enumerate(cells)
+    ).rstrip()
+    return "\n".join([line(header), line(["-" * x for x in w])] + [line(r) for r in body])
+
+
+def render_md(header: list[str], body: list[list[str]], left: int = 2) -> str:
+    esc = lambda c: c.replace("|", "\\|")  # noqa: E731
+    out = ["| " + " | ".join(esc(c) for c in header) + " |"]
+    out.append("|" + "|".join(":---" if i < left else "---:" for i in range(len(header))) + "|")
+    out += ["| " + " | ".join(esc(c) for c in r) + " |" for r in body]
+    return "\n".join(out)
+
+
+class Bars:
+    """PASS / FAIL / SKIP lines for the targets a script checks (never changes the exit code)."""
+
+    def __init__(self) -> None:
+        self.rows: list[list[str]] = []
+
+    def check(self, name: str, ok: bool | None, detail: str) -> None:
+        verdict = "SKIP" if ok is None else ("PASS" if ok else "FAIL")
+        self.rows.append([verdict, name, detail])
+
+    def header(self) -> list[str]:
+        return ["result", "bar", "measured"]
+
+    def text(self) -> str:
+        return render_text(self.header(), self.rows, left=3)
+
+    def md(self) -> str:
+        return render_md(self.header(), self.rows, left=3)
+
+
+# ---------------------------------------------------------------------------------------------
+# machine facts
+
+
+def loadavg() -> str:
+    try:
+        return " / ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "?"
+
+
+def machine_facts(loads: list[tuple[str, str]], extra: list[tuple[str, str]] = ()) -> list[tuple[str, str]]:
+    """Date, CPU, versions, zeroset commit, thread variables (as this process sees them),
+    then `extra` and the `loads` (label, loadavg()) pairs."""
+    import numpy as np
+    import scipy
+
+    cpu = platform.processor() or "?"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        affinity = str(len(os.sched_getaffinity(0)))
+    except AttributeError:
+        affinity = "?"
+
+    def cmd(*c):
+        try:
+            return subprocess.run(c, cwd=REPO, capture_output=True, text=True, timeout=30).stdout.strip() or "?"
+        except (OSError, subprocess.SubprocessError):
+            return "?"
+
+    commit = cmd("git", "rev-parse", "--short", "HEAD")
+    dirty = cmd("git", "status", "--porcelain", "--untracked-files=no")
+    facts = [
+        ("date", datetime.datetime.now().astimezone().isoformat(timespec="seconds")),
+        ("host", f"{platform.node()} ({platform.platform()})"),
+        ("cpu", cpu),
+        ("cpu count (os / affinity)", f"{os.cpu_count()} / {affinity}"),
+        ("python", sys.version.split()[0]),
+        ("numpy", np.__version__),
+        ("scipy", scipy.__version__),
+        ("rustc", cmd("rustc", "--version")),
+        ("zeroset commit", commit + (" (working tree modified)" if dirty not in ("", "?") else "")),
+    ]
+    facts += [(v, os.environ.get(v, "unset")) for v in THREAD_VARS]
+    facts += list(extra)
+    facts += list(loads)
+    return facts

@@ -34,13 +34,12 @@
 
 use std::time::Instant;
 
-use faer::linalg::matmul::matmul;
 use faer::sparse::{SparseRowMat, SymbolicSparseRowMat};
-use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 use zeroset_field_core::lsq::{LinearOperator, Solution, SolveError, SolveInfo};
 use zeroset_field_core::mask::{Face, Side};
+use zeroset_solvers::dst::{Dst1, dst1_along_axis};
 
 use crate::index::{multi_index, strides};
 
@@ -238,16 +237,24 @@ impl<const D: usize> BoxLaplace<D> {
             let mut tmp = vec![0.0; t];
             lines.lateral_transform(&mut s, &mut tmp, 1);
         }
+        // One block per outer lateral index: a (len × inner) matrix, one mode per column, so
+        // the Givens sweeps run over contiguous rows of modes (vectorised).
+        let (len, inner) = (lines.len, lines.inner);
         let w = Self::weight();
         let residuals: Vec<f64> = r
-            .par_chunks_mut(lines.len)
+            .par_chunks_mut(len * inner)
             .enumerate()
             .map_init(
-                || LineQr::new(lines.len),
-                |qr, (mode, line)| {
-                    let sigma = lines.lateral_eigenvalue(mode);
-                    let extra = if t > 0 { (w, s[mode]) } else { (0.0, 0.0) };
-                    qr.solve(w * (sigma - (2 * D) as f64), w, extra, line)
+                || BlockQr::new(len, inner),
+                |qr, (outer, block)| {
+                    let sigma_outer = lines.outer_eigenvalue(outer);
+                    let diag: Vec<f64> = lines
+                        .inner_eigen()
+                        .iter()
+                        .map(|e| w * (sigma_outer + e - (2 * D) as f64))
+                        .collect();
+                    let extra = (t > 0).then(|| &s[outer * inner..(outer + 1) * inner]);
+                    qr.solve(&diag, w, extra, block)
                 },
             )
             .collect();
@@ -265,8 +272,8 @@ impl<const D: usize> BoxLaplace<D> {
             rel_normal_residual,
             start.elapsed(),
         );
-        info.details.push(("lateral_modes", (n / lines.len) as f64));
-        info.details.push(("line_length", lines.len as f64));
+        info.details.push(("lateral_modes", (n / len) as f64));
+        info.details.push(("line_length", len as f64));
         Ok(Solution { x, info })
     }
 
@@ -311,16 +318,21 @@ impl<const D: usize> LinearOperator for BoxLaplace<D> {
     }
 }
 
-/// The box re-laid out as lines along the normal axis: lateral axes first (in order), the
-/// normal axis last and contiguous, oriented so that the Neumann layer is each line's end.
+/// The box re-laid out for the separable solve: `(outer lateral axes…, normal, last lateral
+/// axis)`, the normal axis oriented so that the Neumann layer is each line's end. A block (one
+/// outer index) is a `len × inner` matrix whose columns are lines: the Givens sweeps along the
+/// lines run over contiguous rows, and the DST along the last lateral axis is one product with
+/// row-major blocks.
 struct Lines {
-    /// Natural strides of the lateral axes, in order.
-    lateral_strides: Vec<usize>,
-    /// Lateral extents, in order.
-    lateral_dims: Vec<usize>,
-    /// Orthonormal DST-I of each lateral axis, folded by parity.
-    sine: Vec<FoldedSine>,
-    /// Eigenvalues `2 cos(π(p+1)/(n+1))` of each lateral axis.
+    /// Extents and natural strides of the lateral axes but the last, in order.
+    outer_dims: Vec<usize>,
+    outer_strides: Vec<usize>,
+    /// Extent and natural stride of the last lateral axis (1 and 0 in 1-D).
+    inner: usize,
+    inner_stride: usize,
+    /// Orthonormal DST-I of each lateral axis (outer…, inner), folded by parity.
+    sine: Vec<Dst1>,
+    /// Eigenvalues `2 cos(π(p+1)/(n+1))` of each lateral axis (outer…, inner).
     eigen: Vec<Vec<f64>>,
     /// Natural stride of the normal axis.
     stride: usize,
@@ -336,21 +348,25 @@ impl Lines {
         let natural = strides(dims);
         let lateral: Vec<usize> = (0..D).filter(|&a| a != axis).collect();
         let pi = std::f64::consts::PI;
-        let sine = lateral.iter().map(|&a| FoldedSine::new(dims[a])).collect();
-        let eigen = lateral
-            .iter()
-            .map(|&a| {
-                let n = dims[a];
-                (0..n)
-                    .map(|p| 2.0 * (pi * (p + 1) as f64 / (n + 1) as f64).cos())
-                    .collect()
-            })
-            .collect();
+        let (outer, inner) = match lateral.split_last() {
+            Some((&last, outer)) => (outer.to_vec(), Some(last)),
+            None => (Vec::new(), None),
+        };
         Self {
-            lateral_strides: lateral.iter().map(|&a| natural[a]).collect(),
-            lateral_dims: lateral.iter().map(|&a| dims[a]).collect(),
-            sine,
-            eigen,
+            outer_dims: outer.iter().map(|&a| dims[a]).collect(),
+            outer_strides: outer.iter().map(|&a| natural[a]).collect(),
+            inner: inner.map_or(1, |a| dims[a]),
+            inner_stride: inner.map_or(0, |a| natural[a]),
+            sine: lateral.iter().map(|&a| Dst1::new(dims[a])).collect(),
+            eigen: lateral
+                .iter()
+                .map(|&a| {
+                    let n = dims[a];
+                    (0..n)
+                        .map(|p| 2.0 * (pi * (p + 1) as f64 / (n + 1) as f64).cos())
+                        .collect()
+                })
+                .collect(),
             stride: natural[axis],
             len: dims[axis],
             reversed: matches!(
@@ -363,212 +379,189 @@ impl Lines {
         }
     }
 
-    /// The natural offset of the first cell of line `mode`.
-    fn line_start(&self, mut mode: usize) -> usize {
+    /// The natural offset of the first cell of block `outer` (inner index 0, position 0).
+    fn block_start(&self, mut outer: usize) -> usize {
         let mut offset = 0;
-        for (&d, &s) in self.lateral_dims.iter().zip(&self.lateral_strides).rev() {
-            offset += (mode % d) * s;
-            mode /= d;
+        for (&d, &s) in self.outer_dims.iter().zip(&self.outer_strides).rev() {
+            offset += (outer % d) * s;
+            outer /= d;
         }
         offset
     }
 
-    fn lateral_eigenvalue(&self, mut mode: usize) -> f64 {
+    /// `Σ` of the outer axes' eigenvalues of block `outer`.
+    fn outer_eigenvalue(&self, mut outer: usize) -> f64 {
         let mut sigma = 0.0;
-        for (d, eig) in self.lateral_dims.iter().zip(&self.eigen).rev() {
-            sigma += eig[mode % d];
-            mode /= d;
+        for (d, eig) in self.outer_dims.iter().zip(&self.eigen).rev() {
+            sigma += eig[outer % d];
+            outer /= d;
         }
         sigma
     }
 
-    /// The natural offset of position `k` along a line starting at `start`.
-    fn at(&self, start: usize, k: usize) -> usize {
+    /// The eigenvalues of the inner (last lateral) axis; zeros in 1-D.
+    fn inner_eigen(&self) -> &[f64] {
+        if self.eigen.len() > self.outer_dims.len() {
+            &self.eigen[self.outer_dims.len()]
+        } else {
+            &[0.0]
+        }
+    }
+
+    /// The natural offset of position `k` along the line of block `start`, inner index `i`.
+    fn at(&self, start: usize, k: usize, i: usize) -> usize {
         let k = if self.reversed { self.len - 1 - k } else { k };
-        start + k * self.stride
+        start + k * self.stride + i * self.inner_stride
     }
 
     fn gather(&self, natural: &[f64]) -> Vec<f64> {
         let mut out = vec![0.0; natural.len()];
-        out.par_chunks_mut(self.len)
+        out.par_chunks_mut(self.len * self.inner)
             .enumerate()
-            .for_each(|(mode, line)| {
-                let start = self.line_start(mode);
-                for (k, v) in line.iter_mut().enumerate() {
-                    *v = natural[self.at(start, k)];
+            .for_each(|(outer, block)| {
+                let start = self.block_start(outer);
+                for (k, row) in block.chunks_mut(self.inner).enumerate() {
+                    for (i, v) in row.iter_mut().enumerate() {
+                        *v = natural[self.at(start, k, i)];
+                    }
                 }
             });
         out
     }
 
-    fn scatter(&self, lines: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; lines.len()];
-        for (mode, line) in lines.chunks(self.len).enumerate() {
-            let start = self.line_start(mode);
-            for (k, &v) in line.iter().enumerate() {
-                out[self.at(start, k)] = v;
+    fn scatter(&self, blocks: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; blocks.len()];
+        for (outer, block) in blocks.chunks(self.len * self.inner).enumerate() {
+            let start = self.block_start(outer);
+            for (k, row) in block.chunks(self.inner).enumerate() {
+                for (i, &v) in row.iter().enumerate() {
+                    out[self.at(start, k, i)] = v;
+                }
             }
         }
         out
     }
 
-    /// Applies `S` along every lateral axis of `data`, laid out as (lateral…, `last`).
-    fn lateral_transform(&self, data: &mut [f64], tmp: &mut [f64], last: usize) {
-        let mut shape = self.lateral_dims.clone();
-        shape.push(last);
-        for (axis, s) in self.sine.iter().enumerate() {
-            apply_along_axis(data, tmp, &shape, axis, s);
+    /// Applies `S` along every lateral axis of `data`, laid out as (outer…, `len`, inner).
+    fn lateral_transform(&self, data: &mut [f64], tmp: &mut [f64], len: usize) {
+        let mut shape = self.outer_dims.clone();
+        shape.push(len);
+        shape.push(self.inner);
+        let last = shape.len() - 1;
+        for (k, s) in self.sine.iter().enumerate() {
+            let axis = if k < self.outer_dims.len() { k } else { last };
+            dst1_along_axis(data, tmp, &shape, axis, s);
             data.copy_from_slice(tmp);
         }
     }
 }
 
-/// The orthonormal DST-I matrix `S` of size `n`, `S_pq = √(2/(n+1)) sin(π(p+1)(q+1)/(n+1))`,
-/// split by parity: `S_{p, n−1−q} = (−1)^p S_pq`, so even rows see only `x_q + x_{n−1−q}`
-/// and odd rows only `x_q − x_{n−1−q}`. Two half-size products instead of one: half the flops.
-#[derive(Debug, Clone)]
-struct FoldedSine {
-    n: usize,
-    /// Even rows × the folded columns `q < ⌈n/2⌉` (the middle column once when `n` is odd).
-    even: Mat<f64>,
-    /// Odd rows × the columns `q < ⌊n/2⌋`.
-    odd: Mat<f64>,
-}
-
-impl FoldedSine {
-    fn new(n: usize) -> Self {
-        let pi = std::f64::consts::PI;
-        let scale = (2.0 / (n + 1) as f64).sqrt();
-        let s =
-            |p: usize, q: usize| scale * (pi * ((p + 1) * (q + 1)) as f64 / (n + 1) as f64).sin();
-        let (half, ceil) = (n / 2, n.div_ceil(2));
-        // Transposed, as the blocks multiply from the left: (post × cols) · (cols × rows).
-        Self {
-            n,
-            even: Mat::from_fn(ceil, ceil, |q, i| s(2 * i, q)),
-            odd: Mat::from_fn(half, half, |q, i| s(2 * i + 1, q)),
-        }
-    }
-
-    /// `out ← X Sᵀ` for the column-major `post × n` block `x` (each column one position along
-    /// the transformed axis); `plus`, `minus` and `y` are scratch of the same size.
-    fn apply(&self, x: &[f64], out: &mut [f64], post: usize, par: Par) {
-        let n = self.n;
-        let (half, ceil) = (n / 2, n.div_ceil(2));
-        let mut plus = vec![0.0; post * ceil];
-        let mut minus = vec![0.0; post * half];
-        let col = |q: usize| &x[q * post..(q + 1) * post];
-        for q in 0..half {
-            let (a, b) = (col(q), col(n - 1 - q));
-            let p = &mut plus[q * post..(q + 1) * post];
-            let m = &mut minus[q * post..(q + 1) * post];
-            for j in 0..post {
-                p[j] = a[j] + b[j];
-                m[j] = a[j] - b[j];
-            }
-        }
-        if n % 2 == 1 {
-            plus[half * post..].copy_from_slice(col(half));
-        }
-        let mut y = vec![0.0; post * n];
-        let (ye, yo) = y.split_at_mut(post * ceil);
-        matmul(
-            MatMut::from_column_major_slice_mut(ye, post, ceil),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&plus, post, ceil),
-            self.even.as_ref(),
-            1.0,
-            par,
-        );
-        if half > 0 {
-            matmul(
-                MatMut::from_column_major_slice_mut(yo, post, half),
-                Accum::Replace,
-                MatRef::from_column_major_slice(&minus, post, half),
-                self.odd.as_ref(),
-                1.0,
-                par,
-            );
-        }
-        for p in 0..n {
-            let src = if p % 2 == 0 { p / 2 } else { ceil + p / 2 };
-            out[p * post..(p + 1) * post].copy_from_slice(&y[src * post..(src + 1) * post]);
-        }
-    }
-}
-
-/// `out ← S` applied along `axis` of the last-axis-fastest array `data` of `shape`.
-fn apply_along_axis(data: &[f64], out: &mut [f64], shape: &[usize], axis: usize, s: &FoldedSine) {
-    let n = shape[axis];
-    let post: usize = shape[axis + 1..].iter().product();
-    let pre: usize = shape[..axis].iter().product();
-    let block = n * post;
-    // Each block is the column-major (post × n) matrix Xᵀ; (S X)ᵀ = Xᵀ Sᵀ.
-    if pre < 2 * rayon::current_num_threads() {
-        out.chunks_mut(block)
-            .zip(data.chunks(block))
-            .for_each(|(o, d)| s.apply(d, o, post, Par::rayon(0)));
-    } else {
-        out.par_chunks_mut(block)
-            .zip(data.par_chunks(block))
-            .for_each(|(o, d)| s.apply(d, o, post, Par::Seq));
-    }
-}
-
-/// Givens QR of one line problem `min ‖[tridiag(e, d, e); w e_lastᵀ] x − [r; s]‖`.
-struct LineQr {
+/// Givens QR of the line problems `min ‖[tridiag(e, d_m, e); w e_lastᵀ] x_m − [r_m; s_m]‖` of
+/// one block, all modes `m` (columns) at once.
+struct BlockQr {
     r0: Vec<f64>,
     r1: Vec<f64>,
     r2: Vec<f64>,
+    a0: Vec<f64>,
+    a1: Vec<f64>,
+    ra: Vec<f64>,
 }
 
-impl LineQr {
-    fn new(len: usize) -> Self {
+impl BlockQr {
+    fn new(len: usize, inner: usize) -> Self {
         Self {
-            r0: vec![0.0; len],
-            r1: vec![0.0; len],
-            r2: vec![0.0; len],
+            r0: vec![0.0; len * inner],
+            r1: vec![0.0; len * inner],
+            r2: vec![0.0; len * inner],
+            a0: vec![0.0; inner],
+            a1: vec![0.0; inner],
+            ra: vec![0.0; inner],
         }
     }
 
-    /// Overwrites `rhs` with the solution; returns the residual of the rotated system (the
-    /// component of the right-hand side orthogonal to the column space).
-    fn solve(&mut self, d: f64, e: f64, (w, s): (f64, f64), rhs: &mut [f64]) -> f64 {
-        let k = rhs.len();
-        // Row i of the current working matrix over columns (i, i+1, i+2).
-        let mut a = (d, if k > 1 { e } else { 0.0 }, 0.0);
-        let mut ra = rhs[0];
-        for i in 0..k {
-            let (b, rb) = if i + 1 < k {
-                ((e, d, if i + 2 < k { e } else { 0.0 }), rhs[i + 1])
+    /// Overwrites `block` (row `k` = position `k` of every line) with the solutions; returns
+    /// the norm of the residual of the block (the rotated right-hand side left over).
+    fn solve(&mut self, d: &[f64], e: f64, extra: Option<&[f64]>, block: &mut [f64]) -> f64 {
+        let inner = d.len();
+        let len = block.len() / inner;
+        let w = if extra.is_some() { e } else { 0.0 };
+        // Working row k over columns (k, k+1, k+2); its third entry is always 0 on entry.
+        self.a0.copy_from_slice(d);
+        self.a1.fill(if len > 1 { e } else { 0.0 });
+        self.ra.copy_from_slice(&block[..inner]);
+        for k in 0..len {
+            let row = k * inner..(k + 1) * inner;
+            let last = k + 1 == len;
+            // The next row: (e, d, e) at columns (k, k+1, k+2), or the Neumann row (w, 0, 0).
+            let (b0, b2) = if last {
+                (w, 0.0)
             } else {
-                ((w, 0.0, 0.0), s)
+                (e, if k + 2 < len { e } else { 0.0 })
             };
-            // Entries are O(1) (|d| ≤ 2, e = w ≤ ½): no overflow to guard against.
-            let rho = (a.0 * a.0 + b.0 * b.0).sqrt();
-            let (c, sn) = if rho == 0.0 {
-                (1.0, 0.0)
+            let (r0, r1, r2) = (
+                &mut self.r0[row.clone()],
+                &mut self.r1[row.clone()],
+                &mut self.r2[row.clone()],
+            );
+            let (a0, a1, ra) = (&mut self.a0, &mut self.a1, &mut self.ra);
+            if last {
+                let s = extra.unwrap_or(&[]);
+                let (head, _) = block.split_at_mut((k + 1) * inner);
+                let out = &mut head[k * inner..];
+                for m in 0..inner {
+                    let rho = (a0[m] * a0[m] + b0 * b0).sqrt();
+                    let (c, sn) = (a0[m] / rho, b0 / rho);
+                    let rb = if b0 != 0.0 { s[m] } else { 0.0 };
+                    r0[m] = rho;
+                    r1[m] = c * a1[m];
+                    r2[m] = 0.0;
+                    out[m] = c * ra[m] + sn * rb;
+                    ra[m] = -sn * ra[m] + c * rb;
+                }
             } else {
-                (a.0 / rho, b.0 / rho)
-            };
-            self.r0[i] = rho;
-            self.r1[i] = c * a.1 + sn * b.1;
-            self.r2[i] = c * a.2 + sn * b.2;
-            rhs[i] = c * ra + sn * rb;
-            a = (-sn * a.1 + c * b.1, -sn * a.2 + c * b.2, 0.0);
-            ra = -sn * ra + c * rb;
-        }
-        for i in (0..k).rev() {
-            let mut v = rhs[i];
-            if i + 1 < k {
-                v -= self.r1[i] * rhs[i + 1];
+                let (head, tail) = block.split_at_mut((k + 1) * inner);
+                let out = &mut head[k * inner..];
+                let next = &tail[..inner];
+                for m in 0..inner {
+                    // Entries are O(1) (|d| ≤ 2, e ≤ ½): no overflow to guard against.
+                    let rho = (a0[m] * a0[m] + b0 * b0).sqrt();
+                    let (c, sn) = (a0[m] / rho, b0 / rho);
+                    let b1 = d[m];
+                    r0[m] = rho;
+                    r1[m] = c * a1[m] + sn * b1;
+                    r2[m] = sn * b2;
+                    out[m] = c * ra[m] + sn * next[m];
+                    let na0 = -sn * a1[m] + c * b1;
+                    a1[m] = c * b2;
+                    a0[m] = na0;
+                    ra[m] = -sn * ra[m] + c * next[m];
+                }
             }
-            if i + 2 < k {
-                v -= self.r2[i] * rhs[i + 2];
-            }
-            rhs[i] = v / self.r0[i];
         }
-        ra
+        let residual = self.ra.iter().map(|v| v * v).sum::<f64>();
+        // Back substitution, row by row from the end.
+        for k in (0..len).rev() {
+            let (head, tail) = block.split_at_mut((k + 1) * inner);
+            let x = &mut head[k * inner..];
+            let row = k * inner..(k + 1) * inner;
+            let (r0, r1, r2) = (&self.r0[row.clone()], &self.r1[row.clone()], &self.r2[row]);
+            if k + 1 < len {
+                let x1 = &tail[..inner];
+                for m in 0..inner {
+                    x[m] -= r1[m] * x1[m];
+                }
+            }
+            if k + 2 < len {
+                let x2 = &tail[inner..2 * inner];
+                for m in 0..inner {
+                    x[m] -= r2[m] * x2[m];
+                }
+            }
+            for m in 0..inner {
+                x[m] /= r0[m];
+            }
+        }
+        residual.sqrt()
     }
 }
 

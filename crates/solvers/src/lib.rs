@@ -40,6 +40,7 @@
 
 mod common;
 mod dense;
+pub mod dst;
 mod iterative;
 pub mod kernels;
 mod operator;

@@ -151,14 +151,14 @@ fn compact_csr_row(a: faer::sparse::SparseRowMatRef<'_, usize, f64>) -> Compress
 impl<'a> Prepared<'a> {
     /// Validates `A` (finite entries) and builds both orientations.
     pub fn new(a: LsqMatrix<'a>) -> Result<Self, SolveError> {
-        if let Some(values) = a.stored_values() {
-            if let Some((index, value)) = values.enumerate().find(|(_, v)| !v.is_finite()) {
-                return Err(SolveError::NonFinite {
-                    what: "matrix",
-                    index,
-                    value,
-                });
-            }
+        if let Some(values) = a.stored_values()
+            && let Some((index, value)) = values.enumerate().find(|(_, v)| !v.is_finite())
+        {
+            return Err(SolveError::NonFinite {
+                what: "matrix",
+                index,
+                value,
+            });
         }
         Ok(match a {
             LsqMatrix::Dense(m) => {

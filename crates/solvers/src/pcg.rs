@@ -117,14 +117,14 @@ impl Pcg {
     ) -> Result<Outcome, SolveError> {
         let p = &self.params;
         let n = k.ncols();
-        if let Some(m) = &p.preconditioner {
-            if m.dim() != n {
-                return Err(SolveError::ShapeMismatch {
-                    what: "preconditioner",
-                    expected: n,
-                    got: m.dim(),
-                });
-            }
+        if let Some(m) = &p.preconditioner
+            && m.dim() != n
+        {
+            return Err(SolveError::ShapeMismatch {
+                what: "preconditioner",
+                expected: n,
+                got: m.dim(),
+            });
         }
         let max_it = p.max_iterations.unwrap_or((2 * n).max(100));
         let precondition = |r: &[f64], tmp: &mut [f64], z: &mut [f64]| match &p.preconditioner {

@@ -9,6 +9,8 @@
 use std::fmt::Debug;
 
 use rayon::prelude::*;
+
+use crate::dst::{Dst1, dst1_along_axis};
 use zeroset_field_core::lsq::{LsqMatrix, SolveError};
 
 use crate::operator::Prepared;
@@ -85,13 +87,11 @@ impl Preconditioner for Diagonal {
 /// (no `1/d²`: fold the spacing into `s`). Applied by the fast Poisson solver:
 ///
 /// ```text
-/// M⁻¹ v = S (Λ⁻¹ ∘ S v) · Π_a 2/(n_a + 1),   Λ_ijk = −4 s Σ_a sin²(π (i_a + 1) / (2(n_a + 1)))
+/// M⁻¹ v = S (Λ⁻¹ ∘ S v),   Λ_ijk = −4 s Σ_a sin²(π (i_a + 1) / (2(n_a + 1)))
 /// ```
 ///
-/// where `S = S₀ ⊗ S₁ ⊗ S₂` is the 3-D DST-I, `(S_a)_pq = sin(π (p+1)(q+1)/(n_a + 1))`, the
-/// eigenvector matrix of `T` and its own inverse up to the factor `2/(n_a + 1)`. Each axis is
-/// one dense matrix product with `S_a` (faer's gemm): for the box sizes of restoration
-/// (`n_a ≤ 128`) that beats an FFT-based DST, `2n_a` flops per entry and axis at gemm speed.
+/// where `S = S₀ ⊗ S₁ ⊗ S₂` is the orthonormal 3-D DST-I ([`crate::dst`]), the eigenvector
+/// matrix of `T` and its own inverse.
 ///
 /// This is the preconditioner of restoration (Ren–Fujita–Nakata): its Laplace rows *are*
 /// `M` (with `s = 1/6`), so LSQR on `A M⁻¹ = [I; T M⁻¹]` sees the identity plus a term of rank
@@ -101,7 +101,7 @@ impl Preconditioner for Diagonal {
 pub struct DirichletLaplacian {
     dims: [usize; 3],
     inv_eigen: Vec<f64>,
-    sine: [faer::Mat<f64>; 3],
+    sine: [Dst1; 3],
 }
 
 impl DirichletLaplacian {
@@ -133,65 +133,26 @@ impl DirichletLaplacian {
                 .collect()
         };
         let (s0, s1, s2) = (sin2(dims[0]), sin2(dims[1]), sin2(dims[2]));
-        let norm: f64 = dims.iter().map(|&n| 2.0 / (n + 1) as f64).product();
         let mut inv_eigen = Vec::with_capacity(dims.iter().product());
         for a in &s0 {
             for b in &s1 {
                 for c in &s2 {
-                    inv_eigen.push(norm / (-4.0 * scale * (a + b + c)));
+                    inv_eigen.push(1.0 / (-4.0 * scale * (a + b + c)));
                 }
             }
         }
-        let sine = dims.map(|n| {
-            faer::Mat::from_fn(n, n, |p, q| {
-                (pi * ((p + 1) * (q + 1)) as f64 / (n + 1) as f64).sin()
-            })
-        });
         Ok(Self {
             dims,
             inv_eigen,
-            sine,
+            sine: dims.map(Dst1::new),
         })
     }
 
-    /// The 3-D DST-I (unnormalised) of `v` into `out`, one axis at a time, `tmp` as scratch.
+    /// The orthonormal 3-D DST-I of `v` into `out`, one axis at a time, `tmp` as scratch.
     fn dst3(&self, v: &[f64], tmp: &mut [f64], out: &mut [f64]) {
-        use faer::linalg::matmul::matmul;
-        use faer::{Accum, MatMut, MatRef, Par};
-        let [n0, n1, n2] = self.dims;
-        let par = Par::rayon(0);
-        // Last axis: v is column-major (n2 × n0·n1) with lines as columns: S₂ V.
-        matmul(
-            MatMut::from_column_major_slice_mut(tmp, n2, n0 * n1),
-            Accum::Replace,
-            self.sine[2].as_ref(),
-            MatRef::from_column_major_slice(v, n2, n0 * n1),
-            1.0,
-            par,
-        );
-        // First axis: column-major (n1·n2 × n0), lines as rows: V S₀ (S₀ symmetric).
-        matmul(
-            MatMut::from_column_major_slice_mut(out, n1 * n2, n0),
-            Accum::Replace,
-            MatRef::from_column_major_slice(tmp, n1 * n2, n0),
-            self.sine[0].as_ref(),
-            1.0,
-            par,
-        );
-        // Middle axis: each slab i is column-major (n2 × n1): slab S₁.
-        tmp.par_chunks_mut(n1 * n2)
-            .zip(out.par_chunks(n1 * n2))
-            .for_each(|(dst, src)| {
-                matmul(
-                    MatMut::from_column_major_slice_mut(dst, n2, n1),
-                    Accum::Replace,
-                    MatRef::from_column_major_slice(src, n2, n1),
-                    self.sine[1].as_ref(),
-                    1.0,
-                    Par::Seq,
-                );
-            });
-        out.copy_from_slice(tmp);
+        dst1_along_axis(v, out, &self.dims, 2, &self.sine[2]);
+        dst1_along_axis(out, tmp, &self.dims, 0, &self.sine[0]);
+        dst1_along_axis(tmp, out, &self.dims, 1, &self.sine[1]);
     }
 }
 

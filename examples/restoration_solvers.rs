@@ -12,9 +12,11 @@
 
 #[path = "common/mtx.rs"]
 mod mtx;
+#[path = "common/timing.rs"]
+mod timing;
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use zeroset::core::lsq::{LeastSquaresSolver, LsqMatrix};
 use zeroset::solvers::kernels::max_abs_diff;
@@ -40,12 +42,7 @@ fn parse_args() -> Result<Args, String> {
     while let Some(flag) = it.next() {
         let mut value = || it.next().ok_or(format!("{flag} needs a value"));
         match flag.as_str() {
-            "--k" => {
-                args.ks = value()?
-                    .split(',')
-                    .map(|s| s.trim().parse().map_err(|e| format!("--k: {s}: {e}")))
-                    .collect::<Result<_, _>>()?
-            }
+            "--k" => args.ks = timing::parse_list("--k", &value()?)?,
             "--repeat" => args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
             "--write-mtx" => args.write_mtx = Some(value()?.into()),
             "--csv" => args.csv = Some(value()?.into()),
@@ -57,11 +54,6 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     Ok(args)
-}
-
-fn median(mut v: Vec<Duration>) -> Duration {
-    v.sort();
-    v[v.len() / 2]
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -134,7 +126,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 Some(r) => max_abs_diff(r, &s.x),
             };
-            let ms = median(times).as_secs_f64() * 1e3;
+            let ms = timing::median(times).as_secs_f64() * 1e3;
             csv.push_str(&format!(
                 "{k},{},{ms},{},{:e},{:e},{:e}\n",
                 label, s.info.iterations, s.info.rel_residual, s.info.rel_normal_residual, dx

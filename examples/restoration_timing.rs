@@ -16,9 +16,11 @@
 
 #[path = "common/mtx.rs"]
 mod mtx;
+#[path = "common/timing.rs"]
+mod timing;
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use zeroset::core::analytic::Sphere;
 use zeroset::core::geometry::Aabb;
@@ -50,12 +52,7 @@ fn parse_args() -> Result<Args, String> {
     while let Some(flag) = it.next() {
         let mut value = || it.next().ok_or(format!("{flag} needs a value"));
         match flag.as_str() {
-            "--k" => {
-                args.ks = value()?
-                    .split(',')
-                    .map(|s| s.trim().parse().map_err(|e| format!("--k: {s}: {e}")))
-                    .collect::<Result<_, _>>()?
-            }
+            "--k" => args.ks = timing::parse_list("--k", &value()?)?,
             "--repeat" => {
                 args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?;
                 args.repeat = args.repeat.max(1);
@@ -82,11 +79,6 @@ fn solver(name: &str) -> Result<Solver, String> {
         "cgls" => Solver::General(Arc::new(Cgls::new(tight))),
         other => return Err(format!("unknown solver {other}")),
     })
-}
-
-fn median(mut v: Vec<Duration>) -> Duration {
-    v.sort();
-    v[v.len() / 2]
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -140,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 times.push(start.elapsed());
             }
             times.remove(0);
-            let ms = median(times).as_secs_f64() * 1e3;
+            let ms = timing::median(times).as_secs_f64() * 1e3;
             let n = system.operator().unknowns();
             println!("{k:<5} {n:>9} {:<16} {ms:>10.2}", "solve-only");
             csv.push_str(&format!(
@@ -168,7 +160,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max)
                 / scale;
-            let ms = median(times).as_secs_f64() * 1e3;
+            let ms = timing::median(times).as_secs_f64() * 1e3;
             if std::env::var_os("ZEROSET_PHASES").is_some() {
                 eprintln!(
                     "  phases: assembly {:.1} ms, solve {:.1} ms",

@@ -21,8 +21,12 @@
 //! axis-major: all first coordinates, then all second, then all third — the `coordinates`
 //! array of `map_coordinates`) and `DIR/values.f64` (`P`).
 
+#[path = "common/timing.rs"]
+#[allow(dead_code)] // only `median` is used here
+mod timing;
+
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use zeroset::bases::bspline::{BSplineField, Boundary, Degree, prefilter};
 use zeroset::core::geometry::Aabb;
@@ -105,14 +109,12 @@ impl SplitMix64 {
     }
 }
 
-fn median(mut v: Vec<Duration>) -> Duration {
-    v.sort();
-    v[v.len() / 2]
-}
-
+/// Writes raw little-endian f64 values, atomically (a temporary file, then a rename).
 fn write_f64(path: &Path, values: impl IntoIterator<Item = f64>) -> std::io::Result<()> {
     let bytes: Vec<u8> = values.into_iter().flat_map(f64::to_le_bytes).collect();
-    std::fs::write(path, bytes)
+    let tmp = path.with_extension("f64.tmp");
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
 }
 
 /// The thread count rayon uses: `RAYON_NUM_THREADS` if set, else the available parallelism.
@@ -156,7 +158,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         coefficients = data;
     }
-    let prefilter_time = median(times);
+    let prefilter_time = timing::median(times);
 
     // Evaluation at continuous indices.
     let grid = Grid::cell_centered(Aabb::new([0.0; 3], [1.0; 3])?, shape)?;
@@ -171,7 +173,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             times.push(elapsed);
         }
     }
-    let eval_time = median(times);
+    let eval_time = timing::median(times);
 
     println!(
         "n={n} points={} mode={} order={} threads={} prefilter_ms={:.3} eval_ms={:.3}",

@@ -348,37 +348,41 @@ fn points_outside_are_clamped_to_the_box() {
     assert_eq!(ScalarField::bounds(&f), Some(grid.bounds()));
 }
 
-fn big_field(degree: Degree) -> (BSplineField<3>, Vec<Point<3>>) {
-    // 40³ = 64,000 coefficients and 20,000 points: large enough for the reordered batch path.
-    let grid = Grid::cell_centered(box_of::<3>(), [40, 40, 40]).unwrap();
-    let f = BSplineField::interpolate(grid, random_values(grid.len(), 21), degree).unwrap();
+/// Batched evaluation (which reorders large batches on large grids) against pointwise calls.
+fn check_batched<const D: usize>(counts: [usize; D], points: usize) {
+    let grid = Grid::cell_centered(box_of::<D>(), counts).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(23);
-    let points = (0..20_000)
+    let mut pts: Vec<Point<D>> = (0..points)
         .map(|_| random_point(&grid, &mut rng, -0.5))
         .collect();
-    (f, points)
+    pts[7][0] = f64::NAN;
+    for degree in DEGREES {
+        let f = BSplineField::interpolate(grid, random_values(grid.len(), 21), degree).unwrap();
+        for n in [pts.len(), 100] {
+            let pts = &pts[..n];
+            let mut out = vec![0.0; n];
+            ScalarField::values(&f, pts, &mut out);
+            for (p, v) in pts.iter().zip(&out) {
+                let single = f.value(p);
+                assert!(v.to_bits() == single.to_bits() || (v.is_nan() && single.is_nan()));
+            }
+            assert!(out[7].is_nan());
+            let indices: Vec<[f64; D]> = pts.iter().map(|p| grid.continuous_index(p)).collect();
+            let mut out_idx = vec![0.0; n];
+            f.values_at_indices(&indices, &mut out_idx);
+            for (a, b) in out.iter().zip(&out_idx) {
+                assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+            }
+        }
+    }
 }
 
 #[test]
 fn batched_values_equal_pointwise_values_bit_for_bit() {
-    for degree in DEGREES {
-        let (f, points) = big_field(degree);
-        for n in [points.len(), 100] {
-            let points = &points[..n];
-            let mut out = vec![0.0; n];
-            ScalarField::values(&f, points, &mut out);
-            for (p, v) in points.iter().zip(&out) {
-                assert_eq!(v.to_bits(), f.value(p).to_bits());
-            }
-            let indices: Vec<[f64; 3]> = points
-                .iter()
-                .map(|p| f.grid().continuous_index(p))
-                .collect();
-            let mut out_idx = vec![0.0; n];
-            f.values_at_indices(&indices, &mut out_idx);
-            assert_eq!(out, out_idx);
-        }
-    }
+    // Large enough (≥ 32,768 coefficients, ≥ 16,384 points) for the reordered path.
+    check_batched([40, 40, 40], 20_000);
+    check_batched([50, 37, 23], 20_000);
+    check_batched([300, 217], 20_000);
 }
 
 #[test]

@@ -4,9 +4,9 @@
 //! order on a grid larger than the cache each wait on memory, one after the other (the
 //! processor cannot look far enough ahead to overlap them). Reordering fixes that:
 //!
-//! 1. the points are split into *blocks* of [`BUCKET_ROWS`] rows of axis 1 and, inside a block,
-//!    bucketed by their plane of axis 0 (a counting sort), all in parallel and without a global
-//!    scatter;
+//! 1. the points' continuous indices are copied into *blocks* of [`BUCKET_ROWS`] rows of axis 1
+//!    (in parallel: each chunk of points writes its own part of each block) and, inside a block,
+//!    counting-sorted by their plane of axis 0;
 //! 2. each block is swept plane by plane (one rayon task per block): before a plane's points,
 //!    the one new plane of coefficients they read is loaded sequentially (one value per cache
 //!    line, which the hardware prefetcher streams), so that the points' scattered reads hit the
@@ -19,7 +19,7 @@
 use rayon::prelude::*;
 use zeroset_field_core::field::VALUES_CHUNK;
 
-use super::BSplineField;
+use super::{BSplineField, Degree};
 
 /// Batches smaller than this are evaluated in the caller's order.
 const SORT_MIN_POINTS: usize = 1 << 14;
@@ -28,6 +28,9 @@ const SORT_MIN_COEFFICIENTS: usize = 1 << 15;
 /// Rows of axis 1 per block: with a 256² plane, a block's working set is about
 /// `3 planes × (16 + 4) rows × 2 KiB = 120 KiB`.
 const BUCKET_ROWS: usize = 16;
+/// Points reordered at a time (larger batches go slice by slice): the buffers take about 40
+/// bytes per point, plus about 36 per point of the blocks being evaluated.
+const MAX_BATCH: usize = 1 << 22;
 /// Points per task of the partition and assembly passes.
 const ITEM_CHUNK: usize = 1 << 15;
 
@@ -49,113 +52,177 @@ impl<const D: usize> BSplineField<D> {
         if D < 2
             || items.len() < SORT_MIN_POINTS
             || self.coefficients.len() < SORT_MIN_COEFFICIENTS
-            || items.len() > u32::MAX as usize
             || counts[0] * blocks > items.len()
         {
             items
                 .par_chunks(VALUES_CHUNK)
                 .zip(out.par_chunks_mut(VALUES_CHUNK))
-                .for_each(|(xs, os)| {
-                    for (x, o) in xs.iter().zip(os) {
-                        *o = self.value_at_index(to_index(x));
-                    }
-                });
+                .for_each(|(xs, os)| self.values_run(xs, os, &to_index));
             return;
         }
+        // Bound the memory of the reordering: one slice of the batch after the other.
+        for (items, out) in items.chunks(MAX_BATCH).zip(out.chunks_mut(MAX_BATCH)) {
+            self.values_reordered(items, out, &to_index, blocks);
+        }
+    }
+
+    /// [`values_by`](Self::values_by) for one slice of at most [`MAX_BATCH`] points, reordered.
+    fn values_reordered<T: Sync, F: Fn(&T) -> [f64; D] + Sync>(
+        &self,
+        items: &[T],
+        out: &mut [f64],
+        to_index: &F,
+        blocks: usize,
+    ) {
+        let counts = self.grid.counts();
         // The sample nearest to `x` along axis `a` (saturating: NaN → 0).
         let cell = |x: &[f64; D], a: usize| -> usize {
             let i = x[a].clamp(self.lo, self.hi[a]) + 0.5;
             (i as usize).min(counts[a] - 1)
         };
 
-        // 1. Partition: per chunk of points and per block, the block's continuous indices in
-        // the caller's order (copied, so that step 2 streams through them).
+        // 1. Partition into blocks, in parallel over chunks of points: first each point's block
+        // and the chunk's count per block, then the continuous indices, copied block by block
+        // (each chunk writing to its own part of each block), keeping the caller's order.
         let mut block_of = vec![0u32; items.len()];
-        let lists: Vec<Vec<Vec<[f64; D]>>> = items
+        let sizes: Vec<Vec<usize>> = items
             .par_chunks(ITEM_CHUNK)
             .zip(block_of.par_chunks_mut(ITEM_CHUNK))
             .map(|(chunk, block_of)| {
                 let mut sizes = vec![0usize; blocks];
-                for (item, b) in chunk.iter().zip(block_of.iter_mut()) {
+                for (item, b) in chunk.iter().zip(block_of) {
                     let block = cell(&to_index(item), 1) / BUCKET_ROWS;
                     *b = block as u32;
                     sizes[block] += 1;
                 }
-                let mut lists: Vec<Vec<[f64; D]>> =
-                    sizes.iter().map(|&n| Vec::with_capacity(n)).collect();
-                for (item, &b) in chunk.iter().zip(block_of.iter()) {
-                    lists[b as usize].push(to_index(item));
+                sizes
+            })
+            .collect();
+        let mut block_start = vec![0usize; blocks + 1];
+        for (b, start) in (0..blocks).zip(1..) {
+            block_start[start] = block_start[b] + sizes.iter().map(|s| s[b]).sum::<usize>();
+        }
+        let mut points = vec![[0.0; D]; items.len()];
+        {
+            // parts[c][b]: chunk c's points of block b.
+            let mut parts: Vec<Vec<&mut [[f64; D]]>> = (0..sizes.len())
+                .map(|_| Vec::with_capacity(blocks))
+                .collect();
+            let mut rest = &mut points[..];
+            for b in 0..blocks {
+                for (c, chunk_sizes) in sizes.iter().enumerate() {
+                    let (head, tail) = rest.split_at_mut(chunk_sizes[b]);
+                    parts[c].push(head);
+                    rest = tail;
                 }
-                lists
-            })
-            .collect();
+            }
+            items
+                .par_chunks(ITEM_CHUNK)
+                .zip(block_of.par_chunks(ITEM_CHUNK))
+                .zip(parts)
+                .for_each(|((chunk, block_of), mut parts)| {
+                    let mut cursor = vec![0usize; blocks];
+                    for (item, &b) in chunk.iter().zip(block_of) {
+                        let b = b as usize;
+                        parts[b][cursor[b]] = to_index(item);
+                        cursor[b] += 1;
+                    }
+                });
+        }
 
-        // 2. Each block, plane by plane: its values in the order of its points.
-        let values: Vec<Vec<f64>> = (0..blocks)
+        // 2. Each block, plane by plane, into `values` (laid out like `points`).
+        let mut values = vec![0.0; items.len()];
+        let mut tasks = Vec::with_capacity(blocks);
+        let (mut xs, mut vs) = (&points[..], &mut values[..]);
+        for b in 0..blocks {
+            let len = block_start[b + 1] - block_start[b];
+            let (x_head, x_tail) = xs.split_at(len);
+            let (v_head, v_tail) = vs.split_at_mut(len);
+            tasks.push((b, x_head, v_head));
+            (xs, vs) = (x_tail, v_tail);
+        }
+        tasks
             .into_par_iter()
-            .map(|block| {
-                let parts: Vec<&[[f64; D]]> = lists.iter().map(|l| &l[block][..]).collect();
-                self.block_values(block, &parts, |x| cell(x, 0))
-            })
-            .collect();
+            .for_each(|(b, xs, vs)| self.block_values(b, xs, vs, |x| cell(x, 0)));
+        drop(points);
 
-        // 3. Back to the caller's order: each chunk knows where its points start in each block.
-        let mut cursors = Vec::with_capacity(lists.len());
-        let mut running = vec![0usize; blocks];
-        for chunk_lists in &lists {
+        // 3. Back to the caller's order: chunk c's points of block b start at
+        // `block_start[b] + Σ_{c' < c} sizes[c'][b]`.
+        let mut cursors = Vec::with_capacity(sizes.len());
+        let mut running = block_start[..blocks].to_vec();
+        for chunk_sizes in &sizes {
             cursors.push(running.clone());
-            for (r, l) in running.iter_mut().zip(chunk_lists) {
-                *r += l.len();
+            for (r, n) in running.iter_mut().zip(chunk_sizes) {
+                *r += n;
             }
         }
-        drop(lists);
         out.par_chunks_mut(ITEM_CHUNK)
             .zip(block_of.par_chunks(ITEM_CHUNK))
             .zip(cursors)
             .for_each(|((out, block_of), mut cursor)| {
                 for (o, &b) in out.iter_mut().zip(block_of) {
                     let b = b as usize;
-                    *o = values[b][cursor[b]];
+                    *o = values[cursor[b]];
                     cursor[b] += 1;
                 }
             });
     }
 
-    /// The values of one block's points (`parts`, in the caller's order), computed plane by
-    /// plane.
+    /// The values of one block's points `xs` into `values` (same order), computed plane by
+    /// plane: a counting sort by plane into a block-local copy, [`sweep`](Self::sweep) over it,
+    /// and the values put back.
     fn block_values(
         &self,
         block: usize,
-        parts: &[&[[f64; D]]],
+        xs: &[[f64; D]],
+        values: &mut [f64],
         plane_of: impl Fn(&[f64; D]) -> usize,
-    ) -> Vec<f64> {
+    ) {
         let n0 = self.grid.counts()[0];
-        // Counting sort by plane: `start[p]..start[p + 1]` will hold plane p's points.
+        // `start[p]..start[p + 1]` of `sorted` will hold plane p's points.
         let mut start = vec![0usize; n0 + 1];
-        for x in parts.iter().copied().flatten() {
+        for x in xs {
             start[plane_of(x) + 1] += 1;
         }
         for p in 0..n0 {
             start[p + 1] += start[p];
         }
-        let m = start[n0];
         let mut cursor = start.clone();
-        let mut xs = vec![[0.0; D]; m];
-        let mut place = Vec::with_capacity(m);
-        for x in parts.iter().copied().flatten() {
+        let mut sorted = vec![[0.0; D]; xs.len()];
+        let mut place = vec![0u32; xs.len()];
+        for (x, place) in xs.iter().zip(&mut place) {
             let pos = &mut cursor[plane_of(x)];
-            xs[*pos] = *x;
-            place.push(*pos as u32);
+            sorted[*pos] = *x;
+            *place = *pos as u32;
             *pos += 1;
         }
-        let mut sorted = vec![0.0; m];
-        self.sweep(block, &start, &xs, &mut sorted);
-        place.iter().map(|&p| sorted[p as usize]).collect()
+        let mut sorted_values = vec![0.0; xs.len()];
+        self.sweep(block, &start, &sorted, &mut sorted_values);
+        for (v, &p) in values.iter_mut().zip(&place) {
+            *v = sorted_values[p as usize];
+        }
+    }
+
+    /// `out[i] = value_at_index(to_index(&items[i]))` in a plain loop, with the degree dispatched
+    /// once for the whole run so that the evaluation inlines into the loop.
+    fn values_run<T>(&self, items: &[T], out: &mut [f64], to_index: &impl Fn(&T) -> [f64; D]) {
+        match self.degree {
+            Degree::Quadratic => {
+                for (item, o) in items.iter().zip(out) {
+                    *o = self.value_index::<3>(to_index(item));
+                }
+            }
+            Degree::Cubic => {
+                for (item, o) in items.iter().zip(out) {
+                    *o = self.value_index::<4>(to_index(item));
+                }
+            }
+        }
     }
 
     /// Evaluates the plane-sorted points `xs` of one block (plane `p`'s are
-    /// `start[p]..start[p + 1]`), loading each new plane of the block's coefficients
-    /// sequentially before the points that read it.
+    /// `start[p]..start[p + 1]`), plane after plane, loading each new plane of the block's
+    /// coefficients sequentially before the points that read it.
     fn sweep(&self, block: usize, start: &[usize], xs: &[[f64; D]], values: &mut [f64]) {
         let n0 = self.grid.counts()[0];
         let n1 = self.grid.counts()[1];
@@ -180,9 +247,7 @@ impl<const D: usize> BSplineField<D> {
                 continue;
             }
             sink += warm(plane + lead);
-            for (x, v) in xs[range.clone()].iter().zip(&mut values[range]) {
-                *v = self.value_at_index(*x);
-            }
+            self.values_run(&xs[range.clone()], &mut values[range], &|x| *x);
         }
         // Keep the warming loads (their sum is never used).
         std::hint::black_box(sink);

@@ -20,12 +20,13 @@
 //!   solved side by side, so the recurrence runs over `LANES` independent lanes (SIMD, no
 //!   latency stall);
 //! - **other axes** (stride `s > 1`): the solve runs over whole rows of `s` contiguous values at
-//!   once (`rowᵢ ← (rowᵢ − lᵢ rowᵢ₋₁)/mᵢ`), in column blocks of [`COLUMN_BLOCK`] so that a
-//!   block's `n` row pieces stay in cache between the forward and the back sweep.
+//!   once (`rowᵢ ← (rowᵢ − lᵢ rowᵢ₋₁)/mᵢ`), in column blocks of about [`COLUMN_BLOCK_VALUES`]
+//!   values in all, so that a block's `n` row pieces stay in cache between the forward and the
+//!   back sweep.
 //!
-//! Axes `1 … D−1` are filtered slab by slab (one slab = fixed index on axis 0, still in cache
-//! between axes), in parallel over slabs; then axis 0 in parallel over column blocks. Two passes
-//! over memory in all.
+//! Axes `1 … D−1` are filtered slab by slab (one slab = fixed index on axis 0; the last axis
+//! first, which streams the slab into cache for the others), in parallel over slabs; then axis 0
+//! in parallel over column blocks. Two passes over memory in all.
 
 use rayon::prelude::*;
 use zeroset_field_core::Error;
@@ -35,10 +36,16 @@ use super::{Boundary, Degree};
 
 /// Lines of the last axis solved side by side.
 const LANES: usize = 8;
-/// Width (in values) of the column blocks of strided axes: 128 values × 256 rows = 256 KiB.
-const COLUMN_BLOCK: usize = 128;
+/// Values per column block of a strided axis (256 KiB, half a typical L2 cache): a block of
+/// `n` rows is `COLUMN_BLOCK_VALUES / n` values wide (128 for `n` = 256), within 16 … 1024.
+const COLUMN_BLOCK_VALUES: usize = 1 << 15;
 /// Smallest number of values per parallel task of the slab stage.
 const MIN_TASK: usize = 1 << 14;
+
+/// The width of the column blocks along an axis of `n` rows.
+fn column_block(n: usize) -> usize {
+    (COLUMN_BLOCK_VALUES / n).clamp(16, 1024)
+}
 
 /// The Thomas factors of the `n × n` prefilter matrix (`n ≥ 2`).
 #[derive(Debug, Clone)]
@@ -167,12 +174,13 @@ impl Factors {
         }
     }
 
-    /// Solves along the rows of a contiguous block of `n` rows of `width` values, column block
-    /// by column block.
-    fn solve_block(&self, block: &mut [f64], width: usize) {
+    /// Solves along the rows of a contiguous block of `n` rows of `row_len` values, column
+    /// block by column block.
+    fn solve_block(&self, block: &mut [f64], row_len: usize) {
+        let width = column_block(self.len());
         let mut pieces: Vec<_> = block
-            .chunks_exact_mut(width)
-            .map(|row| row.chunks_mut(COLUMN_BLOCK))
+            .chunks_exact_mut(row_len)
+            .map(|row| row.chunks_mut(width))
             .collect();
         let mut rows = Vec::with_capacity(pieces.len());
         loop {
@@ -244,6 +252,10 @@ pub fn prefilter<const D: usize>(
     if D >= 2 && factors[1..].iter().any(Option::is_some) {
         let per_task = slab * MIN_TASK.div_ceil(slab);
         data.par_chunks_mut(per_task).for_each(|task| {
+            // The last axis first: it streams through memory, and leaves the slab in cache.
+            if let Some(f) = &factors[D - 1] {
+                f.solve_lines(task);
+            }
             for slab in task.chunks_exact_mut(stride[0]) {
                 for a in 1..D - 1 {
                     if let Some(f) = &factors[a] {
@@ -253,9 +265,6 @@ pub fn prefilter<const D: usize>(
                     }
                 }
             }
-            if let Some(f) = &factors[D - 1] {
-                f.solve_lines(task);
-            }
         });
     }
 
@@ -264,11 +273,12 @@ pub fn prefilter<const D: usize>(
         if D == 1 {
             f.solve_line(data);
         } else {
+            let width = column_block(f.len());
             let mut pieces: Vec<_> = data
                 .chunks_exact_mut(slab)
-                .map(|row| row.chunks_mut(COLUMN_BLOCK))
+                .map(|row| row.chunks_mut(width))
                 .collect();
-            let mut columns: Vec<Vec<&mut [f64]>> = Vec::with_capacity(slab.div_ceil(COLUMN_BLOCK));
+            let mut columns: Vec<Vec<&mut [f64]>> = Vec::with_capacity(slab.div_ceil(width));
             loop {
                 let rows: Vec<&mut [f64]> = pieces.iter_mut().filter_map(|it| it.next()).collect();
                 if rows.is_empty() {

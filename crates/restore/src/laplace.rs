@@ -27,10 +27,16 @@
 //! ```
 //!
 //! a tridiagonal matrix with one extra row. Givens QR solves each in `O(n_axis)`, and is
-//! backward stable (no normal equations, no squared condition number). The lateral transforms
-//! are dense products with `S_a` (faer's gemm): `O(n · Σ n_a)` flops, which at the box sizes
-//! of restoration (`n_a ≤ 256`) runs at gemm speed and beats an FFT. The whole solve is exact
-//! up to rounding: it agrees with dense QR to ~1e-14 (tested), and needs no iteration.
+//! backward stable (no normal equations, no squared condition number); the lines are laid out
+//! position-major in blocks, so the sweeps run over contiguous rows of modes and vectorise.
+//! The lateral transforms are the orthonormal DST-I of [`zeroset_solvers::dst`]: dense products
+//! folded by parity, `n_a` flops per value and axis. The whole solve is exact up to rounding —
+//! it agrees with dense QR to ~1e-14 (tested) and with an independent NumPy/SciPy port of the
+//! method to ~4e-15 — and needs no iteration.
+//!
+//! Cost, measured on 2 cores (`examples/restoration_timing.rs`): 31,744 unknowns in ~1–2 ms,
+//! 258,048 in ~20 ms, 2.1 M in ~0.25 s. The lateral products grow like `n_a` per value; an
+//! FFT-based DST (`O(log n_a)`) would win from `n_a ≈ 64` on, and is the next step.
 
 use std::time::Instant;
 

@@ -4,13 +4,13 @@
 //! point clouds and their file formats, analytic test fields, and the three traits that decouple
 //! representations from solvers:
 //!
-//! - [`ScalarField`](field::ScalarField) — a function `f: Rᴰ → R` (`D` = 2 or 3) with value,
+//! - [`ScalarField`] — a function `f: Rᴰ → R` (`D` = 2 or 3) with value,
 //!   gradient, batched parallel evaluation and bounds. Every fitted representation implements it,
 //!   so restoration and meshing accept any field.
-//! - [`Basis`](basis::Basis) — a linear function space `f(x) = Σⱼ cⱼ bⱼ(x)`: the row
+//! - [`Basis`] — a linear function space `f(x) = Σⱼ cⱼ bⱼ(x)`: the row
 //!   `[b₀(x), …, b_{n−1}(x)]` (sparse or dense) and its gradients, so that a fit assembles a
 //!   design matrix `A` and solves `min ‖A c − y‖₂`.
-//! - [`LeastSquaresSolver`](lsq::LeastSquaresSolver) — `min ‖A x − b‖₂` for a dense matrix, a
+//! - [`LeastSquaresSolver`] — `min ‖A x − b‖₂` for a dense matrix, a
 //!   sparse matrix or a matrix-free operator, with a report (iterations, residuals, time).
 //!   The implementations live in `zeroset-solvers`.
 //!

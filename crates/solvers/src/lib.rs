@@ -1,7 +1,7 @@
 //! # zeroset-solvers
 //!
 //! Solvers of `min ‖A x − b‖₂` that provably agree, behind the
-//! [`LeastSquaresSolver`](zeroset_field_core::lsq::LeastSquaresSolver) trait of field-core:
+//! [`LeastSquaresSolver`] trait of field-core:
 //!
 //! | solver | method | `A` as | accuracy | cost |
 //! |---|---|---|---|---|

@@ -96,9 +96,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mask = BoxMask::from_indices(&grid, [lo; 3], [lo + k - 1; 3])?;
         let base = Protrusion::new(Face::new(2, Side::Upper)).with_alpha(1.0);
         let reference = base.restore_samples(&grid, &f, &mask)?.0;
+        let system = base.system(&grid, &f, &mask)?;
         if let Some(dir) = &args.write_dir {
             std::fs::create_dir_all(dir)?;
-            let system = base.system(&grid, &f, &mask)?;
             let stem = dir.join(format!("restoration_bar_k{k}"));
             let a = system.operator().to_sparse();
             mtx::write_sparse(
@@ -110,10 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ),
             )?;
             mtx::write_vector(&stem.with_extension("b.mtx"), system.rhs())?;
-            let (h, _) = system
-                .operator()
-                .solve(system.rhs())
-                .map(|s| (s.x, s.info))?;
+            let h = system.operator().solve(system.rhs())?.x;
             mtx::write_vector(&stem.with_extension("h.mtx"), &h)?;
             let dims = system.unknown_box().1;
             std::fs::write(
@@ -124,7 +121,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // The separable solve alone (right-hand side ready, residual checks included): the
         // like-for-like figure for a NumPy port of the same method.
         {
-            let system = base.system(&grid, &f, &mask)?;
             let mut times = Vec::with_capacity(args.repeat);
             for _ in 0..=args.repeat {
                 let start = Instant::now();

@@ -213,3 +213,11 @@ def machine_facts(loads: list[tuple[str, str]], extra: list[tuple[str, str]] = (
     facts += list(extra)
     facts += list(loads)
     return facts
+
+
+def write_report(md_path: Path, csv_path: Path, lines: list[str], facts: list[tuple[str, str]]) -> None:
+    """Writes `lines` plus a Machine section to `md_path` and prints the facts and both paths."""
+    lines = [*lines, "### Machine", "", render_md(["fact", "value"], [[a, b] for a, b in facts]), ""]
+    md_path.write_text("\n".join(lines))
+    print("\nmachine: " + "; ".join(f"{a}={b}" for a, b in facts))
+    print(f"\nwrote {csv_path} and {md_path}")

@@ -405,14 +405,8 @@ def main() -> None:
         bars.md(),
         "",
         *md,
-        "### Machine",
-        "",
-        render_md(["fact", "value"], [[a, b] for a, b in facts]),
-        "",
     ]
-    (out / "restoration_bar.md").write_text("\n".join(report))
-    print("\nmachine: " + "; ".join(f"{a}={b}" for a, b in facts))
-    print(f"\nwrote {out / 'restoration_bar.csv'} and {out / 'restoration_bar.md'}")
+    common.write_report(out / "restoration_bar.md", out / "restoration_bar.csv", report, facts)
 
 
 if __name__ == "__main__":

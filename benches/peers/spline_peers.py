@@ -257,14 +257,8 @@ def main() -> None:
         "",
         bars.md(),
         "",
-        "### Machine",
-        "",
-        render_md(["fact", "value"], [[a, b] for a, b in facts]),
-        "",
     ]
-    (out / "spline_peers.md").write_text("\n".join(report))
-    print("\nmachine: " + "; ".join(f"{a}={b}" for a, b in facts))
-    print(f"\nwrote {out / 'spline_peers.csv'} and {out / 'spline_peers.md'}")
+    common.write_report(out / "spline_peers.md", out / "spline_peers.csv", report, facts)
 
 
 if __name__ == "__main__":

@@ -120,10 +120,10 @@ impl<const D: usize> Denoise<D> {
             std::array::from_fn(|a| grid.coordinate(a, hi[a]) + 0.5 * spacing[a]),
         )?;
         let coarse_grid = Grid::cell_centered(region, self.coarse)?;
+        let strides = crate::index::strides(&grid.counts());
         let coarse = match self.resampling {
             Resampling::Point => coarse_grid.sample(field),
             Resampling::Area => {
-                let strides = crate::index::strides(&grid.counts());
                 let mut data: Vec<f64> = mask
                     .indices()
                     .map(|i| f[crate::index::linear(i, &strides)])
@@ -143,7 +143,6 @@ impl<const D: usize> Denoise<D> {
         }
         let h = coarse_spline(&coarse_grid, coarse, self.resampling)?;
         let mut g = f.to_vec();
-        let strides = crate::index::strides(&grid.counts());
         let points: Vec<[f64; D]> = mask.indices().map(|i| grid.point(i)).collect();
         let mut inside = vec![0.0; points.len()];
         h.values(&points, &mut inside);
@@ -168,14 +167,13 @@ impl<const D: usize> Denoise<D> {
         let start = Instant::now();
         let g = self.restore_samples(field, grid, &f, mask)?;
         let coarse_fit = start.elapsed();
-        let start = Instant::now();
-        let field = BSplineField::interpolate(*grid, g, Degree::Quadratic)?;
+        let (field, interpolation) = crate::interpolate(grid, g)?;
         Ok(Restored {
             field,
             report: Report {
                 coarse: self.coarse.to_vec(),
                 coarse_fit,
-                interpolation: start.elapsed(),
+                interpolation,
             },
         })
     }

@@ -54,6 +54,17 @@ pub struct Restored<const D: usize, R> {
     pub report: R,
 }
 
+/// The restored samples `g` of `grid` interpolated by the quadratic B-spline (the paper's
+/// Eqs. 6 and 9), and how long that took.
+pub(crate) fn interpolate<const D: usize>(
+    grid: &Grid<D>,
+    g: Vec<f64>,
+) -> Result<(BSplineField<D>, std::time::Duration)> {
+    let start = std::time::Instant::now();
+    let field = BSplineField::interpolate(*grid, g, zeroset_bases::bspline::Degree::Quadratic)?;
+    Ok((field, start.elapsed()))
+}
+
 /// Checks what every restoration needs: at least 3 cells per axis, one finite sample per grid
 /// point, a mask inside this grid that leaves something outside it.
 pub(crate) fn check_samples<const D: usize>(

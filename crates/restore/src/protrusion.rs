@@ -64,7 +64,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix, SolveInfo};
@@ -262,9 +261,8 @@ impl Protrusion {
     ) -> Result<Restored<D, Report>> {
         let f = grid.sample(field);
         let (g, mut report) = self.restore_samples(grid, &f, mask)?;
-        let start = Instant::now();
-        let field = BSplineField::interpolate(*grid, g, Degree::Quadratic)?;
-        report.interpolation = start.elapsed();
+        let (field, interpolation) = crate::interpolate(grid, g)?;
+        report.interpolation = interpolation;
         Ok(Restored { field, report })
     }
 }

@@ -47,6 +47,7 @@ mod operator;
 mod pcg;
 pub mod precond;
 pub mod problems;
+pub mod scratch;
 mod sparse_cholesky;
 mod sparse_qr;
 

@@ -10,7 +10,7 @@ use std::fmt::Debug;
 
 use rayon::prelude::*;
 
-use crate::dst::{Dst1, dst1_along_axis};
+use crate::dst::{Direction, Dst1, dst1_split_along_axis};
 use zeroset_field_core::lsq::{LsqMatrix, SolveError};
 
 use crate::operator::Prepared;
@@ -132,7 +132,13 @@ impl DirichletLaplacian {
                 .map(|i| (pi * (i + 1) as f64 / (2 * (n + 1)) as f64).sin().powi(2))
                 .collect()
         };
-        let (s0, s1, s2) = (sin2(dims[0]), sin2(dims[1]), sin2(dims[2]));
+        // In the split order of the transforms (even modes first), so no pass reorders.
+        let sine = dims.map(Dst1::new);
+        let [s0, s1, s2] = [0, 1, 2].map(|a| {
+            let modes: Vec<usize> = (0..dims[a]).map(|j| sine[a].mode(j)).collect();
+            let sin2 = sin2(dims[a]);
+            modes.into_iter().map(|p| sin2[p]).collect::<Vec<f64>>()
+        });
         let mut inv_eigen = Vec::with_capacity(dims.iter().product());
         for a in &s0 {
             for b in &s1 {
@@ -144,15 +150,15 @@ impl DirichletLaplacian {
         Ok(Self {
             dims,
             inv_eigen,
-            sine: dims.map(Dst1::new),
+            sine,
         })
     }
 
-    /// The orthonormal 3-D DST-I of `v` into `out`, one axis at a time, `tmp` as scratch.
-    fn dst3(&self, v: &[f64], tmp: &mut [f64], out: &mut [f64]) {
-        dst1_along_axis(v, out, &self.dims, 2, &self.sine[2]);
-        dst1_along_axis(out, tmp, &self.dims, 0, &self.sine[0]);
-        dst1_along_axis(tmp, out, &self.dims, 1, &self.sine[1]);
+    /// The orthonormal 3-D DST-I of `data` in place, one axis at a time, `scratch` as scratch.
+    fn dst3(&self, data: &mut [f64], scratch: &mut [f64], direction: Direction) {
+        for axis in [2, 0, 1] {
+            dst1_split_along_axis(data, scratch, &self.dims, axis, &self.sine[axis], direction);
+        }
     }
 }
 
@@ -164,14 +170,14 @@ impl Preconditioner for DirichletLaplacian {
         self.inv_eigen.len()
     }
     fn apply_inverse(&self, v: &[f64], out: &mut [f64]) {
-        let mut tmp = vec![0.0; v.len()];
-        let mut spectral = vec![0.0; v.len()];
-        self.dst3(v, &mut tmp, &mut spectral);
-        spectral
-            .par_iter_mut()
+        let mut scratch = crate::scratch::take(v.len());
+        out.copy_from_slice(v);
+        self.dst3(out, &mut scratch, Direction::Forward);
+        out.par_iter_mut()
             .zip(self.inv_eigen.par_iter())
             .for_each(|(x, l)| *x *= l);
-        self.dst3(&spectral, &mut tmp, out);
+        self.dst3(out, &mut scratch, Direction::Inverse);
+        crate::scratch::give_back(scratch);
     }
 }
 

@@ -41,6 +41,7 @@
 mod common;
 mod dense;
 pub mod dst;
+pub mod gmres;
 mod iterative;
 pub mod kernels;
 mod operator;

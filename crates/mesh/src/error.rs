@@ -1,0 +1,87 @@
+//! What can go wrong when extracting a contour or writing a preview, with enough context to fix
+//! the call.
+
+/// The error type of `zeroset-mesh`.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum MeshError {
+    /// A grid, shape or file problem reported by field-core: a grid with fewer than two samples
+    /// on an axis ([`GridTooSmall`](zeroset_field_core::Error::GridTooSmall)), a sample array of
+    /// the wrong length ([`ShapeMismatch`](zeroset_field_core::Error::ShapeMismatch)), a file
+    /// that could not be written ([`Io`](zeroset_field_core::Error::Io)).
+    #[error(transparent)]
+    Field(#[from] zeroset_field_core::Error),
+    /// A sample (given, or returned by the field) is NaN or infinite.
+    #[error(
+        "sample {index} (grid index {grid_index:?}, position {position:?}) is not finite: {value}"
+    )]
+    NonFiniteSample {
+        /// The linear index of the sample (last axis fastest, as
+        /// [`Grid::linear_index`](zeroset_field_core::Grid::linear_index)).
+        index: usize,
+        /// The multi-index of the sample.
+        grid_index: Vec<usize>,
+        /// Where the sample sits.
+        position: Vec<f64>,
+        /// The value found.
+        value: f64,
+    },
+    /// The level to contour is NaN or infinite.
+    #[error("the contour level must be finite, got {level}")]
+    NonFiniteLevel {
+        /// The level given.
+        level: f64,
+    },
+    /// An SVG colour that is not `#rgb`, `#rgba`, `#rrggbb`, `#rrggbbaa` or a name of ASCII
+    /// letters (`steelblue`, `none`).
+    #[error(
+        "invalid SVG colour {color:?}: expected #rgb, #rgba, #rrggbb, #rrggbbaa or a colour name \
+         of 1 to 32 ASCII letters"
+    )]
+    InvalidColor {
+        /// The colour given.
+        color: String,
+    },
+    /// A stroke width, point radius or image width that is not finite and positive.
+    #[error("{what} must be finite and positive, got {value}")]
+    InvalidSize {
+        /// Which size: "stroke width", "point radius", "image width".
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// Plot bounds with zero extent on an axis: there is no scale that maps them to pixels.
+    #[error(
+        "plot bounds are flat on axis {axis} ([{min}, {max}]); an SVG plot needs a box with \
+         positive extent"
+    )]
+    FlatBounds {
+        /// The axis (0 = x, 1 = y).
+        axis: usize,
+        /// The lower coordinate.
+        min: f64,
+        /// The upper coordinate.
+        max: f64,
+    },
+    /// A point or polyline vertex to be drawn has a NaN or infinite coordinate.
+    #[error("{} has a non-finite coordinate {point:?}", describe_point(*.polyline, *.index))]
+    NonFinitePoint {
+        /// The polyline (0-based, within the call) holding the vertex, or `None` for a point.
+        polyline: Option<usize>,
+        /// The vertex or point (0-based).
+        index: usize,
+        /// Its coordinates.
+        point: [f64; 2],
+    },
+}
+
+/// "vertex 3 of polyline 1" or "point 3".
+fn describe_point(polyline: Option<usize>, index: usize) -> String {
+    match polyline {
+        Some(p) => format!("vertex {index} of polyline {p}"),
+        None => format!("point {index}"),
+    }
+}
+
+/// Shorthand for results of this crate.
+pub type Result<T, E = MeshError> = std::result::Result<T, E>;

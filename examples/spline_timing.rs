@@ -21,6 +21,8 @@
 //! axis-major: all first coordinates, then all second, then all third — the `coordinates`
 //! array of `map_coordinates`) and `DIR/values.f64` (`P`).
 
+#[path = "common/rng.rs"]
+mod rng;
 #[path = "common/timing.rs"]
 #[allow(dead_code)] // only `median` is used here
 mod timing;
@@ -31,6 +33,8 @@ use std::time::Instant;
 use zeroset::bases::bspline::{BSplineField, Boundary, Degree, prefilter};
 use zeroset::core::geometry::Aabb;
 use zeroset::core::grid::Grid;
+
+use rng::SplitMix64;
 
 struct Args {
     n: usize,
@@ -89,24 +93,6 @@ fn parse_args() -> Result<Args, String> {
         return Err("--n and --repeat must be positive".into());
     }
     Ok(args)
-}
-
-/// SplitMix64: a tiny seeded generator, so that the data is reproducible without extra crates.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
 }
 
 /// Writes raw little-endian f64 values, atomically (a temporary file, then a rename).

@@ -17,4 +17,5 @@
 
 pub mod bspline;
 pub mod field_file;
+pub mod rbf;
 pub mod tangent_plane;

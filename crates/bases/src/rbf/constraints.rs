@@ -1,0 +1,323 @@
+//! What an RBF field must satisfy: values at points, and gradients at points (Hermite).
+//!
+//! - **On-surface** points: value 0.
+//! - **Off-surface** points (Carr et al. 2001): `pᵢ ± εᵢ nᵢ` with values `±εᵢ`, zeroset's
+//!   negative-inside convention. `εᵢ` is chosen per point so that the offset point's nearest
+//!   input point is `pᵢ` itself (a k-d tree query); otherwise the offset has reached another
+//!   sheet of the surface and its value would be a lie. [`Offset::Auto`] starts at 1% of the
+//!   bounding-box diagonal and halves `εᵢ` until the test passes; [`Offset::Fixed`] refuses a
+//!   crossing offset with [`RbfError::OffsetCrossesSurface`].
+//! - **Inside/outside** points (Jiang–Turk): any value, e.g. −1 inside and +1 outside (003 takes
+//!   +1 inside: flip its signs for zeroset).
+//! - **Gradient** (Hermite) constraints: `∇f(p) = n`, the normal as the gradient, which geology
+//!   orientations need and which removes the need for off-surface points. They need a kernel
+//!   that is twice differentiable at 0 (`r³`).
+
+use kiddo::SquaredEuclidean;
+use kiddo::kd_tree::KdTree;
+use kiddo::leaf_strategies::FlatVec;
+use kiddo::stem_strategies::Eytzinger;
+use zeroset_field_core::geometry::norm as point_norm;
+use zeroset_field_core::{Point, PointCloud};
+
+use super::RbfError;
+
+/// What a constraint prescribes at its point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Prescribed<const D: usize> {
+    /// `f(p) = v`.
+    Value(f64),
+    /// `∇f(p) = g`.
+    Gradient(Point<D>),
+}
+
+/// One constraint: a point and what `f` must do there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint<const D: usize> {
+    /// Where.
+    pub point: Point<D>,
+    /// What.
+    pub prescribed: Prescribed<D>,
+}
+
+/// How far off-surface points sit from the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Offset {
+    /// Start at `fraction` of the bounding-box diagonal and halve per point until the offset
+    /// point's nearest input point is its own (at most 8 halvings; points that still fail get
+    /// no off-surface constraint and are counted in [`OffsetReport::dropped`]).
+    Auto {
+        /// The starting offset as a fraction of the bounding-box diagonal.
+        fraction: f64,
+    },
+    /// The same offset for every point; a crossing one is an error.
+    Fixed(f64),
+}
+
+impl Default for Offset {
+    fn default() -> Self {
+        Self::Auto { fraction: 0.01 }
+    }
+}
+
+/// What [`Constraints::off_surface`] did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct OffsetReport {
+    /// The starting offset.
+    pub initial: f64,
+    /// The smallest offset used.
+    pub smallest: f64,
+    /// Offset points that had to be moved closer (one per side).
+    pub shrunk: usize,
+    /// Offset points dropped because even the smallest offset crossed the surface.
+    pub dropped: usize,
+}
+
+/// An ordered list of constraints.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Constraints<const D: usize> {
+    items: Vec<Constraint<D>>,
+}
+
+type Tree<const D: usize> = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, D, 32>, D, 32>;
+
+impl<const D: usize> Constraints<D> {
+    /// No constraints.
+    pub fn new() -> Self {
+        Self { items: Vec::new() }
+    }
+
+    /// The constraints, in order.
+    pub fn as_slice(&self) -> &[Constraint<D>] {
+        &self.items
+    }
+
+    /// The number of constraints.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
+    /// Adds `f(point) = value` (an on-surface point with 0, inside/outside with any value).
+    pub fn push_value(&mut self, point: Point<D>, value: f64) -> &mut Self {
+        self.items.push(Constraint {
+            point,
+            prescribed: Prescribed::Value(value),
+        });
+        self
+    }
+
+    /// Adds `∇f(point) = gradient`.
+    pub fn push_gradient(&mut self, point: Point<D>, gradient: Point<D>) -> &mut Self {
+        self.items.push(Constraint {
+            point,
+            prescribed: Prescribed::Gradient(gradient),
+        });
+        self
+    }
+
+    /// Appends every constraint of `other`.
+    pub fn extend(&mut self, other: &Self) -> &mut Self {
+        self.items.extend_from_slice(&other.items);
+        self
+    }
+
+    /// Value 0 at every point of `cloud`.
+    pub fn on_surface(cloud: &PointCloud<D>) -> Self {
+        let mut c = Self::new();
+        for p in cloud.positions() {
+            c.push_value(*p, 0.0);
+        }
+        c
+    }
+
+    /// Value 0 at every point and `±εᵢ` at `pᵢ ± εᵢ nᵢ` (Carr et al.), `εᵢ` as `offset` says;
+    /// see the [module docs](self). Normals are normalised here.
+    ///
+    /// # Errors
+    /// [`RbfError::Empty`], [`RbfError::NonFinite`], [`RbfError::ZeroNormal`], a cloud
+    /// without normals as [`RbfError::Degenerate`], [`RbfError::InvalidOffset`], and for a
+    /// fixed offset [`RbfError::OffsetCrossesSurface`].
+    pub fn off_surface(
+        cloud: &PointCloud<D>,
+        offset: Offset,
+    ) -> Result<(Self, OffsetReport), RbfError> {
+        let normals = unit_normals(cloud)?;
+        let points = cloud.positions();
+        let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+        let (initial, halvings) = match offset {
+            Offset::Auto { fraction } => (fraction * diagonal, 8),
+            Offset::Fixed(eps) => (eps, 0),
+        };
+        if !(initial.is_finite() && initial > 0.0) {
+            return Err(RbfError::InvalidOffset(initial));
+        }
+        let tree = Tree::<D>::new_from_slice(points).map_err(|e| RbfError::Degenerate {
+            detail: format!("cannot index the points: {e}"),
+        })?;
+        let mut c = Self::on_surface(cloud);
+        let mut report = OffsetReport {
+            initial,
+            smallest: initial,
+            ..OffsetReport::default()
+        };
+        for (i, (p, n)) in points.iter().zip(&normals).enumerate() {
+            for side in [1.0, -1.0] {
+                let mut eps = initial;
+                let mut placed = false;
+                for attempt in 0..=halvings {
+                    let q: Point<D> = std::array::from_fn(|a| p[a] + side * eps * n[a]);
+                    let nearest = tree
+                        .query(&q)
+                        .nearest_one::<SquaredEuclidean<f64>>()
+                        .execute();
+                    let own = squared(&q, p);
+                    // Ties (another point exactly as near) count as the own point.
+                    if nearest.item as usize == i || nearest.distance >= own {
+                        if attempt > 0 {
+                            report.shrunk += 1;
+                        }
+                        report.smallest = report.smallest.min(eps);
+                        c.push_value(q, side * eps);
+                        placed = true;
+                        break;
+                    }
+                    if halvings == 0 {
+                        return Err(RbfError::OffsetCrossesSurface {
+                            index: i,
+                            eps,
+                            nearest: nearest.item as usize,
+                        });
+                    }
+                    eps *= 0.5;
+                }
+                if !placed {
+                    report.dropped += 1;
+                }
+            }
+        }
+        Ok((c, report))
+    }
+
+    /// Value 0 and gradient `nᵢ` (unit) at every point: Hermite constraints.
+    ///
+    /// # Errors
+    /// As [`Constraints::off_surface`], without the offset ones.
+    pub fn hermite(cloud: &PointCloud<D>) -> Result<Self, RbfError> {
+        let normals = unit_normals(cloud)?;
+        let mut c = Self::new();
+        for (p, n) in cloud.positions().iter().zip(normals) {
+            c.push_value(*p, 0.0);
+            c.push_gradient(*p, n);
+        }
+        Ok(c)
+    }
+}
+
+/// The cloud's normals scaled to unit length, checked.
+fn unit_normals<const D: usize>(cloud: &PointCloud<D>) -> Result<Vec<Point<D>>, RbfError> {
+    if cloud.is_empty() {
+        return Err(RbfError::Empty);
+    }
+    let Some(normals) = cloud.normals() else {
+        return Err(RbfError::Degenerate {
+            detail: "the points have no normals (off-surface and Hermite constraints need them)"
+                .into(),
+        });
+    };
+    let mut out = Vec::with_capacity(normals.len());
+    for (index, (p, n)) in cloud.positions().iter().zip(normals).enumerate() {
+        if let Some(&value) = p.iter().find(|v| !v.is_finite()) {
+            return Err(RbfError::NonFinite {
+                index,
+                what: "coordinate",
+                value,
+            });
+        }
+        if let Some(&value) = n.iter().find(|v| !v.is_finite()) {
+            return Err(RbfError::NonFinite {
+                index,
+                what: "normal",
+                value,
+            });
+        }
+        let len = point_norm(n);
+        if len < 1e-12 {
+            return Err(RbfError::ZeroNormal { index });
+        }
+        out.push(n.map(|v| v / len));
+    }
+    Ok(out)
+}
+
+fn squared<const D: usize>(a: &Point<D>, b: &Point<D>) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_sheets() -> PointCloud<3> {
+        // Two parallel planes 0.1 apart, normals facing away from each other.
+        let mut p = Vec::new();
+        let mut n = Vec::new();
+        for i in 0..5 {
+            for j in 0..5 {
+                let (x, y) = (i as f64 * 0.2, j as f64 * 0.2);
+                p.push([x, y, 0.0]);
+                n.push([0.0, 0.0, -1.0]);
+                p.push([x, y, 0.1]);
+                n.push([0.0, 0.0, 1.0]);
+            }
+        }
+        PointCloud::with_normals(p, n).unwrap()
+    }
+
+    #[test]
+    fn auto_offsets_shrink_where_the_surface_is_near() {
+        let cloud = two_sheets();
+        let (c, report) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.2 }).unwrap();
+        assert_eq!(c.len(), 3 * cloud.len());
+        assert!(report.shrunk > 0 && report.dropped == 0, "{report:?}");
+        // Inward offsets (between the sheets) end up below half the gap.
+        assert!(report.smallest <= 0.05 + 1e-12, "{report:?}");
+        for k in cloud.len()..c.len() {
+            let Prescribed::Value(v) = c.as_slice()[k].prescribed else {
+                panic!("values only")
+            };
+            assert!(v.abs() <= report.initial && v != 0.0);
+        }
+    }
+
+    #[test]
+    fn a_fixed_offset_that_crosses_is_refused_and_bad_normals_are_named() {
+        let cloud = two_sheets();
+        let err = Constraints::off_surface(&cloud, Offset::Fixed(0.15)).unwrap_err();
+        assert!(
+            matches!(err, RbfError::OffsetCrossesSurface { .. }),
+            "{err}"
+        );
+        assert!(Constraints::off_surface(&cloud, Offset::Fixed(0.02)).is_ok());
+        assert_eq!(
+            Constraints::off_surface(&cloud, Offset::Fixed(-1.0)).unwrap_err(),
+            RbfError::InvalidOffset(-1.0)
+        );
+        let zero =
+            PointCloud::with_normals(vec![[0.0; 3], [1.0; 3]], vec![[0.0, 0.0, 1.0], [0.0; 3]])
+                .unwrap();
+        assert_eq!(
+            Constraints::hermite(&zero).unwrap_err(),
+            RbfError::ZeroNormal { index: 1 }
+        );
+        let bare = PointCloud::new(vec![[0.0; 3]]).unwrap();
+        assert!(matches!(
+            Constraints::hermite(&bare).unwrap_err(),
+            RbfError::Degenerate { .. }
+        ));
+    }
+}

@@ -1,0 +1,397 @@
+use faer::Mat;
+use faer::linalg::solvers::{PartialPivLu, Solve};
+use proptest::prelude::*;
+use zeroset_field_core::basis::design_matrix;
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::lsq::{LinearOperator, LsqMatrix};
+
+use super::*;
+
+/// Fibonacci points on the sphere of `radius` around `centre`, with outward normals.
+fn sphere(n: usize, centre: [f64; 3], radius: f64) -> Vec<([f64; 3], [f64; 3])> {
+    (0..n)
+        .map(|k| {
+            let z = -1.0 + (2 * k + 1) as f64 / n as f64;
+            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+            let u = [s * t.cos(), s * t.sin(), z];
+            (std::array::from_fn(|a| centre[a] + radius * u[a]), u)
+        })
+        .collect()
+}
+
+/// The issue's sphere set-up: N − 2⌊N/3⌋ on-surface points, ⌊N/3⌋ at ±0.05.
+fn sphere_setup(n: usize) -> Constraints<3> {
+    let third = n / 3;
+    let on = sphere(n - 2 * third, [0.5; 3], 0.35);
+    let mut c = Constraints::new();
+    for (p, _) in &on {
+        c.push_value(*p, 0.0);
+    }
+    for (k, (p, u)) in on.iter().take(third).enumerate() {
+        let _ = k;
+        c.push_value(std::array::from_fn(|a| p[a] + 0.05 * u[a]), 0.05);
+        c.push_value(std::array::from_fn(|a| p[a] - 0.05 * u[a]), -0.05);
+    }
+    c
+}
+
+/// The full saddle-point system solved by LU: the reference for the projected Cholesky.
+fn lu_reference<K: Kernel + Clone, const D: usize>(kernel: &K, c: &Constraints<D>) -> Vec<f64> {
+    let f = system::Functionals::new(kernel, c.as_slice()).unwrap();
+    let poly = system::Polynomial::fit(&f.points);
+    let size = f.len() + D + 1;
+    let a = system::assemble(kernel, &f, &poly);
+    let a = Mat::from_fn(size, size, |i, j| a[j * size + i]);
+    let mut rhs = Mat::from_fn(size, 1, |i, _| if i < f.len() { f.targets[i] } else { 0.0 });
+    PartialPivLu::new(a.as_ref()).solve_in_place(rhs.as_mut());
+    (0..size).map(|i| rhs[(i, 0)]).collect()
+}
+
+fn solution<K: Kernel, const D: usize>(field: &RbfField<K, D>) -> Vec<f64> {
+    field
+        .weights()
+        .iter()
+        .chain(field.polynomial_coefficients())
+        .copied()
+        .collect()
+}
+
+/// Two fits of the same constraints may centre their polynomials differently: compare the
+/// kernel weights (basis-independent) and the values at probe points.
+fn field_diff<K: Kernel>(a: &RbfField<K, 3>, b: &RbfField<K, 3>) -> f64 {
+    let probes: Vec<[f64; 3]> = (0..64)
+        .map(|i| {
+            let t = i as f64 * 0.71;
+            [t.sin().abs(), (1.7 * t).cos().abs(), (0.37 * t).sin().abs()]
+        })
+        .collect();
+    let va: Vec<f64> = probes.iter().map(|p| a.value(p)).collect();
+    let vb: Vec<f64> = probes.iter().map(|p| b.value(p)).collect();
+    max_rel_diff(a.weights(), b.weights()).max(max_rel_diff(&va, &vb))
+}
+
+fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |s, (x, y)| s.max((x - y).abs()))
+        / scale
+}
+
+#[test]
+fn projected_cholesky_agrees_with_lu_on_the_whole_system() {
+    let c = sphere_setup(300);
+    for (name, got, want) in [
+        (
+            "r",
+            solution(&RbfFit::new(Biharmonic).fit(&c).unwrap().field),
+            lu_reference(&Biharmonic, &c),
+        ),
+        (
+            "r3",
+            solution(&RbfFit::new(Triharmonic).fit(&c).unwrap().field),
+            lu_reference(&Triharmonic, &c),
+        ),
+    ] {
+        let d = max_rel_diff(&got, &want);
+        assert!(d < 1e-8, "{name}: {d:.1e}");
+    }
+}
+
+#[test]
+fn the_sphere_fit_interpolates_and_approximates_the_distance() {
+    let c = sphere_setup(600);
+    for fit in [
+        RbfFit::new(Triharmonic).fit(&c).unwrap(),
+        RbfFit::new(Triharmonic).fit(&c).unwrap(),
+    ] {
+        assert!(fit.report.max_residual < 1e-10, "{:?}", fit.report);
+        for con in c.as_slice() {
+            let Prescribed::Value(v) = con.prescribed else {
+                unreachable!()
+            };
+            assert!((fit.field.value(&con.point) - v).abs() < 1e-10);
+        }
+        // Between the constraints, within the band, the field is close to the SDF.
+        for (p, u) in sphere(200, [0.5; 3], 0.37) {
+            let sd = 0.02;
+            let _ = u;
+            assert!(
+                (fit.field.value(&p) - sd).abs() < 5e-3,
+                "{}",
+                fit.field.value(&p)
+            );
+        }
+    }
+    let r = RbfFit::new(Biharmonic).fit(&c).unwrap();
+    assert!(r.report.max_residual < 1e-10, "{:?}", r.report);
+}
+
+#[test]
+fn hermite_constraints_set_value_and_gradient() {
+    let pts = sphere(80, [0.0; 3], 1.0);
+    let mut c = Constraints::new();
+    for (p, n) in &pts {
+        c.push_value(*p, 0.0);
+        c.push_gradient(*p, *n);
+    }
+    let fit = RbfFit::new(Triharmonic).fit(&c).unwrap();
+    assert!(fit.report.max_residual < 1e-10, "{:?}", fit.report);
+    for (p, n) in &pts {
+        assert!(fit.field.value(p).abs() < 1e-10);
+        let g = fit.field.gradient(p);
+        for a in 0..3 {
+            assert!((g[a] - n[a]).abs() < 1e-9, "{g:?} vs {n:?}");
+        }
+    }
+    assert!(fit.field.value(&[0.0; 3]) < 0.0 && fit.field.value(&[0.0, 0.0, 1.6]) > 0.0);
+    // Gradient and Hessian against central differences away from the centres.
+    let x = [0.21, -0.33, 0.47];
+    let h = 1e-5;
+    let (g, hs) = (fit.field.gradient(&x), fit.field.hessian(&x));
+    for a in 0..3 {
+        let (mut p, mut m) = (x, x);
+        p[a] += h;
+        m[a] -= h;
+        let fd = (fit.field.value(&p) - fit.field.value(&m)) / (2.0 * h);
+        assert!((fd - g[a]).abs() < 1e-6 * g[a].abs().max(1.0));
+        let (gp, gm) = (fit.field.gradient(&p), fit.field.gradient(&m));
+        for b in 0..3 {
+            let fd = (gp[b] - gm[b]) / (2.0 * h);
+            assert!((fd - hs[a][b]).abs() < 1e-5 * hs[a][b].abs().max(1.0));
+        }
+    }
+    // r is not differentiable enough for gradient constraints.
+    assert!(matches!(
+        RbfFit::new(Biharmonic).fit(&c).unwrap_err(),
+        RbfError::KernelNotSmooth { .. }
+    ));
+}
+
+#[test]
+fn thin_plate_curve_with_inside_and_outside_points() {
+    // Jiang–Turk's set-up (their +1 inside is −1 here).
+    let mut c = Constraints::<2>::new();
+    for k in 0..16 {
+        let t = k as f64 * std::f64::consts::TAU / 16.0;
+        let r = 0.6 + 0.15 * (3.0 * t).cos();
+        c.push_value([r * t.cos(), r * t.sin()], 0.0);
+    }
+    c.push_value([0.0, 0.0], -1.0);
+    for k in 0..4 {
+        let t = k as f64 * std::f64::consts::FRAC_PI_2 + 0.3;
+        c.push_value([1.2 * t.cos(), 1.2 * t.sin()], 1.0);
+    }
+    let fit = RbfFit::new(ThinPlate).fit(&c).unwrap();
+    assert!(fit.report.max_residual < 1e-10);
+    let want = lu_reference(&ThinPlate, &c);
+    assert!(max_rel_diff(&solution(&fit.field), &want) < 1e-8);
+    assert!(fit.field.value(&[0.1, 0.1]) < 0.0 && fit.field.value(&[1.0, 1.0]) > 0.0);
+}
+
+#[test]
+fn bad_input_gets_specific_errors() {
+    let fit = RbfFit::new(Triharmonic);
+    assert_eq!(
+        fit.fit(&Constraints::<3>::new()).unwrap_err(),
+        RbfError::Empty
+    );
+    let mut dup = sphere_setup(30);
+    let p = dup.as_slice()[4].point;
+    dup.push_value(p, 0.1);
+    assert!(matches!(
+        fit.fit(&dup).unwrap_err(),
+        RbfError::Duplicate {
+            first: 4,
+            second: 30,
+            ..
+        }
+    ));
+    let mut nan = sphere_setup(30);
+    nan.push_value([0.0, f64::NAN, 0.0], 0.0);
+    assert!(matches!(
+        fit.fit(&nan).unwrap_err(),
+        RbfError::NonFinite { index: 30, .. }
+    ));
+    let mut plane = Constraints::<3>::new();
+    for i in 0..5 {
+        for j in 0..5 {
+            plane.push_value([i as f64, j as f64, 2.0], (i + j) as f64);
+        }
+    }
+    assert!(matches!(
+        fit.fit(&plane).unwrap_err(),
+        RbfError::Degenerate { .. }
+    ));
+    let mut few = Constraints::<3>::new();
+    few.push_value([0.0; 3], 0.0).push_value([1.0; 3], 1.0);
+    assert!(matches!(
+        fit.fit(&few).unwrap_err(),
+        RbfError::Degenerate { .. }
+    ));
+    let mut inf = sphere_setup(30);
+    inf.push_value([0.1, 0.2, 0.3], f64::INFINITY);
+    assert!(matches!(
+        fit.fit(&inf).unwrap_err(),
+        RbfError::NonFinite { what: "value", .. }
+    ));
+}
+
+#[test]
+fn the_space_reproduces_the_field_and_values_are_thread_independent() {
+    let fit = RbfFit::new(Biharmonic).fit(&sphere_setup(90)).unwrap();
+    let space = RbfSpace::of(&fit.field);
+    let xs: Vec<[f64; 3]> = (0..50)
+        .map(|i| {
+            let t = i as f64 * 0.37;
+            [
+                0.5 + 0.4 * t.sin(),
+                0.5 + 0.3 * (1.3 * t).cos(),
+                0.2 + 0.01 * i as f64,
+            ]
+        })
+        .collect();
+    let a = design_matrix(&space, &xs);
+    let coef = solution(&fit.field);
+    let mut via_basis = vec![0.0; xs.len()];
+    LsqMatrix::SparseRow(a.as_ref()).apply(&coef, &mut via_basis);
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut out = vec![0.0; xs.len()];
+        pool.install(|| fit.field.values(&xs, &mut out));
+        out
+    };
+    let (one, three) = (on(1), on(3));
+    assert_eq!(one, three);
+    for (i, x) in xs.iter().enumerate() {
+        assert!((one[i] - fit.field.value(x)).abs() < 1e-12);
+        assert!((one[i] - via_basis[i]).abs() < 1e-10);
+    }
+}
+
+#[test]
+fn removing_every_batch_gives_back_the_base_fit() {
+    let base = sphere_setup(60);
+    let fit = RbfFit::new(Triharmonic);
+    let mut inc = IncrementalFit::new(&fit, &base).unwrap();
+    let mut extra = Constraints::new();
+    extra
+        .push_value([0.5, 0.5, 0.5], -0.35)
+        .push_value([0.5, 0.5, 1.0], 0.15);
+    inc.add(&extra).unwrap();
+    let mut more = Constraints::new();
+    more.push_gradient([0.5, 0.5, 0.85], [0.0, 0.0, 1.0]);
+    inc.add(&more).unwrap();
+    assert_eq!(inc.batches(), 2);
+    assert_eq!(inc.remove_last(), Some(3));
+    assert_eq!(inc.remove_last(), Some(2));
+    assert_eq!(inc.remove_last(), None);
+    let full = fit.fit(&base).unwrap();
+    assert!(field_diff(&inc.field(), &full.field) < 1e-10);
+    // A duplicate of an old point is refused and leaves the fit as it was.
+    let mut dup = Constraints::new();
+    dup.push_value(base.as_slice()[3].point, 1.0);
+    assert!(matches!(
+        inc.add(&dup).unwrap_err(),
+        RbfError::Duplicate { .. }
+    ));
+    assert_eq!(inc.batches(), 0);
+}
+
+fn random_constraints(seed: u64, n: usize) -> Constraints<3> {
+    // A smooth target on scattered points (a deterministic pseudo-random sequence).
+    let mut c = Constraints::new();
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut next = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..n {
+        let p = [next(), next(), next()];
+        c.push_value(p, (3.0 * p[0]).sin() + p[1] * p[2]);
+    }
+    c
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    /// Adding M constraints (in one or two batches, values and gradients) equals a full
+    /// re-solve to 1e-8 relative.
+    #[test]
+    fn incremental_constraints_equal_a_full_solve(
+        seed in 0u64..1000,
+        n in 8usize..80,
+        m in 1usize..6,
+        split in 0usize..6,
+        gradient in any::<bool>(),
+    ) {
+        let all = random_constraints(seed, n + m);
+        let (base, extra) = all.as_slice().split_at(n);
+        let mut base_c = Constraints::new();
+        for c in base { base_c.push_value(c.point, match c.prescribed { Prescribed::Value(v) => v, _ => 0.0 }); }
+        let fit = RbfFit::new(Triharmonic);
+        let mut inc = IncrementalFit::new(&fit, &base_c).unwrap();
+        let mut full = base_c.clone();
+        let cut = split.min(extra.len());
+        for part in [&extra[..cut], &extra[cut..]] {
+            if part.is_empty() { continue; }
+            let mut batch = Constraints::new();
+            for c in part {
+                if let Prescribed::Value(v) = c.prescribed { batch.push_value(c.point, v); }
+            }
+            if gradient {
+                let p = part[0].point;
+                batch.push_gradient(p, [0.3, -0.2, 0.5]);
+            }
+            inc.add(&batch).unwrap();
+            full.extend(&batch);
+        }
+        let want = fit.fit(&full).unwrap();
+        let got = inc.field();
+        let d = field_diff(&got, &want.field);
+        prop_assert!(d < 1e-8, "relative difference {d:.1e}");
+        if std::env::var_os("ZEROSET_REPORT").is_some() {
+            eprintln!("incremental n={n} m={m} gradient={gradient}: {d:.1e}");
+        }
+    }
+}
+
+#[test]
+fn the_iterative_and_dense_fits_agree_to_the_solver_tolerance() {
+    let c = sphere_setup(900);
+    let dense = RbfFit::new(Biharmonic)
+        .with_solver(Solver::Dense)
+        .fit(&c)
+        .unwrap();
+    let iterative = RbfFit::new(Biharmonic)
+        .with_solver(Solver::Iterative(IterativeParams::default()))
+        .fit(&c)
+        .unwrap();
+    assert_eq!(iterative.report.solver, "gmres-cardinal");
+    assert!(iterative.report.iterations > 0 && iterative.report.iterations < 60);
+    assert!(
+        iterative.report.max_residual < 1e-10,
+        "{:?}",
+        iterative.report
+    );
+    let d = field_diff(&iterative.field, &dense.field);
+    assert!(d < 1e-9, "dense vs iterative: {d:.1e}");
+    // Hermite constraints are refused by the iterative solve, with a clear message.
+    let mut h = Constraints::new();
+    for (p, n) in sphere(20, [0.0; 3], 1.0) {
+        h.push_value(p, 0.0).push_gradient(p, n);
+    }
+    let err = RbfFit::new(Triharmonic)
+        .with_solver(Solver::Iterative(IterativeParams::default()))
+        .fit(&h)
+        .unwrap_err();
+    assert!(err.to_string().contains("value constraints only"), "{err}");
+}

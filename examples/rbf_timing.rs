@@ -1,0 +1,302 @@
+//! Times RBF fitting and evaluation on the sphere set-up of `PEERS.md` (the one scipy's
+//! `RBFInterpolator(kernel, degree=1)` is timed on), and writes the very same points so that
+//! `benches/peers/rbf_peers.py` can run scipy on them.
+//!
+//! ```text
+//! cargo run --release --example rbf_timing -- [--n 1000,3000,6000] [--kernels r,r3]
+//!     [--eval 100000] [--repeat 5] [--solvers auto,dense,iterative] [--write-dir DIR] [--csv FILE]
+//! ```
+//!
+//! Set-up: sphere centre (0.5, 0.5, 0.5), radius 0.35; `N − 2⌊N/3⌋` Fibonacci points on it
+//! (value 0) and, for the first `⌊N/3⌋` of them, points at `±0.05` along the outward normal
+//! (values `±0.05`). Evaluation: `--eval` points uniform in `[0, 1]³` (SplitMix64, seed 7).
+//! Figures: fit and evaluation times (medians of `--repeat` after one warm-up; one run without
+//! warm-up when a fit takes over 2 s), the largest error against the sphere's signed distance
+//! over the evaluation points with `|sd| < 0.05`, and the largest constraint residual.
+//!
+//! `--write-dir DIR` writes `DIR/rbf_sphere_n{N}.csv` (`x,y,z,value`) and `DIR/rbf_eval_{M}.csv`
+//! (`x,y,z`), numbers with 17 significant digits (exact round trip); `--csv FILE` writes
+//! `n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs`.
+
+#[path = "common/rng.rs"]
+mod rng;
+#[path = "common/timing.rs"]
+mod timing;
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use zeroset::bases::rbf::{
+    Biharmonic, Constraints, Fitted, IterativeParams, Kernel, Prescribed, RbfFit, Solver,
+    Triharmonic,
+};
+use zeroset::core::field::ScalarField;
+use zeroset::core::io::write_atomic;
+
+use rng::SplitMix64;
+
+const CENTRE: f64 = 0.5;
+const RADIUS: f64 = 0.35;
+const OFFSET: f64 = 0.05;
+
+struct Args {
+    ns: Vec<usize>,
+    kernels: Vec<String>,
+    eval: usize,
+    repeat: usize,
+    write_dir: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    solvers: Vec<String>,
+}
+
+const USAGE: &str = "usage: rbf_timing [--n 1000,3000,6000] [--kernels r,r3] [--eval 100000] \
+    [--repeat 5] [--solvers auto,dense,iterative] [--write-dir DIR] [--csv FILE]";
+
+fn parse_args() -> Result<Args, String> {
+    let mut args = Args {
+        ns: vec![1000, 3000, 6000],
+        kernels: vec!["r".into(), "r3".into()],
+        eval: 100_000,
+        repeat: 5,
+        write_dir: None,
+        csv: None,
+        solvers: vec!["auto".into()],
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(flag) = it.next() {
+        let mut value = || it.next().ok_or(format!("{flag} needs a value\n{USAGE}"));
+        match flag.as_str() {
+            "--n" => args.ns = timing::parse_list("--n", &value()?)?,
+            "--kernels" => args.kernels = value()?.split(',').map(str::to_string).collect(),
+            "--eval" => args.eval = value()?.parse().map_err(|e| format!("--eval: {e}"))?,
+            "--repeat" => {
+                args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?;
+                args.repeat = args.repeat.max(1);
+            }
+            "--write-dir" => args.write_dir = Some(value()?.into()),
+            "--csv" => args.csv = Some(value()?.into()),
+            "--solvers" => args.solvers = value()?.split(',').map(str::to_string).collect(),
+            "--help" | "-h" => return Err(USAGE.into()),
+            other => return Err(format!("unknown argument {other}\n{USAGE}")),
+        }
+    }
+    if args.ns.iter().any(|&n| n < 10) {
+        return Err("--n values must be at least 10".into());
+    }
+    if let Some(s) = args
+        .solvers
+        .iter()
+        .find(|s| !matches!(s.as_str(), "auto" | "dense" | "iterative"))
+    {
+        return Err(format!(
+            "--solvers: unknown solver {s} (auto, dense, iterative)"
+        ));
+    }
+    if let Some(k) = args
+        .kernels
+        .iter()
+        .find(|k| !matches!(k.as_str(), "r" | "r3"))
+    {
+        return Err(format!("--kernels: unknown kernel {k} (r, r3)"));
+    }
+    Ok(args)
+}
+
+/// The sphere set-up's constraints (see the module docs).
+fn sphere_setup(n: usize) -> Constraints<3> {
+    let third = n / 3;
+    let on = n - 2 * third;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let unit: Vec<[f64; 3]> = (0..on)
+        .map(|k| {
+            let z = 1.0 - (2 * k + 1) as f64 / on as f64;
+            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * golden);
+            [s * t.cos(), s * t.sin(), z]
+        })
+        .collect();
+    let at = |u: &[f64; 3], r: f64| u.map(|v| CENTRE + r * v);
+    let mut c = Constraints::new();
+    for u in &unit {
+        c.push_value(at(u, RADIUS), 0.0);
+    }
+    for u in &unit[..third] {
+        c.push_value(at(u, RADIUS + OFFSET), OFFSET);
+        c.push_value(at(u, RADIUS - OFFSET), -OFFSET);
+    }
+    c
+}
+
+fn signed_distance(p: &[f64; 3]) -> f64 {
+    p.iter()
+        .map(|v| (v - CENTRE) * (v - CENTRE))
+        .sum::<f64>()
+        .sqrt()
+        - RADIUS
+}
+
+fn write_csv(
+    path: &std::path::Path,
+    header: &str,
+    rows: impl Iterator<Item = Vec<f64>>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut text = String::from(header);
+    text.push('\n');
+    for row in rows {
+        let cells: Vec<String> = row.iter().map(|v| format!("{v:.16e}")).collect();
+        text.push_str(&cells.join(","));
+        text.push('\n');
+    }
+    write_atomic(path, |w| w.write_all(text.as_bytes()))?;
+    Ok(())
+}
+
+/// Median fit time (one run when a fit is slow) and the last fit.
+fn time_fit<K: Kernel + Clone>(
+    fit: RbfFit<K>,
+    c: &Constraints<3>,
+    repeat: usize,
+) -> Result<(Duration, usize, Fitted<K, 3>), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let first = fit.fit(c)?;
+    let once = start.elapsed();
+    if once > Duration::from_secs(2) {
+        return Ok((once, 1, first));
+    }
+    let mut times = Vec::with_capacity(repeat);
+    let mut last = first;
+    for _ in 0..repeat {
+        let start = Instant::now();
+        last = fit.fit(c)?;
+        times.push(start.elapsed());
+    }
+    Ok((timing::median(times), repeat, last))
+}
+
+fn run<K: Kernel + Clone>(
+    kernel: K,
+    solver: &str,
+    n: usize,
+    c: &Constraints<3>,
+    eval: &[[f64; 3]],
+    repeat: usize,
+    csv: &mut String,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let name = kernel.name().to_string();
+    let solver = match solver {
+        "dense" => Solver::Dense,
+        "iterative" => Solver::Iterative(IterativeParams {
+            neighbours: std::env::var("ZEROSET_RBF_NEIGHBOURS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(IterativeParams::default().neighbours),
+            far: std::env::var("ZEROSET_RBF_FAR")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(IterativeParams::default().far),
+            max_iterations: 120,
+            ..IterativeParams::default()
+        }),
+        _ => Solver::Auto,
+    };
+    let (fit_time, runs, fitted) = time_fit(RbfFit::new(kernel).with_solver(solver), c, repeat)?;
+    let mut values = vec![0.0; eval.len()];
+    let mut times = Vec::new();
+    for _ in 0..=runs.min(repeat) {
+        let start = Instant::now();
+        fitted.field.values(eval, &mut values);
+        times.push(start.elapsed());
+    }
+    times.remove(0);
+    let eval_time = timing::median(times);
+    let max_err = eval
+        .iter()
+        .zip(&values)
+        .filter(|(p, _)| signed_distance(p).abs() < OFFSET)
+        .map(|(p, v)| (v - signed_distance(p)).abs())
+        .fold(0.0, f64::max);
+    let residual = c
+        .as_slice()
+        .iter()
+        .map(|con| match con.prescribed {
+            Prescribed::Value(v) => (fitted.field.value(&con.point) - v).abs(),
+            Prescribed::Gradient(_) => 0.0,
+        })
+        .fold(0.0, f64::max);
+    let (fit_ms, eval_ms) = (fit_time.as_secs_f64() * 1e3, eval_time.as_secs_f64() * 1e3);
+    println!(
+        "{n:<6} {name:<4} {:<15} {fit_ms:>10.1} {eval_ms:>10.1} {max_err:>12.3e} {residual:>12.2e} {:>9.1e} {:>5}",
+        fitted.report.solver, fitted.report.condition_estimate, fitted.report.iterations
+    );
+    for w in &fitted.report.warnings {
+        eprintln!("  warning: {w}");
+    }
+    writeln!(
+        csv,
+        "{n},{name},{},{fit_ms:.4},{eval_ms:.4},{max_err:.6e},{residual:.6e},{runs}",
+        fitted.report.solver
+    )?;
+    Ok(())
+}
+
+fn main() {
+    if let Err(e) = run_all() {
+        eprintln!("rbf_timing: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run_all() -> Result<(), Box<dyn std::error::Error>> {
+    let args = parse_args()?;
+    let mut rng = SplitMix64(7);
+    let eval: Vec<[f64; 3]> = (0..args.eval)
+        .map(|_| [rng.unit(), rng.unit(), rng.unit()])
+        .collect();
+    if let Some(dir) = &args.write_dir {
+        std::fs::create_dir_all(dir)?;
+        write_csv(
+            &dir.join(format!("rbf_eval_{}.csv", args.eval)),
+            "x,y,z",
+            eval.iter().map(|p| p.to_vec()),
+        )?;
+    }
+    println!(
+        "threads {}; evaluation at {} points",
+        rayon::current_num_threads(),
+        args.eval
+    );
+    println!(
+        "{:<6} {:<4} {:<15} {:>10} {:>10} {:>12} {:>12} {:>9} {:>5}",
+        "n", "kern", "solver", "fit_ms", "eval_ms", "max_err_band", "residual", "cond_est", "iters"
+    );
+    let mut csv =
+        String::from("n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs\n");
+    for &n in &args.ns {
+        let c = sphere_setup(n);
+        if let Some(dir) = &args.write_dir {
+            write_csv(
+                &dir.join(format!("rbf_sphere_n{n}.csv")),
+                "x,y,z,value",
+                c.as_slice().iter().map(|con| {
+                    let v = match con.prescribed {
+                        Prescribed::Value(v) => v,
+                        Prescribed::Gradient(_) => f64::NAN,
+                    };
+                    vec![con.point[0], con.point[1], con.point[2], v]
+                }),
+            )?;
+        }
+        for k in &args.kernels {
+            for s in &args.solvers {
+                match k.as_str() {
+                    "r" => run(Biharmonic, s, n, &c, &eval, args.repeat, &mut csv)?,
+                    _ => run(Triharmonic, s, n, &c, &eval, args.repeat, &mut csv)?,
+                }
+            }
+        }
+    }
+    if let Some(path) = &args.csv {
+        write_atomic(path, |w| w.write_all(csv.as_bytes()))?;
+    }
+    Ok(())
+}

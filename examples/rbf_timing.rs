@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example rbf_timing -- [--n 1000,3000,6000] [--kernels r,r3]
-//!     [--eval 100000] [--repeat 5] [--solvers auto,dense,iterative] [--write-dir DIR] [--csv FILE]
+//!     [--eval 100000] [--repeat 5] [--solvers auto,dense,mixed,iterative] [--write-dir DIR] [--csv FILE]
 //! ```
 //!
 //! Set-up: sphere centre (0.5, 0.5, 0.5), radius 0.35; `N − 2⌊N/3⌋` Fibonacci points on it
@@ -51,7 +51,7 @@ struct Args {
 }
 
 const USAGE: &str = "usage: rbf_timing [--n 1000,3000,6000] [--kernels r,r3] [--eval 100000] \
-    [--repeat 5] [--solvers auto,dense,iterative] [--write-dir DIR] [--csv FILE]";
+    [--repeat 5] [--solvers auto,dense,mixed,iterative] [--write-dir DIR] [--csv FILE]";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -87,10 +87,10 @@ fn parse_args() -> Result<Args, String> {
     if let Some(s) = args
         .solvers
         .iter()
-        .find(|s| !matches!(s.as_str(), "auto" | "dense" | "iterative"))
+        .find(|s| !matches!(s.as_str(), "auto" | "dense" | "mixed" | "iterative"))
     {
         return Err(format!(
-            "--solvers: unknown solver {s} (auto, dense, iterative)"
+            "--solvers: unknown solver {s} (auto, dense, mixed, iterative)"
         ));
     }
     if let Some(k) = args
@@ -185,6 +185,7 @@ fn run<K: Kernel + Clone>(
     let name = kernel.name().to_string();
     let solver = match solver {
         "dense" => Solver::Dense,
+        "mixed" => Solver::MixedPrecision,
         "iterative" => Solver::Iterative(IterativeParams {
             neighbours: std::env::var("ZEROSET_RBF_NEIGHBOURS")
                 .ok()

@@ -13,9 +13,14 @@
 //! indefinite matrix. Forming `Q̃` costs `O(n² m)` (rank-2 updates, one per reflection). A solve
 //! afterwards is `O(n²)`, which is what the incremental constraints build on.
 
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::matmul::matmul;
-use faer::linalg::solvers::{Llt, Solve};
-use faer::{Accum, Mat, MatMut, Par, Side};
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use rayon::prelude::*;
 
 use super::RbfError;
 
@@ -30,15 +35,22 @@ pub(crate) struct DenseFactor {
     r: Vec<f64>,
     /// The first `m` rows of `Q̃`, `m × n` row-major.
     top: Vec<f64>,
-    llt: Llt<f64>,
+    llt: Cholesky,
     sign: f64,
     /// `(max Lᵢᵢ / min Lᵢᵢ)²`, a lower bound on the condition number of `σ Φ̃₂₂`.
     condition: f64,
 }
 
 impl DenseFactor {
-    /// Factors the column-major `(n+m)²` matrix `a` (overwritten), `sign` the kernel's `σ`.
-    pub fn new(mut a: Vec<f64>, n: usize, m: usize, sign: f64) -> Result<Self, RbfError> {
+    /// Factors the column-major `(n+m)²` matrix `a` (overwritten), `sign` the kernel's `σ`;
+    /// the Cholesky factor in `precision`.
+    pub fn new(
+        a: Vec<f64>,
+        n: usize,
+        m: usize,
+        sign: f64,
+        precision: Precision,
+    ) -> Result<Self, RbfError> {
         let size = n + m;
         if n <= m {
             return Err(RbfError::Degenerate {
@@ -81,75 +93,27 @@ impl DenseFactor {
             }
             reflectors.push((v, tau));
         }
-        // Q̃ = Qᵀ Φ Q in two passes over Φ, with Q = H₀⋯H_{m−1} = I − V T Vᵀ (compact WY, T
-        // upper triangular): Y = Φ V, Z = Y T, W = Z − ½ V (Tᵀ Vᵀ Y T); then
-        // Qᵀ Φ Q = Φ − W Vᵀ − V Wᵀ.
-        let v = Mat::from_fn(n, m, |i, k| reflectors[k].0[i]);
-        let mut t = Mat::<f64>::zeros(m, m);
-        for k in 0..m {
-            let tau = reflectors[k].1;
-            t[(k, k)] = tau;
-            // T[..k, k] = −τ_k T[..k, ..k] V[:, ..k]ᵀ v_k.
-            let vtv: Vec<f64> = (0..k)
-                .map(|i| (0..n).map(|r| v[(r, i)] * v[(r, k)]).sum())
-                .collect();
-            for i in 0..k {
-                t[(i, k)] = -tau * (i..k).map(|l| t[(i, l)] * vtv[l]).sum::<f64>();
+        let (llt, top, (lo, hi)) = match precision {
+            Precision::Double => {
+                let (a, top) = project(a, size, n, m, &reflectors, sign);
+                let (l, range) = factor(a, size, m * size + m, n - m)?;
+                (Cholesky::Double(l), top, range)
             }
-        }
-        let mut phi = MatMut::from_column_major_slice_with_stride_mut(&mut a, n, n, size);
-        let mut y = Mat::<f64>::zeros(n, m);
-        matmul(
-            y.as_mut(),
-            Accum::Replace,
-            phi.as_ref(),
-            v.as_ref(),
-            1.0,
-            Par::rayon(0),
-        );
-        let z = &y * &t;
-        let middle = t.transpose() * (v.transpose() * &z);
-        let w = &z - (&v * &middle) * 0.5;
-        let left = Mat::from_fn(
-            n,
-            2 * m,
-            |i, k| if k < m { w[(i, k)] } else { v[(i, k - m)] },
-        );
-        let right = Mat::from_fn(
-            2 * m,
-            n,
-            |k, i| if k < m { v[(i, k)] } else { w[(i, k - m)] },
-        );
-        matmul(
-            phi.as_mut(),
-            Accum::Add,
-            left.as_ref(),
-            right.as_ref(),
-            -1.0,
-            Par::rayon(0),
-        );
-        let top: Vec<f64> = (0..m)
-            .flat_map(|i| (0..n).map(move |j| (i, j)))
-            .map(|(i, j)| phi[(i, j)])
-            .collect();
-        let mut k = phi.submatrix_mut(m, m, n - m, n - m);
-        if sign < 0.0 {
-            for j in 0..n - m {
-                for i in j..n - m {
-                    k[(i, j)] = -k[(i, j)];
-                }
+            Precision::Single => {
+                // The projection stays in f64 (its cancellation would cost f32 the definiteness);
+                // the trailing block is converted once and factored 8 lanes wide.
+                let (a, top) = project(a, size, n, m, &reflectors, sign);
+                let len = n - m;
+                let mut k32 = vec![0.0f32; len * len];
+                k32.par_chunks_mut(len).enumerate().for_each(|(j, dst)| {
+                    let src = &a[(m + j) * size + m..(m + j) * size + m + len];
+                    dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s as f32);
+                });
+                drop(a);
+                let (l, range) = factor(k32, len, 0, len)?;
+                (Cholesky::Single(l), top, range)
             }
-        }
-        let llt = Llt::new(k.as_ref(), Side::Lower).map_err(|e| {
-            RbfError::Singular(format!(
-                "the projected kernel matrix is not positive definite ({e}): duplicate or nearly coincident points, or a kernel that is not conditionally positive definite"
-            ))
-        })?;
-        let l = llt.L();
-        let (lo, hi) = (0..n - m).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
-            let d = l[(i, i)].abs();
-            (lo.min(d), hi.max(d))
-        });
+        };
         Ok(Self {
             n,
             m,
@@ -160,6 +124,11 @@ impl DenseFactor {
             sign,
             condition: (hi / lo).powi(2),
         })
+    }
+
+    /// `n + m`, the size of the system.
+    pub fn size(&self) -> usize {
+        self.n + self.m
     }
 
     /// The condition estimate (a lower bound on `κ(σ Φ̃₂₂)`).
@@ -183,12 +152,15 @@ impl DenseFactor {
             y[i] = (g[i] - s) / self.r[i * m + i];
         }
         // Φ̃₂₂ y₂ = f̃₂ − Φ̃₂₁ y₁ (Φ̃₂₁ = Φ̃₁₂ᵀ, the top rows' tail).
-        let mut b2 = Mat::<f64>::from_fn(n - m, 1, |i, _| {
-            ft[m + i] - (0..m).map(|k| self.top[k * n + m + i] * y[k]).sum::<f64>()
-        });
-        self.llt.solve_in_place(b2.as_mut());
-        for i in 0..n - m {
-            y[m + i] = self.sign * b2[(i, 0)];
+        let b2: Vec<f64> = (0..n - m)
+            .map(|i| ft[m + i] - (0..m).map(|k| self.top[k * n + m + i] * y[k]).sum::<f64>())
+            .collect();
+        let y2 = match &self.llt {
+            Cholesky::Double(l) => l.solve(&b2),
+            Cholesky::Single(l) => l.solve(&b2),
+        };
+        for (yi, v) in y[m..].iter_mut().zip(y2) {
+            *yi = self.sign * v;
         }
         // c = R⁻¹ (f̃₁ − Φ̃₁₁ y₁ − Φ̃₁₂ y₂): the top rows times y.
         let mut c = vec![0.0; m];
@@ -207,6 +179,189 @@ impl DenseFactor {
         y.extend_from_slice(&c);
         y
     }
+}
+
+/// The precision of the Cholesky factor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Precision {
+    /// f64: an exact solve (up to rounding).
+    Double,
+    /// f32: twice the speed and half the memory; solves to about `κ · 6e-8`, so it serves as
+    /// the preconditioner of an f64 iteration (mixed-precision refinement).
+    Single,
+}
+
+/// The Cholesky factor `L` of `σ Φ̃₂₂`, the lower triangle of the trailing block of the
+/// (column-major, `stride`) buffer it was computed in.
+#[derive(Debug, Clone)]
+struct Factor<T> {
+    buffer: Vec<T>,
+    stride: usize,
+    offset: usize,
+    len: usize,
+}
+
+impl<T: Real> Factor<T> {
+    fn l(&self) -> MatRef<'_, T> {
+        MatRef::from_column_major_slice_with_stride(
+            &self.buffer[self.offset..],
+            self.len,
+            self.len,
+            self.stride,
+        )
+    }
+
+    /// `(L Lᵀ)⁻¹ b`.
+    fn solve(&self, b: &[f64]) -> Vec<f64> {
+        let mut x = Mat::<T>::from_fn(self.len, 1, |i, _| T::of(b[i]));
+        let l = self.l();
+        solve_lower_triangular_in_place(l, x.as_mut(), Par::rayon(0));
+        solve_upper_triangular_in_place(l.transpose(), x.as_mut(), Par::rayon(0));
+        (0..self.len).map(|i| x[(i, 0)].to()).collect()
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Cholesky {
+    Double(Factor<f64>),
+    Single(Factor<f32>),
+}
+
+/// The float types a factor can be computed in.
+trait Real: faer::traits::RealField + Copy + Send + Sync + 'static {
+    fn of(x: f64) -> Self;
+    fn to(self) -> f64;
+}
+
+impl Real for f64 {
+    fn of(x: f64) -> Self {
+        x
+    }
+    fn to(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    fn to(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+/// `Q̃ = Qᵀ Φ Q` in two passes over `Φ` (the leading `n × n` block of the column-major buffer
+/// `a` with column stride `stride`), and `σ Φ̃₂₂` in its place. With
+/// `Q = H₀⋯H_{m−1} = I − V T Vᵀ` (compact WY, `T` upper triangular): `Y = Φ V`, `Z = Y T`,
+/// `W = Z − ½ V (Tᵀ Vᵀ Y T)`, and `Qᵀ Φ Q = Φ − W Vᵀ − V Wᵀ`. Returns the buffer and the
+/// first `m` rows of `Q̃` (`m × n`, row-major).
+fn project(
+    mut a: Vec<f64>,
+    stride: usize,
+    n: usize,
+    m: usize,
+    reflectors: &[(Vec<f64>, f64)],
+    sign: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let v = Mat::<f64>::from_fn(n, m, |i, k| reflectors[k].0[i]);
+    let mut t = Mat::<f64>::zeros(m, m);
+    for k in 0..m {
+        let tau = reflectors[k].1;
+        t[(k, k)] = tau;
+        // T[..k, k] = −τ_k T[..k, ..k] V[:, ..k]ᵀ v_k.
+        let vtv: Vec<f64> = (0..k)
+            .map(|i| (0..n).map(|r| v[(r, i)] * v[(r, k)]).sum())
+            .collect();
+        for i in 0..k {
+            t[(i, k)] = -tau * (i..k).map(|l| t[(i, l)] * vtv[l]).sum::<f64>();
+        }
+    }
+    let mut phi = MatMut::from_column_major_slice_with_stride_mut(&mut a, n, n, stride);
+    let mut y = Mat::<f64>::zeros(n, m);
+    matmul(
+        y.as_mut(),
+        Accum::Replace,
+        phi.as_ref(),
+        v.as_ref(),
+        1.0,
+        Par::rayon(0),
+    );
+    let z = &y * &t;
+    let middle = t.transpose() * (v.transpose() * &z);
+    let w = &z - (&v * &middle) * faer::Scale(0.5);
+    let left = Mat::from_fn(
+        n,
+        2 * m,
+        |i, k| if k < m { w[(i, k)] } else { v[(i, k - m)] },
+    );
+    let right = Mat::from_fn(
+        2 * m,
+        n,
+        |k, i| if k < m { v[(i, k)] } else { w[(i, k - m)] },
+    );
+    matmul(
+        phi.as_mut(),
+        Accum::Add,
+        left.as_ref(),
+        right.as_ref(),
+        -1.0,
+        Par::rayon(0),
+    );
+    let top: Vec<f64> = (0..m)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| phi[(i, j)])
+        .collect();
+    if sign < 0.0 {
+        let mut k = phi.submatrix_mut(m, m, n - m, n - m);
+        for j in 0..n - m {
+            for i in j..n - m {
+                k[(i, j)] = -k[(i, j)];
+            }
+        }
+    }
+    (a, top)
+}
+
+/// The Cholesky factor, in place, of the `len × len` block at `offset` of the column-major
+/// buffer `a` (column stride `stride`); returns it and the range of its diagonal.
+fn factor<T: Real>(
+    mut a: Vec<T>,
+    stride: usize,
+    offset: usize,
+    len: usize,
+) -> Result<(Factor<T>, (f64, f64)), RbfError> {
+    let mut k = MatMut::from_column_major_slice_with_stride_mut(&mut a[offset..], len, len, stride);
+    let par = Par::rayon(0);
+    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<T>(len, par, Default::default()));
+    cholesky_in_place(
+        k.as_mut(),
+        Default::default(),
+        par,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .map_err(|e| {
+        RbfError::Singular(format!(
+            "the projected kernel matrix is not positive definite ({e:?}): duplicate or nearly coincident points, or a kernel that is not conditionally positive definite"
+        ))
+    })?;
+    let range = diagonal_range(len, |i| k[(i, i)].to());
+    let factor = Factor {
+        buffer: a,
+        stride,
+        offset,
+        len,
+    };
+    Ok((factor, range))
+}
+
+/// `(min, max)` of `|d(i)|` over `i < len`.
+fn diagonal_range(len: usize, d: impl Fn(usize) -> f64) -> (f64, f64) {
+    (0..len).fold((f64::INFINITY, 0.0f64), |(lo, hi), i| {
+        let v = d(i).abs();
+        (lo.min(v), hi.max(v))
+    })
 }
 
 /// `x ← (I − τ v vᵀ) x`.

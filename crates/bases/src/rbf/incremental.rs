@@ -49,7 +49,7 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
     /// As [`RbfFit::fit`].
     pub fn new(fit: &RbfFit<K>, constraints: &Constraints<D>) -> Result<Self, RbfError> {
         let (functionals, poly) = fit.prepare(constraints.as_slice())?;
-        let base = fit.factor(&functionals, &poly)?;
+        let base = fit.factor(&functionals, &poly, super::dense::Precision::Double)?;
         let mut rhs = functionals.targets.clone();
         rhs.resize(functionals.len() + Polynomial::<D>::len(), 0.0);
         let solution = base.solve(&rhs);

@@ -18,7 +18,6 @@
 //! Value constraints only: Hermite fits use the dense solve.
 
 use std::num::NonZero;
-use std::time::Instant;
 
 use faer::Mat;
 use faer::linalg::solvers::{PartialPivLu, Solve};
@@ -27,7 +26,7 @@ use kiddo::kd_tree::KdTree;
 use kiddo::leaf_strategies::FlatVec;
 use kiddo::stem_strategies::Eytzinger;
 use rayon::prelude::*;
-use zeroset_field_core::lsq::{LinearOperator, LsqMatrix, SolveInfo};
+use zeroset_field_core::lsq::{LinearOperator, LsqMatrix};
 use zeroset_solvers::gmres::Gmres;
 
 use super::system::{self, Functional, Functionals, Polynomial};
@@ -134,14 +133,24 @@ impl<K: Kernel + ?Sized, const D: usize> LinearOperator for CardinalBasis<'_, K,
     }
 }
 
-/// Solves the value-only system of `f` iteratively; returns `[w; c]` and GMRES's report.
+/// The outcome of an iterative solve.
+pub(crate) struct Iterated {
+    /// `[w; c]`.
+    pub x: Vec<f64>,
+    /// GMRES steps.
+    pub iterations: usize,
+    /// The relative residual GMRES stalled at, if it stopped short of its tolerance (but
+    /// within [`system::ACCEPTABLE_STALL`]).
+    pub stalled: Option<f64>,
+}
+
+/// Solves the value-only system of `f` iteratively.
 pub(crate) fn solve<K: Kernel + ?Sized, const D: usize>(
     kernel: &K,
     f: &Functionals<D>,
     poly: &Polynomial<D>,
     params: &IterativeParams,
-) -> Result<(Vec<f64>, SolveInfo), RbfError> {
-    let start = Instant::now();
+) -> Result<Iterated, RbfError> {
     let n = f.len();
     let m = Polynomial::<D>::len();
     if !f.values_only() {
@@ -186,7 +195,6 @@ pub(crate) fn solve<K: Kernel + ?Sized, const D: usize>(
             lambda_t[j as usize].push((i as u32, l));
         }
     }
-    let setup = start.elapsed();
     let op = CardinalBasis {
         kernel,
         f,
@@ -200,15 +208,17 @@ pub(crate) fn solve<K: Kernel + ?Sized, const D: usize>(
         .with_max_iterations(params.max_iterations)
         .with_restart(params.restart)
         .with_normal_residual(false);
-    let solution = gmres.solve(LsqMatrix::Operator(&op), &f.targets, None, None)?;
-    let (w, cc) = op.coefficients(&solution.x);
+    let (mu, iterations, stalled) =
+        system::accept_stall(gmres.solve(LsqMatrix::Operator(&op), &f.targets, None, None))?;
+    let (w, cc) = op.coefficients(&mu);
     let mut x = w;
     x.extend_from_slice(&cc);
-    let mut info = solution.info;
-    info.details.push(("setup_s", setup.as_secs_f64()));
-    info.details.push(("neighbours", q as f64));
     debug_assert_eq!(x.len(), n + m);
-    Ok((x, info))
+    Ok(Iterated {
+        x,
+        iterations,
+        stalled,
+    })
 }
 
 /// The cardinal function of centre `i` on the local set `set` (sorted, containing `i`).

@@ -395,3 +395,39 @@ fn the_iterative_and_dense_fits_agree_to_the_solver_tolerance() {
         .unwrap_err();
     assert!(err.to_string().contains("value constraints only"), "{err}");
 }
+
+#[test]
+fn the_mixed_precision_fit_agrees_with_the_dense_one() {
+    let c = sphere_setup(900);
+    let dense = RbfFit::new(Triharmonic)
+        .with_solver(Solver::Dense)
+        .fit(&c)
+        .unwrap();
+    let mixed = RbfFit::new(Triharmonic)
+        .with_solver(Solver::MixedPrecision)
+        .fit(&c)
+        .unwrap();
+    assert_eq!(mixed.report.solver, "mixed-cholesky-gmres");
+    assert!(mixed.report.iterations > 0 && mixed.report.iterations < 20);
+    assert!(mixed.report.max_residual < 1e-10, "{:?}", mixed.report);
+    let d = field_diff(&mixed.field, &dense.field);
+    assert!(d < 1e-9, "dense vs mixed: {d:.1e}");
+    // Biharmonic (σ = −1) goes through the same path.
+    let r = RbfFit::new(Biharmonic)
+        .with_solver(Solver::MixedPrecision)
+        .fit(&c)
+        .unwrap();
+    assert!(r.report.max_residual < 1e-10, "{:?}", r.report);
+}
+
+#[test]
+fn a_user_kernel_fits_too_wendland() {
+    // Wendland's ψ₃,₁ is positive definite: the projected Cholesky takes it as it is.
+    let c = sphere_setup(300);
+    let kernel = Wendland::new(0.6).unwrap();
+    let fit = RbfFit::new(kernel).fit(&c).unwrap();
+    assert!(fit.report.max_residual < 1e-10, "{:?}", fit.report);
+    let want = lu_reference(&kernel, &c);
+    assert!(max_rel_diff(&solution(&fit.field), &want) < 1e-8);
+    assert!(fit.field.value(&[0.5; 3]) < 0.0);
+}

@@ -209,12 +209,12 @@ fn write_formations(s: &mut String, data: &GeoModelData) {
 }
 
 /// `(x, y, z)` with 7 significant digits.
-fn point(p: [f64; 3]) -> String {
+pub(crate) fn point(p: [f64; 3]) -> String {
     format!("({}, {}, {})", g(p[0]), g(p[1]), g(p[2]))
 }
 
 /// A number with 7 significant digits, like C's `%.7g`.
-fn g(v: f64) -> String {
+pub(crate) fn g(v: f64) -> String {
     const DIGITS: i32 = 7;
     if v == 0.0 {
         return "0".to_owned();

@@ -1,4 +1,4 @@
-//! `zeroset`: inspect point clouds, restore fields, and (later) run the whole pipeline on them.
+//! `zeroset`: inspect point clouds, fit and restore fields, and (later) run the whole pipeline on them.
 //!
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(&Args) -> anyhow::Result<()>`; `main` only parses, dispatches and reports errors.
@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod demo;
+mod fit;
 mod info;
 mod restore;
 
@@ -18,6 +19,10 @@ Examples:
   zeroset info scan.ply                        PLY, ascii or binary
   zeroset info points.dat --format csv         read a file whose extension says nothing
   zeroset info SandStone_Foliations.csv        a GemPy table: formations and counts
+  zeroset fit samples/bunny_2k.xyzn --method rbf
+                                               fit an RBF field to the sample and report it
+  zeroset fit samples/bunny_2k.xyzn --method rbf --hermite -o bunny.zsf
+                                               Hermite fit (r3), saved as a B-spline field
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \
       --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
                                                remove the bunny's ears
@@ -44,6 +49,11 @@ enum Command {
     /// restoration least-squares problem with every solver and compare them.
     #[command(after_help = demo::EXAMPLES)]
     Demo(demo::DemoArgs),
+    /// Fit an implicit field to an oriented point cloud with radial basis functions
+    /// (off-surface or Hermite constraints) and report the fit; -o saves the RBF field sampled
+    /// into a quadratic B-spline .zsf field file.
+    #[command(after_help = fit::EXAMPLES)]
+    Fit(fit::FitArgs),
     /// Restore a field inside a box mask: remove a protrusion (least-squares Laplace with a
     /// slope across the face it grows from) or de-noise (coarse resampling); writes a .zsf
     /// field file.
@@ -55,6 +65,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Fit(args) => fit::run(&args),
         Command::Restore(args) => restore::run(&args),
     }
 }

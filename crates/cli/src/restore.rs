@@ -263,7 +263,7 @@ pub fn cubic_counts(bounds: &Aabb<3>, longest: usize) -> [usize; 3] {
     e.map(|x| ((x / m * longest as f64).round() as usize).max(3))
 }
 
-fn same_file(a: &Path, b: &Path) -> bool {
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(x), Ok(y)) => x == y,
         _ => false,
@@ -301,7 +301,7 @@ fn parse_mask(s: &str) -> Result<[[f64; 3]; 2], String> {
     Ok([a, b])
 }
 
-fn parse_counts(s: &str) -> Result<[usize; 3], String> {
+pub(crate) fn parse_counts(s: &str) -> Result<[usize; 3], String> {
     let c: [usize; 3] = parse_triple(s, "counts")?;
     if c.contains(&0) {
         return Err(format!("counts must be positive, got {s:?}"));

@@ -283,3 +283,278 @@ fn sample_os() -> &'static OsStr {
     static SAMPLE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     SAMPLE.get_or_init(sample).as_os_str()
 }
+
+// ---- zeroset fit ----
+
+/// The sphere of the fit tests: centre and radius.
+const CENTRE: [f64; 3] = [0.1, -0.2, 0.3];
+const RADIUS: f64 = 0.5;
+
+/// `n` points on the sphere (a Fibonacci lattice) with outward unit normals.
+fn sphere_points(n: usize) -> Vec<([f64; 3], [f64; 3])> {
+    (0..n)
+        .map(|k| {
+            let z = -1.0 + (2 * k + 1) as f64 / n as f64;
+            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+            let normal = [s * t.cos(), s * t.sin(), z];
+            (
+                std::array::from_fn(|a| CENTRE[a] + RADIUS * normal[a]),
+                normal,
+            )
+        })
+        .collect()
+}
+
+/// The sphere as `x y z nx ny nz` lines.
+fn sphere_xyzn(n: usize) -> String {
+    sphere_points(n)
+        .iter()
+        .map(|(p, q)| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], q[0], q[1], q[2]))
+        .collect()
+}
+
+/// The sphere as an ASCII PLY with normals.
+fn sphere_ply(n: usize) -> String {
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\n\
+         property double z\nproperty double nx\nproperty double ny\nproperty double nz\n\
+         end_header\n"
+    );
+    s.push_str(&sphere_xyzn(n));
+    s
+}
+
+fn fit(path: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<&OsStr> = vec![
+        OsStr::new("fit"),
+        path.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("--quiet"),
+    ];
+    args.extend(extra.iter().map(OsStr::new));
+    zeroset(args)
+}
+
+/// The number after `label` on its line of the report.
+fn reported(out: &str, label: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.starts_with(label))
+        .unwrap_or_else(|| panic!("no {label:?} line in:\n{out}"));
+    let value = line[label.len()..].split_whitespace().next().unwrap();
+    value
+        .parse()
+        .unwrap_or_else(|e| panic!("{label} {value:?}: {e}"))
+}
+
+#[test]
+fn fit_sphere_with_defaults_reports_an_exact_fit() {
+    let (_d, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+    let before = fs::read(&path).unwrap();
+    let o = fit(&path, &[]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("300 points with normals"), "{out}");
+    assert!(
+        out.contains("constraints:  900 off-surface (Carr et al.)"),
+        "{out}"
+    );
+    assert!(out.contains("0 shrunk, 0 dropped"), "{out}");
+    assert!(out.contains("kernel:       r (biharmonic)"), "{out}");
+    assert!(out.contains("solver:       dense-cholesky"), "{out}");
+    assert_eq!(reported(&out, "unknowns:"), 904.0, "{out}");
+    let residual = reported(&out, "max residual:");
+    assert!(residual < 1e-8, "residual {residual}:\n{out}");
+    assert!(reported(&out, "condition:").is_finite(), "{out}");
+    assert!(out.contains("warnings:     none"), "{out}");
+    // The sanity check: 5 input points, value ~0 and |∇f| ~1 at each.
+    let rows: Vec<&str> = out
+        .lines()
+        .skip_while(|l| !l.starts_with("check:"))
+        .skip(2)
+        .take(5)
+        .collect();
+    assert_eq!(rows.len(), 5, "{out}");
+    for row in rows {
+        let cols: Vec<&str> = row.split_whitespace().collect();
+        let n = cols.len();
+        let (value, grad): (f64, f64) =
+            (cols[n - 3].parse().unwrap(), cols[n - 2].parse().unwrap());
+        assert!(value.abs() < 1e-8 && (grad - 1.0).abs() < 0.05, "{row}");
+    }
+    // Nothing written without -o, and the input is untouched.
+    assert_eq!(fs::read_dir(_d.path()).unwrap().count(), 1);
+    assert_eq!(fs::read(&path).unwrap(), before);
+}
+
+#[test]
+fn fit_hermite_needs_r3() {
+    let (_d, path) = temp_file("sphere.ply", &sphere_ply(200));
+    for extra in [&["--hermite"][..], &["--hermite", "--kernel", "r3"]] {
+        let o = fit(&path, extra);
+        assert!(
+            o.status.success(),
+            "{extra:?}: {}{}",
+            stdout(&o),
+            stderr(&o)
+        );
+        let out = stdout(&o);
+        assert!(out.contains("400 Hermite"), "{out}");
+        assert!(out.contains("kernel:       r3 (triharmonic)"), "{out}");
+        assert!(out.contains("solver:       dense-cholesky"), "{out}");
+        assert!(reported(&out, "max residual:") < 1e-8, "{out}");
+    }
+    let o = fit(&path, &["--hermite", "--kernel", "r"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("--hermite needs --kernel r3"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        stdout(&o).is_empty(),
+        "refused before reading: {}",
+        stdout(&o)
+    );
+}
+
+#[test]
+fn fit_refuses_bad_requests_with_a_message() {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(100));
+    let out = dir.path().join("out.zsf");
+    let out = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &["--offset", "0"],
+            "--offset must be auto or a finite distance > 0",
+        ),
+        (
+            &["--offset", "-0.01"],
+            "--offset must be auto or a finite distance > 0",
+        ),
+        (&["--offset", "0.6"], "crosses the surface"),
+        (&["--kernel", "tps"], "2-D curves"),
+        (&["--hermite", "--offset", "0.01"], "--hermite uses none"),
+        (&["--grid", "8,8,8"], "give -o"),
+        (&["-o", out, "--grid", "2,8,8"], "at least 3 cells per axis"),
+    ];
+    for (extra, expected) in cases {
+        let o = fit(&path, extra);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(expected), "{extra:?}: {}", stderr(&o));
+    }
+    assert!(
+        !Path::new(out).exists(),
+        "a failed run must not leave an output"
+    );
+    // The method is required and named.
+    let o = zeroset([OsStr::new("fit"), path.as_os_str()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--method"), "{}", stderr(&o));
+}
+
+#[test]
+fn fit_names_a_non_finite_coordinate_and_missing_normals() {
+    let (_d, path) = temp_file(
+        "nan.xyzn",
+        "0 0 0 0 0 1\n# comment\n1 NaN 2 0 0 1\n1 1 1 0 1 0\n",
+    );
+    let o = fit(&path, &[]);
+    assert_clean_failure(&o);
+    let err = stderr(&o);
+    assert!(
+        err.contains("nan.xyzn: line 3, record 1: non-finite y (NaN)"),
+        "{err}"
+    );
+    let (_d, path) = temp_file("bare.xyz", "0 0 0\n1 0 0\n0 1 0\n0 0 1\n");
+    let o = fit(&path, &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("has no normals"), "{}", stderr(&o));
+}
+
+#[test]
+fn fit_writes_a_field_file_that_restore_takes() {
+    use zeroset_bases::field_file::read_field;
+
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+    let field = dir.path().join("sphere.zsf");
+    let o = fit(&path, &["-o", field.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("sampled on 64×64×64 cells"), "{out}");
+    assert!(out.contains("quadratic B-spline"), "{out}");
+    assert!(out.contains("wrote "), "{out}");
+
+    let spline = read_field::<3>(&field).expect("a valid field file");
+    let b = spline.grid().bounds();
+    // The grid covers the sphere's box grown by 5% of its diagonal.
+    let margin = 0.05 * (2.0 * RADIUS) * 3f64.sqrt();
+    for ((lo, hi), c) in b.min().into_iter().zip(b.max()).zip(CENTRE) {
+        assert!((lo - (c - RADIUS - margin)).abs() < 0.01, "{b:?}");
+        assert!((hi - (c + RADIUS + margin)).abs() < 0.01, "{b:?}");
+    }
+    let at = |d: [f64; 3]| spline.value(&std::array::from_fn(|a| CENTRE[a] + d[a]));
+    assert!(at([0.0; 3]) < -0.1, "centre {}", at([0.0; 3]));
+    assert!(at([0.0, 0.0, 0.25]) < 0.0);
+    for d in [[0.56, 0.0, 0.0], [0.0, -0.56, 0.0], [0.4, 0.4, 0.4]] {
+        assert!(at(d) > 0.0, "{d:?}: {}", at(d));
+    }
+    for (p, _) in sphere_points(300).iter().step_by(37) {
+        assert!(spline.value(p).abs() < 2e-3, "{p:?}: {}", spline.value(p));
+    }
+
+    // `zeroset restore` takes it.
+    let smooth = dir.path().join("smooth.zsf");
+    let o = zeroset([
+        OsStr::new("restore"),
+        field.as_os_str(),
+        OsStr::new("--mode"),
+        OsStr::new("denoise"),
+        OsStr::new("--mask"),
+        OsStr::new("0,-0.3,0.2:0.2,-0.1,0.4"),
+        OsStr::new("--coarse"),
+        OsStr::new("4,4,4"),
+        OsStr::new("-o"),
+        smooth.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(smooth.is_file());
+
+    // Never the input: -o must be a .zsf and not the input; a .zsf input is not a point cloud.
+    let before = fs::read(&path).unwrap();
+    let o = fit(&path, &["-o", path.to_str().unwrap()]);
+    assert_clean_failure(&o);
+    assert_eq!(fs::read(&path).unwrap(), before);
+    let field_bytes = fs::read(&field).unwrap();
+    let o = fit(&field, &["-o", field.to_str().unwrap()]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("would overwrite the input"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(fs::read(&field).unwrap(), field_bytes);
+    let o = fit(&field, &["-o", smooth.to_str().unwrap()]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("is a field file"), "{}", stderr(&o));
+}
+
+#[test]
+fn fit_is_in_the_help() {
+    let o = zeroset(["--help"]);
+    assert!(stdout(&o).contains("  fit "), "{}", stdout(&o));
+    let o = zeroset(["fit", "--help"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for text in [
+        "Examples:",
+        "--method",
+        "--hermite",
+        "--offset <auto|EPS>",
+        "--solver",
+        "quadratic B-spline",
+    ] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+}

@@ -1,0 +1,670 @@
+//! `zeroset fit POINTS --method rbf`: fit an implicit field to an oriented point cloud and
+//! report how well it fits.
+//!
+//! The radial-basis-function fit (`zeroset_bases::rbf`) interpolates either Carr et al.'s
+//! off-surface constraints (value 0 at each point, `±ε` at `p ± ε n`) or Hermite constraints
+//! (value 0 and gradient `n` at each point, kernel `r³`). Until meshing exists the command
+//! prints the fit's report and a sanity check at a few input points; with `-o` it samples the
+//! RBF field on a grid over the cloud and saves it as a quadratic B-spline `.zsf` field file,
+//! which `zeroset restore` (and later meshing) takes.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use zeroset_bases::bspline::{BSplineField, Degree};
+use zeroset_bases::field_file::{is_field_file, write_field};
+use zeroset_bases::rbf::{
+    AUTO_DENSE_LIMIT, Biharmonic, Constraints, FitReport, IterativeParams, Kernel, Offset,
+    OffsetReport, RbfFit, Solver, Triharmonic,
+};
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::{Point, dot, norm};
+use zeroset_field_core::grid::Grid;
+use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
+use zeroset_field_core::{Error, PointCloud3};
+
+use crate::info::{g, point};
+use crate::restore::{cubic_counts, parse_counts, same_file};
+
+/// Shown after `zeroset fit --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  # biharmonic RBF (kernel r) through off-surface points; prints the fit report
+  zeroset fit samples/bunny_2k.xyzn --method rbf
+  # Hermite constraints (the normals as gradients) with the r3 kernel, solved densely
+  zeroset fit scan.ply --method rbf --hermite --solver dense
+  # a fixed off-surface offset, and the field saved for `zeroset restore`
+  zeroset fit samples/bunny_2k.xyzn --method rbf --offset 0.001 -o bunny.zsf
+  zeroset restore bunny.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
+      --coarse 6,6,4 -o smooth.zsf
+
+The input needs normals that point out of the solid (the field is negative inside).
+-o FIELD saves the RBF field sampled on a grid and interpolated by a quadratic B-spline
+(the .zsf format stores B-spline fields only): the file is that spline, not the RBF.";
+
+/// How to fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Radial basis functions: an exact interpolant of the constraints (dense or iterative).
+    Rbf,
+}
+
+/// The `--kernel` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum KernelArg {
+    /// φ(r) = r, the biharmonic spline of 3-D (Carr et al.); off-surface constraints only.
+    R,
+    /// φ(r) = r³, the triharmonic spline of 3-D; smooth at 0, so it also takes --hermite.
+    R3,
+    /// φ(r) = r² ln r, the thin-plate spline of 2-D curves (not for 3-D point clouds).
+    Tps,
+}
+
+impl KernelArg {
+    fn name(self) -> &'static str {
+        match self {
+            KernelArg::R => "r",
+            KernelArg::R3 => "r3",
+            KernelArg::Tps => "tps",
+        }
+    }
+}
+
+/// The `--solver` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SolverArg {
+    /// Dense up to 2,000 functionals; above, iterative for kernel r with off-surface
+    /// constraints, mixed otherwise (each falls back to dense if it fails).
+    Auto,
+    /// The exact dense solve (projected Cholesky): O(n³) time, O(n²) memory.
+    Dense,
+    /// The projected Cholesky in f32 preconditioning GMRES on the f64 system: as exact as
+    /// dense at ~0.6× the time, for condition numbers up to ~1e7.
+    Mixed,
+    /// GMRES in a local cardinal basis: O(n²) per step, value constraints only.
+    Iterative,
+}
+
+/// `--offset auto` or a fixed distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OffsetArg {
+    /// Start at 1% of the bounding-box diagonal, shrinking per point where needed.
+    Auto,
+    /// The same distance for every point.
+    Fixed(f64),
+}
+
+/// The starting offset of `--offset auto`, as a fraction of the bounding-box diagonal.
+const AUTO_FRACTION: f64 = 0.01;
+
+/// Cells along the longest axis of the default `-o` grid.
+const DEFAULT_CELLS: usize = 64;
+
+/// The `-o` grid covers the cloud's box grown by this fraction of its diagonal on every side.
+const GRID_MARGIN: f64 = 0.05;
+
+/// Input points shown in the sanity check.
+const CHECK_POINTS: usize = 5;
+
+/// Arguments of `zeroset fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// An oriented point cloud: .ply (with nx ny nz), .xyzn/.xyz/.txt/.pts (x y z nx ny nz
+    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid.
+    pub points: PathBuf,
+
+    /// The fitting method (rbf: radial basis functions).
+    #[arg(long, value_enum)]
+    pub method: Method,
+
+    /// The radial kernel [default: r, or r3 with --hermite]. tps is for 2-D curves.
+    #[arg(long, value_enum)]
+    pub kernel: Option<KernelArg>,
+
+    /// Off-surface offset: auto (1% of the bounding-box diagonal, halved per point until the
+    /// offset point stays nearest its own point), or a fixed distance EPS > 0 in the cloud's
+    /// units (an error if it reaches another part of the surface). [default: auto]
+    #[arg(long, value_name = "auto|EPS", value_parser = parse_offset, allow_hyphen_values = true)]
+    pub offset: Option<OffsetArg>,
+
+    /// Hermite constraints: value 0 and the unit normal as the gradient at every point,
+    /// instead of off-surface points. Needs --kernel r3 (the default with --hermite).
+    #[arg(long)]
+    pub hermite: bool,
+
+    /// How to solve the RBF system.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+
+    /// Save the field as a .zsf field file (written atomically): the RBF field sampled on
+    /// --grid over the cloud's box grown by 5% of its diagonal, interpolated by a quadratic
+    /// B-spline (.zsf holds B-spline fields only), for `zeroset restore`.
+    #[arg(short, long, value_name = "FIELD")]
+    pub output: Option<PathBuf>,
+
+    /// With -o: grid cells per axis, L,M,N [default: 64 along the longest axis, the others in
+    /// proportion (near-cubic cells)].
+    #[arg(long, value_name = "L,M,N", value_parser = parse_counts)]
+    pub grid: Option<[usize; 3]>,
+
+    /// Force the point-cloud format (ply, xyz, csv) when the extension says nothing.
+    #[arg(long)]
+    pub format: Option<String>,
+
+    /// No progress spinner or bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `zeroset fit`.
+pub fn run(args: &FitArgs) -> anyhow::Result<()> {
+    let Method::Rbf = args.method;
+    let kernel = check_request(args)?;
+    let start = Instant::now();
+    let cloud = load(args)?;
+    print_input(args, &cloud);
+    match kernel {
+        KernelArg::R => fit_with(Biharmonic, args, &cloud)?,
+        KernelArg::R3 => fit_with(Triharmonic, args, &cloud)?,
+        KernelArg::Tps => unreachable!("check_request refuses tps for 3-D point clouds"),
+    }
+    if let Some(output) = &args.output {
+        println!(
+            "wrote {} in {:.2} s",
+            output.display(),
+            start.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+/// Refuses what cannot work before reading or fitting anything; returns the kernel.
+fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
+    let kernel = args.kernel.unwrap_or(if args.hermite {
+        KernelArg::R3
+    } else {
+        KernelArg::R
+    });
+    if kernel == KernelArg::Tps {
+        // The point-cloud readers read x, y and z: every input is 3-D.
+        bail!(
+            "--kernel tps (r² ln r, the thin-plate spline) is the kernel for 2-D curves, and \
+             {} is read as a 3-D point cloud: use --kernel r or r3",
+            args.points.display()
+        );
+    }
+    if args.hermite {
+        if kernel != KernelArg::R3 {
+            bail!(
+                "--hermite needs --kernel r3: the gradient (Hermite) constraints need a kernel \
+                 that is twice differentiable at 0, and {} is not",
+                kernel.name()
+            );
+        }
+        if args.offset.is_some() {
+            bail!("--offset applies to off-surface constraints; --hermite uses none");
+        }
+        if args.solver == SolverArg::Iterative {
+            bail!(
+                "--solver iterative takes value constraints only; Hermite constraints are \
+                 solved densely (--solver auto or dense)"
+            );
+        }
+    }
+    if let Some(OffsetArg::Fixed(eps)) = args.offset
+        && !(eps.is_finite() && eps > 0.0)
+    {
+        bail!(
+            "--offset must be auto or a finite distance > 0 in the cloud's units, got {eps} \
+             (the off-surface points sit at ±offset along the normals)"
+        );
+    }
+    if let Some(output) = &args.output {
+        if output.extension().and_then(|e| e.to_str()) != Some("zsf") {
+            bail!("the output {} must be a .zsf field file", output.display());
+        }
+        if same_file(&args.points, output) {
+            bail!(
+                "the output would overwrite the input {}; choose another name",
+                args.points.display()
+            );
+        }
+    } else if args.grid.is_some() {
+        bail!("--grid is the grid of the -o field file; give -o FIELD.zsf too");
+    }
+    if let Some(counts) = args.grid
+        && counts.iter().any(|&c| c < 3)
+    {
+        bail!("--grid needs at least 3 cells per axis, got {counts:?}");
+    }
+    Ok(kernel)
+}
+
+/// Reads the oriented point cloud, naming the file, line and field of a non-finite value.
+fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
+    let path = &args.points;
+    if is_field_file(path) {
+        bail!(
+            "{} is a field file; zeroset fit takes an oriented point cloud (PLY, xyzn, CSV)",
+            path.display()
+        );
+    }
+    let mut options = ReadOptions::default();
+    if let Some(format) = &args.format {
+        options = options.with_format(format.parse().context("--format")?);
+    }
+    let cloud = match read_point_cloud_with(path, &options) {
+        Ok(cloud) => cloud,
+        Err(Error::NonFinite {
+            record,
+            line,
+            field,
+            value,
+            ..
+        }) => {
+            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
+            bail!(
+                "{}: {at}record {record}: non-finite {field} ({value}); zeroset fit needs \
+                 finite coordinates and normals (`zeroset info` counts them all)",
+                path.display()
+            );
+        }
+        Err(e) => {
+            return Err(anyhow::Error::new(e).context(format!("reading {}", path.display())));
+        }
+    };
+    if cloud.normals().is_none() {
+        bail!(
+            "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \
+             properties nx ny nz; CSV columns nx,ny,nz)",
+            path.display()
+        );
+    }
+    Ok(cloud)
+}
+
+fn print_input(args: &FitArgs, cloud: &PointCloud3) {
+    let n = cloud.len();
+    line(
+        "points",
+        &format!(
+            "{}: {n} point{} with normals",
+            args.points.display(),
+            if n == 1 { "" } else { "s" }
+        ),
+    );
+    if let Some(b) = cloud.bounds() {
+        line("bounds", &format!("min {}", point(b.min())));
+        more(&format!("max {}", point(b.max())));
+        more(&format!("diagonal {}", g(b.diagonal())));
+    }
+}
+
+/// Builds the constraints, fits with `kernel`, reports, and writes `-o`.
+fn fit_with<K: Kernel + Clone>(
+    kernel: K,
+    args: &FitArgs,
+    cloud: &PointCloud3,
+) -> anyhow::Result<()> {
+    let n = cloud.len();
+    let constraints = if args.hermite {
+        let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
+        line(
+            "constraints",
+            &format!(
+                "{} Hermite: {n} values 0 on the surface, {n} gradients (the unit normals)",
+                c.len()
+            ),
+        );
+        c
+    } else {
+        let offset = match args.offset.unwrap_or(OffsetArg::Auto) {
+            OffsetArg::Auto => Offset::Auto {
+                fraction: AUTO_FRACTION,
+            },
+            OffsetArg::Fixed(eps) => Offset::Fixed(eps),
+        };
+        let (c, report) = Constraints::off_surface(cloud, offset)
+            .context("building the off-surface constraints")?;
+        line(
+            "constraints",
+            &format!(
+                "{} off-surface (Carr et al.): {n} values 0 on the surface, {} at ±offset along \
+                 the normals",
+                c.len(),
+                c.len() - n
+            ),
+        );
+        print_offset(args.offset.is_none(), &report);
+        c
+    };
+    line(
+        "kernel",
+        &format!("{} ({})", kernel.name(), kernel_words(kernel.name())),
+    );
+    check_memory(args, &constraints)?;
+
+    let solver = match args.solver {
+        SolverArg::Auto => Solver::Auto,
+        SolverArg::Dense => Solver::Dense,
+        SolverArg::Mixed => Solver::MixedPrecision,
+        SolverArg::Iterative => Solver::Iterative(IterativeParams::default()),
+    };
+    let spinner = spinner(args.quiet);
+    spinner.set_message(format!(
+        "fitting {} constraints ({} solver)",
+        constraints.len(),
+        args.solver
+            .to_possible_value()
+            .map_or("auto".into(), |v| v.get_name().to_owned())
+    ));
+    let fitted = RbfFit::new(kernel).with_solver(solver).fit(&constraints);
+    spinner.finish_and_clear();
+    let fitted = fitted.context(if args.solver == SolverArg::Iterative {
+        "fitting the RBF field (--solver dense is exact, at O(n³) time)"
+    } else {
+        "fitting the RBF field"
+    })?;
+    print_report(&fitted.report);
+    print_check(&fitted.field, cloud);
+    if let Some(output) = &args.output {
+        save(&fitted.field, cloud, args, output)?;
+    }
+    Ok(())
+}
+
+fn kernel_words(name: &str) -> &'static str {
+    match name {
+        "r" => "biharmonic",
+        "r3" => "triharmonic",
+        _ => "",
+    }
+}
+
+fn print_offset(auto: bool, r: &OffsetReport) {
+    let how = if auto {
+        "auto, starting at 1% of the diagonal"
+    } else {
+        "fixed"
+    };
+    line(
+        "offset",
+        &format!(
+            "{how}: initial {}, smallest {}; {} shrunk, {} dropped",
+            g(r.initial),
+            g(r.smallest),
+            r.shrunk,
+            r.dropped
+        ),
+    );
+    if r.dropped > 0 {
+        more(&format!(
+            "({} offset point{} crossed the surface even at 1/256 of the offset and got no \
+             constraint)",
+            r.dropped,
+            if r.dropped == 1 { "" } else { "s" }
+        ));
+    }
+}
+
+/// A dense solve that cannot fit in memory is refused here, with a message, rather than
+/// aborting on a failed allocation inside the solver.
+fn check_memory(args: &FitArgs, constraints: &Constraints<3>) -> anyhow::Result<()> {
+    let gradients = if args.hermite {
+        constraints.len() / 2
+    } else {
+        0
+    };
+    // A gradient constraint is D = 3 functionals; the polynomial adds D + 1 unknowns.
+    let functionals = constraints.len() + 2 * gradients;
+    let unknowns = functionals + 4;
+    let dense = match args.solver {
+        SolverArg::Dense | SolverArg::Mixed => true,
+        SolverArg::Iterative => false,
+        SolverArg::Auto => {
+            args.hermite || args.kernel == Some(KernelArg::R3) || functionals <= AUTO_DENSE_LIMIT
+        }
+    };
+    if !dense {
+        return Ok(());
+    }
+    let bytes = 8.0 * (unknowns as f64).powi(2);
+    if let Some(available) = available_memory()
+        && bytes > available
+    {
+        bail!(
+            "the dense RBF solve of {unknowns} unknowns needs at least {:.1} GB of memory, and \
+             about {:.1} GB are available: fit fewer points, or use the default kernel r with \
+             --solver iterative (off-surface constraints)",
+            bytes / 1e9,
+            available / 1e9
+        );
+    }
+    Ok(())
+}
+
+/// `MemAvailable` from `/proc/meminfo` in bytes, where there is one.
+fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+fn print_report(r: &FitReport) {
+    line("solver", r.solver);
+    line("iterations", &r.iterations.to_string());
+    line("unknowns", &r.unknowns.to_string());
+    line("fit time", &format!("{:.3} s", r.elapsed.as_secs_f64()));
+    let refined = match r.refinement_steps {
+        0 => String::new(),
+        1 => ", after 1 refinement step".to_owned(),
+        s => format!(", after {s} refinement steps"),
+    };
+    line(
+        "max residual",
+        &format!(
+            "{:.2e} (the largest |target − field| over the constraints{refined})",
+            r.max_residual
+        ),
+    );
+    let condition = if r.condition_estimate.is_nan() {
+        "n/a (the iterative solve forms no matrix)".to_owned()
+    } else {
+        format!("{:.2e} (a lower bound)", r.condition_estimate)
+    };
+    line("condition", &condition);
+    match r.warnings.split_first() {
+        None => line("warnings", "none"),
+        Some((first, rest)) => {
+            line("warnings", first);
+            for w in rest {
+                more(w);
+            }
+        }
+    }
+}
+
+/// The field at a few input points: the value should be ~0, the gradient ~unit length and
+/// along the normal.
+fn print_check<F: ScalarField<3> + ?Sized>(field: &F, cloud: &PointCloud3) {
+    let n = cloud.len();
+    let normals = cloud.normals().unwrap_or_default();
+    let mut picks: Vec<usize> = (0..CHECK_POINTS)
+        .map(|k| k * n.saturating_sub(1) / (CHECK_POINTS - 1))
+        .collect();
+    picks.dedup();
+    line(
+        "check",
+        &format!(
+            "the field at {} input point{} (want value ≈ 0, |∇f| ≈ 1, ∇f along the normal):",
+            picks.len(),
+            if picks.len() == 1 { "" } else { "s" }
+        ),
+    );
+    more(&format!(
+        "{:>6}  {:<36} {:>10} {:>9} {:>9}",
+        "point", "position", "value", "|∇f|", "∠(∇f, n)"
+    ));
+    for i in picks {
+        let p = cloud.positions()[i];
+        let grad = field.gradient(&p);
+        let angle = normals
+            .get(i)
+            .map(|nrm| angle_degrees(&grad, nrm))
+            .map_or("-".to_owned(), |a| format!("{a:.2}°"));
+        more(&format!(
+            "{i:>6}  {:<36} {:>10.2e} {:>9.4} {:>9}",
+            point(p),
+            field.value(&p),
+            norm(&grad),
+            angle
+        ));
+    }
+}
+
+fn angle_degrees(a: &Point<3>, b: &Point<3>) -> f64 {
+    let c = dot(a, b) / (norm(a) * norm(b));
+    c.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Samples `field` on the `-o` grid, interpolates the samples by a quadratic B-spline and
+/// writes it.
+fn save<F: ScalarField<3> + ?Sized>(
+    field: &F,
+    cloud: &PointCloud3,
+    args: &FitArgs,
+    output: &Path,
+) -> anyhow::Result<()> {
+    let bounds = cloud.bounds().context("the point cloud has no extent")?;
+    let bounds = bounds.expanded(GRID_MARGIN * bounds.diagonal());
+    let counts = args
+        .grid
+        .unwrap_or_else(|| cubic_counts(&bounds, DEFAULT_CELLS));
+    let grid = Grid::cell_centered(bounds, counts).context("building the -o grid")?;
+    line(
+        "output",
+        &format!(
+            "{}: the RBF field sampled on {}×{}×{} cells and interpolated by a quadratic B-spline",
+            output.display(),
+            counts[0],
+            counts[1],
+            counts[2]
+        ),
+    );
+    more(&format!(
+        "grid over min {} max {} (the cloud's box grown by 5% of its diagonal)",
+        point(grid.bounds().min()),
+        point(grid.bounds().max())
+    ));
+    let start = Instant::now();
+    let samples = sample(field, &grid, args.quiet);
+    let sampling = start.elapsed();
+    let start = Instant::now();
+    let spline = BSplineField::interpolate(grid, samples, Degree::Quadratic)
+        .context("interpolating the grid samples by a quadratic B-spline")?;
+    let interpolation = start.elapsed();
+    // How far the spline's zero set is from the input points, in field units (≈ distance).
+    let mut at_points = vec![0.0; cloud.len()];
+    spline.values(cloud.positions(), &mut at_points);
+    let worst = at_points.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    more(&format!(
+        "sampling {}, interpolation {}; the spline at the input points: max |value| {} (cell {})",
+        seconds(sampling),
+        seconds(interpolation),
+        g(worst),
+        g(grid.spacing().into_iter().fold(0.0, f64::max))
+    ));
+    write_field(output, &spline).with_context(|| format!("writing {}", output.display()))?;
+    Ok(())
+}
+
+/// `field` at every grid point (linear order), in chunks through its batched, parallel
+/// `values`, with a progress bar.
+fn sample<F: ScalarField<3> + ?Sized>(field: &F, grid: &Grid<3>, quiet: bool) -> Vec<f64> {
+    const CHUNK: usize = 1 << 14;
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(grid.len() as u64);
+        b.set_style(
+            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta} left)")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        b.set_message("sampling the RBF field");
+        b
+    };
+    let mut out = vec![0.0; grid.len()];
+    let mut points = Vec::with_capacity(CHUNK.min(grid.len()));
+    for (c, chunk) in out.chunks_mut(CHUNK).enumerate() {
+        let first = c * CHUNK;
+        points.clear();
+        points.extend((first..first + chunk.len()).map(|l| grid.point(grid.multi_index(l))));
+        field.values(&points, chunk);
+        bar.inc(chunk.len() as u64);
+    }
+    bar.finish_and_clear();
+    out
+}
+
+fn spinner(quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let s = ProgressBar::new_spinner();
+    s.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"));
+    s.enable_steady_tick(Duration::from_millis(100));
+    s
+}
+
+fn seconds(d: Duration) -> String {
+    format!("{:.2} s", d.as_secs_f64())
+}
+
+const LABEL_WIDTH: usize = 13;
+
+fn line(label: &str, value: &str) {
+    let label = format!("{label}:");
+    println!("{label:<LABEL_WIDTH$} {value}");
+}
+
+/// A continuation line, aligned under the values.
+fn more(value: &str) {
+    println!("{:<LABEL_WIDTH$} {value}", "");
+}
+
+fn parse_offset(s: &str) -> Result<OffsetArg, String> {
+    let s = s.trim();
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(OffsetArg::Auto);
+    }
+    s.parse::<f64>()
+        .map(OffsetArg::Fixed)
+        .map_err(|_| format!("the offset is auto or a distance, got {s:?}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_offsets() {
+        assert_eq!(parse_offset("auto").unwrap(), OffsetArg::Auto);
+        assert_eq!(parse_offset(" AUTO ").unwrap(), OffsetArg::Auto);
+        assert_eq!(parse_offset("0.01").unwrap(), OffsetArg::Fixed(0.01));
+        // Checked (with a message) when the command runs, not by the parser.
+        assert_eq!(parse_offset("-1").unwrap(), OffsetArg::Fixed(-1.0));
+        assert!(parse_offset("small").is_err());
+    }
+
+    #[test]
+    fn angles_between_vectors() {
+        assert!(angle_degrees(&[1.0, 0.0, 0.0], &[2.0, 0.0, 0.0]).abs() < 1e-12);
+        assert!((angle_degrees(&[1.0, 0.0, 0.0], &[0.0, 3.0, 0.0]) - 90.0).abs() < 1e-12);
+    }
+}

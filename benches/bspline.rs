@@ -10,6 +10,9 @@
 //! cargo bench --bench bspline -- prefilter   # one group
 //! ```
 
+#[path = "../examples/common/rng.rs"]
+mod rng;
+
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
@@ -17,18 +20,7 @@ use zeroset::bases::bspline::{BSplineField, Boundary, Degree, prefilter};
 use zeroset::core::geometry::Aabb;
 use zeroset::core::grid::Grid;
 
-/// SplitMix64: reproducible pseudo-random numbers without an extra dependency.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
+use rng::SplitMix64;
 
 fn grid_values(n: usize) -> Vec<f64> {
     let mut rng = SplitMix64(42);

@@ -14,6 +14,9 @@
 //! warm-up when a fit takes over 2 s), the largest error against the sphere's signed distance
 //! over the evaluation points with `|sd| < 0.05`, and the largest constraint residual.
 //!
+//! `--solvers iterative` reads `ZEROSET_RBF_NEIGHBOURS`, `ZEROSET_RBF_FAR` and
+//! `ZEROSET_RBF_MAX_ITER` (default 120) from the environment, for tuning experiments.
+//!
 //! `--write-dir DIR` writes `DIR/rbf_sphere_n{N}.csv` (`x,y,z,value`) and `DIR/rbf_eval_{M}.csv`
 //! (`x,y,z`), numbers with 17 significant digits (exact round trip); `--csv FILE` writes
 //! `n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs`.
@@ -195,7 +198,10 @@ fn run<K: Kernel + Clone>(
                 .ok()
                 .and_then(|v| v.parse().ok())
                 .unwrap_or(IterativeParams::default().far),
-            max_iterations: 120,
+            max_iterations: std::env::var("ZEROSET_RBF_MAX_ITER")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(120),
             ..IterativeParams::default()
         }),
         _ => Solver::Auto,

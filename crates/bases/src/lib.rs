@@ -9,9 +9,11 @@
 //! - [`tangent_plane`] — Hoppe et al.'s signed distance to the nearest sample's tangent plane
 //!   (optionally a weighted mean over `k` neighbours): no fit, a baseline (a field, not a basis).
 //! - [`field_file`] — the versioned, checksummed `.zsf` file of a B-spline field.
+//! - [`rbf`] — radial basis functions (`r`, `r³`, thin plate, user kernels) through value and
+//!   gradient (Hermite) constraints, with Carr's off-surface points, dense, mixed-precision and
+//!   iterative fits, and incremental constraints by the Schur complement (Jiang–Turk).
 //!
-//! Still to come: radial basis functions with incremental constraints (Jiang–Turk), multilevel
-//! low-rank splines (MRAS, Pan–Tong–Chen) and small neural fields.
+//! Still to come: multilevel low-rank splines (MRAS, Pan–Tong–Chen) and small neural fields.
 
 #![warn(missing_docs)]
 

@@ -308,7 +308,11 @@ impl<K: Kernel + Clone> RbfFit<K> {
         &self,
         constraints: &[Constraint<D>],
     ) -> Result<(Functionals<D>, Polynomial<D>), RbfError> {
-        assert!(D == 2 || D == 3, "RBF fields are 2-D or 3-D");
+        if !(D == 2 || D == 3) {
+            return Err(RbfError::Degenerate {
+                detail: format!("RBF fields are 2-D or 3-D, not {D}-D"),
+            });
+        }
         if constraints.is_empty() {
             return Err(RbfError::Empty);
         }

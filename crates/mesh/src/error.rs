@@ -26,6 +26,12 @@ pub enum MeshError {
         /// The value found.
         value: f64,
     },
+    /// A mesh whose triangles refer to missing vertices, or with non-finite coordinates.
+    #[error("invalid mesh: {detail}")]
+    InvalidMesh {
+        /// What is wrong, naming the element.
+        detail: String,
+    },
     /// The level to contour is NaN or infinite.
     #[error("the contour level must be finite, got {level}")]
     NonFiniteLevel {

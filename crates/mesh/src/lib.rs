@@ -8,6 +8,7 @@
 //!   are resolved by the asymptotic decider, so the curve has the topology of the bilinear
 //!   interpolant of the samples; a sample exactly on the level counts as above it.
 //! - [`svg`] — SVG previews of 2-D results (contours, polylines, points), written atomically.
+//! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
 //!
 //! ## Guaranteed
 //!
@@ -52,7 +53,9 @@
 pub mod error;
 pub mod squares;
 pub mod svg;
+pub mod trimesh;
 
 pub use error::{MeshError, Result};
 pub use squares::{Contour, Polyline, contour_field, marching_squares};
 pub use svg::SvgPlot;
+pub use trimesh::TriMesh;

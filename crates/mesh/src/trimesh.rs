@@ -1,0 +1,137 @@
+//! Indexed triangle meshes.
+//!
+//! A [`TriMesh`] is a list of vertices (shared by the triangles that use them: a welded mesh),
+//! optional per-vertex normals, and triangles as index triples. zeroset's convention: a
+//! triangle `(a, b, c)` is wound counter-clockwise seen from outside, so `(b − a) × (c − a)`
+//! points out of the solid, where the field is positive.
+
+use zeroset_field_core::{Aabb, Point};
+
+use crate::{MeshError, Result};
+
+/// An indexed triangle mesh in 3-D; see the [module docs](self).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    vertices: Vec<Point<3>>,
+    normals: Vec<Point<3>>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// A mesh of `vertices` and `triangles`, checked: every index is a vertex and every
+    /// coordinate finite. Vertices no triangle uses are allowed (scanned meshes have them).
+    ///
+    /// # Errors
+    /// [`MeshError::InvalidMesh`] naming the first bad triangle or vertex.
+    pub fn new(vertices: Vec<Point<3>>, triangles: Vec<[u32; 3]>) -> Result<Self> {
+        if let Some((i, p)) = vertices
+            .iter()
+            .enumerate()
+            .find(|(_, p)| p.iter().any(|v| !v.is_finite()))
+        {
+            return Err(MeshError::InvalidMesh {
+                detail: format!("vertex {i} has a non-finite coordinate: {p:?}"),
+            });
+        }
+        let n = vertices.len();
+        if let Some((t, tri)) = triangles
+            .iter()
+            .enumerate()
+            .find(|(_, tri)| tri.iter().any(|&v| v as usize >= n))
+        {
+            return Err(MeshError::InvalidMesh {
+                detail: format!("triangle {t} {tri:?} refers to a vertex beyond the {n} given"),
+            });
+        }
+        Ok(Self {
+            vertices,
+            normals: Vec::new(),
+            triangles,
+        })
+    }
+
+    /// The same mesh with one normal per vertex.
+    ///
+    /// # Errors
+    /// [`MeshError::InvalidMesh`] if the count differs from the vertices' or a normal is not
+    /// finite.
+    pub fn with_normals(mut self, normals: Vec<Point<3>>) -> Result<Self> {
+        if normals.len() != self.vertices.len() {
+            return Err(MeshError::InvalidMesh {
+                detail: format!(
+                    "{} normals for {} vertices",
+                    normals.len(),
+                    self.vertices.len()
+                ),
+            });
+        }
+        if let Some(i) = normals
+            .iter()
+            .position(|p| p.iter().any(|v| !v.is_finite()))
+        {
+            return Err(MeshError::InvalidMesh {
+                detail: format!("normal {i} is not finite"),
+            });
+        }
+        self.normals = normals;
+        Ok(self)
+    }
+
+    /// The vertices.
+    pub fn vertices(&self) -> &[Point<3>] {
+        &self.vertices
+    }
+
+    /// The per-vertex normals (empty when there are none).
+    pub fn normals(&self) -> &[Point<3>] {
+        &self.normals
+    }
+
+    /// The triangles, as vertex indices.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// The number of triangles.
+    pub fn num_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether the mesh has no triangle.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// The box around the vertices (`None` without vertices).
+    pub fn bounds(&self) -> Option<Aabb<3>> {
+        Aabb::from_points(&self.vertices)
+    }
+
+    /// The corners of triangle `t`.
+    pub fn corners(&self, t: usize) -> [Point<3>; 3] {
+        self.triangles[t].map(|v| self.vertices[v as usize])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_indices_and_coordinates_are_refused() {
+        let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let m = TriMesh::new(v.clone(), vec![[0, 1, 2]]).unwrap();
+        assert_eq!((m.num_vertices(), m.num_triangles()), (3, 1));
+        assert_eq!(m.corners(0)[1], [1.0, 0.0, 0.0]);
+        assert!(TriMesh::new(v.clone(), vec![[0, 1, 3]]).is_err());
+        assert!(TriMesh::new(vec![[f64::NAN; 3]], vec![]).is_err());
+        assert!(m.clone().with_normals(vec![[0.0, 0.0, 1.0]]).is_err());
+        assert!(m.with_normals(vec![[0.0, 0.0, 1.0]; 3]).is_ok());
+        assert!(TriMesh::default().is_empty());
+    }
+}

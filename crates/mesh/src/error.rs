@@ -79,6 +79,42 @@ pub enum MeshError {
         /// Its coordinates.
         point: [f64; 2],
     },
+    /// A mesh file (PLY) that cannot be read: a header or record problem, naming the file and
+    /// the place (`header line 4`, `line 17 (face 3)`, `vertex 5 (byte 120)`).
+    #[error("{}: {place}: {detail}", path.display())]
+    Ply {
+        /// The file (or the name given for in-memory data).
+        path: std::path::PathBuf,
+        /// Where: a header line, or a record with its line (ASCII) or byte offset (binary).
+        place: String,
+        /// What is wrong.
+        detail: String,
+    },
+    /// A PLY file that ends before all the records its header announces.
+    #[error(
+        "{}: truncated: the file ends in {element} record {record} (0-based) of the {expected} \
+         the header announces",
+        path.display()
+    )]
+    PlyTruncated {
+        /// The file (or the name given for in-memory data).
+        path: std::path::PathBuf,
+        /// The element being read (`vertex`, `face`, ...).
+        element: String,
+        /// The first record (0-based) that is missing or incomplete.
+        record: usize,
+        /// The number of records announced.
+        expected: usize,
+    },
+    /// A file, or a feature of it, that this crate does not handle (not PLY, an unknown PLY
+    /// encoding, a mesh too large for the output format).
+    #[error("{}: unsupported format: {detail}", path.display())]
+    UnsupportedFormat {
+        /// The file (or the name given for in-memory data).
+        path: std::path::PathBuf,
+        /// What is not supported.
+        detail: String,
+    },
 }
 
 /// "vertex 3 of polyline 1" or "point 3".

@@ -7,8 +7,16 @@
 //!   polylines. Crossings are placed on cell edges by linear interpolation; the two saddle cases
 //!   are resolved by the asymptotic decider, so the curve has the topology of the bilinear
 //!   interpolant of the samples; a sample exactly on the level counts as above it.
+//! - [`cubes`] — **marching cubes**: the level surface `{x : f(x) = c}` of a 3-D field as a
+//!   welded [`TriMesh`]. Each cell's polygons are walked from the marching-squares segments of
+//!   its six faces, ambiguous faces resolved by the asymptotic decider on the face's own four
+//!   values, so neighbouring cells always agree: the mesh is watertight by construction.
 //! - [`svg`] — SVG previews of 2-D results (contours, polylines, points), written atomically.
 //! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
+//! - [`io`] — mesh files: PLY read (ASCII and binary, any vertex properties, polygons
+//!   fan-triangulated) and write (binary little-endian or ASCII), OBJ write; writes are atomic.
+//! - [`checks`] — mesh checks ([`MeshReport`]): boundary, non-manifold and inconsistently
+//!   oriented edges, components, Euler characteristic, closedness, signed volume, area.
 //!
 //! ## Guaranteed
 //!
@@ -25,8 +33,18 @@
 //! - An empty contour is an empty result, not an error; a NaN or infinite sample is an error
 //!   naming the sample.
 //!
-//! Not guaranteed: features smaller than a grid cell are found. Marching cubes (3-D) is not here
-//! yet.
+//! - Marching cubes: one vertex per crossed grid edge, shared by every cell around it;
+//!   triangles wound counter-clockwise seen from outside (`f ≥ c`), normals along `+∇f`. When
+//!   no sample lies exactly on the level, every edge is used by exactly two triangles wound
+//!   opposite ways (watertight, edge-manifold, consistently oriented) except on the grid border;
+//!   with `close_boundary` the surface is capped on the border and closed everywhere. Samples on
+//!   the level count as outside; crossings merged onto them leave no degenerate (two equal
+//!   corners) triangle and no unused vertex. The same input gives the same mesh with any
+//!   number of threads.
+//!
+//! Not guaranteed: features smaller than a grid cell are found; marching cubes resolves a
+//! cell's interior ambiguity (MC33 tunnels) like the trilinear interpolant; a surface with
+//! samples on the level stays manifold at those samples (two sheets may touch there).
 //!
 //! ```
 //! use zeroset_field_core::field::FnField;
@@ -50,12 +68,18 @@
 
 #![warn(missing_docs)]
 
+pub mod checks;
+pub mod cubes;
 pub mod error;
+pub mod io;
 pub mod squares;
 pub mod svg;
 pub mod trimesh;
 
+pub use checks::{MeshReport, boundary_loops, check};
+pub use cubes::{McOptions, marching_cubes, mesh_field};
 pub use error::{MeshError, Result};
+pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};
 pub use squares::{Contour, Polyline, contour_field, marching_squares};
 pub use svg::SvgPlot;
 pub use trimesh::TriMesh;

@@ -1,0 +1,334 @@
+//! Mesh checks: counts, topology and orientation of a [`TriMesh`].
+//!
+//! [`check`] returns a [`MeshReport`]: the edges (boundary, non-manifold, inconsistently
+//! oriented), degenerate triangles, connected components, the Euler characteristic of the used
+//! part, whether the mesh is closed, its signed volume and its area. [`boundary_loops`] counts
+//! the holes.
+//!
+//! An edge is an unordered pair of distinct vertices that some triangle has as a side. Edges
+//! are found by sorting the triangles' sides, so a check costs `O(F log F)` and the report does
+//! not depend on hash order: the same mesh gives the same report.
+
+use zeroset_field_core::Point;
+
+use crate::TriMesh;
+
+/// What [`check`] finds; see the [module docs](self).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshReport {
+    /// All vertices, including those no triangle uses.
+    pub vertices: usize,
+    /// Vertices used by at least one triangle.
+    pub used_vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Distinct edges (unordered pairs of distinct vertices that are a triangle's side).
+    pub edges: usize,
+    /// Edges with exactly one triangle.
+    pub boundary_edges: usize,
+    /// Edges with three or more triangles.
+    pub non_manifold_edges: usize,
+    /// Edges with two triangles that traverse them in the same direction: the two triangles
+    /// disagree on orientation (one of them is flipped).
+    pub inconsistent_edges: usize,
+    /// Triangles of zero area: a repeated vertex, or three collinear corners (an exactly zero
+    /// cross product in `f64`).
+    pub degenerate_triangles: usize,
+    /// Connected components of the triangles, two triangles being connected when they share an
+    /// edge (sharing only a vertex does not connect them).
+    pub components: usize,
+    /// `V − E + F` with `V` the used vertices: 2 for a sphere, 2 − 2g for a closed surface of
+    /// genus g, one less per hole.
+    pub euler_characteristic: i64,
+    /// At least one triangle, no boundary edge and no non-manifold edge.
+    pub closed: bool,
+    /// The signed volume `Σ (a − o) · ((b − o) × (c − o)) / 6` over the triangles `(a, b, c)`,
+    /// with `o` the mean of the used vertices: positive for a closed mesh wound outward (the
+    /// divergence theorem). For an open mesh it depends on `o` and is only indicative.
+    pub signed_volume: f64,
+    /// The total area of the triangles.
+    pub area: f64,
+}
+
+impl MeshReport {
+    /// Closed, with every edge traversed in opposite directions by its two triangles: the mesh
+    /// bounds a solid and its triangles agree on orientation.
+    pub fn is_oriented_closed(&self) -> bool {
+        self.closed && self.inconsistent_edges == 0
+    }
+}
+
+impl std::fmt::Display for MeshReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} vertices ({} used), {} triangles, {} edges ({} boundary, {} non-manifold, {} \
+             inconsistent), {} degenerate triangles, {} component(s), Euler characteristic {}, \
+             {}, signed volume {:.6e}, area {:.6e}",
+            self.vertices,
+            self.used_vertices,
+            self.triangles,
+            self.edges,
+            self.boundary_edges,
+            self.non_manifold_edges,
+            self.inconsistent_edges,
+            self.degenerate_triangles,
+            self.components,
+            self.euler_characteristic,
+            if self.closed { "closed" } else { "open" },
+            self.signed_volume,
+            self.area,
+        )
+    }
+}
+
+/// One triangle side: the edge `(lo, hi)`, whether the triangle traverses it from `lo` to
+/// `hi`, and the triangle.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Side {
+    lo: u32,
+    hi: u32,
+    forward: bool,
+    triangle: u32,
+}
+
+/// All sides of all triangles with two distinct ends, sorted by edge.
+fn sorted_sides(mesh: &TriMesh) -> Vec<Side> {
+    let mut sides = Vec::with_capacity(mesh.num_triangles() * 3);
+    for (t, tri) in mesh.triangles().iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            if a != b {
+                sides.push(Side {
+                    lo: a.min(b),
+                    hi: a.max(b),
+                    forward: a < b,
+                    triangle: t as u32,
+                });
+            }
+        }
+    }
+    sides.sort_unstable();
+    sides
+}
+
+/// Groups of sides on the same edge.
+fn edge_groups(sides: &[Side]) -> impl Iterator<Item = &[Side]> {
+    sides.chunk_by(|a, b| (a.lo, a.hi) == (b.lo, b.hi))
+}
+
+/// A union–find over `n` items.
+struct Dsu(Vec<u32>);
+
+impl Dsu {
+    fn new(n: usize) -> Self {
+        Self((0..n as u32).collect())
+    }
+
+    fn find(&mut self, mut x: u32) -> u32 {
+        while self.0[x as usize] != x {
+            let parent = self.0[x as usize];
+            self.0[x as usize] = self.0[parent as usize];
+            x = parent;
+        }
+        x
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            // The smaller root wins: deterministic.
+            let (lo, hi) = (ra.min(rb), ra.max(rb));
+            self.0[hi as usize] = lo;
+        }
+    }
+}
+
+fn sub(a: Point<3>, b: Point<3>) -> Point<3> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: Point<3>, b: Point<3>) -> Point<3> {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: Point<3>, b: Point<3>) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Checks `mesh`; see [`MeshReport`].
+///
+/// ```
+/// use zeroset_mesh::{TriMesh, checks::check};
+///
+/// // A tetrahedron wound outward.
+/// let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+/// let t = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+/// let report = check(&TriMesh::new(v, t)?);
+/// assert!(report.closed && report.inconsistent_edges == 0);
+/// assert_eq!(report.euler_characteristic, 2);
+/// assert!((report.signed_volume - 1.0 / 6.0).abs() < 1e-12);
+/// # Ok::<(), zeroset_mesh::MeshError>(())
+/// ```
+pub fn check(mesh: &TriMesh) -> MeshReport {
+    let vertices = mesh.vertices();
+    let mut used = vec![false; vertices.len()];
+    for tri in mesh.triangles() {
+        for &v in tri {
+            used[v as usize] = true;
+        }
+    }
+    let used_vertices = used.iter().filter(|u| **u).count();
+
+    let sides = sorted_sides(mesh);
+    let mut dsu = Dsu::new(mesh.num_triangles());
+    let (mut edges, mut boundary, mut non_manifold, mut inconsistent) = (0, 0, 0, 0);
+    for group in edge_groups(&sides) {
+        edges += 1;
+        match group.len() {
+            1 => boundary += 1,
+            2 => {
+                if group[0].forward == group[1].forward {
+                    inconsistent += 1;
+                }
+            }
+            _ => non_manifold += 1,
+        }
+        for s in &group[1..] {
+            dsu.union(group[0].triangle, s.triangle);
+        }
+    }
+    let components = (0..mesh.num_triangles() as u32)
+        .filter(|&t| dsu.find(t) == t)
+        .count();
+
+    // The mean of the used vertices, as origin of the volume sum.
+    let mut origin = [0.0; 3];
+    for (p, _) in vertices.iter().zip(&used).filter(|(_, u)| **u) {
+        for k in 0..3 {
+            origin[k] += p[k];
+        }
+    }
+    if used_vertices > 0 {
+        origin = origin.map(|c| c / used_vertices as f64);
+    }
+    let (mut volume, mut area, mut degenerate) = (0.0, 0.0, 0);
+    for (t, tri) in mesh.triangles().iter().enumerate() {
+        let [a, b, c] = mesh.corners(t).map(|p| sub(p, origin));
+        let n = cross(sub(b, a), sub(c, a));
+        let twice_area = dot(n, n).sqrt();
+        if twice_area == 0.0 || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            degenerate += 1;
+        }
+        area += 0.5 * twice_area;
+        volume += dot(a, cross(b, c)) / 6.0;
+    }
+
+    let triangles = mesh.num_triangles();
+    MeshReport {
+        vertices: vertices.len(),
+        used_vertices,
+        triangles,
+        edges,
+        boundary_edges: boundary,
+        non_manifold_edges: non_manifold,
+        inconsistent_edges: inconsistent,
+        degenerate_triangles: degenerate,
+        components,
+        euler_characteristic: used_vertices as i64 - edges as i64 + triangles as i64,
+        closed: triangles > 0 && boundary == 0 && non_manifold == 0,
+        signed_volume: volume,
+        area,
+    }
+}
+
+/// The number of boundary loops (holes): the connected components of the graph of boundary
+/// edges (edges with one triangle). Two holes that touch at a vertex count as one loop.
+pub fn boundary_loops(mesh: &TriMesh) -> usize {
+    let sides = sorted_sides(mesh);
+    let mut dsu = Dsu::new(mesh.num_vertices());
+    let mut on_boundary = vec![false; mesh.num_vertices()];
+    for group in edge_groups(&sides) {
+        if let [s] = group {
+            dsu.union(s.lo, s.hi);
+            on_boundary[s.lo as usize] = true;
+            on_boundary[s.hi as usize] = true;
+        }
+    }
+    (0..mesh.num_vertices() as u32)
+        .filter(|&v| on_boundary[v as usize] && dsu.find(v) == v)
+        .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_cube() -> TriMesh {
+        let mut v = Vec::new();
+        for i in 0..8 {
+            v.push([(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64]);
+        }
+        // Outward: counter-clockwise seen from outside.
+        let quads = [
+            [0, 2, 3, 1], // z = 0, normal -z
+            [4, 5, 7, 6], // z = 1, normal +z
+            [0, 1, 5, 4], // y = 0, normal -y
+            [2, 6, 7, 3], // y = 1, normal +y
+            [0, 4, 6, 2], // x = 0, normal -x
+            [1, 3, 7, 5], // x = 1, normal +x
+        ];
+        let t = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        TriMesh::new(v, t).unwrap()
+    }
+
+    #[test]
+    fn cube_is_closed_with_unit_volume() {
+        let r = check(&unit_cube());
+        assert_eq!(
+            (r.vertices, r.used_vertices, r.triangles, r.edges),
+            (8, 8, 12, 18)
+        );
+        assert_eq!(r.euler_characteristic, 2);
+        assert!(r.closed && r.is_oriented_closed());
+        assert_eq!(r.components, 1);
+        assert!((r.signed_volume - 1.0).abs() < 1e-12, "{r}");
+        assert!((r.area - 6.0).abs() < 1e-12);
+        assert_eq!(boundary_loops(&unit_cube()), 0);
+    }
+
+    #[test]
+    fn degenerate_and_empty() {
+        let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        let m = TriMesh::new(v, vec![[0, 1, 2], [0, 0, 1]]).unwrap();
+        let r = check(&m);
+        assert_eq!(r.degenerate_triangles, 2);
+        let r = check(&TriMesh::default());
+        assert!(!r.closed);
+        assert_eq!((r.components, r.edges, r.euler_characteristic), (0, 0, 0));
+    }
+
+    #[test]
+    fn non_manifold_edge_is_counted() {
+        // Three triangles on the edge 0–1.
+        let v = vec![
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let m = TriMesh::new(v, vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]]).unwrap();
+        let r = check(&m);
+        assert_eq!(r.non_manifold_edges, 1);
+        assert_eq!(r.components, 1);
+        assert!(!r.closed);
+    }
+}

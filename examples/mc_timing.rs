@@ -1,0 +1,179 @@
+//! Times marching-cubes extraction on an `n³` vertex grid over `[0, 1]³`, the set-up `PEERS.md`
+//! times scikit-image's `marching_cubes` on, and optionally writes the samples so that a Python
+//! script can run scikit-image on the very same input and compare.
+//!
+//! ```text
+//! cargo run --release --example mc_timing -- [--n 128,256] [--shape torus|sphere] [--repeat 5]
+//!     [--write-dir DIR] [--csv FILE]
+//! ```
+//!
+//! The samples are the signed distance of a torus (`R = 0.3`, `r = 0.1`) or a sphere
+//! (`r = 0.35`), centred at `(0.5, 0.5, 0.5)`, at the coordinates `numpy.linspace(0, 1, n)` on
+//! each axis, in C order with the last axis fastest: `values[(i·n + j)·n + k]` is the sample at
+//! `(x_i, y_j, z_k)`. Only the extraction (`marching_cubes` on the samples, normals included) is
+//! timed: the median of `--repeat` runs after one warm-up.
+//!
+//! Prints one line per size and, with `--csv FILE`, writes the table
+//! `n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs` (`euler` is
+//! `V − E + F`, `watertight` whether every edge is used by exactly two triangles, once each way,
+//! `max_abs_sdf_over_h` the largest `|sdf|` at a vertex over the spacing `h`). With
+//! `--write-dir DIR` it writes the samples as raw little-endian f64,
+//! `DIR/mc_{shape}_{n}.f64` (read them with `numpy.fromfile(path).reshape(n, n, n)`).
+
+#[path = "common/timing.rs"]
+mod timing;
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use zeroset::core::analytic::{Sphere, Torus};
+use zeroset::core::field::ScalarField;
+use zeroset::core::geometry::Aabb;
+use zeroset::core::grid::Grid;
+use zeroset::mesh::TriMesh;
+use zeroset::mesh::cubes::{McOptions, marching_cubes};
+
+struct Args {
+    sizes: Vec<usize>,
+    shape: String,
+    repeat: usize,
+    write_dir: Option<PathBuf>,
+    csv: Option<PathBuf>,
+}
+
+const USAGE: &str = "usage: mc_timing [--n 128,256] [--shape torus|sphere] [--repeat 5] \
+[--write-dir DIR] [--csv FILE]";
+
+fn parse_args() -> Result<Args, String> {
+    let mut args = Args {
+        sizes: vec![128, 256],
+        shape: "torus".into(),
+        repeat: 5,
+        write_dir: None,
+        csv: None,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(flag) = it.next() {
+        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
+        match flag.as_str() {
+            "--n" => args.sizes = timing::parse_list("--n", &value()?)?,
+            "--shape" => {
+                args.shape = value()?;
+                if args.shape != "torus" && args.shape != "sphere" {
+                    return Err(format!("--shape: {}: expected torus or sphere", args.shape));
+                }
+            }
+            "--repeat" => args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
+            "--write-dir" => args.write_dir = Some(value()?.into()),
+            "--csv" => args.csv = Some(value()?.into()),
+            "--help" | "-h" => return Err(USAGE.into()),
+            other => return Err(format!("unknown argument {other}\n{USAGE}")),
+        }
+    }
+    if args.sizes.iter().any(|&n| n < 2) || args.repeat == 0 {
+        return Err("--n must be at least 2 and --repeat positive".into());
+    }
+    Ok(args)
+}
+
+/// `numpy.linspace(0, 1, n)`, bit for bit: numpy computes `i · step` with `step = 1/(n − 1)`
+/// and sets the last point to `stop` exactly.
+fn linspace(n: usize) -> Vec<f64> {
+    let step = 1.0 / (n - 1) as f64;
+    let mut x: Vec<f64> = (0..n).map(|i| i as f64 * step).collect();
+    x[n - 1] = 1.0;
+    x
+}
+
+/// Writes raw little-endian f64 values, atomically (a temporary file, then a rename).
+fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let tmp = path.with_extension("f64.tmp");
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
+}
+
+/// `(V − E + F, every edge used once each way)`.
+fn topology(mesh: &TriMesh) -> (i64, bool) {
+    let mut uses: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
+    for t in mesh.triangles() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let e = uses.entry((a.min(b), a.max(b))).or_default();
+            if a < b {
+                e.0 += 1;
+            } else {
+                e.1 += 1;
+            }
+        }
+    }
+    let watertight = uses.values().all(|&u| u == (1, 1));
+    let euler = mesh.num_vertices() as i64 - uses.len() as i64 + mesh.num_triangles() as i64;
+    (euler, watertight)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = parse_args()?;
+    let field: Box<dyn ScalarField<3>> = match args.shape.as_str() {
+        "sphere" => Box::new(Sphere::new([0.5; 3], 0.35)),
+        _ => Box::new(Torus::new([0.5; 3], 0.3, 0.1)),
+    };
+    let threads = rayon::current_num_threads();
+    let mut csv = String::from(
+        "n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs\n",
+    );
+    for &n in &args.sizes {
+        let x = linspace(n);
+        let mut values = vec![0.0; n * n * n];
+        for (l, v) in values.iter_mut().enumerate() {
+            let (i, j, k) = (l / (n * n), (l / n) % n, l % n);
+            *v = field.value(&[x[i], x[j], x[k]]);
+        }
+        let grid = Grid::vertex_centered(Aabb::new([0.0; 3], [1.0; 3])?, [n, n, n])?;
+        let options = McOptions::default();
+        let mut mesh = marching_cubes(&grid, &values, 0.0, &options)?;
+        let mut times = Vec::with_capacity(args.repeat);
+        for _ in 0..args.repeat {
+            let start = Instant::now();
+            mesh = marching_cubes(&grid, &values, 0.0, &options)?;
+            times.push(start.elapsed());
+        }
+        let ms = timing::median(times).as_secs_f64() * 1e3;
+        let (euler, watertight) = topology(&mesh);
+        let h = 1.0 / (n - 1) as f64;
+        let max_sdf = mesh
+            .vertices()
+            .iter()
+            .map(|p| field.value(p).abs())
+            .fold(0.0, f64::max);
+        println!(
+            "n={n} shape={} threads={threads} extract_ms={ms:.3} vertices={} triangles={} \
+             euler={euler} watertight={watertight} max_abs_sdf_over_h={:.3e}",
+            args.shape,
+            mesh.num_vertices(),
+            mesh.num_triangles(),
+            max_sdf / h,
+        );
+        writeln!(
+            csv,
+            "{n},{},{ms:.3},{},{},{euler},{watertight},{:.6e},{}",
+            args.shape,
+            mesh.num_vertices(),
+            mesh.num_triangles(),
+            max_sdf / h,
+            args.repeat
+        )?;
+        if let Some(dir) = &args.write_dir {
+            std::fs::create_dir_all(dir)?;
+            write_f64(&dir.join(format!("mc_{}_{n}.f64", args.shape)), &values)?;
+        }
+    }
+    if let Some(path) = &args.csv {
+        let tmp = path.with_extension("csv.tmp");
+        std::fs::write(&tmp, csv)?;
+        std::fs::rename(&tmp, path)?;
+    }
+    Ok(())
+}

@@ -1,23 +1,61 @@
-//! The zeroset field file (`.zsf`): a B-spline field, versioned and checksummed.
+//! The zeroset field file (`.zsf`): a B-spline or RBF field, versioned and checksummed.
 //!
 //! A restored or fitted field is saved so that the next command (restore again, mesh, …) can
-//! load it bit for bit. Layout, all little-endian:
+//! load it bit for bit. All numbers are little-endian; `f64` values are stored as their IEEE
+//! bits, so a field read back evaluates bit for bit as the one written.
+//!
+//! # Version 2 (written by this build)
 //!
 //! | bytes | content |
 //! |---|---|
 //! | 8 | magic `ZSFIELD\0` |
-//! | 4 | format version (`u32`, currently 1) |
-//! | 4 | dimension `D` (2 or 3) |
+//! | 4 | format version (`u32`, 2) |
+//! | 4 | dimension `D` (`u32`, 2 or 3) |
+//! | 8 | kind tag, ASCII padded with NULs: `bspline` or `rbf` |
+//! | 4 | metadata length `m` (`u32`) |
+//! | 8 | payload length `p` (`u64`) |
+//! | m | metadata: UTF-8 `key=value` lines (`created-by`, `kind`, `dimension`, `kernel`, …); informative only |
+//! | p | payload (below) |
+//! | 4 | CRC-32 (IEEE) of every byte before it |
+//!
+//! The `bspline` payload is the version-1 body:
+//!
+//! | bytes | content |
+//! |---|---|
 //! | 4 | degree (2 or 3) |
 //! | 4 | boundary (0 = half-sample mirror, 1 = whole-sample mirror) |
 //! | 4 | centering (0 = cell, 1 = vertex) |
 //! | 8·D | samples per axis (`u64`) |
 //! | 16·D | bounding box min then max (`f64`) |
 //! | 8·Π counts | B-spline coefficients (`f64`, last axis fastest) |
+//!
+//! The `rbf` payload, for the field `s(x) = Σⱼ wⱼ Lⱼʸ φ(|x − y|) + c · (1, (x − m)/h)`:
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 4 + t | kernel tag: length `t` (`u32`), then UTF-8 (`r`, `r3`, `tps`, `wendland`) |
+//! | 4 + 8·k | kernel parameters: count `k` (`u32`), then `f64`s (`wendland`: the radius) |
+//! | 8 | number of functionals `n` (`u64`) |
+//! | n·(8·D + 12) | per functional: point (`f64`·D), kind (`u32`: 0 = value, 1 + a = ∂/∂x_a), target (`f64`) |
+//! | 8·n | kernel weights `w` (`f64`) |
+//! | 8·D + 8 | polynomial centre `m` (`f64`·D) and scale `h` (`f64`) |
+//! | 8 + 8·q | polynomial coefficients: count `q = D + 1` (`u64`), then `f64`s |
+//! | 16·D | bounding box min then max (`f64`) |
+//!
+//! # Version 1 (still read)
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic `ZSFIELD\0` |
+//! | 4 | format version (`u32`, 1) |
+//! | 4 | dimension `D` (2 or 3) |
+//! | … | the `bspline` payload above |
 //! | 4 | CRC-32 (IEEE) of every byte before it |
 //!
 //! Writes are atomic (temporary file + rename). Reads check the magic, version, sizes,
-//! checksum and values and say what is wrong.
+//! checksum, kind and values and say what is wrong ([`FieldFileError`]; [`read_field`] and
+//! [`decode`] convert it into the crate-wide [`Error`] for compatibility).
+//! [`read_field`] reads B-spline fields only; [`read_any_field`] reads either kind.
 //!
 //! ```
 //! use zeroset_bases::bspline::{BSplineField, Degree};
@@ -37,20 +75,411 @@
 //! # std::fs::remove_dir_all(&dir).unwrap();
 //! # Ok::<(), zeroset_field_core::Error>(())
 //! ```
+//!
+//! An RBF field goes through [`write_rbf_field`] and comes back from [`read_any_field`] as
+//! [`AnyField::Rbf`], a [`ScalarField`] like the field written.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use zeroset_field_core::Error;
-use zeroset_field_core::geometry::Aabb;
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::grid::{Centering, Grid};
 use zeroset_field_core::io::write_atomic;
 
 use crate::bspline::{BSplineField, Boundary, Degree};
+use crate::rbf::system::{Functional, Polynomial};
+use crate::rbf::{Biharmonic, Kernel, RbfField, ThinPlate, Triharmonic, Wendland};
 
 /// The first 8 bytes of every field file.
 pub const MAGIC: &[u8; 8] = b"ZSFIELD\0";
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The format version this build writes (it reads this and every older version).
+pub const VERSION: u32 = 2;
+
+/// The kind tag of a B-spline field.
+pub const KIND_BSPLINE: &str = "bspline";
+/// The kind tag of an RBF field.
+pub const KIND_RBF: &str = "rbf";
+
+/// Bytes before the metadata in a version-2 file.
+const V2_HEADER: usize = 36;
+
+/// What is wrong with a field file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FieldFileError {
+    /// The file cannot be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file does not start with [`MAGIC`].
+    #[error("{}: not a zeroset field file (bad magic)", path.display())]
+    BadMagic {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file is shorter than its header announces.
+    #[error("{}: truncated: {got} bytes where {expected} are needed", path.display())]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// The bytes needed.
+        expected: usize,
+        /// The bytes present.
+        got: usize,
+    },
+    /// A format version newer than this build reads.
+    #[error(
+        "{}: field file version {found}; this build reads versions 1 to {supported} (a newer zeroset wrote it)",
+        path.display()
+    )]
+    NewerVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version in the file.
+        found: u32,
+        /// The newest version this build reads.
+        supported: u32,
+    },
+    /// The stored checksum does not match the contents.
+    #[error(
+        "{}: checksum mismatch (stored {stored:08x}, computed {computed:08x}): the file is corrupt",
+        path.display()
+    )]
+    Checksum {
+        /// The file.
+        path: PathBuf,
+        /// The CRC-32 stored.
+        stored: u32,
+        /// The CRC-32 of the contents.
+        computed: u32,
+    },
+    /// A kind tag other than `bspline` and `rbf`.
+    #[error("{}: unknown field kind {kind:?} (this build reads \"bspline\" and \"rbf\")", path.display())]
+    UnknownKind {
+        /// The file.
+        path: PathBuf,
+        /// The tag found.
+        kind: String,
+    },
+    /// A field of another dimension than asked for.
+    #[error("{}: a {found}-D field, expected {expected}-D", path.display())]
+    WrongDimension {
+        /// The file.
+        path: PathBuf,
+        /// The dimension in the file.
+        found: u32,
+        /// The dimension asked for.
+        expected: usize,
+    },
+    /// A B-spline field was asked for ([`read_field`]) but the file holds an RBF field.
+    #[error(
+        "{}: this file holds an RBF field (kernel {kernel}), not a B-spline field",
+        path.display()
+    )]
+    HoldsRbf {
+        /// The file.
+        path: PathBuf,
+        /// The RBF kernel's tag.
+        kernel: String,
+    },
+    /// An RBF kernel this build does not know.
+    #[error(
+        "{}: unknown RBF kernel {kernel:?} (this build reads \"r\", \"r3\", \"tps\" and \"wendland\")",
+        path.display()
+    )]
+    UnknownKernel {
+        /// The file.
+        path: PathBuf,
+        /// The tag found.
+        kernel: String,
+    },
+    /// Any other inconsistency in the contents.
+    #[error("{}: {reason}", path.display())]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The contents do not make a valid field (grid, bounds, coefficients).
+    #[error("{}: {source}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// Why the field is invalid.
+        #[source]
+        source: Error,
+    },
+}
+
+impl FieldFileError {
+    /// The file the error is about.
+    pub fn path(&self) -> &Path {
+        match self {
+            Self::Io { path, .. }
+            | Self::BadMagic { path }
+            | Self::Truncated { path, .. }
+            | Self::NewerVersion { path, .. }
+            | Self::Checksum { path, .. }
+            | Self::UnknownKind { path, .. }
+            | Self::WrongDimension { path, .. }
+            | Self::HoldsRbf { path, .. }
+            | Self::UnknownKernel { path, .. }
+            | Self::Malformed { path, .. }
+            | Self::Invalid { path, .. } => path,
+        }
+    }
+}
+
+impl From<FieldFileError> for Error {
+    fn from(e: FieldFileError) -> Self {
+        match e {
+            FieldFileError::Io { path, source } => Error::Io { path, source },
+            FieldFileError::Truncated {
+                path,
+                expected,
+                got,
+            } => Error::Truncated {
+                path,
+                element: "byte".into(),
+                expected,
+                got,
+            },
+            FieldFileError::Invalid { source, .. } => source,
+            other => {
+                let path = other.path().to_owned();
+                let full = other.to_string();
+                let prefix = format!("{}: ", path.display());
+                let reason = full.strip_prefix(&prefix).unwrap_or(&full).to_string();
+                Error::Malformed {
+                    path,
+                    line: None,
+                    reason,
+                }
+            }
+        }
+    }
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for crate::rbf::Biharmonic {}
+    impl Sealed for crate::rbf::Triharmonic {}
+    impl Sealed for crate::rbf::ThinPlate {}
+    impl Sealed for crate::rbf::Wendland {}
+}
+
+/// A kernel the field file stores: the built-in [`Biharmonic`] (`r`), [`Triharmonic`]
+/// (`r3`), [`ThinPlate`] (`tps`) and [`Wendland`] (`wendland`, parameter: the radius).
+pub trait StoredKernel: Kernel + Clone + sealed::Sealed {
+    /// The tag written to the file.
+    fn tag(&self) -> &'static str;
+    /// The kernel's parameters, in file order.
+    fn params(&self) -> Vec<f64>;
+    /// The kernel of `tag` with `params`, or `None` if they are not this kernel's.
+    fn from_tag(tag: &str, params: &[f64]) -> Option<Self>
+    where
+        Self: Sized;
+}
+
+impl StoredKernel for Biharmonic {
+    fn tag(&self) -> &'static str {
+        "r"
+    }
+    fn params(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
+        (tag == "r" && params.is_empty()).then_some(Biharmonic)
+    }
+}
+
+impl StoredKernel for Triharmonic {
+    fn tag(&self) -> &'static str {
+        "r3"
+    }
+    fn params(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
+        (tag == "r3" && params.is_empty()).then_some(Triharmonic)
+    }
+}
+
+impl StoredKernel for ThinPlate {
+    fn tag(&self) -> &'static str {
+        "tps"
+    }
+    fn params(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
+        (tag == "tps" && params.is_empty()).then_some(ThinPlate)
+    }
+}
+
+impl StoredKernel for Wendland {
+    fn tag(&self) -> &'static str {
+        "wendland"
+    }
+    fn params(&self) -> Vec<f64> {
+        vec![self.radius()]
+    }
+    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
+        match params {
+            [radius] if tag == "wendland" => Wendland::new(*radius),
+            _ => None,
+        }
+    }
+}
+
+/// An RBF field with one of the built-in kernels, as read from a file.
+#[derive(Debug, Clone)]
+pub enum RbfAny<const D: usize> {
+    /// `φ(r) = r`.
+    R(RbfField<Biharmonic, D>),
+    /// `φ(r) = r³`.
+    R3(RbfField<Triharmonic, D>),
+    /// `φ(r) = r² ln r`.
+    Tps(RbfField<ThinPlate, D>),
+    /// Wendland's `ψ₃,₁`.
+    Wendland(RbfField<Wendland, D>),
+}
+
+macro_rules! each_rbf {
+    ($self:expr, $f:ident => $body:expr) => {
+        match $self {
+            RbfAny::R($f) => $body,
+            RbfAny::R3($f) => $body,
+            RbfAny::Tps($f) => $body,
+            RbfAny::Wendland($f) => $body,
+        }
+    };
+}
+
+impl<const D: usize> RbfAny<D> {
+    /// The kernel's tag (`r`, `r3`, `tps`, `wendland`).
+    pub fn kernel_tag(&self) -> &'static str {
+        each_rbf!(self, f => f.kernel().tag())
+    }
+
+    /// The number of centres (functionals).
+    pub fn num_centres(&self) -> usize {
+        each_rbf!(self, f => f.num_centres())
+    }
+
+    /// The kernel weights.
+    pub fn weights(&self) -> &[f64] {
+        each_rbf!(self, f => f.weights())
+    }
+
+    /// The polynomial coefficients.
+    pub fn polynomial_coefficients(&self) -> &[f64] {
+        each_rbf!(self, f => f.polynomial_coefficients())
+    }
+
+    /// The Hessian at `x`.
+    pub fn hessian(&self, x: &Point<D>) -> [[f64; D]; D] {
+        each_rbf!(self, f => f.hessian(x))
+    }
+}
+
+impl<const D: usize> ScalarField<D> for RbfAny<D> {
+    fn value(&self, p: &Point<D>) -> f64 {
+        each_rbf!(self, f => f.value(p))
+    }
+    fn gradient(&self, p: &Point<D>) -> Point<D> {
+        each_rbf!(self, f => f.gradient(p))
+    }
+    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
+        each_rbf!(self, f => f.values(points, out))
+    }
+    fn bounds(&self) -> Option<Aabb<D>> {
+        each_rbf!(self, f => ScalarField::bounds(f))
+    }
+}
+
+macro_rules! rbf_from {
+    ($k:ty, $v:ident) => {
+        impl<const D: usize> From<RbfField<$k, D>> for RbfAny<D> {
+            fn from(f: RbfField<$k, D>) -> Self {
+                RbfAny::$v(f)
+            }
+        }
+    };
+}
+rbf_from!(Biharmonic, R);
+rbf_from!(Triharmonic, R3);
+rbf_from!(ThinPlate, Tps);
+rbf_from!(Wendland, Wendland);
+
+/// A field of either kind, as read by [`read_any_field`].
+#[derive(Debug, Clone)]
+pub enum AnyField<const D: usize> {
+    /// A B-spline field.
+    BSpline(BSplineField<D>),
+    /// An RBF field.
+    Rbf(RbfAny<D>),
+}
+
+impl<const D: usize> AnyField<D> {
+    /// The kind tag: [`KIND_BSPLINE`] or [`KIND_RBF`].
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::BSpline(_) => KIND_BSPLINE,
+            Self::Rbf(_) => KIND_RBF,
+        }
+    }
+
+    /// The B-spline field, if it is one.
+    pub fn into_bspline(self) -> Option<BSplineField<D>> {
+        match self {
+            Self::BSpline(f) => Some(f),
+            Self::Rbf(_) => None,
+        }
+    }
+
+    /// The RBF field, if it is one.
+    pub fn into_rbf(self) -> Option<RbfAny<D>> {
+        match self {
+            Self::BSpline(_) => None,
+            Self::Rbf(f) => Some(f),
+        }
+    }
+}
+
+impl<const D: usize> ScalarField<D> for AnyField<D> {
+    fn value(&self, p: &Point<D>) -> f64 {
+        match self {
+            Self::BSpline(f) => f.value(p),
+            Self::Rbf(f) => f.value(p),
+        }
+    }
+    fn gradient(&self, p: &Point<D>) -> Point<D> {
+        match self {
+            Self::BSpline(f) => f.gradient(p),
+            Self::Rbf(f) => f.gradient(p),
+        }
+    }
+    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
+        match self {
+            Self::BSpline(f) => f.values(points, out),
+            Self::Rbf(f) => f.values(points, out),
+        }
+    }
+    fn bounds(&self) -> Option<Aabb<D>> {
+        match self {
+            Self::BSpline(f) => ScalarField::bounds(f),
+            Self::Rbf(f) => f.bounds(),
+        }
+    }
+}
 
 /// Whether `path` starts with the field-file magic (unreadable files are not field files).
 pub fn is_field_file(path: impl AsRef<Path>) -> bool {
@@ -62,7 +491,7 @@ pub fn is_field_file(path: impl AsRef<Path>) -> bool {
         .unwrap_or(false)
 }
 
-/// Writes `field` to `path` atomically.
+/// Writes the B-spline `field` to `path` atomically (format version [`VERSION`]).
 ///
 /// # Errors
 /// [`Error::Io`] naming `path`.
@@ -74,19 +503,77 @@ pub fn write_field<const D: usize>(
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// The bytes of the field file of `field`.
+/// Writes the RBF `field` to `path` atomically (format version [`VERSION`]).
+///
+/// # Errors
+/// [`Error::Io`] naming `path`.
+pub fn write_rbf_field<K: StoredKernel, const D: usize>(
+    path: impl AsRef<Path>,
+    field: &RbfField<K, D>,
+) -> Result<(), Error> {
+    let bytes = encode_rbf(field);
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// Writes either kind of field to `path` atomically.
+///
+/// # Errors
+/// [`Error::Io`] naming `path`.
+pub fn write_any_field<const D: usize>(
+    path: impl AsRef<Path>,
+    field: &AnyField<D>,
+) -> Result<(), Error> {
+    let bytes = match field {
+        AnyField::BSpline(f) => encode(f),
+        AnyField::Rbf(r) => each_rbf!(r, f => encode_rbf(f)),
+    };
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+fn put_f64s<'a>(out: &mut Vec<u8>, values: impl IntoIterator<Item = &'a f64>) {
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+/// Frames a version-2 file around `payload`.
+fn frame(dim: usize, kind: &str, metadata: &[(&str, String)], payload: &[u8]) -> Vec<u8> {
+    let mut meta = String::new();
+    meta.push_str(&format!(
+        "created-by=zeroset-bases {}\n",
+        env!("CARGO_PKG_VERSION")
+    ));
+    meta.push_str(&format!("kind={kind}\ndimension={dim}\n"));
+    for (k, v) in metadata {
+        meta.push_str(&format!("{k}={v}\n"));
+    }
+    let mut tag = [0u8; 8];
+    tag[..kind.len()].copy_from_slice(kind.as_bytes());
+    let mut out = Vec::with_capacity(V2_HEADER + meta.len() + payload.len() + 4);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(dim as u32).to_le_bytes());
+    out.extend_from_slice(&tag);
+    out.extend_from_slice(&(meta.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(meta.as_bytes());
+    out.extend_from_slice(payload);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// The bytes of the field file of the B-spline `field` (version [`VERSION`]).
 pub fn encode<const D: usize>(field: &BSplineField<D>) -> Vec<u8> {
     let grid = field.grid();
     let coefficients = field.coefficients();
-    let mut out = Vec::with_capacity(48 + 24 * D + 8 * coefficients.len());
-    out.extend_from_slice(MAGIC);
-    let header = [
-        VERSION,
-        D as u32,
-        match field.degree() {
-            Degree::Quadratic => 2,
-            Degree::Cubic => 3,
-        },
+    let mut payload = Vec::with_capacity(12 + 24 * D + 8 * coefficients.len());
+    let degree = match field.degree() {
+        Degree::Quadratic => 2u32,
+        Degree::Cubic => 3,
+    };
+    let codes = [
+        degree,
         match field.boundary() {
             Boundary::HalfSample => 0,
             Boundary::WholeSample => 1,
@@ -96,107 +583,225 @@ pub fn encode<const D: usize>(field: &BSplineField<D>) -> Vec<u8> {
             Centering::Vertex => 1,
         },
     ];
-    header
+    codes
         .iter()
-        .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        .for_each(|v| payload.extend_from_slice(&v.to_le_bytes()));
     grid.counts()
         .iter()
-        .for_each(|&c| out.extend_from_slice(&(c as u64).to_le_bytes()));
+        .for_each(|&c| payload.extend_from_slice(&(c as u64).to_le_bytes()));
     let bounds = grid.bounds();
-    bounds
-        .min()
+    put_f64s(
+        &mut payload,
+        bounds
+            .min()
+            .iter()
+            .chain(bounds.max().iter())
+            .chain(coefficients),
+    );
+    let samples = grid
+        .counts()
         .iter()
-        .chain(bounds.max().iter())
-        .chain(coefficients)
-        .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
-    let crc = crc32fast::hash(&out);
-    out.extend_from_slice(&crc.to_le_bytes());
-    out
+        .map(|c| c.to_string())
+        .collect::<Vec<_>>()
+        .join("x");
+    frame(
+        D,
+        KIND_BSPLINE,
+        &[("degree", degree.to_string()), ("samples", samples)],
+        &payload,
+    )
 }
 
-/// Reads a `D`-dimensional field file.
-///
-/// # Errors
-/// [`Error::Io`] if the file cannot be read; [`Error::Malformed`] for a wrong magic, an
-/// unknown version or code, a dimension other than `D`, a checksum mismatch or a non-finite
-/// value; [`Error::Truncated`] for a file shorter than its header announces.
-pub fn read_field<const D: usize>(path: impl AsRef<Path>) -> Result<BSplineField<D>, Error> {
-    let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+/// The bytes of the field file of the RBF `field` (version [`VERSION`]).
+pub fn encode_rbf<K: StoredKernel, const D: usize>(field: &RbfField<K, D>) -> Vec<u8> {
+    let kernel = field.kernel();
+    let tag = kernel.tag();
+    let params = kernel.params();
+    let f = field.functionals();
+    let n = f.len();
+    let mut p = Vec::with_capacity(64 + tag.len() + n * (8 * D + 20) + 40 * D);
+    p.extend_from_slice(&(tag.len() as u32).to_le_bytes());
+    p.extend_from_slice(tag.as_bytes());
+    p.extend_from_slice(&(params.len() as u32).to_le_bytes());
+    put_f64s(&mut p, &params);
+    p.extend_from_slice(&(n as u64).to_le_bytes());
+    for j in 0..n {
+        put_f64s(&mut p, &f.points[j]);
+        let kind = match f.kinds[j] {
+            Functional::Value => 0u32,
+            Functional::Derivative(a) => 1 + a as u32,
+        };
+        p.extend_from_slice(&kind.to_le_bytes());
+        put_f64s(&mut p, [&f.targets[j]]);
+    }
+    put_f64s(&mut p, field.weights());
+    let poly = field.polynomial();
+    put_f64s(&mut p, poly.centre.iter().chain([&poly.scale]));
+    let c = field.polynomial_coefficients();
+    p.extend_from_slice(&(c.len() as u64).to_le_bytes());
+    put_f64s(&mut p, c);
+    let bounds = ScalarField::bounds(field).expect("an RBF field has bounds");
+    put_f64s(&mut p, bounds.min().iter().chain(bounds.max().iter()));
+    let mut meta = vec![("kernel", tag.to_string())];
+    if !params.is_empty() {
+        let list = params
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(",");
+        meta.push(("kernel-params", list));
+    }
+    meta.push(("centres", n.to_string()));
+    frame(D, KIND_RBF, &meta, &p)
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>, FieldFileError> {
+    std::fs::read(path).map_err(|source| FieldFileError::Io {
         path: path.to_owned(),
         source,
-    })?;
+    })
+}
+
+/// Reads a `D`-dimensional B-spline field file (any version).
+///
+/// # Errors
+/// [`Error::Io`] if the file cannot be read; [`Error::Truncated`] for a file shorter than its
+/// header announces; [`Error::Malformed`] for a wrong magic, a newer version, an unknown kind
+/// or code, a dimension other than `D`, a checksum mismatch, a non-finite value, or an RBF
+/// field ("this file holds an RBF field"). [`read_any_field`] gives the specific
+/// [`FieldFileError`].
+pub fn read_field<const D: usize>(path: impl AsRef<Path>) -> Result<BSplineField<D>, Error> {
+    let path = path.as_ref();
+    let bytes = read_bytes(path)?;
     decode(&bytes, path)
 }
 
-/// Parses the bytes of a field file; `path` is only used in error messages.
+/// Parses the bytes of a B-spline field file; `path` is only used in error messages.
 ///
 /// # Errors
 /// As [`read_field`].
 pub fn decode<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<D>, Error> {
-    let malformed = |reason: String| Error::Malformed {
+    match decode_any(bytes, path)? {
+        AnyField::BSpline(f) => Ok(f),
+        AnyField::Rbf(r) => Err(FieldFileError::HoldsRbf {
+            path: path.to_owned(),
+            kernel: r.kernel_tag().to_string(),
+        }
+        .into()),
+    }
+}
+
+/// Reads a `D`-dimensional field file of either kind (any version).
+///
+/// # Errors
+/// The [`FieldFileError`] saying what is wrong.
+pub fn read_any_field<const D: usize>(
+    path: impl AsRef<Path>,
+) -> Result<AnyField<D>, FieldFileError> {
+    let path = path.as_ref();
+    let bytes = read_bytes(path)?;
+    decode_any(&bytes, path)
+}
+
+/// The metadata lines of a field file as `(key, value)` pairs (empty for version 1).
+///
+/// # Errors
+/// As [`read_any_field`], for the frame (magic, version, sizes, checksum).
+pub fn read_metadata(path: impl AsRef<Path>) -> Result<Vec<(String, String)>, FieldFileError> {
+    let path = path.as_ref();
+    let bytes = read_bytes(path)?;
+    let version = check_head(&bytes, path)?;
+    if version == 1 {
+        return Ok(Vec::new());
+    }
+    let frame = parse_frame(&bytes, path)?;
+    Ok(frame
+        .metadata
+        .lines()
+        .filter_map(|l| l.split_once('='))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect())
+}
+
+/// Checks the magic and returns the version (refusing newer ones).
+fn check_head(bytes: &[u8], path: &Path) -> Result<u32, FieldFileError> {
+    let truncated = |expected: usize| FieldFileError::Truncated {
         path: path.to_owned(),
-        line: None,
-        reason,
+        expected,
+        got: bytes.len(),
     };
     let mut cursor = Cursor { bytes, at: 0 };
-    let truncated = |expected: usize, got: usize| Error::Truncated {
-        path: path.to_owned(),
-        element: "byte".into(),
-        expected,
-        got,
-    };
-    let magic = cursor.take(8).ok_or_else(|| truncated(8, bytes.len()))?;
+    let magic = cursor.take(8).ok_or_else(|| truncated(8))?;
     if magic != MAGIC {
-        return Err(malformed("not a zeroset field file (bad magic)".into()));
+        return Err(FieldFileError::BadMagic {
+            path: path.to_owned(),
+        });
     }
-    let mut header = [0u32; 5];
-    for h in &mut header {
-        *h = cursor.u32().ok_or_else(|| truncated(28, bytes.len()))?;
+    let version = cursor.u32().ok_or_else(|| truncated(12))?;
+    match version {
+        1 | 2 => Ok(version),
+        v if v > VERSION => Err(FieldFileError::NewerVersion {
+            path: path.to_owned(),
+            found: v,
+            supported: VERSION,
+        }),
+        v => Err(FieldFileError::Malformed {
+            path: path.to_owned(),
+            reason: format!("invalid field file version {v}"),
+        }),
     }
-    let [version, dim, degree, boundary, centering] = header;
-    if version != VERSION {
-        return Err(malformed(format!(
-            "field file version {version}; this build reads version {VERSION}"
-        )));
+}
+
+/// Parses the bytes of a field file of either kind; `path` is only used in error messages.
+///
+/// # Errors
+/// As [`read_any_field`].
+pub fn decode_any<const D: usize>(
+    bytes: &[u8],
+    path: &Path,
+) -> Result<AnyField<D>, FieldFileError> {
+    match check_head(bytes, path)? {
+        1 => decode_v1(bytes, path).map(AnyField::BSpline),
+        _ => decode_v2(bytes, path),
     }
-    if dim as usize != D {
-        return Err(malformed(format!("a {dim}-D field, expected {D}-D")));
-    }
-    let degree = match degree {
-        2 => Degree::Quadratic,
-        3 => Degree::Cubic,
-        d => return Err(malformed(format!("unknown B-spline degree {d}"))),
+}
+
+struct Frame<'a> {
+    dim: u32,
+    kind: &'a [u8],
+    metadata: &'a str,
+    payload: &'a [u8],
+}
+
+/// Checks a version-2 file's sizes and checksum and splits it.
+fn parse_frame<'a>(bytes: &'a [u8], path: &Path) -> Result<Frame<'a>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
     };
-    let boundary = match boundary {
-        0 => Boundary::HalfSample,
-        1 => Boundary::WholeSample,
-        b => return Err(malformed(format!("unknown boundary code {b}"))),
-    };
-    let centering = match centering {
-        0 => Centering::Cell,
-        1 => Centering::Vertex,
-        c => return Err(malformed(format!("unknown centering code {c}"))),
-    };
-    let header_len = 28 + 24 * D;
-    let mut counts = [0usize; D];
-    for c in &mut counts {
-        let v = cursor
-            .u64()
-            .ok_or_else(|| truncated(header_len, bytes.len()))?;
-        *c = usize::try_from(v).map_err(|_| malformed(format!("axis of {v} samples")))?;
+    if bytes.len() < V2_HEADER {
+        return Err(FieldFileError::Truncated {
+            path: path.to_owned(),
+            expected: V2_HEADER,
+            got: bytes.len(),
+        });
     }
-    let expected = counts
-        .iter()
-        .try_fold(1usize, |acc, &c| acc.checked_mul(c))
-        .filter(|&n| n > 0)
-        .and_then(|n| n.checked_mul(8))
-        .and_then(|n| n.checked_add(header_len + 4))
-        .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
-    let total = (expected - header_len - 4) / 8;
+    let mut cursor = Cursor { bytes, at: 12 };
+    let dim = cursor.u32().expect("length checked");
+    let kind = cursor.take(8).expect("length checked");
+    let meta_len = cursor.u32().expect("length checked") as usize;
+    let payload_len = cursor.u64().expect("length checked");
+    let expected = usize::try_from(payload_len)
+        .ok()
+        .and_then(|p| p.checked_add(V2_HEADER + meta_len + 4))
+        .ok_or_else(|| malformed(format!("impossible payload of {payload_len} bytes")))?;
     if bytes.len() != expected {
         return Err(if bytes.len() < expected {
-            truncated(expected, bytes.len())
+            FieldFileError::Truncated {
+                path: path.to_owned(),
+                expected,
+                got: bytes.len(),
+            }
         } else {
             malformed(format!(
                 "{} bytes where the header announces {expected}",
@@ -204,23 +809,277 @@ pub fn decode<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<
             ))
         });
     }
-    let stored = u32::from_le_bytes(bytes[expected - 4..].try_into().expect("4 bytes"));
-    let actual = crc32fast::hash(&bytes[..expected - 4]);
-    if stored != actual {
+    check_crc(bytes, path)?;
+    let metadata = std::str::from_utf8(&bytes[V2_HEADER..V2_HEADER + meta_len])
+        .map_err(|_| malformed("metadata is not UTF-8".into()))?;
+    Ok(Frame {
+        dim,
+        kind,
+        metadata,
+        payload: &bytes[V2_HEADER + meta_len..expected - 4],
+    })
+}
+
+fn check_crc(bytes: &[u8], path: &Path) -> Result<(), FieldFileError> {
+    let n = bytes.len();
+    let stored = u32::from_le_bytes(bytes[n - 4..].try_into().expect("4 bytes"));
+    let computed = crc32fast::hash(&bytes[..n - 4]);
+    if stored != computed {
+        return Err(FieldFileError::Checksum {
+            path: path.to_owned(),
+            stored,
+            computed,
+        });
+    }
+    Ok(())
+}
+
+fn decode_v2<const D: usize>(bytes: &[u8], path: &Path) -> Result<AnyField<D>, FieldFileError> {
+    let frame = parse_frame(bytes, path)?;
+    if frame.dim as usize != D {
+        return Err(FieldFileError::WrongDimension {
+            path: path.to_owned(),
+            found: frame.dim,
+            expected: D,
+        });
+    }
+    let end = frame
+        .kind
+        .iter()
+        .rposition(|&b| b != 0)
+        .map_or(0, |i| i + 1);
+    let kind = &frame.kind[..end];
+    let short = || FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason: "the payload is shorter than its contents".into(),
+    };
+    let mut cursor = Cursor {
+        bytes: frame.payload,
+        at: 0,
+    };
+    let field = if kind == KIND_BSPLINE.as_bytes() {
+        AnyField::BSpline(bspline_body(&mut cursor, path, short)?)
+    } else if kind == KIND_RBF.as_bytes() {
+        AnyField::Rbf(rbf_body(&mut cursor, path, short)?)
+    } else {
+        return Err(FieldFileError::UnknownKind {
+            path: path.to_owned(),
+            kind: String::from_utf8_lossy(kind).into_owned(),
+        });
+    };
+    if cursor.at != frame.payload.len() {
+        return Err(FieldFileError::Malformed {
+            path: path.to_owned(),
+            reason: format!(
+                "{} bytes of payload left over",
+                frame.payload.len() - cursor.at
+            ),
+        });
+    }
+    Ok(field)
+}
+
+/// A version-1 file: magic, version, dimension, the B-spline body, CRC.
+fn decode_v1<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<D>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
+    };
+    let truncated = |expected: usize| FieldFileError::Truncated {
+        path: path.to_owned(),
+        expected,
+        got: bytes.len(),
+    };
+    let header_len = 28 + 8 * D;
+    let mut cursor = Cursor { bytes, at: 12 };
+    let dim = cursor.u32().ok_or_else(|| truncated(28))?;
+    if dim as usize != D {
+        return Err(FieldFileError::WrongDimension {
+            path: path.to_owned(),
+            found: dim,
+            expected: D,
+        });
+    }
+    cursor.take(12).ok_or_else(|| truncated(28))?;
+    let mut counts = [0usize; D];
+    for c in &mut counts {
+        let v = cursor.u64().ok_or_else(|| truncated(header_len))?;
+        *c = usize::try_from(v).map_err(|_| malformed(format!("axis of {v} samples")))?;
+    }
+    let expected = counts
+        .iter()
+        .try_fold(1usize, |acc, &c| acc.checked_mul(c))
+        .filter(|&n| n > 0)
+        .and_then(|n| n.checked_mul(8))
+        .and_then(|n| n.checked_add(header_len + 16 * D + 4))
+        .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
+    if bytes.len() != expected {
+        return Err(if bytes.len() < expected {
+            truncated(expected)
+        } else {
+            malformed(format!(
+                "{} bytes where the header announces {expected}",
+                bytes.len()
+            ))
+        });
+    }
+    check_crc(bytes, path)?;
+    let mut body = Cursor {
+        bytes: &bytes[..expected - 4],
+        at: 16,
+    };
+    bspline_body(&mut body, path, || malformed("inconsistent sizes".into()))
+}
+
+/// The B-spline body (degree … coefficients); `short` is the error for running out.
+fn bspline_body<const D: usize>(
+    c: &mut Cursor<'_>,
+    path: &Path,
+    short: impl Fn() -> FieldFileError,
+) -> Result<BSplineField<D>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
+    };
+    let degree = match c.u32().ok_or_else(&short)? {
+        2 => Degree::Quadratic,
+        3 => Degree::Cubic,
+        d => return Err(malformed(format!("unknown B-spline degree {d}"))),
+    };
+    let boundary = match c.u32().ok_or_else(&short)? {
+        0 => Boundary::HalfSample,
+        1 => Boundary::WholeSample,
+        b => return Err(malformed(format!("unknown boundary code {b}"))),
+    };
+    let centering = match c.u32().ok_or_else(&short)? {
+        0 => Centering::Cell,
+        1 => Centering::Vertex,
+        k => return Err(malformed(format!("unknown centering code {k}"))),
+    };
+    let mut counts = [0usize; D];
+    for n in &mut counts {
+        let v = c.u64().ok_or_else(&short)?;
+        *n = usize::try_from(v).map_err(|_| malformed(format!("axis of {v} samples")))?;
+    }
+    let total = counts
+        .iter()
+        .try_fold(1usize, |acc, &n| acc.checked_mul(n))
+        .filter(|&n| n > 0)
+        .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
+    let min: Point<D> = c.point().ok_or_else(&short)?;
+    let max: Point<D> = c.point().ok_or_else(&short)?;
+    let coefficients = c.f64s(total).ok_or_else(&short)?;
+    let invalid = |source: Error| FieldFileError::Invalid {
+        path: path.to_owned(),
+        source,
+    };
+    let grid =
+        Grid::new(Aabb::new(min, max).map_err(invalid)?, counts, centering).map_err(invalid)?;
+    BSplineField::from_coefficients(grid, coefficients, degree, boundary).map_err(invalid)
+}
+
+/// The RBF body; `short` is the error for running out.
+fn rbf_body<const D: usize>(
+    c: &mut Cursor<'_>,
+    path: &Path,
+    short: impl Fn() -> FieldFileError,
+) -> Result<RbfAny<D>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
+    };
+    let tag_len = c.u32().ok_or_else(&short)? as usize;
+    let tag = std::str::from_utf8(c.take(tag_len).ok_or_else(&short)?)
+        .map_err(|_| malformed("kernel tag is not UTF-8".into()))?
+        .to_string();
+    let k = c.u32().ok_or_else(&short)? as usize;
+    let params = c.f64s(k).ok_or_else(&short)?;
+    let n = usize::try_from(c.u64().ok_or_else(&short)?).map_err(|_| short())?;
+    if n.checked_mul(8 * D + 12)
+        .is_none_or(|b| b > c.bytes.len() - c.at)
+    {
+        return Err(short());
+    }
+    let mut points = Vec::with_capacity(n);
+    let mut kinds = Vec::with_capacity(n);
+    let mut targets = Vec::with_capacity(n);
+    for j in 0..n {
+        points.push(c.point::<D>().ok_or_else(&short)?);
+        kinds.push(match c.u32().ok_or_else(&short)? {
+            0 => Functional::Value,
+            a if (a as usize) <= D => Functional::Derivative(a as usize - 1),
+            a => {
+                return Err(malformed(format!(
+                    "functional {j}: unknown kind code {a} for a {D}-D field"
+                )));
+            }
+        });
+        targets.push(c.f64().ok_or_else(&short)?);
+    }
+    let weights = c.f64s(n).ok_or_else(&short)?;
+    let centre: Point<D> = c.point().ok_or_else(&short)?;
+    let scale = c.f64().ok_or_else(&short)?;
+    let q = c.u64().ok_or_else(&short)?;
+    if q != D as u64 + 1 {
         return Err(malformed(format!(
-            "checksum mismatch (stored {stored:08x}, computed {actual:08x}): the file is corrupt"
+            "{q} polynomial coefficients, expected {}",
+            D + 1
         )));
     }
-    let mut min = [0.0; D];
-    let mut max = [0.0; D];
-    for v in min.iter_mut().chain(max.iter_mut()) {
-        *v = cursor.f64().expect("length checked");
+    let coefficients = c.f64s(D + 1).ok_or_else(&short)?;
+    let min: Point<D> = c.point().ok_or_else(&short)?;
+    let max: Point<D> = c.point().ok_or_else(&short)?;
+    let all_finite = params
+        .iter()
+        .chain(points.iter().flatten())
+        .chain(&targets)
+        .chain(&weights)
+        .chain(&centre)
+        .chain(&coefficients)
+        .all(|v| v.is_finite());
+    if !(all_finite && scale.is_finite() && scale > 0.0) {
+        return Err(malformed("a non-finite RBF value or scale".into()));
     }
-    let coefficients: Vec<f64> = (0..total)
-        .map(|_| cursor.f64().expect("length checked"))
-        .collect();
-    let grid = Grid::new(Aabb::new(min, max)?, counts, centering)?;
-    BSplineField::from_coefficients(grid, coefficients, degree, boundary)
+    let bounds = Aabb::new(min, max).map_err(|source| FieldFileError::Invalid {
+        path: path.to_owned(),
+        source,
+    })?;
+    let has_derivatives = kinds.iter().any(|k| *k != Functional::Value);
+    let poly = Polynomial { centre, scale };
+    macro_rules! build {
+        ($k:ty, $v:ident) => {{
+            let kernel = <$k>::from_tag(&tag, &params).ok_or_else(|| {
+                malformed(format!("invalid parameters {params:?} for kernel {tag:?}"))
+            })?;
+            if has_derivatives && kernel.hessian_at_zero().is_none() {
+                return Err(malformed(format!(
+                    "gradient functionals with kernel {tag:?}, which is not smooth enough"
+                )));
+            }
+            RbfAny::$v(RbfField::from_parts(
+                kernel,
+                points,
+                kinds,
+                targets,
+                weights,
+                poly,
+                coefficients,
+                bounds,
+            ))
+        }};
+    }
+    Ok(match tag.as_str() {
+        "r" => build!(Biharmonic, R),
+        "r3" => build!(Triharmonic, R3),
+        "tps" => build!(ThinPlate, Tps),
+        "wendland" => build!(Wendland, Wendland),
+        _ => {
+            return Err(FieldFileError::UnknownKernel {
+                path: path.to_owned(),
+                kernel: tag,
+            });
+        }
+    })
 }
 
 struct Cursor<'a> {
@@ -230,7 +1089,7 @@ struct Cursor<'a> {
 
 impl<'a> Cursor<'a> {
     fn take(&mut self, n: usize) -> Option<&'a [u8]> {
-        let s = self.bytes.get(self.at..self.at + n)?;
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
         self.at += n;
         Some(s)
     }
@@ -245,6 +1104,22 @@ impl<'a> Cursor<'a> {
     fn f64(&mut self) -> Option<f64> {
         self.take(8)
             .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+    }
+    fn point<const D: usize>(&mut self) -> Option<Point<D>> {
+        let mut p = [0.0; D];
+        for v in &mut p {
+            *v = self.f64()?;
+        }
+        Some(p)
+    }
+    /// `n` values, refusing (before allocating) more than the bytes left.
+    fn f64s(&mut self, n: usize) -> Option<Vec<f64>> {
+        let b = self.take(n.checked_mul(8)?)?;
+        Some(
+            b.chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect(),
+        )
     }
 }
 

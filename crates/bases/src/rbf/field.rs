@@ -24,6 +24,45 @@ pub struct RbfField<K, const D: usize> {
 }
 
 impl<K: Kernel, const D: usize> RbfField<K, D> {
+    /// A field from its stored parts (the field file's reader): `points`, `kinds` and
+    /// `targets` are the functionals, one each per weight. The caller checks the lengths.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn from_parts(
+        kernel: K,
+        points: Vec<Point<D>>,
+        kinds: Vec<Functional>,
+        targets: Vec<f64>,
+        weights: Vec<f64>,
+        poly: Polynomial<D>,
+        poly_coefficients: Vec<f64>,
+        bounds: Aabb<D>,
+    ) -> Self {
+        let soa = std::array::from_fn(|a| points.iter().map(|p| p[a]).collect());
+        Self {
+            kernel,
+            functionals: Functionals {
+                points,
+                kinds,
+                targets,
+                soa,
+            },
+            weights,
+            poly,
+            poly_coefficients,
+            bounds,
+        }
+    }
+
+    /// The functionals' points, kinds and targets (the field file's writer).
+    pub(crate) fn functionals(&self) -> &Functionals<D> {
+        &self.functionals
+    }
+
+    /// The polynomial's centre and scale (the field file's writer).
+    pub(crate) fn polynomial(&self) -> &Polynomial<D> {
+        &self.poly
+    }
+
     /// The kernel.
     pub fn kernel(&self) -> &K {
         &self.kernel

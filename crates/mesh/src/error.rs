@@ -79,6 +79,20 @@ pub enum MeshError {
         /// Its coordinates.
         point: [f64; 2],
     },
+    /// A sampling grid with more samples than can be indexed (a voxel far too small for its
+    /// box).
+    #[error(
+        "a grid of voxel {voxel} over a box of extent {extent:?} has more than {limit} samples; \
+         choose a larger voxel"
+    )]
+    GridTooLarge {
+        /// The voxel edge asked for.
+        voxel: f64,
+        /// The extent of the box (margin included).
+        extent: [f64; 3],
+        /// The most samples allowed.
+        limit: u64,
+    },
     /// A mesh file (PLY) that cannot be read: a header or record problem, naming the file and
     /// the place (`header line 4`, `line 17 (face 3)`, `vertex 5 (byte 120)`).
     #[error("{}: {place}: {detail}", path.display())]
@@ -113,6 +127,30 @@ pub enum MeshError {
         /// The file (or the name given for in-memory data).
         path: std::path::PathBuf,
         /// What is not supported.
+        detail: String,
+    },
+    /// A preview image size outside `1..=max` pixels.
+    #[error("image {what} must be between 1 and {max} pixels, got {value}")]
+    ImageSize {
+        /// Which size: "width", "height", "slice resolution".
+        what: &'static str,
+        /// The value given.
+        value: usize,
+        /// The largest size allowed.
+        max: usize,
+    },
+    /// A mesh with no triangle was given where something must be drawn.
+    #[error("the mesh has no triangle: there is nothing to render")]
+    EmptyMesh,
+    /// A slice that cannot be drawn: an axis other than 0, 1, 2, a non-finite position, or a
+    /// box with zero extent across the slice.
+    #[error("invalid slice (axis {axis}, position {position}): {detail}")]
+    InvalidSlice {
+        /// The axis normal to the slice.
+        axis: usize,
+        /// Where the slice cuts that axis.
+        position: f64,
+        /// What is wrong.
         detail: String,
     },
 }

@@ -12,9 +12,15 @@
 //!   its six faces, ambiguous faces resolved by the asymptotic decider on the face's own four
 //!   values, so neighbouring cells always agree: the mesh is watertight by construction.
 //! - [`svg`] — SVG previews of 2-D results (contours, polylines, points), written atomically.
+//! - [`preview`] — software-rendered PNG previews: shaded meshes (orthographic, z-buffered,
+//!   back faces darker) and field slices (diverging colour map, zero contour in black).
 //! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
 //! - [`io`] — mesh files: PLY read (ASCII and binary, any vertex properties, polygons
 //!   fan-triangulated) and write (binary little-endian or ASCII), OBJ write; writes are atomic.
+//! - [`voxel`] — the voxel size of a marching-cubes grid from the bounding box (the
+//!   signed-marching-cubes paper's rule: `S_c = 5·l0` coarse, `l0` general, `0.3·l0` fine, with
+//!   a continuous reading of the reference length `l0`), the cubic-voxel grid covering a box,
+//!   and its memory estimate.
 //! - [`checks`] — mesh checks ([`MeshReport`]): boundary, non-manifold and inconsistently
 //!   oriented edges, components, Euler characteristic, closedness, signed volume, area.
 //!
@@ -72,9 +78,11 @@ pub mod checks;
 pub mod cubes;
 pub mod error;
 pub mod io;
+pub mod preview;
 pub mod squares;
 pub mod svg;
 pub mod trimesh;
+pub mod voxel;
 
 pub use checks::{MeshReport, boundary_loops, check};
 pub use cubes::{McOptions, marching_cubes, mesh_field};

@@ -1,0 +1,274 @@
+//! The voxel size of a marching-cubes grid, from the bounding box of the model.
+//!
+//! The signed-marching-cubes paper (Appl. Sci. 2022, 12(4), 1792, §3) picks the voxel edge
+//! `S_c` from a reference length `l0`: `S_c = 5·l0` for coarse accuracy, `l0` for general and
+//! `0.3·l0` for fine ([`Detail`], [`voxel_size`]). Its formula for `l0`, with the box's axis
+//! lengths sorted `l1 ≤ l2 ≤ l3`, reads
+//!
+//! ```text
+//! l0 = 0.1·l2    if l3 < 0.1·l2
+//! l0 = 0.05·l3   if 0.1·l2 ≤ l3 ≤ 0.5·l2
+//! l0 = 0.025·l3  if l3 > 0.5·l2
+//! ```
+//!
+//! As printed only the last case can fire (`l3 ≥ l2`), and the cases do not meet where they
+//! change (a jump by a factor of 20 at `l3 = 0.1·l2`, 2 at `l3 = 0.5·l2`). Its intent is
+//! evidently to use finer voxels for flat (thin) bodies, so [`l0`] reads the comparison as one
+//! between the **shortest** axis `l1` and the longest `l3`, and keeps the printed coefficients:
+//!
+//! ```text
+//! l0 = clamp(0.05·l1, 0.005·l3, 0.025·l3)
+//!    = 0.025·l3   if l1 ≥ 0.5·l3     (a chunky box: 40 general voxels along the longest axis)
+//!    = 0.05·l1    if 0.1·l3 ≤ l1 ≤ 0.5·l3   (20 general voxels across the thickness)
+//!    = 0.005·l3   if l1 ≤ 0.1·l3     (a flat box: at most 200 along the longest axis)
+//! ```
+//!
+//! The three branches meet where they change (`0.05·l1 = 0.025·l3` at `l1 = 0.5·l3`,
+//! `0.05·l1 = 0.005·l3` at `l1 = 0.1·l3`) — `l0` is a clamp of continuous functions, so it is
+//! continuous in the box, non-decreasing in each axis length, and scales with the box
+//! (`l0(s·B) = s·l0(B)`). The middle axis `l2` does not enter. Callers who want another rule
+//! pass their own voxel edge to [`grid_for`].
+//!
+//! ```
+//! use zeroset_field_core::Aabb;
+//! use zeroset_mesh::voxel::{Detail, grid_for, l0, voxel_size};
+//!
+//! let bounds = Aabb::new([0.0; 3], [2.0, 1.5, 1.0])?;
+//! assert!((l0(&bounds) - 0.05).abs() < 1e-12); // 0.025·l3 = 0.05·l1
+//! let h = voxel_size(&bounds, Detail::General);
+//! let grid = grid_for(&bounds, h, 0.0)?;
+//! assert_eq!(grid.counts(), [41, 31, 21]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use zeroset_field_core::{Aabb, Grid};
+
+use crate::error::{MeshError, Result};
+
+/// The accuracy classes of the paper's voxel-size rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Detail {
+    /// `S_c = 5·l0`.
+    Coarse,
+    /// `S_c = l0`.
+    #[default]
+    General,
+    /// `S_c = 0.3·l0`.
+    Fine,
+}
+
+impl Detail {
+    /// The voxel edge as a multiple of [`l0`]: 5, 1 or 0.3.
+    pub fn factor(self) -> f64 {
+        match self {
+            Detail::Coarse => 5.0,
+            Detail::General => 1.0,
+            Detail::Fine => 0.3,
+        }
+    }
+}
+
+/// The reference length `l0 = clamp(0.05·l1, 0.005·l3, 0.025·l3)` of a box whose sorted axis
+/// lengths are `l1 ≤ l2 ≤ l3`; see the [module docs](self) for the reading of the paper. Zero
+/// for a box that is a point.
+pub fn l0(bounds: &Aabb<3>) -> f64 {
+    let mut e = bounds.extent();
+    e.sort_by(f64::total_cmp);
+    let (l1, l3) = (e[0], e[2]);
+    (0.05 * l1).clamp(0.005 * l3, 0.025 * l3)
+}
+
+/// The voxel edge `S_c` for `detail`: `5·l0`, `l0` or `0.3·l0`.
+pub fn voxel_size(bounds: &Aabb<3>, detail: Detail) -> f64 {
+    detail.factor() * l0(bounds)
+}
+
+/// The most samples [`grid_for`] makes: `2^48` (2 PiB of `f64` samples), far past any memory,
+/// so that sample counts and byte estimates never overflow.
+pub const MAX_SAMPLES: u64 = 1 << 48;
+
+/// A vertex-centred grid of cubic voxels of edge `voxel` covering `bounds` grown by `margin`
+/// on every side: `⌈extent/voxel⌉` voxels per axis (at least one), centred on the box, so the
+/// grid reaches past the grown box by less than a voxel per axis (and falls short of it by at
+/// most a relative `1e-12` when the extent is a whole number of voxels up to rounding).
+///
+/// # Errors
+/// - [`MeshError::InvalidSize`] if `voxel` is not finite and positive, or `margin` is negative
+///   or not finite;
+/// - [`MeshError::GridTooLarge`] if the grid would hold more than [`MAX_SAMPLES`] samples.
+pub fn grid_for(bounds: &Aabb<3>, voxel: f64, margin: f64) -> Result<Grid<3>> {
+    if !(voxel.is_finite() && voxel > 0.0) {
+        return Err(MeshError::InvalidSize {
+            what: "voxel size",
+            value: voxel,
+        });
+    }
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(MeshError::InvalidSize {
+            what: "grid margin (finite, non-negative)",
+            value: margin,
+        });
+    }
+    let grown = bounds.expanded(margin);
+    let extent = grown.extent();
+    let too_large = || MeshError::GridTooLarge {
+        voxel,
+        extent,
+        limit: MAX_SAMPLES,
+    };
+    let mut cells = [0usize; 3];
+    let mut samples: u64 = 1;
+    for axis in 0..3 {
+        // A ratio a rounding error above a whole number does not take another voxel.
+        let n = (extent[axis] / voxel * (1.0 - 1e-12)).ceil().max(1.0);
+        if n >= MAX_SAMPLES as f64 {
+            return Err(too_large());
+        }
+        cells[axis] = n as usize;
+        samples = samples
+            .checked_mul(n as u64 + 1)
+            .filter(|&s| s <= MAX_SAMPLES)
+            .ok_or_else(too_large)?;
+    }
+    let centre = grown.center();
+    let min = std::array::from_fn(|a| centre[a] - 0.5 * cells[a] as f64 * voxel);
+    let max = std::array::from_fn(|a| centre[a] + 0.5 * cells[a] as f64 * voxel);
+    let covering = Aabb::new(min, max)?;
+    Ok(Grid::vertex_centered(covering, cells.map(|c| c + 1))?)
+}
+
+/// Bytes per grid sample while meshing: the `f64` sample and marching cubes' per-sample bits
+/// (inside, crossed edges, sample vertices) and row bookkeeping, rounded up.
+const BYTES_PER_SAMPLE: u64 = 12;
+
+/// Bytes per mesh vertex: position and normal (48), about two triangles (24), and the
+/// extraction's vertex ids and welding, rounded up.
+const BYTES_PER_VERTEX: u64 = 128;
+
+/// Surface vertices assumed per grid sample on a face of the box, summed over the three
+/// face orientations: room for a surface of about four times the box's area.
+const VERTICES_PER_FACE_SAMPLE: u64 = 4;
+
+/// An upper estimate of the memory, in bytes, of [`mesh_field`](crate::cubes::mesh_field) on
+/// `grid`: the samples (`12` bytes each) plus a mesh of `4·(nx·ny + ny·nz + nx·nz)` vertices at
+/// `128` bytes each — a surface of about four times the box's area, which a smooth closed
+/// surface inside the box rarely exceeds (a sphere touching the faces has under half). The
+/// mesh of a very wrinkled surface can exceed it. Saturates instead of overflowing.
+pub fn estimate_bytes(grid: &Grid<3>) -> u64 {
+    let [nx, ny, nz] = grid.counts().map(|n| n as u64);
+    let samples = nx.saturating_mul(ny).saturating_mul(nz);
+    let faces = nx
+        .saturating_mul(ny)
+        .saturating_add(ny.saturating_mul(nz))
+        .saturating_add(nx.saturating_mul(nz));
+    samples.saturating_mul(BYTES_PER_SAMPLE).saturating_add(
+        faces
+            .saturating_mul(VERTICES_PER_FACE_SAMPLE)
+            .saturating_mul(BYTES_PER_VERTEX),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn boxed(e: [f64; 3]) -> Aabb<3> {
+        Aabb::new([-1.0, 2.0, 0.5], [e[0] - 1.0, e[1] + 2.0, e[2] + 0.5]).unwrap()
+    }
+
+    #[test]
+    fn l0_follows_the_three_branches_and_ignores_axis_order() {
+        // Chunky: 0.025·l3.
+        assert!((l0(&boxed([4.0, 3.0, 2.5])) - 0.1).abs() < 1e-12);
+        assert!((l0(&boxed([2.5, 4.0, 3.0])) - 0.1).abs() < 1e-12);
+        // Middle: 0.05·l1.
+        assert!((l0(&boxed([10.0, 5.0, 3.0])) - 0.15).abs() < 1e-12);
+        // Flat: 0.005·l3, also for a box of zero thickness.
+        assert!((l0(&boxed([10.0, 5.0, 0.5])) - 0.05).abs() < 1e-12);
+        assert!((l0(&boxed([10.0, 0.0, 0.0])) - 0.05).abs() < 1e-12);
+        assert_eq!(l0(&boxed([0.0; 3])), 0.0);
+    }
+
+    #[test]
+    fn l0_is_continuous_monotone_and_homogeneous() {
+        let f = |l1: f64| l0(&boxed([10.0, 7.0, l1]));
+        // At the branch changes (l1 = 1 and l1 = 5) both sides agree.
+        for at in [1.0, 5.0] {
+            let (lo, hi) = (f(at - 1e-9), f(at + 1e-9));
+            assert!((lo - hi).abs() < 1e-9, "{at}: {lo} vs {hi}");
+        }
+        let mut last = f(0.0);
+        for k in 0..=100 {
+            let v = f(k as f64 * 0.1);
+            assert!(v >= last - 1e-15, "not monotone at {k}");
+            assert!((v - last).abs() <= 0.05 * 0.1 + 1e-12, "jump at {k}");
+            last = v;
+        }
+        let b = boxed([3.0, 1.0, 0.7]);
+        let scaled = Aabb::new(b.min().map(|x| 3.0 * x), b.max().map(|x| 3.0 * x)).unwrap();
+        assert!((l0(&scaled) - 3.0 * l0(&b)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn voxel_sizes_scale_with_detail() {
+        let b = boxed([4.0, 3.0, 2.5]);
+        assert!((voxel_size(&b, Detail::Coarse) - 0.5).abs() < 1e-12);
+        assert!((voxel_size(&b, Detail::General) - 0.1).abs() < 1e-12);
+        assert!((voxel_size(&b, Detail::Fine) - 0.03).abs() < 1e-12);
+        assert_eq!(Detail::default(), Detail::General);
+    }
+
+    #[test]
+    fn grid_covers_the_grown_box_with_cubic_voxels() {
+        let b = boxed([1.0, 0.45, 0.0]);
+        let g = grid_for(&b, 0.1, 0.05).unwrap();
+        // Extents 1.1, 0.55, 0.1 → 11, 6, 1 voxels.
+        assert_eq!(g.counts(), [12, 7, 2]);
+        for s in g.spacing() {
+            assert!((s - 0.1).abs() < 1e-12, "{s}");
+        }
+        let (gb, grown) = (g.bounds(), b.expanded(0.05));
+        for a in 0..3 {
+            assert!(gb.min()[a] <= grown.min()[a] + 1e-12);
+            assert!(gb.max()[a] >= grown.max()[a] - 1e-12);
+            assert!(gb.extent()[a] < grown.extent()[a] + 0.1 + 1e-12);
+            assert!((gb.center()[a] - grown.center()[a]).abs() < 1e-12);
+        }
+        // A point box still gives one voxel per axis.
+        assert_eq!(
+            grid_for(&boxed([0.0; 3]), 0.1, 0.0).unwrap().counts(),
+            [2; 3]
+        );
+    }
+
+    #[test]
+    fn grid_refuses_bad_voxels_and_huge_grids() {
+        let b = boxed([1.0; 3]);
+        for v in [0.0, -0.1, f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                grid_for(&b, v, 0.0),
+                Err(MeshError::InvalidSize { .. })
+            ));
+        }
+        assert!(matches!(
+            grid_for(&b, 0.1, -1.0),
+            Err(MeshError::InvalidSize { .. })
+        ));
+        for v in [1e-6, 1e-30, f64::MIN_POSITIVE] {
+            let e = grid_for(&b, v, 0.0).unwrap_err();
+            assert!(matches!(e, MeshError::GridTooLarge { .. }), "{e}");
+            assert!(e.to_string().contains("larger voxel"), "{e}");
+        }
+    }
+
+    #[test]
+    fn memory_estimate_counts_samples_and_surface() {
+        let g = grid_for(&boxed([1.0; 3]), 0.01, 0.0).unwrap();
+        assert_eq!(g.counts(), [101; 3]);
+        let n = 101u64;
+        assert_eq!(estimate_bytes(&g), n * n * n * 12 + 3 * n * n * 4 * 128);
+        // Grows like the samples.
+        let fine = grid_for(&boxed([1.0; 3]), 0.005, 0.0).unwrap();
+        assert!(estimate_bytes(&fine) > 4 * estimate_bytes(&g));
+    }
+}

@@ -1,4 +1,4 @@
-//! `zeroset`: inspect point clouds, fit and restore fields, and (later) run the whole pipeline on them.
+//! `zeroset`: inspect point clouds; fit, restore and mesh fields.
 //!
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(&Args) -> anyhow::Result<()>`; `main` only parses, dispatches and reports errors.
@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 mod demo;
 mod fit;
 mod info;
+mod mesh;
 mod restore;
 
 const EXAMPLES: &str = "\
@@ -26,6 +27,7 @@ Examples:
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \
       --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
                                                remove the bunny's ears
+  zeroset mesh bunny.zsf -o bunny.ply          mesh the field's zero set (binary PLY)
   zeroset info --help                          more on one subcommand";
 
 /// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
@@ -59,6 +61,11 @@ enum Command {
     /// field file.
     #[command(after_help = restore::EXAMPLES)]
     Restore(restore::RestoreArgs),
+    /// Mesh the level set of a .zsf field file by marching cubes on cubic voxels (size by the
+    /// l0 rule of the field's box, --resolution or --voxel); writes PLY or OBJ and reports
+    /// whether the mesh is closed, its Euler characteristic, components and volume.
+    #[command(after_help = mesh::EXAMPLES)]
+    Mesh(mesh::MeshArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -67,6 +74,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(args) => demo::run(&args),
         Command::Fit(args) => fit::run(&args),
         Command::Restore(args) => restore::run(&args),
+        Command::Mesh(args) => mesh::run(&args),
     }
 }
 

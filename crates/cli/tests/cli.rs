@@ -558,3 +558,175 @@ fn fit_is_in_the_help() {
         assert!(out.contains(text), "{text:?}:\n{out}");
     }
 }
+
+// ---- zeroset mesh ----
+
+/// A sphere field file (`zeroset fit -o`) in a fresh directory.
+fn sphere_field() -> (tempfile::TempDir, PathBuf) {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+    let field = dir.path().join("sphere.zsf");
+    let o = fit(
+        &path,
+        &["-o", field.to_str().unwrap(), "--grid", "32,32,32"],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    (dir, field)
+}
+
+fn mesh(field: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<&OsStr> = vec![
+        OsStr::new("mesh"),
+        field.as_os_str(),
+        OsStr::new("-o"),
+        out.as_os_str(),
+        OsStr::new("--quiet"),
+    ];
+    args.extend(extra.iter().map(OsStr::new));
+    zeroset(args)
+}
+
+#[test]
+fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
+    let (dir, field) = sphere_field();
+    let ply = dir.path().join("s.ply");
+    let o = mesh(&field, &ply, &[]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    for text in [
+        "grid ",
+        "voxel ",
+        "l0 = ",
+        "vertices",
+        "triangles",
+        "closed",
+        "Euler characteristic 2",
+        "1 component(s)",
+        "0 boundary edge(s)",
+        "signed volume",
+        "binary PLY",
+        "time: ",
+    ] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+    let m = zeroset_mesh::io::read_ply_mesh(&ply).expect("a readable PLY");
+    let r = zeroset_mesh::check(&m);
+    assert!(r.is_oriented_closed(), "{r}");
+    assert_eq!(r.euler_characteristic, 2, "{r}");
+    let sphere = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
+    assert!(
+        (r.signed_volume - sphere).abs() < 0.05 * sphere,
+        "volume {} vs {sphere}",
+        r.signed_volume
+    );
+
+    // OBJ by extension, ASCII PLY, --resolution, --voxel and --detail.
+    let obj = dir.path().join("s.obj");
+    let o = mesh(&field, &obj, &["--resolution", "24"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let text = fs::read_to_string(&obj).unwrap();
+    assert!(text.lines().any(|l| l.starts_with("v ")));
+    assert!(text.lines().any(|l| l.starts_with("f ")));
+    assert!(stdout(&o).contains("24 voxels along the longest axis"));
+    let ascii = dir.path().join("a.ply");
+    let o = mesh(&field, &ascii, &["--ascii", "--voxel", "0.05", "--close"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        fs::read_to_string(&ascii)
+            .unwrap()
+            .contains("format ascii 1.0")
+    );
+    let coarse = dir.path().join("c.ply");
+    let o = mesh(&field, &coarse, &["--detail", "coarse"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("Coarse detail"), "{}", stdout(&o));
+}
+
+#[test]
+fn mesh_refuses_bad_outputs_and_grids_with_a_message() {
+    let (dir, field) = sphere_field();
+    let out = dir.path().join("s.ply");
+    fs::write(&out, "keep me").unwrap();
+
+    // An existing output needs --force, and stays as it was without.
+    let o = mesh(&field, &out, &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(fs::read_to_string(&out).unwrap(), "keep me");
+    let o = mesh(&field, &out, &["--force", "--detail", "coarse"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(zeroset_mesh::io::read_ply_mesh(&out).is_ok());
+
+    // Never the input, even with --force.
+    let before = fs::read(&field).unwrap();
+    let o = mesh(&field, &field, &["--force"]);
+    assert_clean_failure(&o);
+    assert_eq!(fs::read(&field).unwrap(), before);
+
+    let cases: [(PathBuf, &[&str], &str); 8] = [
+        (dir.path().join("s.stl"), &[], ".ply or .obj"),
+        (dir.path().join("s"), &[], ".ply or .obj"),
+        (
+            dir.path().join("missing").join("s.ply"),
+            &[],
+            "does not exist",
+        ),
+        (
+            dir.path().join("r.ply"),
+            &["--resolution", "1"],
+            "at least 2",
+        ),
+        (
+            dir.path().join("v.ply"),
+            &["--voxel", "0"],
+            "finite positive",
+        ),
+        (
+            dir.path().join("n.ply"),
+            &["--voxel", "-0.1"],
+            "finite positive",
+        ),
+        (dir.path().join("m.ply"), &["--voxel", "1e-4"], "memory"),
+        (
+            dir.path().join("h.ply"),
+            &["--voxel", "1e-7"],
+            "larger voxel",
+        ),
+    ];
+    for (path, extra, text) in cases {
+        let o = mesh(&field, &path, extra);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(text), "{extra:?}: {}", stderr(&o));
+        assert!(!path.exists(), "{}", path.display());
+    }
+    // Nothing but the field, its cloud and the forced output was left behind.
+    let mut names: Vec<String> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["s.ply", "sphere.xyzn", "sphere.zsf"]);
+
+    // A missing field file.
+    let o = mesh(&dir.path().join("none.zsf"), &dir.path().join("x.ply"), &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("none.zsf"), "{}", stderr(&o));
+}
+
+#[test]
+fn mesh_is_in_the_help() {
+    let o = zeroset(["--help"]);
+    assert!(stdout(&o).contains("  mesh "), "{}", stdout(&o));
+    let o = zeroset(["mesh", "--help"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for text in [
+        "Examples:",
+        "--detail",
+        "--resolution",
+        "--voxel",
+        "--close",
+        "--force",
+    ] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+}

@@ -1,0 +1,389 @@
+//! `zeroset mesh FIELD -o OUT.ply|OUT.obj`: the level set of a field file as a triangle mesh.
+//!
+//! The field (a `.zsf` file: today a B-spline field, from `zeroset fit -o` or
+//! `zeroset restore`) is sampled on a vertex-centred grid of cubic voxels covering its box and
+//! its level set extracted by marching cubes (`zeroset_mesh::cubes`). The voxel edge comes from
+//! the bounding box by the signed-marching-cubes paper's rule (`zeroset_mesh::voxel`: `5·l0`
+//! coarse, `l0` general, `0.3·l0` fine), from `--resolution` (voxels along the longest axis) or
+//! from `--voxel`. The mesh is checked, reported and written atomically as PLY or OBJ.
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use zeroset_bases::field_file::read_field;
+use zeroset_mesh::voxel::{self, Detail};
+use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
+
+use crate::info::{g, point};
+use crate::restore::same_file;
+
+/// Shown after `zeroset mesh --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  # fit a field, then mesh its zero set (binary PLY, voxel by the l0 rule)
+  zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny.zsf
+  zeroset mesh bunny.zsf -o bunny.ply
+  # finer voxels, an ASCII PLY; or a Wavefront OBJ
+  zeroset mesh bunny.zsf -o bunny.ply --detail fine --ascii
+  zeroset mesh bunny.zsf -o bunny.obj --resolution 128
+  # an explicit voxel edge, another level, capped where it leaves the grid
+  zeroset mesh bunny.zsf -o shell.ply --voxel 0.002 --level 0.01 --close --force";
+
+/// Surface-extraction method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Marching cubes on the whole grid (watertight; ambiguous faces by the asymptotic decider).
+    Mc,
+}
+
+/// Accuracy class of the voxel-size rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DetailArg {
+    /// Voxel 5·l0.
+    Coarse,
+    /// Voxel l0.
+    General,
+    /// Voxel 0.3·l0.
+    Fine,
+}
+
+impl From<DetailArg> for Detail {
+    fn from(d: DetailArg) -> Self {
+        match d {
+            DetailArg::Coarse => Detail::Coarse,
+            DetailArg::General => Detail::General,
+            DetailArg::Fine => Detail::Fine,
+        }
+    }
+}
+
+/// Arguments of `zeroset mesh`.
+#[derive(Debug, Args)]
+pub struct MeshArgs {
+    /// The field file (.zsf).
+    pub field: PathBuf,
+
+    /// The mesh file: .ply (binary little-endian, or --ascii) or .obj, written atomically.
+    #[arg(short, long, value_name = "OUT.ply|OUT.obj")]
+    pub output: PathBuf,
+
+    /// Surface-extraction method.
+    #[arg(long, value_enum, default_value_t = Method::Mc)]
+    pub method: Method,
+
+    /// The level to extract (the zero set by default; fields are negative inside).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub level: f64,
+
+    /// Voxel edge by the l0 rule of the field's box: coarse 5·l0, general l0, fine 0.3·l0, with
+    /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length.
+    #[arg(long, value_enum, default_value_t = DetailArg::General,
+          conflicts_with_all = ["resolution", "voxel"])]
+    pub detail: DetailArg,
+
+    /// N cubic voxels along the longest axis of the field's box (at least 2).
+    #[arg(long, value_name = "N", conflicts_with = "voxel")]
+    pub resolution: Option<usize>,
+
+    /// An explicit voxel edge, in world units.
+    #[arg(long, value_name = "H", allow_hyphen_values = true)]
+    pub voxel: Option<f64>,
+
+    /// Cap the surface where it leaves the grid, so that the mesh is closed.
+    #[arg(long)]
+    pub close: bool,
+
+    /// Write an ASCII PLY instead of binary little-endian.
+    #[arg(long)]
+    pub ascii: bool,
+
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
+
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The output format, from the extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    Ply,
+    Obj,
+}
+
+/// Runs `zeroset mesh`.
+pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
+    let Method::Mc = args.method;
+    let format = check_output(args)?;
+    if !args.level.is_finite() {
+        bail!("--level must be finite, got {}", args.level);
+    }
+    let total = Instant::now();
+
+    let start = Instant::now();
+    let field = read_field::<3>(&args.field)
+        .with_context(|| format!("reading {}", args.field.display()))?;
+    let reading = start.elapsed();
+    let bounds = field.grid().bounds();
+    println!(
+        "field {}: {:?} B-spline over min {} max {}",
+        args.field.display(),
+        field.degree(),
+        point(bounds.min()),
+        point(bounds.max())
+    );
+
+    let l0 = voxel::l0(&bounds);
+    let (h, how) = match (args.resolution, args.voxel) {
+        (Some(n), _) => {
+            if n < 2 {
+                bail!("--resolution must be at least 2 voxels along the longest axis, got {n}");
+            }
+            let longest = bounds.extent().into_iter().fold(0.0, f64::max);
+            (
+                longest / n as f64,
+                format!("{n} voxels along the longest axis"),
+            )
+        }
+        (None, Some(h)) => {
+            if !(h.is_finite() && h > 0.0) {
+                bail!("--voxel must be a finite positive length, got {h}");
+            }
+            (h, "--voxel".to_string())
+        }
+        (None, None) => {
+            let detail = Detail::from(args.detail);
+            (
+                voxel::voxel_size(&bounds, detail),
+                format!(
+                    "{} × l0, {detail:?} detail; l0 = {}",
+                    g(detail.factor()),
+                    g(l0)
+                ),
+            )
+        }
+    };
+    if !(h.is_finite() && h > 0.0) {
+        bail!(
+            "the field's box is a point: no voxel size follows from it; give --voxel (got {})",
+            g(h)
+        );
+    }
+    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+    let c = grid.counts();
+    let samples = grid.len();
+    println!(
+        "grid {}×{}×{} = {samples} samples, voxel {} ({how})",
+        c[0],
+        c[1],
+        c[2],
+        g(h)
+    );
+    let need = voxel::estimate_bytes(&grid);
+    if let Some(available) = available_memory()
+        && need > available
+    {
+        bail!(
+            "the grid {}×{}×{} needs about {} of memory, more than the {} available; choose a \
+             larger --voxel, a smaller --resolution or a coarser --detail",
+            c[0],
+            c[1],
+            c[2],
+            bytes(need),
+            bytes(available)
+        );
+    }
+
+    let start = Instant::now();
+    let options = McOptions::default().with_close_boundary(args.close);
+    let mesh = with_spinner(args.quiet, "sampling the field and marching cubes", || {
+        mesh_field(&field, &grid, args.level, &options)
+    })
+    .context("extracting the level set")?;
+    let meshing = start.elapsed();
+
+    let start = Instant::now();
+    let report = check(&mesh);
+    let checking = start.elapsed();
+    println!(
+        "mesh: {} vertices, {} triangles at level {}",
+        mesh.num_vertices(),
+        mesh.num_triangles(),
+        g(args.level)
+    );
+    if mesh.is_empty() {
+        println!("the level set does not cross the grid: the mesh is empty");
+    }
+    println!(
+        "report: {}, Euler characteristic {}, {} component(s), {} boundary edge(s), {} \
+         non-manifold, signed volume {}, area {}",
+        if report.closed { "closed" } else { "open" },
+        report.euler_characteristic,
+        report.components,
+        report.boundary_edges,
+        report.non_manifold_edges,
+        g(report.signed_volume),
+        g(report.area)
+    );
+
+    let start = Instant::now();
+    write(&args.output, &mesh, format, args.ascii)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let writing = start.elapsed();
+    println!(
+        "wrote {} ({})",
+        args.output.display(),
+        match (format, args.ascii) {
+            (Format::Obj, _) => "OBJ",
+            (Format::Ply, true) => "ASCII PLY",
+            (Format::Ply, false) => "binary PLY",
+        }
+    );
+    println!(
+        "time: read {}, mesh {}, check {}, write {}, total {}",
+        seconds(reading),
+        seconds(meshing),
+        seconds(checking),
+        seconds(writing),
+        seconds(total.elapsed())
+    );
+    Ok(())
+}
+
+/// The output's format from its extension; refuses the input, an existing file without
+/// --force and a missing directory — all before any work.
+fn check_output(args: &MeshArgs) -> anyhow::Result<Format> {
+    let out = &args.output;
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let format = match ext.as_deref() {
+        Some("ply") => Format::Ply,
+        Some("obj") => Format::Obj,
+        _ => bail!(
+            "the output {} must end in .ply or .obj (the extension picks the format)",
+            out.display()
+        ),
+    };
+    if args.ascii && format == Format::Obj {
+        bail!("--ascii applies to PLY output (OBJ is always text)");
+    }
+    if same_file(&args.field, out) {
+        bail!(
+            "the output would overwrite the input {}; choose another name",
+            args.field.display()
+        );
+    }
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "the output directory {} does not exist (or is not a directory)",
+            dir.display()
+        );
+    }
+    if out.is_dir() {
+        bail!("the output {} is a directory", out.display());
+    }
+    if out.exists() && !args.force {
+        bail!(
+            "the output {} exists; pass --force to overwrite it",
+            out.display()
+        );
+    }
+    Ok(format)
+}
+
+fn write(path: &Path, mesh: &TriMesh, format: Format, ascii: bool) -> zeroset_mesh::Result<()> {
+    match format {
+        Format::Obj => write_obj(path, mesh),
+        Format::Ply if ascii => write_ply(path, mesh, PlyFormat::Ascii),
+        Format::Ply => write_ply(path, mesh, PlyFormat::BinaryLittleEndian),
+    }
+}
+
+/// Runs `work`; a spinner appears if it takes longer than a second (never with `quiet`).
+fn with_spinner<T: Send>(quiet: bool, message: &str, work: impl FnOnce() -> T + Send) -> T {
+    if quiet {
+        return work();
+    }
+    let (done, finished) = mpsc::channel::<()>();
+    std::thread::scope(|s| {
+        let worker = s.spawn(move || {
+            let out = work();
+            let _ = done.send(());
+            out
+        });
+        if finished.recv_timeout(Duration::from_secs(1)).is_err() {
+            let spinner = ProgressBar::new_spinner();
+            spinner.set_style(
+                ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"),
+            );
+            spinner.set_message(message.to_string());
+            spinner.enable_steady_tick(Duration::from_millis(100));
+            let _ = finished.recv();
+            spinner.finish_and_clear();
+        }
+        match worker.join() {
+            Ok(out) => out,
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    })
+}
+
+/// `MemAvailable` from `/proc/meminfo`, in bytes; `None` where it cannot be read (not Linux).
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// A byte count in binary units.
+fn bytes(n: u64) -> String {
+    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
+    let mut v = n as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < UNITS.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{n} B")
+    } else {
+        format!("{v:.1} {}", UNITS[unit])
+    }
+}
+
+fn seconds(d: Duration) -> String {
+    format!("{:.2} s", d.as_secs_f64())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_byte_counts() {
+        assert_eq!(bytes(512), "512 B");
+        assert_eq!(bytes(1536), "1.5 KiB");
+        assert_eq!(bytes(3 << 30), "3.0 GiB");
+        assert_eq!(bytes(u64::MAX), "16384.0 PiB");
+    }
+
+    #[test]
+    fn spinner_returns_the_work() {
+        assert_eq!(with_spinner(true, "x", || 3), 3);
+        assert_eq!(with_spinner(false, "x", || 4), 4);
+    }
+}

@@ -4,9 +4,10 @@
 //! The radial-basis-function fit (`zeroset_bases::rbf`) interpolates either Carr et al.'s
 //! off-surface constraints (value 0 at each point, `±ε` at `p ± ε n`) or Hermite constraints
 //! (value 0 and gradient `n` at each point, kernel `r³`). Until meshing exists the command
-//! prints the fit's report and a sanity check at a few input points; with `-o` it samples the
-//! RBF field on a grid over the cloud and saves it as a quadratic B-spline `.zsf` field file,
-//! which `zeroset restore` (and later meshing) takes.
+//! prints the fit's report and a sanity check at a few input points; with `-o` it saves the RBF
+//! field itself as a `.zsf` field file (exact, and fast to write), which `zeroset mesh`,
+//! `zeroset restore` and `zeroset info` read. `--sampled` keeps the older output: the RBF field
+//! sampled on a grid over the cloud and interpolated by a quadratic B-spline.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -16,10 +17,10 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use zeroset_bases::bspline::{BSplineField, Degree};
-use zeroset_bases::field_file::{is_field_file, write_field};
+use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
 use zeroset_bases::rbf::{
-    AUTO_DENSE_LIMIT, Biharmonic, Constraints, FitReport, IterativeParams, Kernel, Offset,
-    OffsetReport, RbfFit, Solver, Triharmonic,
+    AUTO_DENSE_LIMIT, Biharmonic, Constraints, FitReport, IterativeParams, Offset, OffsetReport,
+    RbfField, RbfFit, Solver, Triharmonic,
 };
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Point, dot, norm};
@@ -37,14 +38,18 @@ Examples:
   zeroset fit samples/bunny_2k.xyzn --method rbf
   # Hermite constraints (the normals as gradients) with the r3 kernel, solved densely
   zeroset fit scan.ply --method rbf --hermite --solver dense
-  # a fixed off-surface offset, and the field saved for `zeroset restore`
+  # a fixed off-surface offset, and the RBF field itself saved, then meshed
   zeroset fit samples/bunny_2k.xyzn --method rbf --offset 0.001 -o bunny.zsf
-  zeroset restore bunny.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
+  zeroset mesh bunny.zsf -o bunny.ply
+  # the field sampled on a 96-cell grid as a quadratic B-spline, for `zeroset restore`
+  zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny_bs.zsf --sampled --grid 96,96,75
+  zeroset restore bunny_bs.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
       --coarse 6,6,4 -o smooth.zsf
 
 The input needs normals that point out of the solid (the field is negative inside).
--o FIELD saves the RBF field sampled on a grid and interpolated by a quadratic B-spline
-(the .zsf format stores B-spline fields only): the file is that spline, not the RBF.";
+-o FIELD saves the RBF field itself (kernel, centres, weights, polynomial): exact, and quick
+to write. With --sampled it saves the RBF field sampled on a grid and interpolated by a
+quadratic B-spline instead: an approximation, on the grid `zeroset restore` works on.";
 
 /// How to fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -140,14 +145,18 @@ pub struct FitArgs {
     #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
     pub solver: SolverArg,
 
-    /// Save the field as a .zsf field file (written atomically): the RBF field sampled on
-    /// --grid over the cloud's box grown by 5% of its diagonal, interpolated by a quadratic
-    /// B-spline (.zsf holds B-spline fields only), for `zeroset restore`.
+    /// Save the field as a .zsf field file (written atomically): the RBF field itself
+    /// (exact), or with --sampled a quadratic B-spline sampled from it.
     #[arg(short, long, value_name = "FIELD")]
     pub output: Option<PathBuf>,
 
-    /// With -o: grid cells per axis, L,M,N [default: 64 along the longest axis, the others in
-    /// proportion (near-cubic cells)].
+    /// With -o: save the RBF field sampled on --grid over the cloud's box grown by 5% of its
+    /// diagonal and interpolated by a quadratic B-spline, instead of the RBF field itself.
+    #[arg(long)]
+    pub sampled: bool,
+
+    /// With -o --sampled: grid cells per axis, L,M,N [default: 64 along the longest axis, the
+    /// others in proportion (near-cubic cells)].
     #[arg(long, value_name = "L,M,N", value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
@@ -174,8 +183,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     if let Some(output) = &args.output {
         println!(
-            "wrote {} in {:.2} s",
+            "wrote {} ({}) in {:.2} s",
             output.display(),
+            if args.sampled {
+                "a quadratic B-spline field sampled from the RBF field"
+            } else {
+                "the RBF field"
+            },
             start.elapsed().as_secs_f64()
         );
     }
@@ -235,6 +249,14 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
         }
     } else if args.grid.is_some() {
         bail!("--grid is the grid of the -o field file; give -o FIELD.zsf too");
+    } else if args.sampled {
+        bail!("--sampled chooses what -o writes; give -o FIELD.zsf too");
+    }
+    if args.grid.is_some() && !args.sampled {
+        bail!(
+            "--grid is the sampling grid of --sampled; -o alone writes the RBF field itself, \
+             which has no grid"
+        );
     }
     if let Some(counts) = args.grid
         && counts.iter().any(|&c| c < 3)
@@ -305,11 +327,7 @@ fn print_input(args: &FitArgs, cloud: &PointCloud3) {
 }
 
 /// Builds the constraints, fits with `kernel`, reports, and writes `-o`.
-fn fit_with<K: Kernel + Clone>(
-    kernel: K,
-    args: &FitArgs,
-    cloud: &PointCloud3,
-) -> anyhow::Result<()> {
+fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> anyhow::Result<()> {
     let n = cloud.len();
     let constraints = if args.hermite {
         let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
@@ -372,7 +390,11 @@ fn fit_with<K: Kernel + Clone>(
     print_report(&fitted.report);
     print_check(&fitted.field, cloud);
     if let Some(output) = &args.output {
-        save(&fitted.field, cloud, args, output)?;
+        if args.sampled {
+            save_sampled(&fitted.field, cloud, args, output)?;
+        } else {
+            save_rbf(&fitted.field, output)?;
+        }
     }
     Ok(())
 }
@@ -534,7 +556,23 @@ fn angle_degrees(a: &Point<3>, b: &Point<3>) -> f64 {
 
 /// Samples `field` on the `-o` grid, interpolates the samples by a quadratic B-spline and
 /// writes it.
-fn save<F: ScalarField<3> + ?Sized>(
+/// Writes the RBF field itself: kernel, centres, weights and polynomial (exact).
+fn save_rbf<K: StoredKernel>(field: &RbfField<K, 3>, output: &Path) -> anyhow::Result<()> {
+    line(
+        "output",
+        &format!(
+            "{}: the RBF field itself (kernel {}, {} centres; exact)",
+            output.display(),
+            field.kernel().tag(),
+            field.num_centres()
+        ),
+    );
+    write_rbf_field(output, field).with_context(|| format!("writing {}", output.display()))?;
+    Ok(())
+}
+
+/// Samples `field` on the `--grid` and writes the quadratic B-spline through the samples.
+fn save_sampled<F: ScalarField<3> + ?Sized>(
     field: &F,
     cloud: &PointCloud3,
     args: &FitArgs,

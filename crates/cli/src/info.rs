@@ -1,11 +1,14 @@
-//! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it.
+//! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it; or,
+//! for a `.zsf` field file, its kind (RBF or B-spline), box and metadata.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
+use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, read_metadata};
+use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::io::gempy::{self, GeoModelData};
 use zeroset_field_core::io::{self, Format, ReadOptions};
 use zeroset_field_core::{CloudStats, Error, PointCloud3};
@@ -17,6 +20,7 @@ Examples:
   zeroset info scan.ply
   zeroset info points.dat --format csv
   zeroset info geology/greenstone/SandStone_Points.csv
+  zeroset info bunny.zsf        # a field file: kind, box, kernel and centres or B-spline grid
 
 NaN and infinite values do not stop the report: they are counted and the first is named
 (record, line, field).";
@@ -25,7 +29,8 @@ NaN and infinite values do not stop the report: they are counted and the first i
 #[derive(Debug, Args)]
 pub struct InfoArgs {
     /// The point-cloud file: .ply (ascii or binary), .xyz/.xyzn/.txt/.pts (x y z [nx ny nz]
-    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table).
+    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); or a .zsf field
+    /// file (told by its contents).
     pub file: PathBuf,
 
     /// Read the file as this format instead of detecting it from the extension and header.
@@ -71,6 +76,9 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
 /// The report as text.
 fn report(args: &InfoArgs) -> anyhow::Result<String> {
     let path = &args.file;
+    if args.format.is_none() && is_field_file(path) {
+        return field_report(path);
+    }
     let format = match args.format {
         Some(f) => f.into(),
         None => io::detect_format(path).context("cannot tell the file's format")?,
@@ -112,6 +120,44 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         None => {}
         Some(Ok(data)) => write_formations(&mut s, &data),
         Some(Err(e)) => line(&mut s, "formations", &format!("not listed: {e}")),
+    }
+    Ok(s)
+}
+
+/// The report of a field file: kind, dimension, box, and the kind's particulars.
+fn field_report(path: &Path) -> anyhow::Result<String> {
+    let field = read_any_field::<3>(path).context("cannot read field file")?;
+    let metadata = read_metadata(path).context("cannot read field file")?;
+    let mut s = String::new();
+    line(&mut s, "file", &path.display().to_string());
+    line(&mut s, "format", "zeroset field file (.zsf)");
+    line(&mut s, "kind", field.kind());
+    line(&mut s, "dimension", "3");
+    match &field {
+        AnyField::BSpline(f) => {
+            let c = f.grid().counts();
+            line(
+                &mut s,
+                "B-spline",
+                &format!("{:?}, grid {}×{}×{}", f.degree(), c[0], c[1], c[2]),
+            );
+        }
+        AnyField::Rbf(f) => {
+            line(&mut s, "kernel", f.kernel_tag());
+            line(&mut s, "centres", &f.num_centres().to_string());
+        }
+    }
+    if let Some(b) = field.bounds() {
+        line(&mut s, "bounds", &format!("min {}", point(b.min())));
+        more(&mut s, &format!("max {}", point(b.max())));
+    }
+    for (i, (key, value)) in metadata.iter().enumerate() {
+        let text = format!("{key} = {value}");
+        if i == 0 {
+            line(&mut s, "metadata", &text);
+        } else {
+            more(&mut s, &text);
+        }
     }
     Ok(s)
 }

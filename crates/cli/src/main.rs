@@ -11,6 +11,7 @@ mod demo;
 mod fit;
 mod info;
 mod mesh;
+mod preview;
 mod restore;
 
 const EXAMPLES: &str = "\
@@ -28,6 +29,7 @@ Examples:
       --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
                                                remove the bunny's ears
   zeroset mesh bunny.zsf -o bunny.ply          mesh the field's zero set (binary PLY)
+  zeroset preview bunny.zsf -o bunny.png       a shaded PNG of the field's zero set
   zeroset info --help                          more on one subcommand";
 
 /// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
@@ -66,6 +68,10 @@ enum Command {
     /// whether the mesh is closed, its Euler characteristic, components and volume.
     #[command(after_help = mesh::EXAMPLES)]
     Mesh(mesh::MeshArgs),
+    /// Render a PNG preview: a mesh (.ply) shaded, a field file's (.zsf) zero set meshed and
+    /// shaded, or with --slice the field on an axis-aligned plane with its zero contour.
+    #[command(after_help = preview::EXAMPLES)]
+    Preview(preview::PreviewArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -75,6 +81,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(args) => fit::run(&args),
         Command::Restore(args) => restore::run(&args),
         Command::Mesh(args) => mesh::run(&args),
+        Command::Preview(args) => preview::run(&args),
     }
 }
 

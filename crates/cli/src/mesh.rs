@@ -1,7 +1,7 @@
 //! `zeroset mesh FIELD -o OUT.ply|OUT.obj`: the level set of a field file as a triangle mesh.
 //!
-//! The field (a `.zsf` file: today a B-spline field, from `zeroset fit -o` or
-//! `zeroset restore`) is sampled on a vertex-centred grid of cubic voxels covering its box and
+//! The field (a `.zsf` file of either kind: the RBF field of `zeroset fit -o`, or a B-spline
+//! field from `zeroset fit -o --sampled` or `zeroset restore`) is sampled on a vertex-centred grid of cubic voxels covering its box and
 //! its level set extracted by marching cubes (`zeroset_mesh::cubes`). The voxel edge comes from
 //! the bounding box by the signed-marching-cubes paper's rule (`zeroset_mesh::voxel`: `5·l0`
 //! coarse, `l0` general, `0.3·l0` fine), from `--resolution` (voxels along the longest axis) or
@@ -15,7 +15,8 @@ use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use zeroset_bases::field_file::read_field;
+use zeroset_bases::field_file::{AnyField, read_any_field};
+use zeroset_field_core::field::ScalarField;
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
@@ -65,7 +66,8 @@ impl From<DetailArg> for Detail {
 /// Arguments of `zeroset mesh`.
 #[derive(Debug, Args)]
 pub struct MeshArgs {
-    /// The field file (.zsf).
+    /// The field file (.zsf): an RBF field (`zeroset fit -o`) or a B-spline field
+    /// (`zeroset fit -o --sampled`, `zeroset restore`); meshed over the box it records.
     pub field: PathBuf,
 
     /// The mesh file: .ply (binary little-endian, or --ascii) or .obj, written atomically.
@@ -128,14 +130,16 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let total = Instant::now();
 
     let start = Instant::now();
-    let field = read_field::<3>(&args.field)
+    let field = read_any_field::<3>(&args.field)
         .with_context(|| format!("reading {}", args.field.display()))?;
     let reading = start.elapsed();
-    let bounds = field.grid().bounds();
+    let bounds = field
+        .bounds()
+        .with_context(|| format!("the field in {} has no bounds", args.field.display()))?;
     println!(
-        "field {}: {:?} B-spline over min {} max {}",
+        "field {}: {} over min {} max {}",
         args.field.display(),
-        field.degree(),
+        describe(&field),
         point(bounds.min()),
         point(bounds.max())
     );
@@ -255,6 +259,18 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         seconds(total.elapsed())
     );
     Ok(())
+}
+
+/// The field's kind in words: `Quadratic B-spline`, `RBF field (kernel r, 600 centres)`.
+pub(crate) fn describe(field: &AnyField<3>) -> String {
+    match field {
+        AnyField::BSpline(f) => format!("{:?} B-spline", f.degree()),
+        AnyField::Rbf(f) => format!(
+            "RBF field (kernel {}, {} centres)",
+            f.kernel_tag(),
+            f.num_centres()
+        ),
+    }
 }
 
 /// The output's format from its extension; refuses the input, an existing file without

@@ -13,7 +13,7 @@ use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 
 use zeroset_bases::bspline::BSplineField;
-use zeroset_bases::field_file::{is_field_file, read_field, write_field};
+use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, write_field};
 use zeroset_bases::tangent_plane::TangentPlaneField;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point};
@@ -48,7 +48,8 @@ pub enum Mode {
 /// Arguments of `zeroset restore`.
 #[derive(Debug, Args)]
 pub struct RestoreArgs {
-    /// A field file (.zsf) or an oriented point cloud (PLY, xyz/xyzn/pts, CSV).
+    /// A field file (.zsf: a B-spline field, or an RBF field sampled onto the grid) or an
+    /// oriented point cloud (PLY, xyz/xyzn/pts, CSV).
     pub input: PathBuf,
 
     /// The box to restore, two opposite corners in world coordinates: x0,y0,z0:x1,y1,z1.
@@ -82,8 +83,8 @@ pub struct RestoreArgs {
     #[arg(long)]
     pub point_resampling: bool,
 
-    /// Grid cells per axis, L,M,N (default: the field file's grid, or 64 along the longest
-    /// axis of a point cloud's box with near-cubic cells).
+    /// Grid cells per axis, L,M,N (default: a B-spline field file's grid, or 64 along the
+    /// longest axis of an RBF field's or a point cloud's box with near-cubic cells).
     #[arg(long, value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
@@ -227,15 +228,26 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
 fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)> {
     let zsf = args.input.extension().and_then(|e| e.to_str()) == Some("zsf");
     if zsf || is_field_file(&args.input) {
-        let field = read_field::<3>(&args.input)
+        let field = read_any_field::<3>(&args.input)
             .with_context(|| format!("reading {}", args.input.display()))?;
-        let grid = *field.grid();
-        println!(
-            "field file {}: {:?} B-spline",
-            args.input.display(),
-            field.degree()
-        );
-        return Ok((Box::new(field), grid));
+        let described = crate::mesh::describe(&field);
+        return match field {
+            AnyField::BSpline(field) => {
+                let grid = *field.grid();
+                println!("field file {}: {described}", args.input.display());
+                Ok((Box::new(field), grid))
+            }
+            AnyField::Rbf(field) => {
+                // Sampled onto a grid over the field's box, like a point cloud's field.
+                let bounds = field.bounds().context("the RBF field has no bounds")?;
+                let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;
+                println!(
+                    "field file {}: {described}, sampled on the grid",
+                    args.input.display()
+                );
+                Ok((Box::new(field), grid))
+            }
+        };
     }
     let mut options = ReadOptions::default();
     if let Some(format) = &args.format {

@@ -424,7 +424,7 @@ fn fit_refuses_bad_requests_with_a_message() {
     let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(100));
     let out = dir.path().join("out.zsf");
     let out = out.to_str().unwrap();
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 9] = [
         (
             &["--offset", "0"],
             "--offset must be auto or a finite distance > 0",
@@ -437,7 +437,15 @@ fn fit_refuses_bad_requests_with_a_message() {
         (&["--kernel", "tps"], "2-D curves"),
         (&["--hermite", "--offset", "0.01"], "--hermite uses none"),
         (&["--grid", "8,8,8"], "give -o"),
-        (&["-o", out, "--grid", "2,8,8"], "at least 3 cells per axis"),
+        (&["--sampled"], "give -o"),
+        (
+            &["-o", out, "--grid", "8,8,8"],
+            "--grid is the sampling grid of --sampled",
+        ),
+        (
+            &["-o", out, "--sampled", "--grid", "2,8,8"],
+            "at least 3 cells per axis",
+        ),
     ];
     for (extra, expected) in cases {
         let o = fit(&path, extra);
@@ -475,16 +483,52 @@ fn fit_names_a_non_finite_coordinate_and_missing_normals() {
 
 #[test]
 fn fit_writes_a_field_file_that_restore_takes() {
-    use zeroset_bases::field_file::read_field;
+    use zeroset_bases::field_file::{read_any_field, read_field};
+    use zeroset_field_core::field::ScalarField;
 
     let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+
+    // By default -o writes the RBF field itself: exact at the input points.
+    let rbf = dir.path().join("sphere_rbf.zsf");
+    let o = fit(&path, &["-o", rbf.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("the RBF field itself (kernel r, "), "{out}");
+    assert!(out.contains("(the RBF field) in"), "{out}");
+    assert!(!out.contains("B-spline"), "{out}");
+    let any = read_any_field::<3>(&rbf).expect("a valid field file");
+    assert_eq!(any.kind(), "rbf");
+    let at = |d: [f64; 3]| any.value(&std::array::from_fn(|a| CENTRE[a] + d[a]));
+    assert!(at([0.0; 3]) < -0.1, "centre {}", at([0.0; 3]));
+    for d in [[0.56, 0.0, 0.0], [0.0, -0.56, 0.0], [0.4, 0.4, 0.4]] {
+        assert!(at(d) > 0.0, "{d:?}: {}", at(d));
+    }
+    for (p, _) in sphere_points(300).iter().step_by(37) {
+        assert!(any.value(p).abs() < 1e-6, "{p:?}: {}", any.value(p));
+    }
+    // read_field takes B-splines only, and says so.
+    let e = read_field::<3>(&rbf).unwrap_err().to_string();
+    assert!(e.contains("RBF"), "{e}");
+    // `zeroset info` reports its kind, kernel and centres.
+    let o = info(&rbf, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for text in ["rbf", "kernel:", " r\n", "centres:", "metadata:", "bounds:"] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+
+    // --sampled writes the quadratic B-spline sampled from it.
     let field = dir.path().join("sphere.zsf");
-    let o = fit(&path, &["-o", field.to_str().unwrap()]);
+    let o = fit(&path, &["-o", field.to_str().unwrap(), "--sampled"]);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let out = stdout(&o);
     assert!(out.contains("sampled on 64×64×64 cells"), "{out}");
     assert!(out.contains("quadratic B-spline"), "{out}");
     assert!(out.contains("wrote "), "{out}");
+    let o = info(&field, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("bspline"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("64×64×64"), "{}", stdout(&o));
 
     let spline = read_field::<3>(&field).expect("a valid field file");
     let b = spline.grid().bounds();
@@ -520,6 +564,23 @@ fn fit_writes_a_field_file_that_restore_takes() {
     ]);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert!(smooth.is_file());
+    // It also takes the RBF field, sampled onto a grid over its box.
+    let from_rbf = dir.path().join("from_rbf.zsf");
+    let o = zeroset([
+        OsStr::new("restore"),
+        rbf.as_os_str(),
+        OsStr::new("--mode"),
+        OsStr::new("denoise"),
+        OsStr::new("--mask"),
+        OsStr::new("0,-0.3,0.2:0.2,-0.1,0.4"),
+        OsStr::new("--coarse"),
+        OsStr::new("4,4,4"),
+        OsStr::new("-o"),
+        from_rbf.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("RBF field"), "{}", stdout(&o));
+    assert!(read_field::<3>(&from_rbf).is_ok());
 
     // Never the input: -o must be a .zsf and not the input; a .zsf input is not a point cloud.
     let before = fs::read(&path).unwrap();
@@ -553,7 +614,9 @@ fn fit_is_in_the_help() {
         "--hermite",
         "--offset <auto|EPS>",
         "--solver",
+        "--sampled",
         "quadratic B-spline",
+        "RBF field itself",
     ] {
         assert!(out.contains(text), "{text:?}:\n{out}");
     }
@@ -561,14 +624,11 @@ fn fit_is_in_the_help() {
 
 // ---- zeroset mesh ----
 
-/// A sphere field file (`zeroset fit -o`) in a fresh directory.
+/// A sphere RBF field file (`zeroset fit -o`) in a fresh directory.
 fn sphere_field() -> (tempfile::TempDir, PathBuf) {
     let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
     let field = dir.path().join("sphere.zsf");
-    let o = fit(
-        &path,
-        &["-o", field.to_str().unwrap(), "--grid", "32,32,32"],
-    );
+    let o = fit(&path, &["-o", field.to_str().unwrap()]);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     (dir, field)
 }
@@ -593,6 +653,7 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let out = stdout(&o);
     for text in [
+        "RBF field (kernel r, ",
         "grid ",
         "voxel ",
         "l0 = ",
@@ -639,6 +700,27 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let o = mesh(&field, &coarse, &["--detail", "coarse"]);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert!(stdout(&o).contains("Coarse detail"), "{}", stdout(&o));
+
+    // A sampled B-spline field (`fit -o --sampled`) meshes too, over its grid's box.
+    let sampled = dir.path().join("sampled.zsf");
+    let o = fit(
+        &dir.path().join("sphere.xyzn"),
+        &[
+            "-o",
+            sampled.to_str().unwrap(),
+            "--sampled",
+            "--grid",
+            "32,32,32",
+        ],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let bs = dir.path().join("bs.ply");
+    let o = mesh(&sampled, &bs, &[]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("Quadratic B-spline"), "{}", stdout(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::io::read_ply_mesh(&bs).unwrap());
+    assert!(r.is_oriented_closed(), "{r}");
+    assert_eq!(r.euler_characteristic, 2, "{r}");
 }
 
 #[test]
@@ -728,5 +810,147 @@ fn mesh_is_in_the_help() {
         "--force",
     ] {
         assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+}
+
+// ---- zeroset preview ----
+
+fn preview(input: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<&OsStr> = vec![
+        OsStr::new("preview"),
+        input.as_os_str(),
+        OsStr::new("-o"),
+        out.as_os_str(),
+        OsStr::new("--quiet"),
+    ];
+    args.extend(extra.iter().map(OsStr::new));
+    zeroset(args)
+}
+
+/// A sphere field file from `zeroset fit -o` alone (whatever kind fit writes by default).
+fn preview_field() -> (tempfile::TempDir, PathBuf) {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+    let field = dir.path().join("s.zsf");
+    let o = fit(&path, &["-o", field.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    (dir, field)
+}
+
+/// An octahedron as an ASCII PLY, wound outward.
+const OCTAHEDRON_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\n\
+property float y\nproperty float z\nelement face 8\nproperty list uchar int vertex_indices\n\
+end_header\n1 0 0\n-1 0 0\n0 1 0\n0 -1 0\n0 0 1\n0 0 -1\n3 0 2 4\n3 2 1 4\n3 1 3 4\n\
+3 3 0 4\n3 2 0 5\n3 1 2 5\n3 3 1 5\n3 0 3 5\n";
+
+/// The width and height of a PNG file, checking its signature and IHDR chunk.
+fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap();
+    assert!(
+        bytes.len() > 33,
+        "{} is too short for a PNG",
+        path.display()
+    );
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "PNG signature");
+    assert_eq!(&bytes[12..16], b"IHDR");
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    (w, h)
+}
+
+#[test]
+fn preview_renders_a_field_a_slice_and_a_mesh() {
+    let (dir, field) = preview_field();
+    let a = dir.path().join("a.png");
+    let o = preview(&field, &a, &["--width", "300", "--height", "200"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(png_size(&a), (300, 200));
+    assert!(stdout(&o).contains("triangles"), "{}", stdout(&o));
+
+    let s = dir.path().join("slice.png");
+    let o = preview(
+        &field,
+        &s,
+        &["--slice", "z", "--width", "160", "--height", "160"],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(png_size(&s), (160, 160));
+    assert!(stdout(&o).contains("slice z"), "{}", stdout(&o));
+    let s2 = dir.path().join("slice_x.png");
+    let o = preview(
+        &field,
+        &s2,
+        &["--slice", "x=0.1", "--width", "64", "--height", "64"],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let (w, h) = png_size(&s2);
+    assert!(w.max(h) == 64, "{w}×{h}");
+
+    let ply = dir.path().join("s.ply");
+    std::fs::write(&ply, OCTAHEDRON_PLY).unwrap();
+    let b = dir.path().join("b.png");
+    let o = preview(&ply, &b, &["--azimuth", "-60", "--elevation", "10"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(png_size(&b), (800, 800));
+    assert!(stdout(&o).contains("triangles"), "{}", stdout(&o));
+}
+
+#[test]
+fn preview_refuses_bad_outputs_and_inputs_with_a_message() {
+    let (dir, field) = preview_field();
+    let a = dir.path().join("a.png");
+    std::fs::write(&a, b"old").unwrap();
+
+    // An existing output needs --force, and is left alone without it.
+    let o = preview(&field, &a, &["--width", "32", "--height", "32"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&a).unwrap(), b"old");
+    let o = preview(&field, &a, &["--width", "32", "--height", "32", "--force"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(png_size(&a), (32, 32));
+
+    // The output must be a .png, in a directory that exists, and never the input.
+    let o = preview(&field, &dir.path().join("a.jpg"), &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains(".png"), "{}", stderr(&o));
+    let o = preview(&field, &dir.path().join("no/such/dir/a.png"), &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
+    let o = preview(&a, &a, &["--force"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("input"), "{}", stderr(&o));
+
+    // Bad slices, a slice of a mesh, an OBJ mesh, a missing input.
+    let o = preview(&field, &dir.path().join("w.png"), &["--slice", "w"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("x, y or z"), "{}", stderr(&o));
+    let obj = dir.path().join("s.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let o = preview(&obj, &dir.path().join("o.png"), &[]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("not supported for reading yet"),
+        "{}",
+        stderr(&o)
+    );
+    let o = preview(&obj, &dir.path().join("o.png"), &["--slice", "z"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--slice"), "{}", stderr(&o));
+    let o = preview(&dir.path().join("none.zsf"), &dir.path().join("n.png"), &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("none.zsf"), "{}", stderr(&o));
+    for name in ["w.png", "o.png", "n.png", "a.jpg"] {
+        assert!(!dir.path().join(name).exists(), "{name} was written");
+    }
+}
+
+#[test]
+fn preview_is_in_the_help() {
+    let o = zeroset(["--help"]);
+    assert!(stdout(&o).contains("preview"), "{}", stdout(&o));
+    let o = zeroset(["preview", "--help"]);
+    assert!(o.status.success());
+    for flag in ["--slice", "--width", "--azimuth", "--force", "Examples:"] {
+        assert!(stdout(&o).contains(flag), "{flag}: {}", stdout(&o));
     }
 }

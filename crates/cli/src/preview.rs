@@ -1,0 +1,318 @@
+//! `zeroset preview INPUT -o IMAGE.png`: a PNG picture of a mesh or a field.
+//!
+//! A mesh (`.ply`) is drawn shaded (`zeroset_mesh::preview::render_mesh`: orthographic,
+//! z-buffered, back faces darker and warmer). A field file (`.zsf`, recognised by its magic) is
+//! meshed at its zero set by marching cubes on the general `l0` voxel grid of its box (capped
+//! where it leaves the box) and drawn the same way; with `--slice AXIS[=POS]` the field is drawn
+//! on the plane `AXIS = POS` instead (blue inside, red outside, the zero contour in black). The
+//! image is written atomically.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+
+use zeroset_bases::field_file::{is_field_file, read_any_field};
+use zeroset_field_core::field::ScalarField;
+use zeroset_mesh::preview::{
+    Image, MAX_IMAGE_SIZE, RenderOptions, View, render_mesh, render_slice,
+};
+use zeroset_mesh::voxel::{self, Detail};
+use zeroset_mesh::{McOptions, TriMesh, mesh_field, read_ply_mesh};
+
+use crate::restore::same_file;
+
+/// Shown after `zeroset preview --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  # a field's zero set, meshed on the general l0 grid and shaded
+  zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny.zsf
+  zeroset preview bunny.zsf -o bunny.png
+  # a mesh file, seen from another side, wider
+  zeroset mesh bunny.zsf -o bunny.ply
+  zeroset preview bunny.ply -o side.png --azimuth 120 --elevation 10 --width 1200
+  # the field on the plane through the box centre normal to z; or at x = 0.01
+  zeroset preview bunny.zsf -o slice.png --slice z
+  zeroset preview bunny.zsf -o slice_x.png --slice x=0.01 --force";
+
+/// A slice plane: the axis (0, 1, 2) and the position on it (the box centre when `None`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Slice {
+    /// 0, 1 or 2 for x, y, z.
+    pub axis: usize,
+    /// Where the plane crosses the axis.
+    pub position: Option<f64>,
+}
+
+/// Parses `x`, `y`, `z`, optionally followed by `=POS`.
+fn parse_slice(s: &str) -> Result<Slice, String> {
+    let (name, pos) = match s.split_once('=') {
+        Some((n, p)) => (n.trim(), Some(p.trim())),
+        None => (s.trim(), None),
+    };
+    let axis = match name.to_ascii_lowercase().as_str() {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        _ => {
+            return Err(format!(
+                "the axis must be x, y or z (as x, y=0.5, z=-1), got {s:?}"
+            ));
+        }
+    };
+    let position = match pos {
+        None => None,
+        Some(p) => {
+            let v: f64 = p
+                .parse()
+                .map_err(|_| format!("the position {p:?} is not a number"))?;
+            if !v.is_finite() {
+                return Err(format!("the position must be finite, got {p:?}"));
+            }
+            Some(v)
+        }
+    };
+    Ok(Slice { axis, position })
+}
+
+/// Arguments of `zeroset preview`.
+#[derive(Debug, Args)]
+pub struct PreviewArgs {
+    /// A mesh (.ply) or a field file (.zsf).
+    pub input: PathBuf,
+
+    /// The image, a .png file, written atomically.
+    #[arg(short, long, value_name = "IMAGE.png")]
+    pub output: PathBuf,
+
+    /// Image width in pixels (for --slice, the longer side is the larger of width and height).
+    #[arg(long, default_value_t = 800)]
+    pub width: usize,
+
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 800)]
+    pub height: usize,
+
+    /// Camera angle about +z, in degrees from +x towards +y.
+    #[arg(long, default_value_t = 35.0, allow_hyphen_values = true)]
+    pub azimuth: f64,
+
+    /// Camera angle above the xy plane, in degrees (90 looks straight down).
+    #[arg(long, default_value_t = 25.0, allow_hyphen_values = true)]
+    pub elevation: f64,
+
+    /// A field file only: draw the field on the plane AXIS = POS (default: the box centre)
+    /// with its zero contour, instead of its meshed zero set.
+    #[arg(long, value_name = "x|y|z[=POS]", value_parser = parse_slice)]
+    pub slice: Option<Slice>,
+
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Accepted for symmetry with the other subcommands (preview shows no progress spinner).
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `zeroset preview`.
+pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
+    check_output(args)?;
+    for (what, v) in [("--width", args.width), ("--height", args.height)] {
+        if v == 0 || v > MAX_IMAGE_SIZE {
+            bail!("{what} must be 1 to {MAX_IMAGE_SIZE} pixels, got {v}");
+        }
+    }
+    for (what, v) in [("--azimuth", args.azimuth), ("--elevation", args.elevation)] {
+        if !v.is_finite() {
+            bail!("{what} must be finite, got {v}");
+        }
+    }
+    if !args.input.exists() {
+        bail!("the input {} does not exist", args.input.display());
+    }
+    let total = Instant::now();
+    let field_input = is_field_file(&args.input);
+    let image = if field_input {
+        let field = read_any_field::<3>(&args.input)
+            .with_context(|| format!("reading {}", args.input.display()))?;
+        let Some(bounds) = field.bounds() else {
+            bail!("the field in {} has no bounding box", args.input.display());
+        };
+        match args.slice {
+            Some(slice) => {
+                let c = bounds.center();
+                let position = slice.position.unwrap_or(c[slice.axis]);
+                let pixels = args.width.max(args.height);
+                let image = render_slice(&field, bounds, slice.axis, position, pixels)
+                    .context("rendering the slice")?;
+                println!(
+                    "slice {} = {} of the {} field {}, zero contour in black",
+                    ["x", "y", "z"][slice.axis],
+                    position,
+                    field.kind(),
+                    args.input.display()
+                );
+                image
+            }
+            None => {
+                let h = voxel::voxel_size(&bounds, Detail::General);
+                if !(h.is_finite() && h > 0.0) {
+                    bail!("the field's box is a point: nothing to mesh; try --slice");
+                }
+                let grid =
+                    voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+                let options = McOptions::default().with_close_boundary(true);
+                let mesh =
+                    mesh_field(&field, &grid, 0.0, &options).context("extracting the zero set")?;
+                if mesh.is_empty() {
+                    bail!(
+                        "the zero set of {} does not cross its box: nothing to render; try --slice",
+                        args.input.display()
+                    );
+                }
+                let c = grid.counts();
+                println!(
+                    "zero set of the {} field {}: {} triangles (marching cubes, {}×{}×{} grid, \
+                     voxel {h:.4e})",
+                    field.kind(),
+                    args.input.display(),
+                    mesh.num_triangles(),
+                    c[0],
+                    c[1],
+                    c[2]
+                );
+                render(args, &mesh)?
+            }
+        }
+    } else {
+        if args.slice.is_some() {
+            bail!(
+                "--slice needs a field file (.zsf); {} is not one",
+                args.input.display()
+            );
+        }
+        let mesh = read_mesh(&args.input)?;
+        println!(
+            "mesh {}: {} vertices, {} triangles",
+            args.input.display(),
+            mesh.num_vertices(),
+            mesh.num_triangles()
+        );
+        render(args, &mesh)?
+    };
+    image
+        .write_png(&args.output)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "wrote {} ({}×{} PNG) in {}",
+        args.output.display(),
+        image.width(),
+        image.height(),
+        seconds(total.elapsed())
+    );
+    Ok(())
+}
+
+/// Reads a mesh file by its extension (PLY only for now).
+fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("ply") => read_ply_mesh(path).with_context(|| format!("reading {}", path.display())),
+        Some("obj") => bail!(
+            "{}: OBJ meshes are not supported for reading yet; convert to PLY, or preview the \
+             .zsf field it came from",
+            path.display()
+        ),
+        _ => bail!(
+            "{} is neither a field file (.zsf) nor a mesh (.ply)",
+            path.display()
+        ),
+    }
+}
+
+fn render(args: &PreviewArgs, mesh: &TriMesh) -> anyhow::Result<Image> {
+    let opts = RenderOptions {
+        width: args.width,
+        height: args.height,
+        view: View {
+            azimuth: args.azimuth,
+            elevation: args.elevation,
+        },
+        ..RenderOptions::default()
+    };
+    render_mesh(mesh, &opts).context("rendering the mesh")
+}
+
+/// Refuses a non-.png output, the input, a missing directory, a directory and an existing file
+/// without --force — all before any work.
+fn check_output(args: &PreviewArgs) -> anyhow::Result<()> {
+    let out = &args.output;
+    let png = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !png {
+        bail!("the output {} must end in .png", out.display());
+    }
+    if same_file(&args.input, out) {
+        bail!(
+            "the output would overwrite the input {}; choose another name",
+            args.input.display()
+        );
+    }
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "the output directory {} does not exist (or is not a directory)",
+            dir.display()
+        );
+    }
+    if out.is_dir() {
+        bail!("the output {} is a directory", out.display());
+    }
+    if out.exists() && !args.force {
+        bail!(
+            "the output {} exists; pass --force to overwrite it",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+fn seconds(d: Duration) -> String {
+    format!("{:.2} s", d.as_secs_f64())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_slices() {
+        assert_eq!(
+            parse_slice("z"),
+            Ok(Slice {
+                axis: 2,
+                position: None
+            })
+        );
+        assert_eq!(
+            parse_slice("X=-0.5"),
+            Ok(Slice {
+                axis: 0,
+                position: Some(-0.5)
+            })
+        );
+        assert!(parse_slice("w").is_err());
+        assert!(parse_slice("y=abc").is_err());
+        assert!(parse_slice("y=inf").is_err());
+    }
+}

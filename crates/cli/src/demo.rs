@@ -1,19 +1,27 @@
 //! `zeroset demo`: the main job on built-in sample data. It describes the bundled point cloud,
 //! solves a restoration-shaped least-squares problem with every solver (how long each took,
 //! iterations, residuals, and how far each answer is from the sparse-QR reference — the
-//! solvers must agree), and then removes the bunny's ears by protrusion removal.
+//! solvers must agree), removes the bunny's ears by protrusion removal, and finally runs the
+//! whole pipeline on the sample: an RBF fit, its zero set meshed by marching cubes, written as
+//! a binary PLY with a shaded PNG preview and a text report (in `./zeroset-demo/` or `--out`).
 
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use zeroset_bases::rbf::{Biharmonic, Constraints, Offset, RbfFit, Solver};
 use zeroset_bases::tangent_plane::TangentPlaneField;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix};
 use zeroset_field_core::mask::{BoxMask, Face, Side};
+use zeroset_mesh::preview::{RenderOptions, render_mesh};
+use zeroset_mesh::voxel::{self, Detail};
+use zeroset_mesh::{McOptions, PlyFormat, check, mesh_field, write_ply};
 use zeroset_restore::protrusion::Protrusion;
 use zeroset_solvers::kernels::max_abs_diff;
 use zeroset_solvers::problems::protrusion_problem;
@@ -30,7 +38,11 @@ pub const EXAMPLES: &str = "\
 Examples:
   zeroset demo                 the bundled bunny sample, then all solvers at k = 16
   zeroset demo --k 24          a bigger restoration problem (13,824 unknowns)
-  zeroset demo --k 8 --quiet   small enough for the dense solvers too; no progress spinner";
+  zeroset demo --k 8 --quiet   small enough for the dense solvers too; no progress spinner
+  zeroset demo --out /tmp/zd   the pipeline's bunny.ply, bunny.png and report.txt go to /tmp/zd";
+
+/// The default output directory of the pipeline step.
+const DEFAULT_OUT: &str = "zeroset-demo";
 
 /// Dense solvers are run only up to this many unknowns (they densify `A`).
 const DENSE_LIMIT: usize = 1500;
@@ -45,6 +57,10 @@ pub struct DemoArgs {
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
+
+    /// Directory for the pipeline's bunny.ply, bunny.png and report.txt (created if missing).
+    #[arg(long, value_name = "DIR", default_value = DEFAULT_OUT)]
+    pub out: PathBuf,
 }
 
 /// Runs the demo.
@@ -56,7 +72,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         format: None,
     })?;
     solve_all(args.k as usize, args.quiet)?;
-    remove_ears(&sample.path)
+    remove_ears(&sample.path)?;
+    pipeline(&sample.path, &args.out)
 }
 
 /// The bundled sample written to a temporary file (the readers take paths), removed on drop.
@@ -231,5 +248,124 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
     if n > DENSE_LIMIT {
         println!("(dense-qr and normal-lu skipped above {DENSE_LIMIT} unknowns; try --k 11)");
     }
+    Ok(())
+}
+
+/// Seconds, two decimals.
+fn secs(d: Duration) -> String {
+    format!("{:.2} s", d.as_secs_f64())
+}
+
+/// The whole pipeline on the bundled sample: RBF fit (kernel r, off-surface constraints, auto
+/// solver), marching cubes on the general l0 grid with the boundary closed, a binary PLY, a
+/// shaded PNG and a text report in `out` (each written atomically).
+fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
+    let total = Instant::now();
+    println!();
+    println!(
+        "== pipeline: fit → mesh → preview, into {} ==",
+        out.display()
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut report = String::new();
+    let step = |report: &mut String, text: String| {
+        println!("   {text}");
+        report.push_str(&text);
+        report.push('\n');
+    };
+
+    let start = Instant::now();
+    let cloud = zeroset_field_core::io::read_point_cloud(sample)?;
+    let (constraints, _) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.01 })
+        .context("building the off-surface constraints")?;
+    let fitted = RbfFit::new(Biharmonic)
+        .with_solver(Solver::Auto)
+        .fit(&constraints)
+        .context("fitting the RBF field")?;
+    let fit_time = start.elapsed();
+    let r = &fitted.report;
+    step(
+        &mut report,
+        format!(
+            "fit: {} points, {} off-surface constraints, kernel r, solver {}, {} steps, max \
+             residual {:.2e}, fit {}, step {}",
+            cloud.len(),
+            constraints.len(),
+            r.solver,
+            r.iterations,
+            r.max_residual,
+            secs(r.elapsed),
+            secs(fit_time)
+        ),
+    );
+
+    let start = Instant::now();
+    let field = &fitted.field;
+    let bounds = field.bounds().context("the fitted field has no bounds")?;
+    let h = voxel::voxel_size(&bounds, Detail::General);
+    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+    let mesh = mesh_field(
+        field,
+        &grid,
+        0.0,
+        &McOptions::default().with_close_boundary(true),
+    )
+    .context("extracting the zero set")?;
+    let mesh_time = start.elapsed();
+    let c = grid.counts();
+    let m = check(&mesh);
+    step(
+        &mut report,
+        format!(
+            "mesh: grid {}×{}×{} (voxel {h:.4}, general l0), {} vertices, {} triangles, {}, \
+             Euler characteristic {}, volume {:.6}, {}",
+            c[0],
+            c[1],
+            c[2],
+            mesh.num_vertices(),
+            mesh.num_triangles(),
+            if m.closed { "closed" } else { "open" },
+            m.euler_characteristic,
+            m.signed_volume,
+            secs(mesh_time)
+        ),
+    );
+
+    let start = Instant::now();
+    let ply = out.join("bunny.ply");
+    write_ply(&ply, &mesh, PlyFormat::BinaryLittleEndian)
+        .with_context(|| format!("writing {}", ply.display()))?;
+    step(
+        &mut report,
+        format!(
+            "wrote {} (binary PLY), {}",
+            ply.display(),
+            secs(start.elapsed())
+        ),
+    );
+
+    let start = Instant::now();
+    let png = out.join("bunny.png");
+    let image = render_mesh(&mesh, &RenderOptions::default()).context("rendering the mesh")?;
+    image
+        .write_png(&png)
+        .with_context(|| format!("writing {}", png.display()))?;
+    step(
+        &mut report,
+        format!(
+            "wrote {} ({}×{} PNG), {}",
+            png.display(),
+            image.width(),
+            image.height(),
+            secs(start.elapsed())
+        ),
+    );
+
+    let txt = out.join("report.txt");
+    let _ = writeln!(report, "pipeline total {}", secs(total.elapsed()));
+    zeroset_field_core::io::write_atomic(&txt, |w| w.write_all(report.as_bytes()))
+        .with_context(|| format!("writing {}", txt.display()))?;
+    println!("   wrote {}", txt.display());
+    println!("   pipeline total {}", secs(total.elapsed()));
     Ok(())
 }

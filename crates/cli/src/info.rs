@@ -1,5 +1,6 @@
 //! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it; or,
-//! for a `.zsf` field file, its kind (RBF or B-spline), box and metadata.
+//! for a `.zsf` field file, its kind (RBF or B-spline), box and metadata; or, for a PLY with
+//! a face element, the mesh's counts and `zeroset_mesh::checks` report.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -21,6 +22,7 @@ Examples:
   zeroset info points.dat --format csv
   zeroset info geology/greenstone/SandStone_Points.csv
   zeroset info bunny.zsf        # a field file: kind, box, kernel and centres or B-spline grid
+  zeroset info bunny_mesh.ply   # a PLY with faces: triangles, boundary loops, Euler char., volume
 
 NaN and infinite values do not stop the report: they are counted and the first is named
 (record, line, field).";
@@ -83,6 +85,9 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         Some(f) => f.into(),
         None => io::detect_format(path).context("cannot tell the file's format")?,
     };
+    if format == Format::Ply && has_faces(path) {
+        return mesh_report(path);
+    }
     let options = ReadOptions::default().with_format(format);
     // Read strictly first, so that a non-finite value is named with its line; then read again
     // accepting it, to count them all.
@@ -157,6 +162,90 @@ fn field_report(path: &Path) -> anyhow::Result<String> {
             line(&mut s, "metadata", &text);
         } else {
             more(&mut s, &text);
+        }
+    }
+    Ok(s)
+}
+
+/// Whether the PLY header declares a `face` element (a mesh rather than a point cloud).
+/// An unreadable header answers `false`: the point-cloud reader then names the problem.
+fn has_faces(path: &Path) -> bool {
+    use std::io::BufRead as _;
+    let Ok(file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut reader = std::io::BufReader::new(file);
+    let mut buf = Vec::new();
+    // The header is ASCII text ending at `end_header`; stop there (binary data follows).
+    for _ in 0..10_000 {
+        buf.clear();
+        match reader.read_until(b'\n', &mut buf) {
+            Ok(0) | Err(_) => return false,
+            Ok(_) => {}
+        }
+        let text = String::from_utf8_lossy(&buf);
+        let mut words = text.split_whitespace();
+        match (words.next(), words.next()) {
+            (Some("end_header"), _) => return false,
+            (Some("element"), Some("face")) => return true,
+            _ => {}
+        }
+    }
+    false
+}
+
+/// The report of a PLY mesh: counts and the `zeroset_mesh::checks` report.
+fn mesh_report(path: &Path) -> anyhow::Result<String> {
+    let mesh = zeroset_mesh::read_ply_mesh(path).context("cannot read mesh")?;
+    let r = zeroset_mesh::check(&mesh);
+    let loops = zeroset_mesh::boundary_loops(&mesh);
+    let mut s = String::new();
+    line(&mut s, "file", &path.display().to_string());
+    line(&mut s, "format", "ply (mesh)");
+    line(
+        &mut s,
+        "vertices",
+        &format!("{}, {} used by triangles", r.vertices, r.used_vertices),
+    );
+    line(&mut s, "triangles", &r.triangles.to_string());
+    line(
+        &mut s,
+        "closed",
+        if r.closed {
+            "yes"
+        } else {
+            "no (boundary or non-manifold edges)"
+        },
+    );
+    line(
+        &mut s,
+        "edges",
+        &format!(
+            "{}; {} boundary in {loops} loop{}, {} non-manifold, {} inconsistent",
+            r.edges,
+            r.boundary_edges,
+            plural(loops),
+            r.non_manifold_edges,
+            r.inconsistent_edges
+        ),
+    );
+    line(
+        &mut s,
+        "topology",
+        &format!(
+            "Euler characteristic {}, {} component{}",
+            r.euler_characteristic,
+            r.components,
+            plural(r.components)
+        ),
+    );
+    line(&mut s, "volume", &format!("signed {}", g(r.signed_volume)));
+    line(&mut s, "area", &g(r.area));
+    match mesh.bounds() {
+        None => line(&mut s, "bounds", "none (no vertex)"),
+        Some(b) => {
+            line(&mut s, "bounds", &format!("min {}", point(b.min())));
+            more(&mut s, &format!("max {}", point(b.max())));
         }
     }
     Ok(s)

@@ -37,8 +37,30 @@ Examples:
 #[derive(Debug, Parser)]
 #[command(name = "zeroset", version, after_help = EXAMPLES)]
 struct Cli {
+    /// Worker threads for the parallel parts (rayon's global pool); at least 1; by default one
+    /// per CPU. Results are identical for any N: the computations are deterministic.
+    #[arg(
+        long,
+        global = true,
+        value_name = "N",
+        value_parser = parse_threads,
+        allow_hyphen_values = true
+    )]
+    threads: Option<usize>,
+
     #[command(subcommand)]
     command: Command,
+}
+
+/// `--threads N`: a whole number, at least 1.
+fn parse_threads(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(0) => Err("the thread count must be at least 1".to_owned()),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!(
+            "expected a whole number of threads (at least 1), got {text:?}"
+        )),
+    }
 }
 
 /// The subcommands. To add one (e.g. `demo`): add a variant holding its `Args`, a module with
@@ -75,6 +97,12 @@ enum Command {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
+    }
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Demo(args) => demo::run(&args),

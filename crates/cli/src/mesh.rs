@@ -7,6 +7,7 @@
 //! coarse, `l0` general, `0.3·l0` fine), from `--resolution` (voxels along the longest axis) or
 //! from `--voxel`. The mesh is checked, reported and written atomically as PLY or OBJ.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -120,9 +121,40 @@ enum Format {
     Obj,
 }
 
+/// Writes lines to stdout; once stdout is closed (`zeroset mesh ... | head`), stops printing
+/// but lets the work go on: a broken pipe is not an error, the mesh is still written.
+#[derive(Debug, Default)]
+struct Say {
+    closed: bool,
+}
+
+impl Say {
+    fn line(&mut self, text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
+        if self.closed {
+            return Ok(());
+        }
+        let mut stdout = std::io::stdout().lock();
+        match writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+                self.closed = true;
+                Ok(())
+            }
+            r => r.context("cannot write to stdout"),
+        }
+    }
+}
+
+/// `println!` that survives a closed stdout: `say!(out, "...", args)?`.
+macro_rules! say {
+    ($out:expr, $($arg:tt)*) => {
+        $out.line(format_args!($($arg)*))
+    };
+}
+
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let Method::Mc = args.method;
+    let mut out = Say::default();
     let format = check_output(args)?;
     if !args.level.is_finite() {
         bail!("--level must be finite, got {}", args.level);
@@ -136,13 +168,14 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let bounds = field
         .bounds()
         .with_context(|| format!("the field in {} has no bounds", args.field.display()))?;
-    println!(
+    say!(
+        out,
         "field {}: {} over min {} max {}",
         args.field.display(),
         describe(&field),
         point(bounds.min()),
         point(bounds.max())
-    );
+    )?;
 
     let l0 = voxel::l0(&bounds);
     let (h, how) = match (args.resolution, args.voxel) {
@@ -183,13 +216,14 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
     let c = grid.counts();
     let samples = grid.len();
-    println!(
+    say!(
+        out,
         "grid {}×{}×{} = {samples} samples, voxel {} ({how})",
         c[0],
         c[1],
         c[2],
         g(h)
-    );
+    )?;
     let need = voxel::estimate_bytes(&grid);
     if let Some(available) = available_memory()
         && need > available
@@ -216,16 +250,21 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let report = check(&mesh);
     let checking = start.elapsed();
-    println!(
+    say!(
+        out,
         "mesh: {} vertices, {} triangles at level {}",
         mesh.num_vertices(),
         mesh.num_triangles(),
         g(args.level)
-    );
+    )?;
     if mesh.is_empty() {
-        println!("the level set does not cross the grid: the mesh is empty");
+        say!(
+            out,
+            "the level set does not cross the grid: the mesh is empty"
+        )?;
     }
-    println!(
+    say!(
+        out,
         "report: {}, Euler characteristic {}, {} component(s), {} boundary edge(s), {} \
          non-manifold, signed volume {}, area {}",
         if report.closed { "closed" } else { "open" },
@@ -235,13 +274,14 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         report.non_manifold_edges,
         g(report.signed_volume),
         g(report.area)
-    );
+    )?;
 
     let start = Instant::now();
     write(&args.output, &mesh, format, args.ascii)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let writing = start.elapsed();
-    println!(
+    say!(
+        out,
         "wrote {} ({})",
         args.output.display(),
         match (format, args.ascii) {
@@ -249,15 +289,16 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             (Format::Ply, true) => "ASCII PLY",
             (Format::Ply, false) => "binary PLY",
         }
-    );
-    println!(
+    )?;
+    say!(
+        out,
         "time: read {}, mesh {}, check {}, write {}, total {}",
         seconds(reading),
         seconds(meshing),
         seconds(checking),
         seconds(writing),
         seconds(total.elapsed())
-    );
+    )?;
     Ok(())
 }
 

@@ -954,3 +954,152 @@ fn preview_is_in_the_help() {
         assert!(stdout(&o).contains(flag), "{flag}: {}", stdout(&o));
     }
 }
+
+// ---- --threads ----
+
+#[test]
+fn threads_do_not_change_the_report() {
+    let one = zeroset([
+        OsStr::new("--threads"),
+        OsStr::new("1"),
+        OsStr::new("info"),
+        sample().as_os_str(),
+    ]);
+    let three = zeroset([
+        OsStr::new("--threads"),
+        OsStr::new("3"),
+        OsStr::new("info"),
+        sample().as_os_str(),
+    ]);
+    assert!(one.status.success(), "{}", stderr(&one));
+    assert!(three.status.success(), "{}", stderr(&three));
+    assert!(!one.stdout.is_empty());
+    assert_eq!(stdout(&one), stdout(&three));
+    // Global: also accepted after the subcommand.
+    let after = info(&sample(), &["--threads", "2"]);
+    assert!(after.status.success(), "{}", stderr(&after));
+    assert_eq!(stdout(&one), stdout(&after));
+}
+
+#[test]
+fn threads_zero_is_a_clear_error() {
+    for bad in ["0", "x", "-1"] {
+        let o = zeroset([
+            OsStr::new("--threads"),
+            OsStr::new(bad),
+            OsStr::new("info"),
+            sample().as_os_str(),
+        ]);
+        assert!(!o.status.success(), "--threads {bad} accepted");
+        assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+        assert!(stderr(&o).contains("at least 1"), "{}", stderr(&o));
+        assert!(o.stdout.is_empty());
+    }
+    let o = zeroset(["--help"]);
+    assert!(stdout(&o).contains("--threads"), "{}", stdout(&o));
+}
+
+#[test]
+fn mesh_is_identical_for_any_thread_count() {
+    let (dir, field) = sphere_field();
+    let mut plys = Vec::new();
+    for n in ["1", "2"] {
+        let out = dir.path().join(format!("s{n}.ply"));
+        let mut args: Vec<&OsStr> = vec![OsStr::new("--threads"), OsStr::new(n)];
+        args.extend([
+            OsStr::new("mesh"),
+            field.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+            OsStr::new("--quiet"),
+            OsStr::new("--resolution"),
+            OsStr::new("24"),
+        ]);
+        let o = zeroset(args);
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        plys.push(fs::read(&out).unwrap());
+    }
+    assert!(!plys[0].is_empty());
+    assert!(plys[0] == plys[1], "the PLY files differ");
+}
+
+// ---- zeroset info on a mesh ----
+
+#[test]
+fn info_reports_a_ply_mesh() {
+    let path = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/bun_zipper.ply"
+    ));
+    if !path.is_file() {
+        eprintln!("skipped: {} not found", path.display());
+        return;
+    }
+    let o = info(&path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for text in [
+        "ply (mesh)",
+        "triangles:   69451",
+        "used by triangles",
+        "closed:      no",
+        "in 5 loops",
+        "0 non-manifold",
+        "0 inconsistent",
+        "Euler characteristic -3",
+        "1 component",
+        "volume:",
+        "area:",
+        "bounds:",
+    ] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+}
+
+#[test]
+fn info_reports_a_written_mesh_and_keeps_point_clouds() {
+    let (dir, field) = sphere_field();
+    let ply = dir.path().join("s.ply");
+    let o = mesh(&field, &ply, &["--resolution", "20"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = info(&ply, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for text in ["ply (mesh)", "closed:      yes", "Euler characteristic 2"] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+    // A PLY without faces is still a point cloud.
+    let (_d, cloud) = temp_file("cloud.ply", &sphere_ply(50));
+    let o = info(&cloud, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("50 points"), "{}", stdout(&o));
+    assert!(!stdout(&o).contains("mesh"), "{}", stdout(&o));
+}
+
+#[test]
+fn mesh_survives_a_closed_stdout() {
+    use std::process::Stdio;
+    let (dir, field) = sphere_field();
+    let out = dir.path().join("p.ply");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_zeroset"))
+        .args([
+            OsStr::new("mesh"),
+            field.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+            OsStr::new("--quiet"),
+            OsStr::new("--resolution"),
+            OsStr::new("16"),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the read end at once, like `| head -0`.
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.is_file(), "the mesh was not written");
+}

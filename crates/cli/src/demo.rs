@@ -19,7 +19,7 @@ use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix};
 use zeroset_field_core::mask::{BoxMask, Face, Side};
-use zeroset_mesh::preview::{RenderOptions, render_mesh};
+use zeroset_mesh::preview::{Axis, RenderOptions, View, render_mesh};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, check, mesh_field, write_ply};
 use zeroset_restore::protrusion::Protrusion;
@@ -29,6 +29,9 @@ use zeroset_solvers::{
     Cgls, DenseQr, DirichletLaplacian, IterativeParams, Lsqr, NormalLu, Pcg, PcgParams,
     SparseCholesky, SparseQr,
 };
+
+/// The azimuth of the demo's bunny render, in degrees about +y from +z towards +x.
+const BUNNY_AZIMUTH: f64 = -45.0;
 
 /// The bundled sample (Stanford bunny, 2,000 oriented points; see `samples/README.md`).
 const SAMPLE: &str = include_str!("../../../samples/bunny_2k.xyzn");
@@ -346,7 +349,16 @@ fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
 
     let start = Instant::now();
     let png = out.join("bunny.png");
-    let image = render_mesh(&mesh, &RenderOptions::default()).context("rendering the mesh")?;
+    // The bunny's up is +y (samples/README.md): a front three-quarter view, upright.
+    let opts = RenderOptions {
+        view: View {
+            azimuth: BUNNY_AZIMUTH,
+            elevation: 20.0,
+        },
+        up: Axis::Y,
+        ..RenderOptions::default()
+    };
+    let image = render_mesh(&mesh, &opts).context("rendering the mesh")?;
     image
         .write_png(&png)
         .with_context(|| format!("writing {}", png.display()))?;

@@ -29,7 +29,7 @@ use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
 use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
-use crate::restore::{cubic_counts, parse_counts, same_file};
+use crate::restore::{cubic_counts, parse_counts};
 
 /// Shown after `zeroset fit --help`.
 pub const EXAMPLES: &str = "\
@@ -150,6 +150,10 @@ pub struct FitArgs {
     #[arg(short, long, value_name = "FIELD")]
     pub output: Option<PathBuf>,
 
+    /// With -o: overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
+
     /// With -o: save the RBF field sampled on --grid over the cloud's box grown by 5% of its
     /// diagonal and interpolated by a quadratic B-spline, instead of the RBF field itself.
     #[arg(long)]
@@ -238,15 +242,7 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
         );
     }
     if let Some(output) = &args.output {
-        if output.extension().and_then(|e| e.to_str()) != Some("zsf") {
-            bail!("the output {} must be a .zsf field file", output.display());
-        }
-        if same_file(&args.points, output) {
-            bail!(
-                "the output would overwrite the input {}; choose another name",
-                args.points.display()
-            );
-        }
+        crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
     } else if args.grid.is_some() {
         bail!("--grid is the grid of the -o field file; give -o FIELD.zsf too");
     } else if args.sampled {

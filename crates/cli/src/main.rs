@@ -11,6 +11,7 @@ mod demo;
 mod fit;
 mod info;
 mod mesh;
+mod output;
 mod preview;
 mod restore;
 

@@ -22,7 +22,6 @@ use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
 use crate::info::{g, point};
-use crate::restore::same_file;
 
 /// Shown after `zeroset mesh --help`.
 pub const EXAMPLES: &str = "\
@@ -318,45 +317,14 @@ pub(crate) fn describe(field: &AnyField<3>) -> String {
 /// --force and a missing directory — all before any work.
 fn check_output(args: &MeshArgs) -> anyhow::Result<Format> {
     let out = &args.output;
-    let ext = out
+    crate::output::check_output(out, &[&args.field], args.force, &["ply", "obj"])?;
+    let obj = out
         .extension()
         .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let format = match ext.as_deref() {
-        Some("ply") => Format::Ply,
-        Some("obj") => Format::Obj,
-        _ => bail!(
-            "the output {} must end in .ply or .obj (the extension picks the format)",
-            out.display()
-        ),
-    };
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    let format = if obj { Format::Obj } else { Format::Ply };
     if args.ascii && format == Format::Obj {
         bail!("--ascii applies to PLY output (OBJ is always text)");
-    }
-    if same_file(&args.field, out) {
-        bail!(
-            "the output would overwrite the input {}; choose another name",
-            args.field.display()
-        );
-    }
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!(
-            "the output directory {} does not exist (or is not a directory)",
-            dir.display()
-        );
-    }
-    if out.is_dir() {
-        bail!("the output {} is a directory", out.display());
-    }
-    if out.exists() && !args.force {
-        bail!(
-            "the output {} exists; pass --force to overwrite it",
-            out.display()
-        );
     }
     Ok(format)
 }

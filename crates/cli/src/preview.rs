@@ -21,8 +21,6 @@ use zeroset_mesh::preview::{
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, TriMesh, mesh_field, read_ply_mesh};
 
-use crate::restore::same_file;
-
 /// Shown after `zeroset preview --help`.
 pub const EXAMPLES: &str = "\
 Examples:
@@ -251,40 +249,7 @@ fn render(args: &PreviewArgs, mesh: &TriMesh) -> anyhow::Result<Image> {
 /// Refuses a non-.png output, the input, a missing directory, a directory and an existing file
 /// without --force — all before any work.
 fn check_output(args: &PreviewArgs) -> anyhow::Result<()> {
-    let out = &args.output;
-    let png = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !png {
-        bail!("the output {} must end in .png", out.display());
-    }
-    if same_file(&args.input, out) {
-        bail!(
-            "the output would overwrite the input {}; choose another name",
-            args.input.display()
-        );
-    }
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!(
-            "the output directory {} does not exist (or is not a directory)",
-            dir.display()
-        );
-    }
-    if out.is_dir() {
-        bail!("the output {} is a directory", out.display());
-    }
-    if out.exists() && !args.force {
-        bail!(
-            "the output {} exists; pass --force to overwrite it",
-            out.display()
-        );
-    }
-    Ok(())
+    crate::output::check_output(&args.output, &[&args.input], args.force, &["png"])
 }
 
 fn seconds(d: Duration) -> String {

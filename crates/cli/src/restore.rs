@@ -99,22 +99,15 @@ pub struct RestoreArgs {
     /// The output field file (.zsf), written atomically.
     #[arg(short, long)]
     pub output: PathBuf,
+
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `zeroset restore`.
 pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
-    if args.output.extension().and_then(|e| e.to_str()) != Some("zsf") {
-        bail!(
-            "the output {} must be a .zsf field file",
-            args.output.display()
-        );
-    }
-    if same_file(&args.input, &args.output) {
-        bail!(
-            "the output would overwrite the input {}; choose another name",
-            args.input.display()
-        );
-    }
+    crate::output::check_output(&args.output, &[&args.input], args.force, &["zsf"])?;
     let start = Instant::now();
     let (field, default_grid) = load(args)?;
     let grid = match args.grid {

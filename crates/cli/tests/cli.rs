@@ -596,7 +596,7 @@ fn fit_writes_a_field_file_that_restore_takes() {
         stderr(&o)
     );
     assert_eq!(fs::read(&field).unwrap(), field_bytes);
-    let o = fit(&field, &["-o", smooth.to_str().unwrap()]);
+    let o = fit(&field, &["-o", smooth.to_str().unwrap(), "--force"]);
     assert_clean_failure(&o);
     assert!(stderr(&o).contains("is a field file"), "{}", stderr(&o));
 }
@@ -1102,4 +1102,48 @@ fn mesh_survives_a_closed_stdout() {
     assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file(), "the mesh was not written");
+}
+
+#[test]
+fn fit_and_restore_refuse_an_existing_output_without_force() {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(100));
+    let out = dir.path().join("field.zsf");
+    fs::write(&out, "keep me").unwrap();
+
+    // fit -o: refused without --force, the file left as it was.
+    let o = fit(&path, &["-o", out.to_str().unwrap()]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(fs::read_to_string(&out).unwrap(), "keep me");
+    // With --force it is overwritten by a field file.
+    let o = fit(&path, &["-o", out.to_str().unwrap(), "--force"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(&fs::read(&out).unwrap()[..8], b"ZSFIELD\0");
+
+    // restore -o: the same.
+    let restored = dir.path().join("restored.zsf");
+    fs::write(&restored, "keep me").unwrap();
+    let restore = |extra: &[&str]| {
+        let mut args: Vec<&OsStr> = vec![
+            OsStr::new("restore"),
+            path.as_os_str(),
+            OsStr::new("--mode"),
+            OsStr::new("protrusion"),
+            OsStr::new("--mask"),
+            OsStr::new("0.1,0.1,0.1:0.3,0.3,0.3"),
+            OsStr::new("--grid"),
+            OsStr::new("16,16,16"),
+            OsStr::new("-o"),
+            restored.as_os_str(),
+        ];
+        args.extend(extra.iter().map(OsStr::new));
+        zeroset(args)
+    };
+    let o = restore(&[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(fs::read_to_string(&restored).unwrap(), "keep me");
+    let o = restore(&["--force"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(&fs::read(&restored).unwrap()[..8], b"ZSFIELD\0");
 }

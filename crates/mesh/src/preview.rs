@@ -21,6 +21,13 @@
 //! right is `r = (−sin φ, cos φ, 0)` and up is `u = d × r`, so `+z` points up on screen for
 //! `|θ| < 90°`. The projected bounds fill the image with a 5% margin, aspect ratio kept.
 //!
+//! [`RenderOptions::up`] picks the world axis drawn upward on screen (default [`Axis::Z`]); the
+//! azimuth is then measured about that axis and the elevation above the plane normal to it. The
+//! mesh is first moved into the frame `(x', y', z')` where the up axis is `z'`, by a cyclic
+//! (handedness-preserving) permutation: up `+x` uses `(y, z, x)`, up `+y` uses `(z, x, y)`, up
+//! `+z` leaves the mesh as it is. So a render with up `+y` is exactly the render, with up `+z`,
+//! of the mesh with each point `(x, y, z)` replaced by `(z, x, y)`.
+//!
 //! ## Rasterisation
 //!
 //! A pixel is covered by a triangle when its centre lies inside or on the triangle's edges
@@ -47,6 +54,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use zeroset_field_core::field::ScalarField;
@@ -178,6 +186,36 @@ impl Default for View {
     }
 }
 
+/// A world axis: [`RenderOptions::up`], the axis drawn upward on screen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Axis {
+    /// `+x`.
+    X,
+    /// `+y` (e.g. the Stanford bunny).
+    Y,
+    /// `+z` (the default).
+    #[default]
+    Z,
+}
+
+impl Axis {
+    /// The coordinate index: 0, 1 or 2.
+    pub fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+
+    /// Maps a world point into the frame where this axis is the third coordinate, by a cyclic
+    /// permutation (see the [module docs](self#camera)).
+    fn to_up_frame(self, p: &Point<3>) -> Point<3> {
+        let k = self.index();
+        [p[(k + 1) % 3], p[(k + 2) % 3], p[k]]
+    }
+}
+
 /// How [`render_mesh`] draws.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
@@ -187,6 +225,9 @@ pub struct RenderOptions {
     pub height: usize,
     /// Where the camera looks from.
     pub view: View,
+    /// The world axis drawn upward on screen: the [`View`]'s azimuth is measured about it and
+    /// its elevation above the plane normal to it (see the [module docs](self#camera)).
+    pub up: Axis,
     /// The colour where no triangle is drawn.
     pub background: [u8; 3],
     /// The base colour of front faces (back faces get a darker, warmer shade of it).
@@ -194,12 +235,13 @@ pub struct RenderOptions {
 }
 
 impl Default for RenderOptions {
-    /// 512 × 512, the default [`View`], a white background, light steel-blue surface.
+    /// 512 × 512, the default [`View`], `+z` up, a white background, light steel-blue surface.
     fn default() -> Self {
         Self {
             width: 512,
             height: 512,
             view: View::default(),
+            up: Axis::Z,
             background: [255, 255, 255],
             colour: [176, 196, 222],
         }
@@ -260,8 +302,17 @@ pub fn render_mesh(mesh: &TriMesh, opts: &RenderOptions) -> Result<Image> {
     // Light from the viewer, a little up and to the left.
     let light = normalised([0, 1, 2].map(|i| d[i] + 0.35 * u[i] - 0.25 * r[i]));
 
+    // Work in the frame where the up axis is the third coordinate.
+    let (verts, normals): (Cow<[Point<3>]>, Cow<[Point<3>]>) = match opts.up {
+        Axis::Z => (mesh.vertices().into(), mesh.normals().into()),
+        up => (
+            mesh.vertices().iter().map(|p| up.to_up_frame(p)).collect(),
+            mesh.normals().iter().map(|p| up.to_up_frame(p)).collect(),
+        ),
+    };
+    let (verts, normals) = (&*verts, &*normals);
+
     // Fit the projection to the vertices the triangles use.
-    let verts = mesh.vertices();
     let mut used = vec![false; verts.len()];
     for tri in mesh.triangles() {
         for &v in tri {
@@ -305,7 +356,6 @@ pub fn render_mesh(mesh: &TriMesh, opts: &RenderOptions) -> Result<Image> {
     let base = opts.colour.map(f64::from);
     let back_base: [f64; 3] =
         [0, 1, 2].map(|i| (1.0 - BACK_TINT_WEIGHT) * base[i] + BACK_TINT_WEIGHT * BACK_TINT[i]);
-    let normals = mesh.normals();
     let mut image = Image::filled(opts.width, opts.height, opts.background)?;
     let mut depth = vec![f64::NEG_INFINITY; opts.width * opts.height];
 
@@ -643,6 +693,67 @@ mod tests {
         let s1 = render_slice(&f, bounds, 1, 0.1, 97).unwrap();
         let s2 = render_slice(&f, bounds, 1, 0.1, 97).unwrap();
         assert_eq!(s1.to_png_bytes(), s2.to_png_bytes());
+    }
+
+    /// An asymmetric mesh with vertex normals, so that a wrong axis mapping shows.
+    fn lopsided() -> TriMesh {
+        let mut v = cube().vertices().to_vec();
+        for (i, p) in v.iter_mut().enumerate() {
+            let t = i as f64;
+            *p = [
+                p[0] * 1.7 + 0.1 * t,
+                p[1] * 0.8 - 0.05 * t,
+                p[2] * 1.2 + 0.3,
+            ];
+        }
+        let n: Vec<Point<3>> = v.iter().map(|p| normalised(*p)).collect();
+        TriMesh::new(v, cube().triangles().to_vec())
+            .unwrap()
+            .with_normals(n)
+            .unwrap()
+    }
+
+    #[test]
+    fn up_axis_is_a_cyclic_relabelling() {
+        let mesh = lopsided();
+        let view = View {
+            azimuth: 20.0,
+            elevation: 15.0,
+        };
+        let opts = |up| RenderOptions {
+            width: 160,
+            height: 120,
+            view,
+            up,
+            ..RenderOptions::default()
+        };
+        // Up +y: (x, y, z) -> (z, x, y); up +x: (x, y, z) -> (y, z, x).
+        type Relabel = fn(&Point<3>) -> Point<3>;
+        let cases: [(Axis, Relabel); 2] = [
+            (Axis::Y, |p| [p[2], p[0], p[1]]),
+            (Axis::X, |p| [p[1], p[2], p[0]]),
+        ];
+        let z_up = render_mesh(&mesh, &opts(Axis::Z)).unwrap();
+        for (up, map) in cases {
+            let moved = TriMesh::new(
+                mesh.vertices().iter().map(map).collect(),
+                mesh.triangles().to_vec(),
+            )
+            .unwrap()
+            .with_normals(mesh.normals().iter().map(map).collect())
+            .unwrap();
+            let a = render_mesh(&mesh, &opts(up)).unwrap();
+            let b = render_mesh(&moved, &opts(Axis::Z)).unwrap();
+            assert_eq!(a, b, "{up:?}");
+            assert_ne!(a, z_up, "{up:?}");
+        }
+        // The default is +z up.
+        assert_eq!(RenderOptions::default().up, Axis::Z);
+        let default_up = RenderOptions {
+            up: Axis::default(),
+            ..opts(Axis::Z)
+        };
+        assert_eq!(render_mesh(&mesh, &default_up).unwrap(), z_up);
     }
 
     fn sphere(r: f64) -> impl ScalarField<3> {

@@ -2,8 +2,9 @@
 //! solves a restoration-shaped least-squares problem with every solver (how long each took,
 //! iterations, residuals, and how far each answer is from the sparse-QR reference — the
 //! solvers must agree), removes the bunny's ears by protrusion removal, and finally runs the
-//! whole pipeline on the sample: an RBF fit, its zero set meshed by marching cubes, written as
-//! a binary PLY with a shaded PNG preview and a text report (in `./zeroset-demo/` or `--out`).
+//! whole pipeline on the sample: an RBF fit, sampled on a grid, its ears removed, the restored
+//! zero set meshed by marching cubes, written as a binary PLY with a shaded PNG preview (and
+//! the unrestored fit's for comparison) and a text report (in `./zeroset-demo/` or `--out`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -13,6 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::rbf::{Biharmonic, Constraints, Offset, RbfFit, Solver};
 use zeroset_bases::tangent_plane::TangentPlaneField;
 use zeroset_field_core::field::ScalarField;
@@ -21,7 +23,7 @@ use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix};
 use zeroset_field_core::mask::{BoxMask, Face, Side};
 use zeroset_mesh::preview::{Axis, RenderOptions, View, render_mesh};
 use zeroset_mesh::voxel::{self, Detail};
-use zeroset_mesh::{McOptions, PlyFormat, check, mesh_field, write_ply};
+use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_ply};
 use zeroset_restore::protrusion::Protrusion;
 use zeroset_solvers::kernels::max_abs_diff;
 use zeroset_solvers::problems::protrusion_problem;
@@ -42,7 +44,7 @@ Examples:
   zeroset demo                 the bundled bunny sample, then all solvers at k = 16
   zeroset demo --k 24          a bigger restoration problem (13,824 unknowns)
   zeroset demo --k 8 --quiet   small enough for the dense solvers too; no progress spinner
-  zeroset demo --out /tmp/zd   the pipeline's bunny.ply, bunny.png and report.txt go to /tmp/zd";
+  zeroset demo --out /tmp/zd   the pipeline's bunny{,_fitted}.{ply,png} and report.txt go to /tmp/zd";
 
 /// The default output directory of the pipeline step.
 const DEFAULT_OUT: &str = "zeroset-demo";
@@ -61,7 +63,8 @@ pub struct DemoArgs {
     #[arg(long)]
     pub quiet: bool,
 
-    /// Directory for the pipeline's bunny.ply, bunny.png and report.txt (created if missing).
+    /// Directory for the pipeline's bunny.ply, bunny.png (restored), bunny_fitted.ply,
+    /// bunny_fitted.png and report.txt (created if missing).
     #[arg(long, value_name = "DIR", default_value = DEFAULT_OUT)]
     pub out: PathBuf,
 }
@@ -259,14 +262,59 @@ fn secs(d: Duration) -> String {
     format!("{:.2} s", d.as_secs_f64())
 }
 
+/// Cells along the longest axis of the grid the fitted field is sampled on for restoration.
+const PIPELINE_CELLS: usize = 96;
+
+/// One mesh's figures for the pipeline's report.
+fn mesh_figures(mesh: &TriMesh) -> (String, f64) {
+    let m = check(mesh);
+    let max_y = mesh
+        .vertices()
+        .iter()
+        .map(|p| p[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    (
+        format!(
+            "{} vertices, {} triangles, {}, Euler characteristic {}, volume {:.6}, max y {max_y:.4}",
+            mesh.num_vertices(),
+            mesh.num_triangles(),
+            if m.closed { "closed" } else { "open" },
+            m.euler_characteristic,
+            m.signed_volume,
+        ),
+        max_y,
+    )
+}
+
+/// Meshes `field`'s zero set on the general l0 grid over its box, the boundary closed.
+fn mesh_zero_set<F: ScalarField<3> + ?Sized>(field: &F) -> anyhow::Result<(TriMesh, String)> {
+    let bounds = field.bounds().context("the field has no bounds")?;
+    let h = voxel::voxel_size(&bounds, Detail::General);
+    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the meshing grid")?;
+    let mesh = mesh_field(
+        field,
+        &grid,
+        0.0,
+        &McOptions::default().with_close_boundary(true),
+    )
+    .context("extracting the zero set")?;
+    let c = grid.counts();
+    Ok((
+        mesh,
+        format!("grid {}×{}×{} (voxel {h:.4}, general l0)", c[0], c[1], c[2]),
+    ))
+}
+
 /// The whole pipeline on the bundled sample: RBF fit (kernel r, off-surface constraints, auto
-/// solver), marching cubes on the general l0 grid with the boundary closed, a binary PLY, a
-/// shaded PNG and a text report in `out` (each written atomically).
+/// solver), the fit sampled on a grid and its ears removed by protrusion removal (a quadratic
+/// B-spline field), both the restored and the fitted field meshed by marching cubes on the
+/// general l0 grid with the boundary closed, binary PLYs, shaded PNGs and a text report in
+/// `out` (each written atomically).
 fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
     let total = Instant::now();
     println!();
     println!(
-        "== pipeline: fit → mesh → preview, into {} ==",
+        "== pipeline: fit → restore → mesh → preview, into {} ==",
         out.display()
     );
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -301,54 +349,89 @@ fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
             secs(fit_time)
         ),
     );
+    let field = &fitted.field;
 
     let start = Instant::now();
-    let field = &fitted.field;
     let bounds = field.bounds().context("the fitted field has no bounds")?;
-    let h = voxel::voxel_size(&bounds, Detail::General);
-    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
-    let mesh = mesh_field(
-        field,
-        &grid,
-        0.0,
-        &McOptions::default().with_close_boundary(true),
-    )
-    .context("extracting the zero set")?;
-    let mesh_time = start.elapsed();
+    let grid = Grid::cell_centered(
+        bounds,
+        crate::restore::cubic_counts(&bounds, PIPELINE_CELLS),
+    )?;
+    let samples = grid.sample(field);
     let c = grid.counts();
-    let m = check(&mesh);
     step(
         &mut report,
         format!(
-            "mesh: grid {}×{}×{} (voxel {h:.4}, general l0), {} vertices, {} triangles, {}, \
-             Euler characteristic {}, volume {:.6}, {}",
+            "sample: the fit on {}×{}×{} cells ({} values), {}",
             c[0],
             c[1],
             c[2],
-            mesh.num_vertices(),
-            mesh.num_triangles(),
-            if m.closed { "closed" } else { "open" },
-            m.euler_characteristic,
-            m.signed_volume,
-            secs(mesh_time)
-        ),
-    );
-
-    let start = Instant::now();
-    let ply = out.join("bunny.ply");
-    write_ply(&ply, &mesh, PlyFormat::BinaryLittleEndian)
-        .with_context(|| format!("writing {}", ply.display()))?;
-    step(
-        &mut report,
-        format!(
-            "wrote {} (binary PLY), {}",
-            ply.display(),
+            samples.len(),
             secs(start.elapsed())
         ),
     );
 
     let start = Instant::now();
-    let png = out.join("bunny.png");
+    let mask = BoxMask::from_corners(&grid, EAR_MASK.0, EAR_MASK.1)?;
+    let p = Protrusion::new(Face::new(1, Side::Lower)).with_alpha(1.0);
+    let (g, r) = p
+        .restore_samples(&grid, &samples, &mask)
+        .context("removing the ears")?;
+    let restored = BSplineField::interpolate(grid, g, Degree::Quadratic)
+        .context("interpolating the restored samples")?;
+    let restore_time = start.elapsed();
+    let start = Instant::now();
+    let (h, base) = (grid.spacing()[1], EAR_MASK.0[1]);
+    // Before: the unrestored samples' spline (the RBF evaluated point by point is much slower).
+    let unrestored = BSplineField::interpolate(grid, samples, Degree::Quadratic)
+        .context("interpolating the fitted samples")?;
+    let top_before = (highest_inside(&unrestored, &grid, &mask) - base) / h;
+    let top_after = (highest_inside(&restored, &grid, &mask) - base) / h;
+    step(
+        &mut report,
+        format!(
+            "restore: ears removed (protrusion, mask {:?} .. {:?}, face -y, alpha 1), {} \
+             unknowns, solver {}, rel residual {:.2e}, ears' top {top_before:.1} → \
+             {top_after:.1} cells above the mask's bottom, {} (measuring the ears {})",
+            EAR_MASK.0,
+            EAR_MASK.1,
+            r.unknowns,
+            r.solve.solver,
+            r.solve.rel_residual,
+            secs(restore_time),
+            secs(start.elapsed())
+        ),
+    );
+
+    let start = Instant::now();
+    let (mesh, grid_text) = mesh_zero_set(&restored)?;
+    let (figures, restored_y) = mesh_figures(&mesh);
+    step(
+        &mut report,
+        format!(
+            "mesh (restored): {grid_text}, {figures}, {}",
+            secs(start.elapsed())
+        ),
+    );
+
+    let start = Instant::now();
+    let (fitted_mesh, grid_text) = mesh_zero_set(field)?;
+    let (figures, fitted_y) = mesh_figures(&fitted_mesh);
+    step(
+        &mut report,
+        format!(
+            "mesh (fitted): {grid_text}, {figures}, {}",
+            secs(start.elapsed())
+        ),
+    );
+    step(
+        &mut report,
+        format!(
+            "max y: fitted {fitted_y:.4}, restored {restored_y:.4} (ears {:.4} lower)",
+            fitted_y - restored_y
+        ),
+    );
+
     // The bunny's up is +y (samples/README.md): a front three-quarter view, upright.
     let opts = RenderOptions {
         view: View {
@@ -358,20 +441,37 @@ fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
         up: Axis::Y,
         ..RenderOptions::default()
     };
-    let image = render_mesh(&mesh, &opts).context("rendering the mesh")?;
-    image
-        .write_png(&png)
-        .with_context(|| format!("writing {}", png.display()))?;
-    step(
-        &mut report,
-        format!(
-            "wrote {} ({}×{} PNG), {}",
-            png.display(),
-            image.width(),
-            image.height(),
-            secs(start.elapsed())
-        ),
-    );
+    for (name, mesh) in [("bunny", &mesh), ("bunny_fitted", &fitted_mesh)] {
+        let start = Instant::now();
+        let ply = out.join(format!("{name}.ply"));
+        write_ply(&ply, mesh, PlyFormat::BinaryLittleEndian)
+            .with_context(|| format!("writing {}", ply.display()))?;
+        step(
+            &mut report,
+            format!(
+                "wrote {} (binary PLY), {}",
+                ply.display(),
+                secs(start.elapsed())
+            ),
+        );
+
+        let start = Instant::now();
+        let png = out.join(format!("{name}.png"));
+        let image = render_mesh(mesh, &opts).context("rendering the mesh")?;
+        image
+            .write_png(&png)
+            .with_context(|| format!("writing {}", png.display()))?;
+        step(
+            &mut report,
+            format!(
+                "wrote {} ({}×{} PNG), {}",
+                png.display(),
+                image.width(),
+                image.height(),
+                secs(start.elapsed())
+            ),
+        );
+    }
 
     let txt = out.join("report.txt");
     let _ = writeln!(report, "pipeline total {}", secs(total.elapsed()));

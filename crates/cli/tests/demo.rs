@@ -12,7 +12,7 @@ fn zeroset<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
 }
 
 #[test]
-fn demo_writes_a_closed_mesh_a_preview_and_a_report() {
+fn demo_writes_restored_and_fitted_meshes_previews_and_a_report() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("nested").join("demo");
     let start = Instant::now();
@@ -32,15 +32,37 @@ fn demo_writes_a_closed_mesh_a_preview_and_a_report() {
     assert!(took < Duration::from_secs(60), "demo took {took:?}");
     assert!(stdout.contains("== pipeline"), "{stdout}");
 
-    let mesh = zeroset_mesh::io::read_ply_mesh(out.join("bunny.ply")).expect("reading the PLY");
-    assert!(mesh.num_triangles() > 0);
-    let report = zeroset_mesh::checks::check(&mesh);
-    assert!(report.closed, "{report:?}");
-    assert_eq!(report.euler_characteristic, 2, "{report:?}");
-    assert!(report.signed_volume > 0.0, "{report:?}");
+    // The restored (earless) bunny and the unrestored fit: both closed spheres.
+    let mut max_y = Vec::new();
+    for name in ["bunny", "bunny_fitted"] {
+        let mesh = zeroset_mesh::io::read_ply_mesh(out.join(format!("{name}.ply")))
+            .unwrap_or_else(|e| panic!("reading {name}.ply: {e}"));
+        assert!(mesh.num_triangles() > 0, "{name}");
+        let report = zeroset_mesh::checks::check(&mesh);
+        assert!(report.closed, "{name}: {report:?}");
+        assert_eq!(report.euler_characteristic, 2, "{name}: {report:?}");
+        assert!(report.signed_volume > 0.0, "{name}: {report:?}");
+        max_y.push(
+            mesh.vertices()
+                .iter()
+                .map(|p| p[1])
+                .fold(f64::NEG_INFINITY, f64::max),
+        );
 
-    let png = std::fs::read(out.join("bunny.png")).expect("reading the PNG");
-    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+        let png = std::fs::read(out.join(format!("{name}.png")))
+            .unwrap_or_else(|e| panic!("reading {name}.png: {e}"));
+        assert!(
+            png.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "{name}.png is not a PNG"
+        );
+    }
+    // The ears are the bunny's highest part: removing them lowers the top.
+    assert!(
+        max_y[0] < max_y[1],
+        "restored max y {} not below fitted {}",
+        max_y[0],
+        max_y[1]
+    );
 
     let text = std::fs::read_to_string(out.join("report.txt")).expect("reading report.txt");
     for word in [
@@ -51,6 +73,9 @@ fn demo_writes_a_closed_mesh_a_preview_and_a_report() {
         "triangles",
         "closed",
         "Euler",
+        "restore",
+        "volume",
+        "bunny_fitted.ply",
     ] {
         assert!(text.contains(word), "report.txt lacks {word}: {text}");
     }

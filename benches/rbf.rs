@@ -9,6 +9,8 @@
 //! cargo bench --bench rbf -- fit       # one group
 //! ```
 
+#[path = "../examples/common/rbf_sphere.rs"]
+mod rbf_sphere;
 #[path = "../examples/common/rng.rs"]
 mod rng;
 
@@ -20,30 +22,8 @@ use zeroset::bases::rbf::{
 };
 use zeroset::core::field::ScalarField;
 
+use rbf_sphere::sphere_setup;
 use rng::SplitMix64;
-
-fn sphere_setup(n: usize) -> Constraints<3> {
-    let third = n / 3;
-    let on = n - 2 * third;
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let unit: Vec<[f64; 3]> = (0..on)
-        .map(|k| {
-            let z = 1.0 - (2 * k + 1) as f64 / on as f64;
-            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * golden);
-            [s * t.cos(), s * t.sin(), z]
-        })
-        .collect();
-    let at = |u: &[f64; 3], r: f64| u.map(|v| 0.5 + r * v);
-    let mut c = Constraints::new();
-    for u in &unit {
-        c.push_value(at(u, 0.35), 0.0);
-    }
-    for u in &unit[..third] {
-        c.push_value(at(u, 0.40), 0.05);
-        c.push_value(at(u, 0.30), -0.05);
-    }
-    c
-}
 
 fn fit_bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("fit");

@@ -20,20 +20,23 @@
 //! `--write-dir DIR` it writes the samples as raw little-endian f64,
 //! `DIR/mc_{shape}_{n}.f64` (read them with `numpy.fromfile(path).reshape(n, n, n)`).
 
+#[path = "common/output.rs"]
+mod output;
 #[path = "common/timing.rs"]
 mod timing;
 
-use std::collections::HashMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use zeroset::core::analytic::{Sphere, Torus};
 use zeroset::core::field::ScalarField;
 use zeroset::core::geometry::Aabb;
 use zeroset::core::grid::Grid;
-use zeroset::mesh::TriMesh;
+use zeroset::mesh::checks::check;
 use zeroset::mesh::cubes::{McOptions, marching_cubes};
+
+use output::{write_f64, write_text};
 
 struct Args {
     sizes: Vec<usize>,
@@ -87,33 +90,6 @@ fn linspace(n: usize) -> Vec<f64> {
     x
 }
 
-/// Writes raw little-endian f64 values, atomically (a temporary file, then a rename).
-fn write_f64(path: &Path, values: &[f64]) -> std::io::Result<()> {
-    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let tmp = path.with_extension("f64.tmp");
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path)
-}
-
-/// `(V − E + F, every edge used once each way)`.
-fn topology(mesh: &TriMesh) -> (i64, bool) {
-    let mut uses: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
-    for t in mesh.triangles() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            let e = uses.entry((a.min(b), a.max(b))).or_default();
-            if a < b {
-                e.0 += 1;
-            } else {
-                e.1 += 1;
-            }
-        }
-    }
-    let watertight = uses.values().all(|&u| u == (1, 1));
-    let euler = mesh.num_vertices() as i64 - uses.len() as i64 + mesh.num_triangles() as i64;
-    (euler, watertight)
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
     let field: Box<dyn ScalarField<3>> = match args.shape.as_str() {
@@ -141,7 +117,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             times.push(start.elapsed());
         }
         let ms = timing::median(times).as_secs_f64() * 1e3;
-        let (euler, watertight) = topology(&mesh);
+        // Watertight: every edge in exactly two triangles, traversed once each way.
+        let report = check(&mesh);
+        let (euler, watertight) = (
+            report.euler_characteristic,
+            report.closed && report.inconsistent_edges == 0,
+        );
         let h = 1.0 / (n - 1) as f64;
         let max_sdf = mesh
             .vertices()
@@ -167,13 +148,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
         if let Some(dir) = &args.write_dir {
             std::fs::create_dir_all(dir)?;
-            write_f64(&dir.join(format!("mc_{}_{n}.f64", args.shape)), &values)?;
+            write_f64(
+                &dir.join(format!("mc_{}_{n}.f64", args.shape)),
+                values.iter().copied(),
+            )?;
         }
     }
     if let Some(path) = &args.csv {
-        let tmp = path.with_extension("csv.tmp");
-        std::fs::write(&tmp, csv)?;
-        std::fs::rename(&tmp, path)?;
+        write_text(path, &csv)?;
     }
     Ok(())
 }

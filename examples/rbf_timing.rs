@@ -21,6 +21,10 @@
 //! (`x,y,z`), numbers with 17 significant digits (exact round trip); `--csv FILE` writes
 //! `n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs`.
 
+#[path = "common/output.rs"]
+mod output;
+#[path = "common/rbf_sphere.rs"]
+mod rbf_sphere;
 #[path = "common/rng.rs"]
 mod rng;
 #[path = "common/timing.rs"]
@@ -35,13 +39,10 @@ use zeroset::bases::rbf::{
     Triharmonic,
 };
 use zeroset::core::field::ScalarField;
-use zeroset::core::io::write_atomic;
 
+use output::write_text;
+use rbf_sphere::{CENTRE, OFFSET, RADIUS, sphere_setup};
 use rng::SplitMix64;
-
-const CENTRE: f64 = 0.5;
-const RADIUS: f64 = 0.35;
-const OFFSET: f64 = 0.05;
 
 struct Args {
     ns: Vec<usize>,
@@ -106,30 +107,6 @@ fn parse_args() -> Result<Args, String> {
     Ok(args)
 }
 
-/// The sphere set-up's constraints (see the module docs).
-fn sphere_setup(n: usize) -> Constraints<3> {
-    let third = n / 3;
-    let on = n - 2 * third;
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let unit: Vec<[f64; 3]> = (0..on)
-        .map(|k| {
-            let z = 1.0 - (2 * k + 1) as f64 / on as f64;
-            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * golden);
-            [s * t.cos(), s * t.sin(), z]
-        })
-        .collect();
-    let at = |u: &[f64; 3], r: f64| u.map(|v| CENTRE + r * v);
-    let mut c = Constraints::new();
-    for u in &unit {
-        c.push_value(at(u, RADIUS), 0.0);
-    }
-    for u in &unit[..third] {
-        c.push_value(at(u, RADIUS + OFFSET), OFFSET);
-        c.push_value(at(u, RADIUS - OFFSET), -OFFSET);
-    }
-    c
-}
-
 fn signed_distance(p: &[f64; 3]) -> f64 {
     p.iter()
         .map(|v| (v - CENTRE) * (v - CENTRE))
@@ -150,8 +127,7 @@ fn write_csv(
         text.push_str(&cells.join(","));
         text.push('\n');
     }
-    write_atomic(path, |w| w.write_all(text.as_bytes()))?;
-    Ok(())
+    Ok(write_text(path, &text)?)
 }
 
 /// Median fit time (one run when a fit is slow) and the last fit.
@@ -303,7 +279,7 @@ fn run_all() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     if let Some(path) = &args.csv {
-        write_atomic(path, |w| w.write_all(csv.as_bytes()))?;
+        write_text(path, &csv)?;
     }
     Ok(())
 }

@@ -21,19 +21,22 @@
 //! axis-major: all first coordinates, then all second, then all third — the `coordinates`
 //! array of `map_coordinates`) and `DIR/values.f64` (`P`).
 
+#[path = "common/output.rs"]
+mod output;
 #[path = "common/rng.rs"]
 mod rng;
 #[path = "common/timing.rs"]
 #[allow(dead_code)] // only `median` is used here
 mod timing;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use zeroset::bases::bspline::{BSplineField, Boundary, Degree, prefilter};
 use zeroset::core::geometry::Aabb;
 use zeroset::core::grid::Grid;
 
+use output::write_f64;
 use rng::SplitMix64;
 
 struct Args {
@@ -93,14 +96,6 @@ fn parse_args() -> Result<Args, String> {
         return Err("--n and --repeat must be positive".into());
     }
     Ok(args)
-}
-
-/// Writes raw little-endian f64 values, atomically (a temporary file, then a rename).
-fn write_f64(path: &Path, values: impl IntoIterator<Item = f64>) -> std::io::Result<()> {
-    let bytes: Vec<u8> = values.into_iter().flat_map(f64::to_le_bytes).collect();
-    let tmp = path.with_extension("f64.tmp");
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path)
 }
 
 /// The thread count rayon uses: `RAYON_NUM_THREADS` if set, else the available parallelism.

@@ -64,6 +64,18 @@ def pin_blas_threads() -> str:
     return f"set to {n} for the scipy side (--blas-threads)"
 
 
+def int_list(p: argparse.ArgumentParser, value: str, flag: str, minimum: int, name: str = "n") -> list[int]:
+    """A comma-separated list of integers for `flag`, each at least `minimum` (`name` in the
+    message); exits through `p.error` otherwise. An empty string gives an empty list."""
+    try:
+        v = [int(x) for x in value.split(",") if x.strip()]
+    except ValueError:
+        p.error(f"{flag}: expected comma-separated integers, got {value!r}")
+    if any(x < minimum for x in v):
+        p.error(f"{flag}: {name} must be at least {minimum}")
+    return v
+
+
 # ---------------------------------------------------------------------------------------------
 # running and timing
 

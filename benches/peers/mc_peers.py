@@ -116,14 +116,9 @@ def parse_args() -> argparse.Namespace:
     common.add_blas_arg(p)
     a = p.parse_args()
 
-    try:
-        a.ns = [int(x) for x in a.n.split(",") if x.strip()]
-    except ValueError:
-        p.error(f"--n: expected comma-separated integers, got {a.n!r}")
+    a.ns = common.int_list(p, a.n, "--n", 4)
     if not a.ns:
         p.error("nothing to do: --n is empty")
-    if any(n < 4 for n in a.ns):
-        p.error("--n: n must be at least 4")
     for name in ("repeat", "skimage_repeat"):
         if getattr(a, name) < 1:
             p.error(f"--{name.replace('_', '-')} must be >= 1")

@@ -113,14 +113,9 @@ def parse_args() -> argparse.Namespace:
     common.add_blas_arg(p)
     a = p.parse_args()
 
-    try:
-        a.ns = [int(x) for x in a.n.split(",") if x.strip()]
-    except ValueError:
-        p.error(f"--n: expected comma-separated integers, got {a.n!r}")
+    a.ns = common.int_list(p, a.n, "--n", 12)
     if not a.ns:
         p.error("nothing to do: --n is empty")
-    if any(n < 12 for n in a.ns):
-        p.error("--n: n must be at least 12")
     a.kernel_list = [k.strip() for k in a.kernels.split(",") if k.strip()]
     if not a.kernel_list or any(k not in SCIPY_KERNEL for k in a.kernel_list):
         p.error(f"--kernels: expected a comma-separated subset of {sorted(SCIPY_KERNEL)}, got {a.kernels!r}")

@@ -92,13 +92,7 @@ def parse_args() -> argparse.Namespace:
     a = p.parse_args()
 
     def ks(s, flag):
-        try:
-            v = [int(x) for x in s.split(",") if x.strip()]
-        except ValueError:
-            p.error(f"{flag}: expected comma-separated integers, got {s!r}")
-        if any(k < 3 for k in v):
-            p.error(f"{flag}: k must be at least 3")
-        return v
+        return common.int_list(p, s, flag, 3, name="k")
 
     a.ks, a.ks_large = ks(a.k, "--k"), ks(a.k_large, "--k-large")
     if not a.ks and not a.ks_large:

@@ -89,13 +89,7 @@ def parse_args() -> argparse.Namespace:
     a = p.parse_args()
 
     def ints(s, flag):
-        try:
-            v = [int(x) for x in s.split(",") if x.strip()]
-        except ValueError:
-            p.error(f"{flag}: expected comma-separated integers, got {s!r}")
-        if any(x < 2 for x in v):
-            p.error(f"{flag}: n must be at least 2")
-        return v
+        return common.int_list(p, s, flag, 2)
 
     a.cases = [(n, "mirror") for n in ints(a.n, "--n")] + [(n, "reflect") for n in ints(a.reflect_n, "--reflect-n")]
     if not a.cases:

@@ -640,7 +640,7 @@ pub fn encode_rbf<K: StoredKernel, const D: usize>(field: &RbfField<K, D>) -> Ve
     let c = field.polynomial_coefficients();
     p.extend_from_slice(&(c.len() as u64).to_le_bytes());
     put_f64s(&mut p, c);
-    let bounds = ScalarField::bounds(field).expect("an RBF field has bounds");
+    let bounds = field.bounds;
     put_f64s(&mut p, bounds.min().iter().chain(bounds.max().iter()));
     let mut meta = vec![("kernel", tag.to_string())];
     if !params.is_empty() {
@@ -786,11 +786,13 @@ fn parse_frame<'a>(bytes: &'a [u8], path: &Path) -> Result<Frame<'a>, FieldFileE
             got: bytes.len(),
         });
     }
+    // The fixed header fields, all within the V2_HEADER bytes checked above.
     let mut cursor = Cursor { bytes, at: 12 };
-    let dim = cursor.u32().expect("length checked");
-    let kind = cursor.take(8).expect("length checked");
-    let meta_len = cursor.u32().expect("length checked") as usize;
-    let payload_len = cursor.u64().expect("length checked");
+    let short = || malformed("header shorter than its fixed fields".into());
+    let dim = cursor.u32().ok_or_else(short)?;
+    let kind = cursor.take(8).ok_or_else(short)?;
+    let meta_len = cursor.u32().ok_or_else(short)? as usize;
+    let payload_len = cursor.u64().ok_or_else(short)?;
     let expected = usize::try_from(payload_len)
         .ok()
         .and_then(|p| p.checked_add(V2_HEADER + meta_len + 4))
@@ -822,7 +824,14 @@ fn parse_frame<'a>(bytes: &'a [u8], path: &Path) -> Result<Frame<'a>, FieldFileE
 
 fn check_crc(bytes: &[u8], path: &Path) -> Result<(), FieldFileError> {
     let n = bytes.len();
-    let stored = u32::from_le_bytes(bytes[n - 4..].try_into().expect("4 bytes"));
+    let Some(&stored) = bytes.last_chunk::<4>() else {
+        return Err(FieldFileError::Truncated {
+            path: path.to_owned(),
+            expected: 4,
+            got: n,
+        });
+    };
+    let stored = u32::from_le_bytes(stored);
     let computed = crc32fast::hash(&bytes[..n - 4]);
     if stored != computed {
         return Err(FieldFileError::Checksum {
@@ -1093,17 +1102,19 @@ impl<'a> Cursor<'a> {
         self.at += n;
         Some(s)
     }
+    fn array<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let (head, _) = self.bytes.get(self.at..)?.split_first_chunk::<N>()?;
+        self.at += N;
+        Some(*head)
+    }
     fn u32(&mut self) -> Option<u32> {
-        self.take(4)
-            .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        self.array().map(u32::from_le_bytes)
     }
     fn u64(&mut self) -> Option<u64> {
-        self.take(8)
-            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+        self.array().map(u64::from_le_bytes)
     }
     fn f64(&mut self) -> Option<f64> {
-        self.take(8)
-            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+        self.array().map(f64::from_le_bytes)
     }
     fn point<const D: usize>(&mut self) -> Option<Point<D>> {
         let mut p = [0.0; D];
@@ -1116,8 +1127,10 @@ impl<'a> Cursor<'a> {
     fn f64s(&mut self, n: usize) -> Option<Vec<f64>> {
         let b = self.take(n.checked_mul(8)?)?;
         Some(
-            b.chunks_exact(8)
-                .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            b.as_chunks::<8>()
+                .0
+                .iter()
+                .map(|c| f64::from_le_bytes(*c))
                 .collect(),
         )
     }

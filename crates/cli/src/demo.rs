@@ -13,7 +13,6 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::rbf::{Biharmonic, Constraints, Offset, RbfFit, Solver};
 use zeroset_bases::tangent_plane::TangentPlaneField;
@@ -220,14 +219,7 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
         "{:<16} {:>10} {:>7} {:>11} {:>11} {:>13}",
         "solver", "time_ms", "iters", "rel_res", "rel_normal", "max|x - x_qr|"
     );
-    let spinner = if quiet {
-        ProgressBar::hidden()
-    } else {
-        let s = ProgressBar::new_spinner();
-        s.set_style(ProgressStyle::with_template("{spinner} {msg}").expect("valid template"));
-        s.enable_steady_tick(std::time::Duration::from_millis(100));
-        s
-    };
+    let spinner = crate::progress::spinner(quiet);
     let mut reference: Option<Vec<f64>> = None;
     for (label, solver) in &solvers {
         spinner.set_message(format!("solving with {label}"));

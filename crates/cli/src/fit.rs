@@ -10,7 +10,7 @@
 //! sampled on a grid over the cloud and interpolated by a quadratic B-spline.
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
@@ -29,6 +29,8 @@ use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
 use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
+use crate::machine::available_memory;
+use crate::progress::{seconds, spinner};
 use crate::restore::{cubic_counts, parse_counts};
 
 /// Shown after `zeroset fit --help`.
@@ -451,7 +453,7 @@ fn check_memory(args: &FitArgs, constraints: &Constraints<3>) -> anyhow::Result<
         return Ok(());
     }
     let bytes = 8.0 * (unknowns as f64).powi(2);
-    if let Some(available) = available_memory()
+    if let Some(available) = available_memory().map(|b| b as f64)
         && bytes > available
     {
         bail!(
@@ -463,14 +465,6 @@ fn check_memory(args: &FitArgs, constraints: &Constraints<3>) -> anyhow::Result<
         );
     }
     Ok(())
-}
-
-/// `MemAvailable` from `/proc/meminfo` in bytes, where there is one.
-fn available_memory() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024.0)
 }
 
 fn print_report(r: &FitReport) {
@@ -644,20 +638,6 @@ fn sample<F: ScalarField<3> + ?Sized>(field: &F, grid: &Grid<3>, quiet: bool) ->
     }
     bar.finish_and_clear();
     out
-}
-
-fn spinner(quiet: bool) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let s = ProgressBar::new_spinner();
-    s.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"));
-    s.enable_steady_tick(Duration::from_millis(100));
-    s
-}
-
-fn seconds(d: Duration) -> String {
-    format!("{:.2} s", d.as_secs_f64())
 }
 
 const LABEL_WIDTH: usize = 13;

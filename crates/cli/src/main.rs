@@ -10,9 +10,11 @@ use clap::{Parser, Subcommand};
 mod demo;
 mod fit;
 mod info;
+mod machine;
 mod mesh;
 mod output;
 mod preview;
+mod progress;
 mod restore;
 
 const EXAMPLES: &str = "\

@@ -14,7 +14,6 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use zeroset_bases::field_file::{AnyField, read_any_field};
 use zeroset_field_core::field::ScalarField;
@@ -22,6 +21,8 @@ use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
 use crate::info::{g, point};
+use crate::machine::available_memory;
+use crate::progress::{seconds, spinner};
 
 /// Shown after `zeroset mesh --help`.
 pub const EXAMPLES: &str = "\
@@ -350,12 +351,8 @@ fn with_spinner<T: Send>(quiet: bool, message: &str, work: impl FnOnce() -> T + 
             out
         });
         if finished.recv_timeout(Duration::from_secs(1)).is_err() {
-            let spinner = ProgressBar::new_spinner();
-            spinner.set_style(
-                ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"),
-            );
+            let spinner = spinner(false);
             spinner.set_message(message.to_string());
-            spinner.enable_steady_tick(Duration::from_millis(100));
             let _ = finished.recv();
             spinner.finish_and_clear();
         }
@@ -364,14 +361,6 @@ fn with_spinner<T: Send>(quiet: bool, message: &str, work: impl FnOnce() -> T + 
             Err(panic) => std::panic::resume_unwind(panic),
         }
     })
-}
-
-/// `MemAvailable` from `/proc/meminfo`, in bytes; `None` where it cannot be read (not Linux).
-fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib.saturating_mul(1024))
 }
 
 /// A byte count in binary units.
@@ -388,10 +377,6 @@ fn bytes(n: u64) -> String {
     } else {
         format!("{v:.1} {}", UNITS[unit])
     }
-}
-
-fn seconds(d: Duration) -> String {
-    format!("{:.2} s", d.as_secs_f64())
 }
 
 #[cfg(test)]

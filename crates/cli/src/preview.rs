@@ -8,11 +8,12 @@
 //! image is written atomically.
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
 
+use crate::progress::seconds;
 use zeroset_bases::field_file::{is_field_file, read_any_field};
 use zeroset_field_core::field::ScalarField;
 use zeroset_mesh::preview::{
@@ -250,10 +251,6 @@ fn render(args: &PreviewArgs, mesh: &TriMesh) -> anyhow::Result<Image> {
 /// without --force — all before any work.
 fn check_output(args: &PreviewArgs) -> anyhow::Result<()> {
     crate::output::check_output(&args.output, &[&args.input], args.force, &["png"])
-}
-
-fn seconds(d: Duration) -> String {
-    format!("{:.2} s", d.as_secs_f64())
 }
 
 #[cfg(test)]

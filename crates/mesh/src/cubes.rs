@@ -101,10 +101,14 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 use zeroset_field_core::geometry::Point3;
-use zeroset_field_core::{Centering, Error, Grid, ScalarField};
+use zeroset_field_core::{Centering, Grid, ScalarField};
 
 use crate::error::{MeshError, Result};
+use crate::samples;
 use crate::trimesh::TriMesh;
+
+/// What the sample count check calls the samples.
+const SAMPLES: &str = "marching-cubes samples (one per grid point)";
 
 /// Options of [`marching_cubes`] and [`mesh_field`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -147,8 +151,8 @@ impl McOptions {
 /// asked for, come from central differences of the samples.
 ///
 /// # Errors
-/// - [`MeshError::Field`] with [`Error::GridTooSmall`] if an axis has fewer than two samples,
-///   or [`Error::ShapeMismatch`] if `values.len() != grid.len()`;
+/// - [`MeshError::Field`] with [`Error::GridTooSmall`](zeroset_field_core::Error::GridTooSmall) if an axis has fewer than two samples,
+///   or [`Error::ShapeMismatch`](zeroset_field_core::Error::ShapeMismatch) if `values.len() != grid.len()`;
 /// - [`MeshError::NonFiniteLevel`] if `level` is NaN or infinite;
 /// - [`MeshError::NonFiniteSample`] naming the first NaN or infinite sample;
 /// - [`MeshError::InvalidMesh`] if the surface has more than `u32::MAX` vertices.
@@ -158,15 +162,7 @@ pub fn marching_cubes(
     level: f64,
     options: &McOptions,
 ) -> Result<TriMesh> {
-    check_grid_and_level(grid, level)?;
-    if values.len() != grid.len() {
-        return Err(Error::ShapeMismatch {
-            what: "marching-cubes samples (one per grid point)",
-            expected: grid.len(),
-            got: values.len(),
-        }
-        .into());
-    }
+    samples::check(grid, Some(values), level, SAMPLES)?;
     Extractor::new(grid, values, level, options).run()
 }
 
@@ -184,7 +180,7 @@ pub fn mesh_field<F: ScalarField<3> + ?Sized>(
     level: f64,
     options: &McOptions,
 ) -> Result<TriMesh> {
-    check_grid_and_level(grid, level)?;
+    samples::check(grid, None, level, SAMPLES)?;
     let values = grid.sample(field);
     let mesh = marching_cubes(grid, &values, level, &options.with_normals(false))?;
     if !options.normals {
@@ -196,24 +192,6 @@ pub fn mesh_field<F: ScalarField<3> + ?Sized>(
         .map(|p| unit(field.gradient(p)))
         .collect();
     mesh.with_normals(normals)
-}
-
-/// At least two samples per axis and a finite level.
-fn check_grid_and_level(grid: &Grid<3>, level: f64) -> Result<()> {
-    for (axis, &got) in grid.counts().iter().enumerate() {
-        if got < 2 {
-            return Err(Error::GridTooSmall {
-                axis,
-                needed: 2,
-                got,
-            }
-            .into());
-        }
-    }
-    if !level.is_finite() {
-        return Err(MeshError::NonFiniteLevel { level });
-    }
-    Ok(())
 }
 
 /// `g/‖g‖`, or zero when `g` is zero or not finite.
@@ -356,13 +334,7 @@ impl<'a> Extractor<'a> {
                 .par_iter()
                 .position_first(|v| !v.is_finite())
                 .unwrap_or(0);
-            let grid_index = self.grid.multi_index(index);
-            return Err(MeshError::NonFiniteSample {
-                index,
-                grid_index: grid_index.to_vec(),
-                position: self.grid.point(grid_index).to_vec(),
-                value: self.values[index],
-            });
+            return Err(samples::non_finite(self.grid, self.values, index));
         }
         // Pass 2: crossings, slab by slab (a slab reads the inside bits of the next one).
         let inside: Vec<u64> = words.par_iter().map(|x| x.inside).collect();

@@ -79,6 +79,7 @@ pub mod cubes;
 pub mod error;
 pub mod io;
 pub mod preview;
+mod samples;
 pub mod squares;
 pub mod svg;
 pub mod trimesh;

@@ -97,9 +97,13 @@
 
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{Point2, distance};
-use zeroset_field_core::{Centering, Error, Grid, ScalarField};
+use zeroset_field_core::{Centering, Grid, ScalarField};
 
-use crate::error::{MeshError, Result};
+use crate::error::Result;
+use crate::samples;
+
+/// What the sample count check calls the samples.
+const SAMPLES: &str = "marching-squares samples (one per grid point)";
 
 /// A piecewise-linear curve: vertices joined in order, and the last joined back to the first
 /// when `closed`.
@@ -201,28 +205,14 @@ impl AsRef<[Polyline]> for Contour {
 /// guarantees on the output). The grid's centering only decides where the samples sit.
 ///
 /// # Errors
-/// - [`MeshError::Field`] with [`Error::GridTooSmall`] if an axis has fewer than two samples,
-///   or [`Error::ShapeMismatch`] if `values.len() != grid.len()`;
-/// - [`MeshError::NonFiniteLevel`] if `level` is NaN or infinite;
-/// - [`MeshError::NonFiniteSample`] naming the first NaN or infinite sample.
+/// - [`MeshError::Field`](crate::MeshError::Field) with [`Error::GridTooSmall`](zeroset_field_core::Error::GridTooSmall) if an axis has fewer than two samples,
+///   or [`Error::ShapeMismatch`](zeroset_field_core::Error::ShapeMismatch) if `values.len() != grid.len()`;
+/// - [`MeshError::NonFiniteLevel`](crate::MeshError::NonFiniteLevel) if `level` is NaN or infinite;
+/// - [`MeshError::NonFiniteSample`](crate::MeshError::NonFiniteSample) naming the first NaN or infinite sample.
 pub fn marching_squares(grid: &Grid<2>, values: &[f64], level: f64) -> Result<Contour> {
-    check_grid_and_level(grid, level)?;
-    if values.len() != grid.len() {
-        return Err(Error::ShapeMismatch {
-            what: "marching-squares samples (one per grid point)",
-            expected: grid.len(),
-            got: values.len(),
-        }
-        .into());
-    }
+    samples::check(grid, Some(values), level, SAMPLES)?;
     if let Some(index) = values.iter().position(|v| !v.is_finite()) {
-        let grid_index = grid.multi_index(index);
-        return Err(MeshError::NonFiniteSample {
-            index,
-            grid_index: grid_index.to_vec(),
-            position: grid.point(grid_index).to_vec(),
-            value: values[index],
-        });
+        return Err(samples::non_finite(grid, values, index));
     }
     let marcher = Marcher::new(grid, values, level);
     let segments = marcher.segments();
@@ -247,34 +237,16 @@ pub fn marching_squares(grid: &Grid<2>, values: &[f64], level: f64) -> Result<Co
 ///
 /// # Errors
 /// As [`marching_squares`]; a NaN or infinite value of the field is a
-/// [`MeshError::NonFiniteSample`] naming the grid sample. The grid and level are checked before
+/// [`MeshError::NonFiniteSample`](crate::MeshError::NonFiniteSample) naming the grid sample. The grid and level are checked before
 /// the field is sampled.
 pub fn contour_field<F: ScalarField<2> + ?Sized>(
     field: &F,
     grid: &Grid<2>,
     level: f64,
 ) -> Result<Contour> {
-    check_grid_and_level(grid, level)?;
+    samples::check(grid, None, level, SAMPLES)?;
     let values = grid.sample(field);
     marching_squares(grid, &values, level)
-}
-
-/// At least two samples per axis and a finite level.
-fn check_grid_and_level(grid: &Grid<2>, level: f64) -> Result<()> {
-    for (axis, &got) in grid.counts().iter().enumerate() {
-        if got < 2 {
-            return Err(Error::GridTooSmall {
-                axis,
-                needed: 2,
-                got,
-            }
-            .into());
-        }
-    }
-    if !level.is_finite() {
-        return Err(MeshError::NonFiniteLevel { level });
-    }
-    Ok(())
 }
 
 /// A directed segment between two vertex ids (see [`Marcher`]), the inside on its left.
@@ -593,8 +565,10 @@ fn clean(mut line: Polyline) -> Polyline {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::MeshError;
     use proptest::prelude::*;
     use std::f64::consts::PI;
+    use zeroset_field_core::Error;
     use zeroset_field_core::geometry::norm;
     use zeroset_field_core::{Aabb, field::FnField};
 

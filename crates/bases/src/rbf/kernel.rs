@@ -55,6 +55,13 @@ pub trait Kernel: Send + Sync + Debug {
     /// suffices).
     fn order(&self) -> usize;
 
+    /// `Some(k)` if `φ(λr) = λᵏ φ(r)` for every `λ > 0` (`r`: 1, `r³`: 3). The fast multipole
+    /// method then computes its M2L operators once, for cells of unit width, and scales them
+    /// per level; other kernels get operators per level. Default `None`.
+    fn homogeneity(&self) -> Option<i32> {
+        None
+    }
+
     /// `φ(√r2)`, the hot path of evaluation: override it with a branch-free form where there
     /// is one (it is inlined into vectorised loops over the centres).
     #[inline]
@@ -97,6 +104,9 @@ impl Kernel for Biharmonic {
     fn order(&self) -> usize {
         1
     }
+    fn homogeneity(&self) -> Option<i32> {
+        Some(1)
+    }
 }
 
 /// `φ(r) = r³`, the triharmonic spline in 3-D: conditionally positive definite of order 2 and
@@ -126,6 +136,9 @@ impl Kernel for Triharmonic {
     }
     fn order(&self) -> usize {
         2
+    }
+    fn homogeneity(&self) -> Option<i32> {
+        Some(3)
     }
 }
 

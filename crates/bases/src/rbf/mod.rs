@@ -46,6 +46,7 @@ pub mod constraints;
 pub mod dense;
 mod error;
 mod field;
+pub mod fmm;
 pub mod incremental;
 pub mod iterative;
 pub mod kernel;

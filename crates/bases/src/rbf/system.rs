@@ -364,14 +364,32 @@ pub(crate) fn kernel_sum<K: Kernel + ?Sized, const D: usize>(
     x: &Point<D>,
 ) -> f64 {
     let n = f.len();
-    let (w_chunks, w_tail) = weights[..n].as_chunks::<LANES>();
-    let coords: [(&[[f64; LANES]], &[f64]); D] =
-        std::array::from_fn(|a| f.soa[a][..n].as_chunks::<LANES>());
+    kernel_sum_slices(
+        kernel,
+        std::array::from_fn(|a| &f.soa[a][..n]),
+        &weights[..n],
+        x,
+    )
+}
+
+/// [`kernel_sum`] over centres given as coordinate slices (`coords[a][j]`, all as long as
+/// `weights`): the fast multipole method's direct (near-field) sums.
+#[inline(always)]
+pub(crate) fn kernel_sum_slices<K: Kernel + ?Sized, const D: usize>(
+    kernel: &K,
+    coords: [&[f64]; D],
+    weights: &[f64],
+    x: &Point<D>,
+) -> f64 {
+    let n = weights.len();
+    let (w_chunks, w_tail) = weights.as_chunks::<LANES>();
+    let chunks: [(&[[f64; LANES]], &[f64]); D] =
+        std::array::from_fn(|a| coords[a][..n].as_chunks::<LANES>());
     let mut acc = [0.0; LANES];
     for (k, wk) in w_chunks.iter().enumerate() {
         let mut r2 = [0.0; LANES];
-        for (a, (chunks, _)) in coords.iter().enumerate() {
-            let ca = &chunks[k];
+        for (a, (c, _)) in chunks.iter().enumerate() {
+            let ca = &c[k];
             for l in 0..LANES {
                 let d = x[a] - ca[l];
                 r2[l] += d * d;
@@ -384,7 +402,7 @@ pub(crate) fn kernel_sum<K: Kernel + ?Sized, const D: usize>(
     let full = n - w_tail.len();
     let tail: f64 = (0..w_tail.len())
         .map(|t| {
-            let r2: f64 = (0..D).map(|a| (x[a] - f.soa[a][full + t]).powi(2)).sum();
+            let r2: f64 = (0..D).map(|a| (x[a] - coords[a][full + t]).powi(2)).sum();
             w_tail[t] * kernel.value_of_squared(r2)
         })
         .sum();

@@ -1,0 +1,1028 @@
+//! The black-box fast multipole method (Fong & Darve 2009) for RBF fields, as paper 002 §2.2
+//! uses it to evaluate `s(x) = Σⱼ wⱼ φ(|x − yⱼ|) + p(x)` at many points.
+//!
+//! ## The expansion
+//!
+//! For any smooth kernel, interpolating `φ(x, y)` in both variables at the `p³` Chebyshev nodes
+//! of a target cell (`x̄_A`) and a source cell (`ȳ_B`) gives the low-rank form
+//!
+//! ```text
+//!     φ(x, y) ≈ Σ_A Σ_B  S(x̄_A, x) · φ(x̄_A, ȳ_B) · S(ȳ_B, y),     S = Sₚ ⊗ Sₚ ⊗ Sₚ,
+//! ```
+//!
+//! accurate when the cells are well separated, with an error falling geometrically in `p`. It
+//! needs no analytic expansion of the kernel ("black box"): `r` and `r³` work alike. The
+//! method's steps, over an [adaptive octree](tree):
+//!
+//! - **P2M**: a leaf's multipole expansion `M_B = Σⱼ wⱼ S(ȳ_B, yⱼ) + vⱼ · ∇S(ȳ_B, yⱼ)` (the
+//!   second term for the gradient constraints of Hermite fits: a centre `j` with derivative
+//!   weights `vⱼ` contributes `−vⱼ · ∇φ(x − yⱼ)`).
+//! - **M2M**, **L2L**: between a cell and its children, exactly (the interpolant of a
+//!   polynomial of degree `p − 1` is itself), as three `p × p` products.
+//! - **M2L**: `L_A += Σ_B φ(x̄_A, ȳ_B) M_B` between well-separated cells of one level, with
+//!   the 316 operators reduced to 16 by symmetry and compressed by SVD ([`operators`]).
+//! - **P2L**, **M2P**, **P2P**: the adaptive tree's X, W and U lists (a small cell next to a
+//!   large leaf), the last a direct sum over the near field.
+//! - **L2P**: `s(x) ≈ Σ_A L_A S(x̄_A, x)` plus the near field, and the polynomial part added
+//!   exactly. Gradients differentiate `S` and the kernel.
+//!
+//! The expansions are computed once, at construction, for every cell; evaluating a point then
+//! costs one L2P (`p³`), its leaf's near field and its M2P list, **independent of the other
+//! points** it is evaluated with. So a point's value never depends on the batch or on the number
+//! of threads (the upward and downward passes run in a fixed order too), which the two-step
+//! marching cubes relies on: a vertex evaluated twice gets the same bits.
+//!
+//! Points outside the root cube (which covers the centres and the field's bounds) are still
+//! exact to the same accuracy: they walk the tree from the root, using a cell's multipole
+//! expansion when they are at least its width away from it and its sources otherwise.
+//!
+//! ## Accuracy
+//!
+//! The error falls steadily with `p` (paper 002, Tables 1–2; zeroset's own table:
+//! `cargo run --release --example fmm_error`). The compression keeps singular values above
+//! `tolerance · σ₁` (default `10^−(p+1)`, below the interpolation error of order `p`).
+//! [`FmmField::sampled_error`] measures the error of a built field against the exact sum.
+
+mod chebyshev;
+mod operators;
+mod tree;
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use rayon::prelude::*;
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::{Aabb, Point};
+
+use super::field::RbfField;
+use super::kernel::{self, Kernel};
+use super::system::{self, Functional, Polynomial};
+use chebyshev::MAX_ORDER;
+pub use operators::FmmOperators;
+use operators::Shared;
+use tree::{Cell, Tree, TreeShape};
+
+/// The smallest expansion order (nodes per axis).
+pub const MIN_ORDER: usize = 2;
+/// The largest expansion order.
+pub const LARGEST_ORDER: usize = MAX_ORDER;
+
+/// What can go wrong building a multipole field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FmmError {
+    /// The order is outside [`MIN_ORDER`]`..=`[`LARGEST_ORDER`].
+    #[error(
+        "the expansion order must be between {MIN_ORDER} and {LARGEST_ORDER} Chebyshev nodes per \
+         axis, not {order}"
+    )]
+    Order {
+        /// The order asked for.
+        order: usize,
+    },
+    /// A leaf must hold at least one source.
+    #[error("the leaf size must be at least 1")]
+    LeafSize,
+    /// The compression tolerance is not in `(0, 1)`.
+    #[error("the compression tolerance must be in (0, 1), not {tolerance}")]
+    Tolerance {
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
+    /// The field has no centres.
+    #[error("the field has no centres to expand")]
+    NoSources,
+    /// A centre, weight or domain corner is NaN or infinite.
+    #[error("{what} {index} is not finite")]
+    NonFinite {
+        /// What is not finite.
+        what: &'static str,
+        /// Its index.
+        index: usize,
+    },
+    /// The operators given were built for another kernel or order.
+    #[error(
+        "the operators were built for kernel `{built}` at order {built_order}, not for kernel \
+         `{kernel}` at order {order}"
+    )]
+    Operators {
+        /// The operators' kernel.
+        built: String,
+        /// The operators' order.
+        built_order: usize,
+        /// The field's kernel.
+        kernel: String,
+        /// The order asked for.
+        order: usize,
+    },
+}
+
+/// Parameters of the multipole method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct FmmOptions {
+    /// Chebyshev nodes per axis, `p` (paper 002: 5…8 for the first step of the signed marching
+    /// cubes, 9…12 for the second).
+    pub order: usize,
+    /// The most sources a leaf holds (default: by order, `max(32, p³/4)`).
+    pub leaf_size: Option<usize>,
+    /// The deepest level (default 16).
+    pub max_depth: u32,
+    /// Relative singular-value cut-off of the M2L compression (default `10^−(p+1)`).
+    pub tolerance: Option<f64>,
+    /// A box the root cell must cover besides the centres (default: the field's bounds);
+    /// points outside the root are exact but slower.
+    pub domain: Option<Aabb<3>>,
+}
+
+impl FmmOptions {
+    /// Order `p`, the other parameters at their defaults.
+    pub fn new(order: usize) -> Self {
+        Self {
+            order,
+            leaf_size: None,
+            max_depth: 16,
+            tolerance: None,
+            domain: None,
+        }
+    }
+
+    /// These options with at most `leaf_size` sources per leaf.
+    pub fn with_leaf_size(mut self, leaf_size: usize) -> Self {
+        self.leaf_size = Some(leaf_size);
+        self
+    }
+
+    /// These options with the tree at most `depth` levels deep.
+    pub fn with_max_depth(mut self, depth: u32) -> Self {
+        self.max_depth = depth;
+        self
+    }
+
+    /// These options with compression cut-off `tolerance`.
+    pub fn with_tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = Some(tolerance);
+        self
+    }
+
+    /// These options with the root covering `domain`.
+    pub fn with_domain(mut self, domain: Aabb<3>) -> Self {
+        self.domain = Some(domain);
+        self
+    }
+
+    fn check(&self) -> Result<(), FmmError> {
+        if !(MIN_ORDER..=LARGEST_ORDER).contains(&self.order) {
+            return Err(FmmError::Order { order: self.order });
+        }
+        if self.leaf_size == Some(0) {
+            return Err(FmmError::LeafSize);
+        }
+        if let Some(t) = self.tolerance
+            && !(t > 0.0 && t < 1.0)
+        {
+            return Err(FmmError::Tolerance { tolerance: t });
+        }
+        Ok(())
+    }
+
+    fn leaf_size(&self) -> usize {
+        self.leaf_size
+            .unwrap_or_else(|| (self.order.pow(3) / 4).max(32))
+    }
+
+    fn tolerance(&self) -> f64 {
+        self.tolerance
+            .unwrap_or_else(|| 10f64.powi(-(self.order as i32 + 1)))
+    }
+}
+
+/// What building a multipole field did, and how long it took.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct FmmReport {
+    /// Chebyshev nodes per axis.
+    pub order: usize,
+    /// Sources (centres, a gradient constraint's derivatives merged with its point).
+    pub sources: usize,
+    /// Cells of the tree, and how many are leaves.
+    pub cells: usize,
+    /// Leaves of the tree.
+    pub leaves: usize,
+    /// Levels below the root.
+    pub depth: usize,
+    /// M2L pairs over all levels.
+    pub m2l_pairs: usize,
+    /// The largest rank kept by the compression, over the 16 canonical operators.
+    pub max_rank: usize,
+    /// Seconds spent computing (or fetching) the M2L operators.
+    pub operator_seconds: f64,
+    /// Seconds for the tree and its lists, the upward pass (P2M, M2M), the M2L and P2L step,
+    /// and the downward pass (L2L).
+    pub tree_seconds: f64,
+    /// Seconds of the upward pass.
+    pub upward_seconds: f64,
+    /// Seconds of the M2L and P2L step.
+    pub m2l_seconds: f64,
+    /// Seconds of the downward pass.
+    pub downward_seconds: f64,
+}
+
+/// An RBF field evaluated by the black-box fast multipole method; see the [module docs](self).
+///
+/// ```
+/// use zeroset_bases::rbf::{Biharmonic, Constraints, RbfFit};
+/// use zeroset_bases::rbf::fmm::{FmmField, FmmOptions};
+/// use zeroset_field_core::ScalarField;
+///
+/// // Points on the unit sphere, with values 0 on it and ±0.1 just off it.
+/// let mut c = Constraints::<3>::new();
+/// for i in 0..300 {
+///     let z = 1.0 - 2.0 * (i as f64 + 0.5) / 300.0;
+///     let t = i as f64 * 2.399963;
+///     let r = (1.0 - z * z).sqrt();
+///     let p = [r * t.cos(), r * t.sin(), z];
+///     c.push_value(p, 0.0);
+///     c.push_value(p.map(|v| 1.1 * v), 0.1);
+/// }
+/// let exact = RbfFit::new(Biharmonic).fit(&c)?.field;
+/// let fast = FmmField::new(&exact, &FmmOptions::new(8))?;
+/// let x = [0.3, -0.2, 0.5];
+/// assert!((fast.value(&x) - exact.value(&x)).abs() < 1e-5);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct FmmField<K> {
+    kernel: K,
+    ops: Arc<FmmOperators>,
+    tree: Tree,
+    /// Source coordinates in tree order.
+    pos: [Vec<f64>; 3],
+    weights: Vec<f64>,
+    /// Derivative weights in tree order, where the field has gradient constraints.
+    dipoles: Option<[Vec<f64>; 3]>,
+    multipoles: Vec<f64>,
+    locals: Vec<f64>,
+    poly: Polynomial<3>,
+    poly_coefficients: Vec<f64>,
+    bounds: Aabb<3>,
+    report: FmmReport,
+}
+
+impl<K: Kernel + Clone> FmmField<K> {
+    /// The multipole form of `field` at `options.order`, with operators of its own.
+    ///
+    /// # Errors
+    /// [`FmmError`] for an order, leaf size or tolerance out of range, a field without
+    /// centres, or a non-finite centre, weight or domain.
+    pub fn new(field: &RbfField<K, 3>, options: &FmmOptions) -> Result<Self, FmmError> {
+        let ops = Self::operators(field.kernel(), options)?;
+        Self::with_operators(field, options, ops)
+    }
+
+    /// The M2L operators for `kernel` at `options.order`, to share between fields of one kernel
+    /// ([`FmmField::with_operators`]): building them is the one step whose cost does not grow
+    /// with the data (for `r` and `r³`, 0.1 s at `p = 8`, seconds at `p = 12`).
+    ///
+    /// # Errors
+    /// [`FmmError`] for an order or tolerance out of range.
+    pub fn operators(kernel: &K, options: &FmmOptions) -> Result<Arc<FmmOperators>, FmmError> {
+        options.check()?;
+        Ok(Arc::new(FmmOperators::new(
+            kernel,
+            options.order,
+            options.tolerance(),
+        )))
+    }
+
+    /// [`FmmField::new`] with operators built before (for the same kernel and order).
+    ///
+    /// # Errors
+    /// As [`FmmField::new`], and [`FmmError::Operators`] if `ops` were built for another
+    /// kernel or order.
+    pub fn with_operators(
+        field: &RbfField<K, 3>,
+        options: &FmmOptions,
+        ops: Arc<FmmOperators>,
+    ) -> Result<Self, FmmError> {
+        options.check()?;
+        let kernel = field.kernel().clone();
+        if !ops.fits(&kernel) || ops.order() != options.order {
+            return Err(FmmError::Operators {
+                built: ops.kernel_name().to_owned(),
+                built_order: ops.order(),
+                kernel: kernel.name().to_owned(),
+                order: options.order,
+            });
+        }
+        let (points, weights, dipoles) = sources(field)?;
+        let bounds = field
+            .bounds()
+            .or_else(|| Aabb::from_points(&points))
+            .ok_or(FmmError::NoSources)?;
+        let domain = options.domain.unwrap_or(bounds);
+        for (index, v) in domain.min().iter().chain(&domain.max()).enumerate() {
+            if !v.is_finite() {
+                return Err(FmmError::NonFinite {
+                    what: "domain corner coordinate",
+                    index,
+                });
+            }
+        }
+        let start = Instant::now();
+        let (centre, half) = root_cube(&points, &domain);
+        let p = options.order;
+        let tree = Tree::build(
+            &points,
+            TreeShape {
+                centre,
+                half,
+                leaf_size: options.leaf_size(),
+                max_depth: options.max_depth,
+                nodes: p * p * p,
+            },
+        );
+        let reorder = |v: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            tree.order.iter().map(|&i| v(i as usize)).collect()
+        };
+        let pos = std::array::from_fn(|a| reorder(&|i| points[i][a]));
+        let weights = reorder(&|i| weights[i]);
+        let dipoles = dipoles.map(|d| std::array::from_fn(|a| reorder(&|i| d[i][a])));
+        let n = p * p * p;
+        let cells = tree.cells.len();
+        let mut this = Self {
+            kernel,
+            ops,
+            pos,
+            weights,
+            dipoles,
+            multipoles: vec![0.0; cells * n],
+            locals: vec![0.0; cells * n],
+            poly: *field.polynomial(),
+            poly_coefficients: field.polynomial_coefficients().to_vec(),
+            bounds,
+            report: FmmReport {
+                order: p,
+                sources: points.len(),
+                cells,
+                leaves: tree.cells.iter().filter(|c| c.is_leaf()).count(),
+                depth: tree.levels.len() - 1,
+                m2l_pairs: tree.m2l.iter().flatten().map(Vec::len).sum(),
+                max_rank: 0,
+                operator_seconds: 0.0,
+                tree_seconds: start.elapsed().as_secs_f64(),
+                upward_seconds: 0.0,
+                m2l_seconds: 0.0,
+                downward_seconds: 0.0,
+            },
+            tree,
+        };
+        this.upward();
+        this.m2l();
+        this.downward();
+        Ok(this)
+    }
+}
+
+impl<K: Kernel> FmmField<K> {
+    /// What building the field did.
+    pub fn report(&self) -> &FmmReport {
+        &self.report
+    }
+
+    /// The expansion order `p`.
+    pub fn order(&self) -> usize {
+        self.ops.order()
+    }
+
+    /// The operators, to build another field of the same kernel and order with.
+    pub fn shared_operators(&self) -> Arc<FmmOperators> {
+        self.ops.clone()
+    }
+
+    /// The largest and the root-mean-square difference `|s_fmm − s|` over `count` points
+    /// against `exact` (the direct sum): half drawn uniformly in the field's bounds, half at
+    /// the centres moved by up to a leaf's width, where the sign of the field matters most.
+    /// Deterministic for a given `seed`.
+    pub fn sampled_error<F: ScalarField<3> + ?Sized>(
+        &self,
+        exact: &F,
+        count: usize,
+        seed: u64,
+    ) -> (f64, f64) {
+        let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
+        let mut uniform = move || {
+            // SplitMix64.
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let b = self.bounds;
+        let leaf = self
+            .tree
+            .cells
+            .iter()
+            .filter(|c| c.is_leaf() && c.count() > 0)
+            .map(|c| c.half)
+            .fold(0.0, f64::max);
+        let n = self.weights.len();
+        let points: Vec<Point<3>> = (0..count)
+            .map(|i| {
+                if i % 2 == 0 {
+                    std::array::from_fn(|a| b.min()[a] + uniform() * (b.max()[a] - b.min()[a]))
+                } else {
+                    let j = ((uniform() * n as f64) as usize).min(n - 1);
+                    std::array::from_fn(|a| self.pos[a][j] + (2.0 * uniform() - 1.0) * leaf)
+                }
+            })
+            .collect();
+        let (mut fast, mut slow) = (vec![0.0; count], vec![0.0; count]);
+        self.values(&points, &mut fast);
+        exact.values(&points, &mut slow);
+        let (max, sum) = fast
+            .iter()
+            .zip(&slow)
+            .map(|(a, b)| (a - b).abs())
+            .fold((0.0, 0.0), |(m, s), e| (f64::max(m, e), s + e * e));
+        (max, (sum / count.max(1) as f64).sqrt())
+    }
+
+    fn n(&self) -> usize {
+        self.ops.order().pow(3)
+    }
+
+    fn cell(&self, c: u32) -> &Cell {
+        &self.tree.cells[c as usize]
+    }
+
+    /// P2M at the leaves, M2M above, level by level from the deepest.
+    fn upward(&mut self) {
+        let start = Instant::now();
+        let n = self.n();
+        for level in (0..self.tree.levels.len()).rev() {
+            let done: Vec<(u32, Vec<f64>)> = self.tree.levels[level]
+                .par_iter()
+                .filter(|&&c| self.cell(c).count() > 0)
+                .map(|&c| {
+                    let mut m = vec![0.0; n];
+                    let cell = self.cell(c);
+                    if cell.is_leaf() {
+                        self.p2m(cell, &mut m);
+                    } else {
+                        for (k, child) in cell.children().enumerate() {
+                            if self.cell(child).count() > 0 {
+                                let src = &self.multipoles[child as usize * n..][..n];
+                                self.transfer(k, src, &mut m, false);
+                            }
+                        }
+                    }
+                    (c, m)
+                })
+                .collect();
+            for (c, m) in done {
+                self.multipoles[c as usize * n..][..n].copy_from_slice(&m);
+            }
+        }
+        self.report.upward_seconds = start.elapsed().as_secs_f64();
+    }
+
+    /// M2L pairs level by level and offset by offset (each target once per offset, so the
+    /// order of additions into a local expansion is fixed), then P2L.
+    fn m2l(&mut self) {
+        let start = Instant::now();
+        let n = self.n();
+        let root_width = 2.0 * self.tree.cells[0].half;
+        let mut op_seconds = 0.0;
+        let mut max_rank = 0;
+        let locals = Shared::new(&mut self.locals);
+        for (level, codes) in self.tree.m2l.iter().enumerate() {
+            if codes.iter().all(Vec::is_empty) {
+                continue;
+            }
+            let width = root_width / (1u64 << level) as f64;
+            let t = Instant::now();
+            let (ops, scale) = self.ops.level(&self.kernel, width);
+            op_seconds += t.elapsed().as_secs_f64();
+            max_rank = max_rank.max(ops.ranks().into_iter().max().unwrap_or(0));
+            for (code, pairs) in codes.iter().enumerate() {
+                if !pairs.is_empty() {
+                    operators::apply(
+                        &ops,
+                        &self.ops.symmetry,
+                        code,
+                        pairs,
+                        scale,
+                        &self.multipoles,
+                        locals,
+                        n,
+                    );
+                }
+            }
+        }
+        let this = &*self;
+        let tree = &this.tree;
+        // P2L: each cell adds its own list into its own expansion.
+        (0..tree.cells.len())
+            .into_par_iter()
+            .filter(|&c| !tree.p2l[c].is_empty())
+            .for_each(|c| {
+                // SAFETY: each task writes only cell `c`'s range.
+                let local = unsafe { locals.range(c * n, n) };
+                for &s in &tree.p2l[c] {
+                    this.p2l(&tree.cells[c], this.cell(s), local);
+                }
+            });
+        self.report.max_rank = max_rank;
+        self.report.operator_seconds = op_seconds;
+        self.report.m2l_seconds = start.elapsed().as_secs_f64() - op_seconds;
+    }
+
+    /// L2L from every split cell into its children, level by level from the root.
+    fn downward(&mut self) {
+        let start = Instant::now();
+        let n = self.n();
+        let locals = Shared::new(&mut self.locals);
+        let this = &*self;
+        for level in &this.tree.levels {
+            level
+                .par_iter()
+                .filter(|&&c| !this.cell(c).is_leaf())
+                .for_each(|&c| {
+                    // SAFETY: the parent's range is only read and each child's range only
+                    // written, by this task alone, during this level.
+                    let parent: Vec<f64> = unsafe { locals.range(c as usize * n, n) }.to_vec();
+                    for (k, child) in this.cell(c).children().enumerate() {
+                        let out = unsafe { locals.range(child as usize * n, n) };
+                        this.transfer(k, &parent, out, true);
+                    }
+                });
+        }
+        self.report.downward_seconds = start.elapsed().as_secs_f64();
+    }
+
+    /// M2M (`out += E ⊗ E ⊗ E · src`) or, `transpose`, L2L (`out += Eᵀ ⊗ Eᵀ ⊗ Eᵀ · src`) for
+    /// child octant `k`.
+    fn transfer(&self, k: usize, src: &[f64], out: &mut [f64], transpose: bool) {
+        let p = self.ops.order();
+        let cheb = &self.ops.cheb;
+        let e: [&[f64]; 3] = std::array::from_fn(|a| cheb.transfer((k >> (2 - a)) & 1));
+        // entry (o, i) of the 1-D map along one axis: output index o, input index i.
+        let at = |m: &[f64], o: usize, i: usize| {
+            if transpose {
+                m[i * p + o]
+            } else {
+                m[o * p + i]
+            }
+        };
+        let mut t1 = vec![0.0; p * p * p];
+        let mut t2 = vec![0.0; p * p * p];
+        // Along z, then y, then x.
+        for ab in 0..p * p {
+            for o in 0..p {
+                t1[ab * p + o] = (0..p).map(|i| at(e[2], o, i) * src[ab * p + i]).sum();
+            }
+        }
+        for a in 0..p {
+            for o in 0..p {
+                for c in 0..p {
+                    t2[(a * p + o) * p + c] = (0..p)
+                        .map(|i| at(e[1], o, i) * t1[(a * p + i) * p + c])
+                        .sum();
+                }
+            }
+        }
+        for o in 0..p {
+            for bc in 0..p * p {
+                out[o * p * p + bc] += (0..p)
+                    .map(|i| at(e[0], o, i) * t2[i * p * p + bc])
+                    .sum::<f64>();
+            }
+        }
+    }
+
+    /// The 1-D Chebyshev weights of `x` in `cell` along each axis (and their derivatives in
+    /// `x`'s units when `ds` is given).
+    fn axis_weights(
+        &self,
+        cell: &Cell,
+        x: &Point<3>,
+        s: &mut [[f64; MAX_ORDER]; 3],
+        ds: Option<&mut [[f64; MAX_ORDER]; 3]>,
+    ) {
+        let p = self.ops.order();
+        let cheb = &self.ops.cheb;
+        let u: [f64; 3] = std::array::from_fn(|a| (x[a] - cell.centre[a]) / cell.half);
+        match ds {
+            None => {
+                for a in 0..3 {
+                    cheb.weights(u[a], &mut s[a][..p]);
+                }
+            }
+            Some(ds) => {
+                for a in 0..3 {
+                    cheb.weights_with_derivative(u[a], &mut s[a][..p], &mut ds[a][..p]);
+                    for v in &mut ds[a][..p] {
+                        *v /= cell.half;
+                    }
+                }
+            }
+        }
+    }
+
+    /// P2M of a leaf's sources.
+    fn p2m(&self, cell: &Cell, m: &mut [f64]) {
+        let p = self.ops.order();
+        let mut s = [[0.0; MAX_ORDER]; 3];
+        let mut ds = [[0.0; MAX_ORDER]; 3];
+        for j in cell.begin as usize..cell.end as usize {
+            let y = [self.pos[0][j], self.pos[1][j], self.pos[2][j]];
+            let w = self.weights[j];
+            match &self.dipoles {
+                None => {
+                    self.axis_weights(cell, &y, &mut s, None);
+                    for a in 0..p {
+                        for b in 0..p {
+                            let wab = w * s[0][a] * s[1][b];
+                            let row = &mut m[(a * p + b) * p..][..p];
+                            for (c, v) in row.iter_mut().enumerate() {
+                                *v += wab * s[2][c];
+                            }
+                        }
+                    }
+                }
+                Some(d) => {
+                    self.axis_weights(cell, &y, &mut s, Some(&mut ds));
+                    let v = [d[0][j], d[1][j], d[2][j]];
+                    for a in 0..p {
+                        for b in 0..p {
+                            let row = &mut m[(a * p + b) * p..][..p];
+                            for (c, out) in row.iter_mut().enumerate() {
+                                *out += w * s[0][a] * s[1][b] * s[2][c]
+                                    + v[0] * ds[0][a] * s[1][b] * s[2][c]
+                                    + v[1] * s[0][a] * ds[1][b] * s[2][c]
+                                    + v[2] * s[0][a] * s[1][b] * ds[2][c];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The Chebyshev node coordinates of `cell`, per axis.
+    fn node_coordinates(&self, cell: &Cell) -> [[f64; MAX_ORDER]; 3] {
+        let nodes = self.ops.cheb.nodes();
+        std::array::from_fn(|a| {
+            let mut c = [0.0; MAX_ORDER];
+            for (m, v) in nodes.iter().enumerate() {
+                c[m] = cell.centre[a] + cell.half * v;
+            }
+            c
+        })
+    }
+
+    /// P2L: the sources of `source` into the local expansion of `target`.
+    fn p2l(&self, target: &Cell, source: &Cell, local: &mut [f64]) {
+        let p = self.ops.order();
+        let xs = self.node_coordinates(target);
+        for a in 0..p {
+            for b in 0..p {
+                for c in 0..p {
+                    let x = [xs[0][a], xs[1][b], xs[2][c]];
+                    local[(a * p + b) * p + c] += self.direct(source, &x);
+                }
+            }
+        }
+    }
+
+    /// The direct sum over `cell`'s sources at `x`.
+    #[inline(always)]
+    fn direct(&self, cell: &Cell, x: &Point<3>) -> f64 {
+        let r = cell.begin as usize..cell.end as usize;
+        match &self.dipoles {
+            None => system::kernel_sum_slices(
+                &self.kernel,
+                [
+                    &self.pos[0][r.clone()],
+                    &self.pos[1][r.clone()],
+                    &self.pos[2][r.clone()],
+                ],
+                &self.weights[r],
+                x,
+            ),
+            Some(dip) => r
+                .map(|j| {
+                    let d = [
+                        x[0] - self.pos[0][j],
+                        x[1] - self.pos[1][j],
+                        x[2] - self.pos[2][j],
+                    ];
+                    let g = kernel::gradient(&self.kernel, &d);
+                    self.weights[j] * kernel::value(&self.kernel, &d)
+                        - (dip[0][j] * g[0] + dip[1][j] * g[1] + dip[2][j] * g[2])
+                })
+                .sum(),
+        }
+    }
+
+    /// The gradient of the direct sum over `cell`'s sources at `x`.
+    fn direct_gradient(&self, cell: &Cell, x: &Point<3>) -> [f64; 3] {
+        let mut g = [0.0; 3];
+        for j in cell.begin as usize..cell.end as usize {
+            let d = [
+                x[0] - self.pos[0][j],
+                x[1] - self.pos[1][j],
+                x[2] - self.pos[2][j],
+            ];
+            let gk = kernel::gradient(&self.kernel, &d);
+            for a in 0..3 {
+                g[a] += self.weights[j] * gk[a];
+            }
+            if let Some(dip) = &self.dipoles {
+                let h = kernel::hessian(&self.kernel, &d);
+                for a in 0..3 {
+                    g[a] -= h[a][0] * dip[0][j] + h[a][1] * dip[1][j] + h[a][2] * dip[2][j];
+                }
+            }
+        }
+        g
+    }
+
+    /// M2P: `cell`'s multipole expansion at `x`, `Σ_B M_B φ(|x − ȳ_B|)`.
+    #[inline(always)]
+    fn m2p(&self, c: u32, x: &Point<3>) -> f64 {
+        let p = self.ops.order();
+        let cell = self.cell(c);
+        let ys = self.node_coordinates(cell);
+        let m = &self.multipoles[c as usize * p * p * p..][..p * p * p];
+        let mut acc = 0.0;
+        for a in 0..p {
+            let dx = x[0] - ys[0][a];
+            for b in 0..p {
+                let dy = x[1] - ys[1][b];
+                let row = &m[(a * p + b) * p..][..p];
+                let mut part = 0.0;
+                for (cc, &mv) in row.iter().enumerate() {
+                    let dz = x[2] - ys[2][cc];
+                    part += mv * self.kernel.value_of_squared(dx * dx + dy * dy + dz * dz);
+                }
+                acc += part;
+            }
+        }
+        acc
+    }
+
+    /// The gradient of [`Self::m2p`].
+    fn m2p_gradient(&self, c: u32, x: &Point<3>) -> [f64; 3] {
+        let p = self.ops.order();
+        let cell = self.cell(c);
+        let ys = self.node_coordinates(cell);
+        let m = &self.multipoles[c as usize * p * p * p..][..p * p * p];
+        let mut g = [0.0; 3];
+        for a in 0..p {
+            for b in 0..p {
+                for cc in 0..p {
+                    let d = [x[0] - ys[0][a], x[1] - ys[1][b], x[2] - ys[2][cc]];
+                    let gk = kernel::gradient(&self.kernel, &d);
+                    let mv = m[(a * p + b) * p + cc];
+                    for k in 0..3 {
+                        g[k] += mv * gk[k];
+                    }
+                }
+            }
+        }
+        g
+    }
+
+    /// L2P: the local expansion of leaf `c` at `x`.
+    #[inline(always)]
+    fn l2p(&self, c: u32, x: &Point<3>) -> f64 {
+        let p = self.ops.order();
+        let cell = self.cell(c);
+        let mut s = [[0.0; MAX_ORDER]; 3];
+        self.axis_weights(cell, x, &mut s, None);
+        let l = &self.locals[c as usize * p * p * p..][..p * p * p];
+        let mut acc = 0.0;
+        for a in 0..p {
+            let mut part_a = 0.0;
+            for b in 0..p {
+                let row = &l[(a * p + b) * p..][..p];
+                let mut part_b = 0.0;
+                for (cc, &lv) in row.iter().enumerate() {
+                    part_b += lv * s[2][cc];
+                }
+                part_a += part_b * s[1][b];
+            }
+            acc += part_a * s[0][a];
+        }
+        acc
+    }
+
+    /// The gradient of [`Self::l2p`].
+    fn l2p_gradient(&self, c: u32, x: &Point<3>) -> [f64; 3] {
+        let p = self.ops.order();
+        let cell = self.cell(c);
+        let mut s = [[0.0; MAX_ORDER]; 3];
+        let mut ds = [[0.0; MAX_ORDER]; 3];
+        self.axis_weights(cell, x, &mut s, Some(&mut ds));
+        let l = &self.locals[c as usize * p * p * p..][..p * p * p];
+        let mut g = [0.0; 3];
+        for a in 0..p {
+            for b in 0..p {
+                for cc in 0..p {
+                    let lv = l[(a * p + b) * p + cc];
+                    g[0] += lv * ds[0][a] * s[1][b] * s[2][cc];
+                    g[1] += lv * s[0][a] * ds[1][b] * s[2][cc];
+                    g[2] += lv * s[0][a] * s[1][b] * ds[2][cc];
+                }
+            }
+        }
+        g
+    }
+
+    /// The kernel part of the field at `x`.
+    #[inline(always)]
+    fn kernel_part(&self, x: &Point<3>) -> f64 {
+        match self.tree.leaf_of(x) {
+            Some(leaf) => {
+                let mut v = self.l2p(leaf, x);
+                for &s in &self.tree.near[leaf as usize] {
+                    v += self.direct(self.cell(s), x);
+                }
+                for &s in &self.tree.m2p[leaf as usize] {
+                    v += self.m2p(s, x);
+                }
+                v
+            }
+            None => {
+                let mut v = 0.0;
+                self.walk(x, |c, far| {
+                    v += if far {
+                        self.m2p(c, x)
+                    } else {
+                        self.direct(self.cell(c), x)
+                    };
+                });
+                v
+            }
+        }
+    }
+
+    /// Visits, for a point outside the root, the cells it is far from (`true`: use the
+    /// multipole expansion) and the leaves it is near (`false`: sum directly), in a fixed order.
+    fn walk(&self, x: &Point<3>, mut visit: impl FnMut(u32, bool)) {
+        let mut stack = vec![0u32];
+        while let Some(c) = stack.pop() {
+            let cell = self.cell(c);
+            if cell.count() == 0 {
+                continue;
+            }
+            if tree::point_separated(x, cell) {
+                visit(c, true);
+            } else if cell.is_leaf() {
+                visit(c, false);
+            } else {
+                stack.extend(cell.children().rev());
+            }
+        }
+    }
+}
+
+impl<K: Kernel> ScalarField<3> for FmmField<K> {
+    fn value(&self, x: &Point<3>) -> f64 {
+        self.kernel_part(x) + self.poly.value(&self.poly_coefficients, x)
+    }
+
+    fn gradient(&self, x: &Point<3>) -> Point<3> {
+        let mut g = self.poly.gradient(&self.poly_coefficients);
+        let mut add = |h: [f64; 3]| {
+            for a in 0..3 {
+                g[a] += h[a];
+            }
+        };
+        match self.tree.leaf_of(x) {
+            Some(leaf) => {
+                add(self.l2p_gradient(leaf, x));
+                for &s in &self.tree.near[leaf as usize] {
+                    add(self.direct_gradient(self.cell(s), x));
+                }
+                for &s in &self.tree.m2p[leaf as usize] {
+                    add(self.m2p_gradient(s, x));
+                }
+            }
+            None => self.walk(x, |c, far| {
+                add(if far {
+                    self.m2p_gradient(c, x)
+                } else {
+                    self.direct_gradient(self.cell(c), x)
+                })
+            }),
+        }
+        g
+    }
+
+    fn values(&self, points: &[Point<3>], out: &mut [f64]) {
+        assert_eq!(
+            points.len(),
+            out.len(),
+            "values: points and out differ in length"
+        );
+        let arch = pulp::Arch::new();
+        out.par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each(|(o, p)| {
+                arch.dispatch(Batch {
+                    field: self,
+                    points: p,
+                    out: o,
+                })
+            });
+    }
+
+    fn bounds(&self) -> Option<Aabb<3>> {
+        Some(self.bounds)
+    }
+}
+
+/// A batch of evaluations, compiled per instruction set.
+struct Batch<'a, K> {
+    field: &'a FmmField<K>,
+    points: &'a [Point<3>],
+    out: &'a mut [f64],
+}
+
+impl<K: Kernel> pulp::WithSimd for Batch<'_, K> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        for (o, x) in self.out.iter_mut().zip(self.points) {
+            *o = self.field.value(x);
+        }
+    }
+}
+
+/// The field's centres merged by point: positions, value weights and (where the field has
+/// gradient constraints) derivative weights.
+#[allow(clippy::type_complexity, clippy::needless_range_loop)]
+fn sources<K: Kernel>(
+    field: &RbfField<K, 3>,
+) -> Result<(Vec<[f64; 3]>, Vec<f64>, Option<Vec<[f64; 3]>>), FmmError> {
+    let f = field.functionals();
+    let w = field.weights();
+    if f.len() == 0 {
+        return Err(FmmError::NoSources);
+    }
+    let mut points: Vec<[f64; 3]> = Vec::new();
+    let mut weights: Vec<f64> = Vec::new();
+    let mut dipoles: Vec<[f64; 3]> = Vec::new();
+    for j in 0..f.len() {
+        let y = f.points[j];
+        if y.iter().any(|v| !v.is_finite()) {
+            return Err(FmmError::NonFinite {
+                what: "centre",
+                index: j,
+            });
+        }
+        if !w[j].is_finite() {
+            return Err(FmmError::NonFinite {
+                what: "weight",
+                index: j,
+            });
+        }
+        if points.last() != Some(&y) {
+            points.push(y);
+            weights.push(0.0);
+            dipoles.push([0.0; 3]);
+        }
+        let k = points.len() - 1;
+        match f.kinds[j] {
+            Functional::Value => weights[k] += w[j],
+            Functional::Derivative(a) => dipoles[k][a] += w[j],
+        }
+    }
+    let dipoles = (!f.values_only()).then_some(dipoles);
+    Ok((points, weights, dipoles))
+}
+
+/// The cube around the centres and `domain`, enlarged a little so that points on the domain's
+/// faces are inside.
+fn root_cube(points: &[[f64; 3]], domain: &Aabb<3>) -> ([f64; 3], f64) {
+    let mut lo = domain.min();
+    let mut hi = domain.max();
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let centre = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+    let half = (0..3).map(|a| 0.5 * (hi[a] - lo[a])).fold(0.0, f64::max);
+    let half = if half > 0.0 { half * (1.0 + 1e-9) } else { 1.0 };
+    (centre, half)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,351 @@
+//! The M2L operators, compressed, and their application in blocks.
+//!
+//! The M2L operator between two cells of one level whose integer offset is `t` (a vector in
+//! `{−3, …, 3}³` with `‖t‖∞ ≥ 2`: 316 of them) is the `p³ × p³` matrix
+//! `K_t[A, B] = φ(|w t + h (x̄_A − x̄_B)|)` over the cells' Chebyshev nodes (`w = 2h` the width).
+//! The 48 symmetries of the cube (axis permutations and reflections) map every offset onto one
+//! of **16 canonical offsets** `0 ≤ c₂ ≤ c₁ ≤ c₀`, and, because the Chebyshev nodes are
+//! symmetric (`−x̄_a = x̄_{p−1−a}`), they act on the node indices as a permutation `P`:
+//! `K_t[A, B] = K_c[P(A), P(B)]` (Messner, Schanz & Darve 2012, §3). Each `K_c` is compressed
+//! once by a truncated SVD, `K_c ≈ U_c Σ_c V_cᵀ`, keeping the singular values above
+//! `ε · σ₁`; applying `K_t` to the multipole expansions of all pairs with offset `t` is then two
+//! dense products per block of pairs, `U_cΣ_c (V_cᵀ X)`, with `X` the permuted expansions.
+//!
+//! A kernel with [`homogeneity`](crate::rbf::Kernel::homogeneity) `k` (`r`, `r³`) has
+//! `K_t(w) = wᵏ K_t(1)`: one set of operators at unit width serves every level. Any other
+//! kernel gets its operators per level (per cell width), cached.
+
+use std::sync::{Arc, Mutex};
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use rayon::prelude::*;
+
+use super::chebyshev::Chebyshev;
+use super::tree::{M2lPair, offset_of};
+use crate::rbf::kernel::{self, Kernel};
+
+/// The compressed operator of one canonical offset.
+#[derive(Debug, Clone)]
+pub(crate) struct Compressed {
+    /// `U Σ`, `p³ × r`.
+    pub us: Mat<f64>,
+    /// `V`, `p³ × r`.
+    pub v: Mat<f64>,
+}
+
+/// The 16 compressed operators of one cell width.
+#[derive(Debug, Clone)]
+pub(crate) struct LevelOperators {
+    pub canonical: Vec<Compressed>,
+}
+
+impl LevelOperators {
+    /// The ranks kept, per canonical offset.
+    pub fn ranks(&self) -> Vec<usize> {
+        self.canonical.iter().map(|c| c.us.ncols()).collect()
+    }
+}
+
+/// How the symmetries map offsets to canonical ones.
+#[derive(Debug, Clone)]
+pub(crate) struct Symmetry {
+    /// The canonical offsets `[c₀, c₁, c₂]`.
+    pub canonical: Vec<[i64; 3]>,
+    /// Per offset code: its canonical index (`usize::MAX` for the 27 adjacent offsets).
+    pub canonical_of: Vec<usize>,
+    /// Per offset code: `perm[A]`, the canonical node index of node `A`.
+    pub perm: Vec<Vec<u32>>,
+}
+
+impl Symmetry {
+    pub fn new(p: usize) -> Self {
+        let mut canonical: Vec<[i64; 3]> = Vec::new();
+        let mut canonical_of = vec![usize::MAX; 343];
+        let mut perm = vec![Vec::new(); 343];
+        for code in 0..343 {
+            let t = offset_of(code);
+            if t.iter().all(|v| v.abs() <= 1) {
+                continue;
+            }
+            // π sorts |t| decreasingly (stable); σ reflects the axes where t < 0.
+            let mut pi = [0usize, 1, 2];
+            pi.sort_by_key(|&a| std::cmp::Reverse(t[a].abs()));
+            let c = [t[pi[0]].abs(), t[pi[1]].abs(), t[pi[2]].abs()];
+            let index = match canonical.iter().position(|&x| x == c) {
+                Some(i) => i,
+                None => {
+                    canonical.push(c);
+                    canonical.len() - 1
+                }
+            };
+            canonical_of[code] = index;
+            let sigma = |axis: usize, a: usize| if t[axis] < 0 { p - 1 - a } else { a };
+            let mut map = vec![0u32; p * p * p];
+            for (lin, m) in map.iter_mut().enumerate() {
+                let a = [lin / (p * p), (lin / p) % p, lin % p];
+                let b: [usize; 3] = std::array::from_fn(|i| sigma(pi[i], a[pi[i]]));
+                *m = (b[0] * p * p + b[1] * p + b[2]) as u32;
+            }
+            perm[code] = map;
+        }
+        Self {
+            canonical,
+            canonical_of,
+            perm,
+        }
+    }
+}
+
+/// Everything the M2L step needs for one kernel and order: the symmetries and the compressed
+/// operators, built on first use per cell width and shared (an `Arc`) between fields.
+#[derive(Debug)]
+pub struct FmmOperators {
+    pub(crate) cheb: Chebyshev,
+    pub(crate) symmetry: Symmetry,
+    pub(crate) tolerance: f64,
+    kernel_name: String,
+    homogeneity: Option<i32>,
+    /// `(width, operators)`; for homogeneous kernels only width 1.
+    cache: Mutex<Vec<(f64, Arc<LevelOperators>)>>,
+}
+
+impl FmmOperators {
+    /// The operators of `kernel` at order `p` (`p` Chebyshev nodes per axis), singular values
+    /// kept down to `tolerance` relative to the largest. Nothing is computed until a field
+    /// needs it.
+    pub(crate) fn new<K: Kernel + ?Sized>(kernel: &K, p: usize, tolerance: f64) -> Self {
+        Self {
+            cheb: Chebyshev::new(p),
+            symmetry: Symmetry::new(p),
+            tolerance,
+            kernel_name: kernel.name().to_owned(),
+            homogeneity: kernel.homogeneity(),
+            cache: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The order `p`.
+    pub fn order(&self) -> usize {
+        self.cheb.order()
+    }
+
+    /// The kernel these operators were built for (its [`Kernel::name`]).
+    pub fn kernel_name(&self) -> &str {
+        &self.kernel_name
+    }
+
+    /// The relative singular-value cut-off of the compression.
+    pub fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    /// Whether `kernel` is the one these operators were built for (same name and homogeneity).
+    pub(crate) fn fits<K: Kernel + ?Sized>(&self, kernel: &K) -> bool {
+        kernel.name() == self.kernel_name && kernel.homogeneity() == self.homogeneity
+    }
+
+    /// The operators for cells of width `width`, and the factor their products are scaled by.
+    pub(crate) fn level<K: Kernel + ?Sized>(
+        &self,
+        kernel: &K,
+        width: f64,
+    ) -> (Arc<LevelOperators>, f64) {
+        let (key, scale) = match self.homogeneity {
+            Some(k) => (1.0, width.powi(k)),
+            None => (width, 1.0),
+        };
+        // A poisoned lock only means another thread panicked while building; the cache is a
+        // list of complete entries, so it is still valid.
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, ops)) = cache.iter().find(|(w, _)| *w == key) {
+            return (ops.clone(), scale);
+        }
+        let ops = Arc::new(self.build(kernel, key));
+        cache.push((key, ops.clone()));
+        (ops, scale)
+    }
+
+    fn build<K: Kernel + ?Sized>(&self, kernel: &K, width: f64) -> LevelOperators {
+        let p = self.cheb.order();
+        let n = p * p * p;
+        let h = 0.5 * width;
+        let nodes = self.cheb.nodes();
+        let canonical = self
+            .symmetry
+            .canonical
+            .par_iter()
+            .map(|c| {
+                let k = Mat::from_fn(n, n, |i, j| {
+                    let a = [i / (p * p), (i / p) % p, i % p];
+                    let b = [j / (p * p), (j / p) % p, j % p];
+                    let d: [f64; 3] = std::array::from_fn(|x| {
+                        width * c[x] as f64 + h * (nodes[a[x]] - nodes[b[x]])
+                    });
+                    kernel::value(kernel, &d)
+                });
+                compress(k.as_ref(), self.tolerance)
+            })
+            .collect();
+        LevelOperators { canonical }
+    }
+}
+
+/// Truncated SVD `K ≈ (UΣ) Vᵀ` (sequential, so the result does not depend on the thread
+/// count).
+fn compress(k: MatRef<'_, f64>, tolerance: f64) -> Compressed {
+    let n = k.nrows();
+    let mut u = Mat::<f64>::zeros(n, n);
+    let mut v = Mat::<f64>::zeros(n, n);
+    let mut s = faer::diag::Diag::<f64>::zeros(n);
+    let par = Par::Seq;
+    let compute = faer::linalg::svd::ComputeSvdVectors::Thin;
+    let mut mem = faer::dyn_stack::MemBuffer::new(faer::linalg::svd::svd_scratch::<f64>(
+        n,
+        n,
+        compute,
+        compute,
+        par,
+        Default::default(),
+    ));
+    let ok = faer::linalg::svd::svd(
+        k,
+        s.as_mut(),
+        Some(u.as_mut()),
+        Some(v.as_mut()),
+        par,
+        faer::dyn_stack::MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let sv: Vec<f64> = (0..n).map(|i| s[i]).collect();
+    let rank = match ok {
+        Ok(()) => sv
+            .iter()
+            .take_while(|&&x| x > tolerance * sv[0])
+            .count()
+            .max(1),
+        // The SVD of a smooth kernel's matrix does not fail to converge; if it ever did, the
+        // uncompressed operator (rank n via the identity factorisation) is still exact.
+        Err(_) => {
+            return Compressed {
+                us: k.to_owned(),
+                v: Mat::identity(n, n),
+            };
+        }
+    };
+    Compressed {
+        us: Mat::from_fn(n, rank, |i, j| u[(i, j)] * sv[j]),
+        v: v.subcols(0, rank).to_owned(),
+    }
+}
+
+/// Pairs per dense product: fixed, so that results never depend on the thread count.
+const BLOCK: usize = 32;
+
+/// A slice written from several threads at disjoint ranges.
+#[derive(Clone, Copy)]
+pub(crate) struct Shared(*mut f64);
+// SAFETY: `Shared` is only used to write disjoint ranges from different threads (see uses).
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    pub fn new(s: &mut [f64]) -> Self {
+        Self(s.as_mut_ptr())
+    }
+
+    /// # Safety
+    /// `start..start + len` lies inside the slice `self` was made from, and no other
+    /// reference to that range is alive while the returned one is.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn range(&self, start: usize, len: usize) -> &mut [f64] {
+        // SAFETY: guaranteed by the caller.
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(start), len) }
+    }
+}
+
+/// `L_T += scale · K_t M_S` for every pair (all with offset `code`, distinct targets), in blocks.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn apply(
+    ops: &LevelOperators,
+    symmetry: &Symmetry,
+    code: usize,
+    pairs: &[M2lPair],
+    scale: f64,
+    multipoles: &[f64],
+    locals: Shared,
+    n: usize,
+) {
+    let op = &ops.canonical[symmetry.canonical_of[code]];
+    let perm = &symmetry.perm[code];
+    let rank = op.us.ncols();
+    pairs.par_chunks(BLOCK).for_each(|block| {
+        let m = block.len();
+        let mut x = Mat::<f64>::zeros(n, m);
+        for (k, pair) in block.iter().enumerate() {
+            let src = &multipoles[pair.source as usize * n..][..n];
+            for (b, &v) in src.iter().enumerate() {
+                x[(perm[b] as usize, k)] = v;
+            }
+        }
+        let mut y = Mat::<f64>::zeros(rank, m);
+        product(y.as_mut(), op.v.transpose(), x.as_ref());
+        let mut z = Mat::<f64>::zeros(n, m);
+        product(z.as_mut(), op.us.as_ref(), y.as_ref());
+        for (k, pair) in block.iter().enumerate() {
+            // SAFETY: the targets of one offset's pairs are distinct (a cell has one neighbour
+            // per offset), and only this block writes this target's range during this call.
+            let local = unsafe { locals.range(pair.target as usize * n, n) };
+            for (a, l) in local.iter_mut().enumerate() {
+                *l += scale * z[(perm[a] as usize, k)];
+            }
+        }
+    });
+}
+
+fn product(out: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>) {
+    matmul(out, Accum::Replace, a, b, 1.0, Par::Seq);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rbf::fmm::tree::offset_code;
+    use crate::rbf::kernel::Biharmonic;
+
+    /// The permuted canonical operator equals the operator built for the offset itself.
+    #[test]
+    fn symmetries_map_every_offset_to_its_canonical_operator() {
+        let p = 3;
+        let sym = Symmetry::new(p);
+        assert_eq!(sym.canonical.len(), 16);
+        assert_eq!(
+            sym.canonical_of
+                .iter()
+                .filter(|&&c| c != usize::MAX)
+                .count(),
+            316
+        );
+        let cheb = Chebyshev::new(p);
+        let nodes = cheb.nodes();
+        let h = 0.5;
+        let k = |t: [f64; 3], a: usize, b: usize| {
+            let ia = [a / (p * p), (a / p) % p, a % p];
+            let ib = [b / (p * p), (b / p) % p, b % p];
+            let d: [f64; 3] = std::array::from_fn(|x| t[x] + h * (nodes[ia[x]] - nodes[ib[x]]));
+            kernel::value(&Biharmonic, &d)
+        };
+        for t in [[2, -3, 1], [-3, -3, 0], [0, 2, -2], [-1, 0, 3]] {
+            let code = offset_code(t);
+            let c = sym.canonical[sym.canonical_of[code]];
+            let perm = &sym.perm[code];
+            for a in 0..p * p * p {
+                for b in 0..p * p * p {
+                    let direct = k(t.map(|v| v as f64), a, b);
+                    let canon = k(c.map(|v| v as f64), perm[a] as usize, perm[b] as usize);
+                    assert!((direct - canon).abs() < 1e-13, "{t:?} {a} {b}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,285 @@
+use super::*;
+use crate::rbf::{Biharmonic, Constraints, RbfFit, ThinPlate, Triharmonic};
+
+/// A bumpy closed surface (a sphere of radius `0.5 (1 + 0.2 sin 3θ cos 2φ)`) with values 0 on
+/// it and ±0.05 along the radius: `n` on-surface points.
+fn blob(n: usize) -> Constraints<3> {
+    let mut c = Constraints::new();
+    for k in 0..n {
+        let z = -1.0 + (2 * k + 1) as f64 / n as f64;
+        let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+        let u = [s * t.cos(), s * t.sin(), z];
+        let r = 0.5 * (1.0 + 0.2 * (3.0 * z.acos()).sin() * (2.0 * t).cos());
+        let p = u.map(|v| r * v + 0.1);
+        c.push_value(p, 0.0);
+        if k % 3 == 0 {
+            c.push_value(std::array::from_fn(|a| p[a] + 0.05 * u[a]), 0.05);
+            c.push_value(std::array::from_fn(|a| p[a] - 0.05 * u[a]), -0.05);
+        }
+    }
+    c
+}
+
+fn fit<K: Kernel + Clone>(kernel: K, c: &Constraints<3>) -> RbfField<K, 3> {
+    RbfFit::new(kernel).fit(c).expect("fit").field
+}
+
+/// Deterministic points filling `b` enlarged by `grow` on every side.
+fn probes(b: &Aabb<3>, count: usize, grow: f64) -> Vec<Point<3>> {
+    let (lo, hi) = (b.min(), b.max());
+    (0..count)
+        .map(|i| {
+            let f = |m: f64| ((i as f64 + 0.5) * m).fract();
+            let u = [f(0.754_877_666), f(0.569_840_291), f(0.430_159_709)];
+            std::array::from_fn(|a| {
+                let span = hi[a] - lo[a];
+                lo[a] - grow * span + u[a] * span * (1.0 + 2.0 * grow)
+            })
+        })
+        .collect()
+}
+
+/// `max |fast − exact| / max |exact|` over `points`.
+fn relative_error<F: ScalarField<3>, G: ScalarField<3>>(
+    fast: &F,
+    exact: &G,
+    points: &[Point<3>],
+) -> f64 {
+    let (mut a, mut b) = (vec![0.0; points.len()], vec![0.0; points.len()]);
+    fast.values(points, &mut a);
+    exact.values(points, &mut b);
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+        / scale
+}
+
+#[test]
+fn the_error_falls_with_the_order_for_r_and_r3() {
+    let c = blob(900);
+    let points = probes(&Aabb::new([-0.5; 3], [0.7; 3]).expect("box"), 3000, 0.0);
+    let r = fit(Biharmonic, &c);
+    let r3 = fit(Triharmonic, &c);
+    for (name, errors) in [
+        (
+            "r",
+            [3, 5, 7, 9].map(|p| {
+                let f = FmmField::new(&r, &FmmOptions::new(p).with_leaf_size(20)).expect("fmm");
+                relative_error(&f, &r, &points)
+            }),
+        ),
+        (
+            "r3",
+            [3, 5, 7, 9].map(|p| {
+                let f = FmmField::new(&r3, &FmmOptions::new(p).with_leaf_size(20)).expect("fmm");
+                relative_error(&f, &r3, &points)
+            }),
+        ),
+    ] {
+        eprintln!("{name}: p = 3, 5, 7, 9: {errors:?}");
+        for w in errors.windows(2) {
+            assert!(w[1] < 0.5 * w[0], "{name}: {errors:?}");
+        }
+        assert!(errors[3] < 1e-5, "{name}: {errors:?}");
+    }
+}
+
+#[test]
+fn gradients_match_the_direct_sum() {
+    let c = blob(600);
+    let exact = fit(Triharmonic, &c);
+    let fast = FmmField::new(&exact, &FmmOptions::new(8).with_leaf_size(16)).expect("fmm");
+    let points = probes(&exact.bounds().expect("bounds"), 300, 0.3);
+    let scale = points
+        .iter()
+        .map(|x| exact.gradient(x).iter().fold(0.0f64, |m, v| m.max(v.abs())))
+        .fold(0.0, f64::max);
+    for x in &points {
+        let (g, h) = (fast.gradient(x), exact.gradient(x));
+        for a in 0..3 {
+            // The derivative of the interpolant loses about p² of the value's accuracy.
+            assert!((g[a] - h[a]).abs() < 1e-4 * scale, "{x:?}: {g:?} vs {h:?}");
+        }
+    }
+}
+
+#[test]
+fn hermite_fields_match_the_direct_sum() {
+    let mut c = Constraints::new();
+    for k in 0..300 {
+        let z = -1.0 + (2 * k + 1) as f64 / 300.0;
+        let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+        let u = [s * t.cos(), s * t.sin(), z];
+        c.push_value(u, 0.0);
+        c.push_gradient(u, u);
+    }
+    let exact = fit(Triharmonic, &c);
+    let fast = FmmField::new(&exact, &FmmOptions::new(9).with_leaf_size(12)).expect("fmm");
+    assert!(fast.dipoles.is_some());
+    let points = probes(&exact.bounds().expect("bounds"), 2000, 0.2);
+    let e = relative_error(&fast, &exact, &points);
+    assert!(e < 1e-6, "{e:e}");
+    for x in points.iter().step_by(50) {
+        let (g, h) = (fast.gradient(x), exact.gradient(x));
+        for a in 0..3 {
+            assert!(
+                (g[a] - h[a]).abs() < 1e-5 * (1.0 + h[a].abs()),
+                "{g:?} {h:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn points_outside_the_root_cube_are_exact_too() {
+    let c = blob(500);
+    let exact = fit(Biharmonic, &c);
+    let fast = FmmField::new(&exact, &FmmOptions::new(8).with_leaf_size(16)).expect("fmm");
+    // From just outside the bounds to five diameters away.
+    let points = probes(&exact.bounds().expect("bounds"), 2000, 5.0);
+    let outside = points
+        .iter()
+        .filter(|x| fast.tree.leaf_of(x).is_none())
+        .count();
+    assert!(outside > 1500, "{outside}");
+    let e = relative_error(&fast, &exact, &points);
+    assert!(e < 1e-5, "{e:e}");
+    let x = [3.0, -2.0, 1.0];
+    let (g, h) = (fast.gradient(&x), exact.gradient(&x));
+    for a in 0..3 {
+        assert!((g[a] - h[a]).abs() < 1e-5 * (1.0 + h[a].abs()));
+    }
+}
+
+#[test]
+fn thin_plate_uses_operators_per_level() {
+    let c = blob(500);
+    let exact = fit(ThinPlate, &c);
+    let fast = FmmField::new(&exact, &FmmOptions::new(8).with_leaf_size(16)).expect("fmm");
+    let points = probes(&exact.bounds().expect("bounds"), 1000, 0.0);
+    let e = relative_error(&fast, &exact, &points);
+    assert!(e < 1e-5, "{e:e}");
+}
+
+#[test]
+fn values_have_the_same_bits_for_any_thread_count_and_batch() {
+    let c = blob(700);
+    let exact = fit(Biharmonic, &c);
+    let points = probes(&exact.bounds().expect("bounds"), 5000, 0.1);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool")
+            .install(|| {
+                let fast =
+                    FmmField::new(&exact, &FmmOptions::new(6).with_leaf_size(10)).expect("fmm");
+                let mut out = vec![0.0; points.len()];
+                fast.values(&points, &mut out);
+                (fast, out)
+            })
+    };
+    let (one, a) = run(1);
+    let (_, b) = run(3);
+    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+    // One point at a time, or in another batch: the same bits.
+    for (i, x) in points.iter().enumerate().step_by(97) {
+        assert_eq!(one.value(x).to_bits(), a[i].to_bits());
+    }
+    let mut tail = vec![0.0; 1000];
+    one.values(&points[4000..], &mut tail);
+    assert!(
+        tail.iter()
+            .zip(&a[4000..])
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+    );
+}
+
+#[test]
+fn coincident_centres_and_tiny_leaves_are_handled() {
+    // 40 centres at one point (more than a leaf holds: the depth limit stops the splitting),
+    // interleaved with a ring (consecutive equal centres would be merged into one source).
+    let points: Vec<[f64; 3]> = (0..100)
+        .map(|k| {
+            let t = k as f64 * 0.1;
+            if k % 5 < 2 {
+                [0.25; 3]
+            } else {
+                [t.cos(), t.sin(), 0.0]
+            }
+        })
+        .collect();
+    let n = points.len();
+    let weights: Vec<f64> = (0..n).map(|j| ((j * 7919) % 13) as f64 - 6.0).collect();
+    let field = RbfField::from_parts(
+        Biharmonic,
+        points.clone(),
+        vec![Functional::Value; n],
+        vec![0.0; n],
+        weights,
+        Polynomial::fit(&points),
+        vec![0.5, 0.1, -0.2, 0.3],
+        Aabb::new([-1.0; 3], [1.0; 3]).expect("box"),
+    );
+    let fast = FmmField::new(
+        &field,
+        &FmmOptions::new(6).with_leaf_size(4).with_max_depth(12),
+    )
+    .expect("fmm");
+    assert_eq!(fast.report().depth, 12);
+    let probes = probes(&Aabb::new([-1.0; 3], [1.0; 3]).expect("box"), 1000, 0.5);
+    let e = relative_error(&fast, &field, &probes);
+    assert!(e < 1e-4, "{e:e}");
+    // At the coincident point itself: φ(0) = 0 from every copy.
+    let x = [0.25; 3];
+    assert!((fast.value(&x) - field.value(&x)).abs() < 1e-4 * field.value(&x).abs().max(1.0));
+}
+
+#[test]
+fn bad_options_are_specific_errors() {
+    let c = blob(60);
+    let field = fit(Biharmonic, &c);
+    for p in [0, 1, 17] {
+        assert_eq!(
+            FmmField::new(&field, &FmmOptions::new(p)).err(),
+            Some(FmmError::Order { order: p })
+        );
+    }
+    assert_eq!(
+        FmmField::new(&field, &FmmOptions::new(4).with_leaf_size(0)).err(),
+        Some(FmmError::LeafSize)
+    );
+    for t in [0.0, 1.0, f64::NAN] {
+        assert!(matches!(
+            FmmField::new(&field, &FmmOptions::new(4).with_tolerance(t)),
+            Err(FmmError::Tolerance { .. })
+        ));
+    }
+    let ops = FmmField::operators(&Biharmonic, &FmmOptions::new(5)).expect("ops");
+    assert!(matches!(
+        FmmField::with_operators(&field, &FmmOptions::new(6), ops.clone()),
+        Err(FmmError::Operators { .. })
+    ));
+    let r3 = fit(Triharmonic, &c);
+    let ops3 = FmmField::operators(&Triharmonic, &FmmOptions::new(5)).expect("ops");
+    assert!(FmmField::with_operators(&r3, &FmmOptions::new(5), ops3).is_ok());
+    let empty = RbfField::from_parts(
+        Biharmonic,
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        Polynomial::fit(&[]),
+        vec![0.0; 4],
+        Aabb::new([0.0; 3], [1.0; 3]).expect("box"),
+    );
+    assert_eq!(
+        FmmField::new(&empty, &FmmOptions::new(4)).err(),
+        Some(FmmError::NoSources)
+    );
+    // An empty batch is no work.
+    let fast = FmmField::new(&field, &FmmOptions::new(4)).expect("fmm");
+    fast.values(&[], &mut []);
+}

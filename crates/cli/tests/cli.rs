@@ -1147,3 +1147,67 @@ fn fit_and_restore_refuse_an_existing_output_without_force() {
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert_eq!(&fs::read(&restored).unwrap()[..8], b"ZSFIELD\0");
 }
+
+#[test]
+fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
+    let (dir, field) = sphere_field();
+    let smc = dir.path().join("smc.ply");
+    let o = mesh(
+        &field,
+        &smc,
+        &[
+            "--method",
+            "smc",
+            "--order",
+            "5",
+            "--high-order",
+            "9",
+            "--resolution",
+            "32",
+        ],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    for text in [
+        "fmm: order 5 (sampled max error ",
+        "margin ",
+        "N_MC ",
+        "N_SMC,p ",
+        "N_SMC,P ",
+        "gamma = ",
+        "Euler characteristic 2",
+    ] {
+        assert!(out.contains(text), "{text:?}:\n{out}");
+    }
+    // The exact field meshed by plain marching cubes: the same surface up to the expansion's
+    // error (the meshes are not bitwise equal: order 9 is not the direct sum).
+    let mc = dir.path().join("mc.ply");
+    let o = mesh(&field, &mc, &["--resolution", "32"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let a = zeroset_mesh::io::read_ply_mesh(&smc).expect("smc mesh");
+    let b = zeroset_mesh::io::read_ply_mesh(&mc).expect("mc mesh");
+    assert_eq!(a.num_triangles(), b.num_triangles());
+    let ra = zeroset_mesh::check(&a);
+    let rb = zeroset_mesh::check(&b);
+    assert!((ra.signed_volume - rb.signed_volume).abs() < 1e-6 * rb.signed_volume.abs());
+
+    // Bad orders are messages, not panics.
+    for (p, high) in [("1", "9"), ("8", "6"), ("5", "17")] {
+        let bad = dir.path().join("bad.ply");
+        let o = mesh(
+            &field,
+            &bad,
+            &[
+                "--method",
+                "smc",
+                "--order",
+                p,
+                "--high-order",
+                high,
+                "--force",
+            ],
+        );
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains("order"), "{}", stderr(&o));
+    }
+}

@@ -79,6 +79,10 @@
 //! side (found 64 cells at a time from the words), with vertex ids read off the per-word counts
 //! by popcount. No hash map, no per-cell allocation.
 //!
+//! The same extractor, given a set of cells and of known samples, triangulates only those cells
+//! and places no crossing next to an unknown sample: the [voxel-growing](crate::signed)
+//! baseline uses it to mesh exactly the cells it has found, as plain marching cubes meshes them.
+//!
 //! ## Layout
 //!
 //! Samples are in the grid's linear order, last axis fastest:
@@ -108,7 +112,7 @@ use crate::samples;
 use crate::trimesh::TriMesh;
 
 /// What the sample count check calls the samples.
-const SAMPLES: &str = "marching-cubes samples (one per grid point)";
+pub(crate) const SAMPLES: &str = "marching-cubes samples (one per grid point)";
 
 /// Options of [`marching_cubes`] and [`mesh_field`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -195,7 +199,7 @@ pub fn mesh_field<F: ScalarField<3> + ?Sized>(
 }
 
 /// `g/‖g‖`, or zero when `g` is zero or not finite.
-fn unit(g: Point3) -> Point3 {
+pub(crate) fn unit(g: Point3) -> Point3 {
     let n = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     if n > 0.0 && n.is_finite() {
         g.map(|x| x / n)
@@ -276,12 +280,104 @@ struct SlabOutput {
     dropped: bool,
 }
 
+/// A set of cells for [`marching_cubes_masked`]: cell `[ci, cj, ck]` (its lowest corner is
+/// sample `[ci, cj, ck]`) for `ci ∈ −1..=n₀ − 1` on each axis, so that the cap cells outside the
+/// grid with [`McOptions::close_boundary`] can be named too.
+#[derive(Debug, Clone)]
+pub(crate) struct CellMask {
+    /// `n + 1` per axis.
+    dims: [usize; 3],
+    bits: Vec<bool>,
+}
+
+impl CellMask {
+    /// The empty set of cells of a grid of `n` samples per axis.
+    pub(crate) fn new(n: [usize; 3]) -> Self {
+        let dims = n.map(|x| x + 1);
+        Self {
+            dims,
+            bits: vec![false; dims[0] * dims[1] * dims[2]],
+        }
+    }
+
+    /// The position of cell `c` (each index in `−1..=n − 1`) in `bits`.
+    #[inline]
+    fn index(&self, c: [isize; 3]) -> usize {
+        let [_, d1, d2] = self.dims;
+        debug_assert!(
+            c.iter()
+                .zip(&self.dims)
+                .all(|(&x, &d)| x >= -1 && x < d as isize - 1)
+        );
+        let u = c.map(|x| (x + 1) as usize);
+        (u[0] * d1 + u[1]) * d2 + u[2]
+    }
+
+    /// Adds cell `c`; returns whether it was new.
+    pub(crate) fn insert(&mut self, c: [isize; 3]) -> bool {
+        let k = self.index(c);
+        !std::mem::replace(&mut self.bits[k], true)
+    }
+
+    /// Whether cell `c` is in the set.
+    #[inline]
+    pub(crate) fn contains(&self, c: [isize; 3]) -> bool {
+        self.bits[self.index(c)]
+    }
+}
+
+/// [`marching_cubes`] restricted to the cells of `cells`: the triangles are those plain marching
+/// cubes gives in these cells, in the same order, and the vertices those they use, in the same
+/// relative order (unused ones are dropped). Samples with `known[s] == false` are never read
+/// except for their side (they must be finite; give them a value `≥ level` so that they count
+/// as outside and carry no cap vertex): no crossing is placed on an edge with such an end. A
+/// cell of `cells` must have all its real corners known. Normals are not computed (the caller
+/// takes them from the field).
+pub(crate) fn marching_cubes_masked(
+    grid: &Grid<3>,
+    values: &[f64],
+    level: f64,
+    known: &[bool],
+    cells: &CellMask,
+    close_boundary: bool,
+) -> Result<TriMesh> {
+    samples::check(grid, Some(values), level, SAMPLES)?;
+    if known.len() != values.len() {
+        return Err(zeroset_field_core::Error::ShapeMismatch {
+            what: "marching-cubes known-sample mask",
+            expected: values.len(),
+            got: known.len(),
+        }
+        .into());
+    }
+    if cells.dims != grid.counts().map(|x| x + 1) {
+        return Err(zeroset_field_core::Error::ShapeMismatch {
+            what: "marching-cubes cell mask (one entry per cell, cap cells included)",
+            expected: grid.counts().iter().map(|x| x + 1).product(),
+            got: cells.bits.len(),
+        }
+        .into());
+    }
+    let options = McOptions::default()
+        .with_close_boundary(close_boundary)
+        .with_normals(false);
+    let mut ex = Extractor::new(grid, values, level, &options);
+    ex.known = Some(known);
+    ex.cells = Some(cells);
+    ex.run()
+}
+
 struct Extractor<'a> {
     grid: &'a Grid<3>,
     values: &'a [f64],
     level: f64,
     close: bool,
     normals: bool,
+    /// Samples whose value may be read (all when `None`); edges with an unknown end carry no
+    /// crossing.
+    known: Option<&'a [bool]>,
+    /// The cells that emit triangles (all when `None`).
+    cells: Option<&'a CellMask>,
     n: [usize; 3],
     /// Words per row.
     w: usize,
@@ -301,6 +397,8 @@ impl<'a> Extractor<'a> {
             level,
             close: options.close_boundary,
             normals: options.normals,
+            known: None,
+            cells: None,
             n,
             w: n[2].div_ceil(64),
             offset,
@@ -338,12 +436,27 @@ impl<'a> Extractor<'a> {
         }
         // Pass 2: crossings, slab by slab (a slab reads the inside bits of the next one).
         let inside: Vec<u64> = words.par_iter().map(|x| x.inside).collect();
+        let known: Option<Vec<u64>> = self.known.map(|known| {
+            let mut bits = vec![0u64; n0 * n1 * w];
+            bits.par_chunks_mut(w)
+                .zip(known.par_chunks(n2))
+                .for_each(|(row, k)| {
+                    for (word, chunk) in row.iter_mut().zip(k.chunks(64)) {
+                        *word = chunk
+                            .iter()
+                            .enumerate()
+                            .fold(0u64, |acc, (b, &x)| acc | u64::from(x) << b);
+                    }
+                });
+            bits
+        });
         let results: Vec<(Vec<usize>, bool)> = words
             .par_chunks_mut(n1 * w)
             .enumerate()
-            .map(|(i, slab)| self.slab_crossings(i, slab, &inside))
+            .map(|(i, slab)| self.slab_crossings(i, slab, &inside, known.as_deref()))
             .collect();
         drop(inside);
+        drop(known);
         let mut degenerate = false;
         for (merged_up, merged) in results {
             degenerate |= merged;
@@ -438,6 +551,8 @@ impl<'a> Extractor<'a> {
         }
         if degenerate {
             triangles = cancel_opposite(triangles);
+        }
+        if degenerate || self.cells.is_some() {
             compact(&mut vertices, &mut normals, &mut triangles);
         }
         let mesh = TriMesh::new(vertices, triangles)?;
@@ -450,7 +565,13 @@ impl<'a> Extractor<'a> {
 
     /// The crossings of slab `i` (samples `[i, ·, ·]`) into its words; returns the samples of
     /// the next slab onto which a crossing merges, and whether any crossing merged.
-    fn slab_crossings(&self, i: usize, slab: &mut [Word], inside: &[u64]) -> (Vec<usize>, bool) {
+    fn slab_crossings(
+        &self,
+        i: usize,
+        slab: &mut [Word],
+        inside: &[u64],
+        known: Option<&[u64]>,
+    ) -> (Vec<usize>, bool) {
         let [n0, n1, n2] = self.n;
         let w = self.w;
         let mut merged_up = Vec::new();
@@ -479,7 +600,7 @@ impl<'a> Extractor<'a> {
                 } else {
                     !0
                 };
-                let crossing = [
+                let mut crossing = [
                     if i + 1 < n0 {
                         (here ^ inside[(row + n1) * w + q]) & valid
                     } else {
@@ -492,6 +613,22 @@ impl<'a> Extractor<'a> {
                     },
                     (here ^ up) & z_valid,
                 ];
+                if let Some(known) = known {
+                    // Only edges with both ends known carry a crossing.
+                    let k_here = known[row * w + q];
+                    let k_next = if q + 1 < w {
+                        known[row * w + q + 1] & 1
+                    } else {
+                        0
+                    };
+                    if i + 1 < n0 {
+                        crossing[0] &= k_here & known[(row + n1) * w + q];
+                    }
+                    if j + 1 < n1 {
+                        crossing[1] &= k_here & known[(row + 1) * w + q];
+                    }
+                    crossing[2] &= k_here & ((k_here >> 1) | (k_next << 63));
+                }
                 let stride = [n1 * n2, n2, 1];
                 for (a, &bits) in crossing.iter().enumerate() {
                     let mut bits = bits;
@@ -770,6 +907,11 @@ impl CellRow<'_, '_> {
     /// degenerate.
     fn emit(&self, case: usize, ck: isize, virt: u8, out: &mut SlabOutput) {
         if case == 0 {
+            return;
+        }
+        if let Some(cells) = self.ex.cells
+            && !cells.contains([self.ci, self.cj, ck])
+        {
             return;
         }
         let table = self.ctx.table;

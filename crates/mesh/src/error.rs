@@ -56,6 +56,15 @@ pub enum MeshError {
         /// The value given.
         value: f64,
     },
+    /// The certainty margin of the signed marching cubes is negative, NaN or infinite.
+    #[error(
+        "the signed marching cubes margin must be finite and at least 0 (a bound on the \
+         coarse field's error), got {margin}"
+    )]
+    InvalidMargin {
+        /// The margin given.
+        margin: f64,
+    },
     /// Plot bounds with zero extent on an axis: there is no scale that maps them to pixels.
     #[error(
         "plot bounds are flat on axis {axis} ([{min}, {max}]); an SVG plot needs a box with \

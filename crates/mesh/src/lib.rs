@@ -11,6 +11,11 @@
 //!   welded [`TriMesh`]. Each cell's polygons are walked from the marching-squares segments of
 //!   its six faces, ambiguous faces resolved by the asymptotic decider on the face's own four
 //!   values, so neighbouring cells always agree: the mesh is watertight by construction.
+//! - [`signed`] — **two-step signed marching cubes** (paper 002 §2.3): a cheap coarse field at
+//!   every vertex, the accurate field only at the vertices of cells whose signs the coarse values
+//!   (within a caller-given error margin) cannot settle; the mesh equals plain marching cubes on
+//!   the accurate field. Also the paper's voxel-growing baseline, which follows the surface from
+//!   seeds and misses components without one.
 //! - [`svg`] — SVG previews of 2-D results (contours, polylines, points), written atomically.
 //! - [`preview`] — software-rendered PNG previews: shaded meshes (orthographic, z-buffered,
 //!   back faces darker) and field slices (diverging colour map, zero contour in black).
@@ -80,6 +85,7 @@ pub mod error;
 pub mod io;
 pub mod preview;
 mod samples;
+pub mod signed;
 pub mod squares;
 pub mod svg;
 pub mod trimesh;
@@ -89,6 +95,7 @@ pub use checks::{MeshReport, boundary_loops, check};
 pub use cubes::{McOptions, marching_cubes, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};
+pub use signed::{SmcReport, SmcStage, VgReport, signed_marching_cubes, voxel_growing};
 pub use squares::{Contour, Polyline, contour_field, marching_squares};
 pub use svg::SvgPlot;
 pub use trimesh::TriMesh;

@@ -83,6 +83,19 @@ impl<K: Kernel, const D: usize> RbfField<K, D> {
         &self.poly_coefficients
     }
 
+    /// The polynomial part in absolute coordinates: `(a, b)` with `p(x) = a + b · x`.
+    pub fn linear_part(&self) -> (f64, Point<D>) {
+        let c = &self.poly_coefficients;
+        let b: Point<D> = std::array::from_fn(|k| c[1 + k] / self.poly.scale);
+        let a = c[0] - (0..D).map(|k| b[k] * self.poly.centre[k]).sum::<f64>();
+        (a, b)
+    }
+
+    /// The centres (one per functional: a gradient constraint repeats its point `D` times).
+    pub fn centres(&self) -> &[Point<D>] {
+        &self.functionals.points
+    }
+
     /// The Hessian `∇²s(x)` (analytic; a gradient constraint's centre needs the kernel's third
     /// derivatives, which are undefined exactly at the centre and taken as 0 there).
     pub fn hessian(&self, x: &Point<D>) -> [[f64; D]; D] {

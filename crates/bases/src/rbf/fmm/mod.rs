@@ -100,6 +100,24 @@ pub enum FmmError {
         /// Its index.
         index: usize,
     },
+    /// The high order of a two-order pair is below the low one.
+    #[error("the high order ({high}) must be at least the low order ({low})")]
+    Orders {
+        /// The low order.
+        low: usize,
+        /// The high order.
+        high: usize,
+    },
+    /// The safety factor of a two-order pair is not finite and at least 1, or no error samples.
+    #[error(
+        "the safety factor must be finite and at least 1 and the error samples at least 1 (got {safety} and {samples})"
+    )]
+    Safety {
+        /// The factor given.
+        safety: f64,
+        /// The sample count given.
+        samples: usize,
+    },
     /// The operators given were built for another kernel or order.
     #[error(
         "the operators were built for kernel `{built}` at order {built_order}, not for kernel \
@@ -124,7 +142,8 @@ pub struct FmmOptions {
     /// Chebyshev nodes per axis, `p` (paper 002: 5…8 for the first step of the signed marching
     /// cubes, 9…12 for the second).
     pub order: usize,
-    /// The most sources a leaf holds (default: by order, `max(32, p³/4)`).
+    /// The most sources a leaf holds (default: by order, `max(64, p³/2)`: a leaf's direct sums
+    /// then cost about as much as its expansions).
     pub leaf_size: Option<usize>,
     /// The deepest level (default 16).
     pub max_depth: u32,
@@ -188,7 +207,7 @@ impl FmmOptions {
 
     fn leaf_size(&self) -> usize {
         self.leaf_size
-            .unwrap_or_else(|| (self.order.pow(3) / 4).max(32))
+            .unwrap_or_else(|| (self.order.pow(3) / 2).max(64))
     }
 
     fn tolerance(&self) -> f64 {
@@ -961,6 +980,74 @@ impl<K: Kernel> pulp::WithSimd for Batch<'_, K> {
         for (o, x) in self.out.iter_mut().zip(self.points) {
             *o = self.field.value(x);
         }
+    }
+}
+
+/// The two fields of the two-step signed marching cubes (paper 002 §2.3) and the margin that
+/// makes a low-order sign certain.
+///
+/// The paper takes the error `ε_p` of order `p` as known from its Tables 1–2, measured against
+/// direct sums. Here it is measured the same way when the pair is built:
+/// [`FmmField::sampled_error`] at `samples` points (half uniform in the field's box, half next
+/// to the centres, where the sign changes), for both orders. The margin is
+/// `safety · (ε_p + ε_P)`: a vertex whose low-order value is farther than that from the level
+/// has the same sign at order `P` (`|s_p − s_P| ≤ ε_p + ε_P`), so only the other vertices need
+/// order `P`. The sampled maximum is an estimate, not a bound; the safety factor (default 10)
+/// covers points worse than the samples.
+#[derive(Debug, Clone)]
+pub struct OrderPair<K> {
+    /// The low-order field (step 1).
+    pub low: FmmField<K>,
+    /// The high-order field (step 2).
+    pub high: FmmField<K>,
+    /// The largest sampled error of the low order.
+    pub low_error: f64,
+    /// The largest sampled error of the high order.
+    pub high_error: f64,
+    /// `safety · (low_error + high_error)`.
+    pub margin: f64,
+}
+
+/// The default safety factor of [`OrderPair::new`].
+pub const DEFAULT_SAFETY: f64 = 10.0;
+/// The default number of error samples of [`OrderPair::new`].
+pub const DEFAULT_ERROR_SAMPLES: usize = 4096;
+
+impl<K: Kernel + Clone> OrderPair<K> {
+    /// Builds both orders of `field` and measures their errors (see the type's docs).
+    ///
+    /// # Errors
+    /// [`FmmError::Orders`] if `high.order < low.order`, [`FmmError::Safety`] for a safety
+    /// factor below 1 or not finite or no samples, and the errors of [`FmmField::new`].
+    pub fn new(
+        field: &RbfField<K, 3>,
+        low: &FmmOptions,
+        high: &FmmOptions,
+        samples: usize,
+        safety: f64,
+    ) -> Result<Self, FmmError> {
+        low.check()?;
+        high.check()?;
+        if high.order < low.order {
+            return Err(FmmError::Orders {
+                low: low.order,
+                high: high.order,
+            });
+        }
+        if !(safety.is_finite() && safety >= 1.0) || samples == 0 {
+            return Err(FmmError::Safety { safety, samples });
+        }
+        let low_field = FmmField::new(field, low)?;
+        let high_field = FmmField::new(field, high)?;
+        let (low_error, _) = low_field.sampled_error(field, samples, 1);
+        let (high_error, _) = high_field.sampled_error(field, samples, 2);
+        Ok(Self {
+            low: low_field,
+            high: high_field,
+            low_error,
+            high_error,
+            margin: safety * (low_error + high_error),
+        })
     }
 }
 

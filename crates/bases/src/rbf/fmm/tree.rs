@@ -23,6 +23,9 @@
 /// No cell.
 pub(crate) const NONE: u32 = u32::MAX;
 
+/// A leaf is split when its direct work per target exceeds this many leaf sizes.
+const REFINE: usize = 8;
+
 /// One cube of the tree.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Cell {
@@ -103,89 +106,134 @@ pub(crate) struct TreeShape {
 
 impl Tree {
     /// Builds the tree over `points` (all inside the root cube) and its lists.
+    ///
+    /// Splitting by sources alone leaves large empty leaves next to finely split ones, and a
+    /// target in such a leaf would sum most of its neighbours' sources directly. So, once the
+    /// source tree is built, every leaf whose direct work per target (its near sources plus
+    /// `p³` per M2P cell) exceeds [`REFINE`] leaf sizes is split too, and the lists are redone,
+    /// until no leaf is that costly or the depth limit is reached. Their children take the
+    /// far part of that work into their local expansions (M2L), computed once per cell.
     pub fn build(points: &[[f64; 3]], shape: TreeShape) -> Self {
-        let mut order: Vec<u32> = (0..points.len() as u32).collect();
-        let mut cells = vec![Cell {
-            centre: shape.centre,
-            half: shape.half,
-            level: 0,
-            coord: [0; 3],
-            first_child: NONE,
-            begin: 0,
-            end: points.len() as u32,
-        }];
+        let mut tree = Self {
+            cells: vec![Cell {
+                centre: shape.centre,
+                half: shape.half,
+                level: 0,
+                coord: [0; 3],
+                first_child: NONE,
+                begin: 0,
+                end: points.len() as u32,
+            }],
+            levels: Vec::new(),
+            order: (0..points.len() as u32).collect(),
+            near: Vec::new(),
+            m2p: Vec::new(),
+            p2l: Vec::new(),
+            m2l: Vec::new(),
+        };
         let mut stack = vec![0u32];
         let mut scratch = Vec::new();
         while let Some(c) = stack.pop() {
-            let cell = cells[c as usize];
+            let cell = tree.cells[c as usize];
             if cell.count() <= shape.leaf_size || cell.level >= shape.max_depth {
                 continue;
             }
-            // Stable counting sort of the cell's sources into the eight octants.
-            let range = cell.begin as usize..cell.end as usize;
-            let octant = |i: u32| octant_of(&points[i as usize], &cell.centre);
-            let mut counts = [0usize; 8];
-            for &i in &order[range.clone()] {
-                counts[octant(i)] += 1;
-            }
-            let mut starts = [0usize; 8];
-            for k in 1..8 {
-                starts[k] = starts[k - 1] + counts[k - 1];
-            }
-            scratch.clear();
-            scratch.resize(range.len(), 0);
-            let mut next = starts;
-            for &i in &order[range.clone()] {
-                let o = octant(i);
-                scratch[next[o]] = i;
-                next[o] += 1;
-            }
-            order[range].copy_from_slice(&scratch);
-            let first = cells.len() as u32;
-            cells[c as usize].first_child = first;
-            let h = 0.5 * cell.half;
-            for k in 0..8 {
-                let bit = |a: usize| (k >> (2 - a)) & 1;
-                cells.push(Cell {
-                    centre: std::array::from_fn(|a| {
-                        cell.centre[a] + if bit(a) == 1 { h } else { -h }
-                    }),
-                    half: h,
-                    level: cell.level + 1,
-                    coord: std::array::from_fn(|a| 2 * cell.coord[a] + bit(a) as i64),
-                    first_child: NONE,
-                    begin: cell.begin + starts[k] as u32,
-                    end: cell.begin + (starts[k] + counts[k]) as u32,
-                });
-            }
-            // Children are pushed so that they are split in order (determinism does not
-            // depend on it, but a stable cell numbering is easier to read).
+            let first = tree.split(c, points, &mut scratch);
+            // Children are pushed so that they are split in order (a stable numbering).
             for k in (0..8).rev() {
                 stack.push(first + k);
             }
         }
-        let depth = cells.iter().map(|c| c.level).max().unwrap_or(0) as usize;
-        let mut levels = vec![Vec::new(); depth + 1];
-        for (i, c) in cells.iter().enumerate() {
-            levels[c.level as usize].push(i as u32);
+        let budget = REFINE * shape.leaf_size.max(1);
+        loop {
+            tree.lists(shape.nodes);
+            let costly: Vec<u32> = (0..tree.cells.len() as u32)
+                .filter(|&c| {
+                    let cell = tree.cells[c as usize];
+                    cell.is_leaf()
+                        && cell.level < shape.max_depth
+                        && tree.cost(c, shape.nodes) > budget
+                })
+                .collect();
+            if costly.is_empty() {
+                break;
+            }
+            for c in costly {
+                tree.split(c, points, &mut scratch);
+            }
         }
-        let n = cells.len();
-        let mut tree = Self {
-            cells,
-            levels,
-            order,
-            near: vec![Vec::new(); n],
-            m2p: vec![Vec::new(); n],
-            p2l: vec![Vec::new(); n],
-            m2l: vec![vec![Vec::new(); 343]; depth + 1],
-        };
-        tree.adjacent_pair(0, 0, shape.nodes);
-        for level in &mut tree.m2l {
+        tree
+    }
+
+    /// The direct work per target in leaf `c`: near sources, plus `nodes` per M2P cell.
+    fn cost(&self, c: u32, nodes: usize) -> usize {
+        let near: usize = self.near[c as usize]
+            .iter()
+            .map(|&s| self.cells[s as usize].count())
+            .sum();
+        near + nodes * self.m2p[c as usize].len()
+    }
+
+    /// Splits leaf `c` into eight children, sorting its sources into them; returns the first
+    /// child.
+    fn split(&mut self, c: u32, points: &[[f64; 3]], scratch: &mut Vec<u32>) -> u32 {
+        let cell = self.cells[c as usize];
+        // Stable counting sort of the cell's sources into the eight octants.
+        let range = cell.begin as usize..cell.end as usize;
+        let octant = |i: u32| octant_of(&points[i as usize], &cell.centre);
+        let mut counts = [0usize; 8];
+        for &i in &self.order[range.clone()] {
+            counts[octant(i)] += 1;
+        }
+        let mut starts = [0usize; 8];
+        for k in 1..8 {
+            starts[k] = starts[k - 1] + counts[k - 1];
+        }
+        scratch.clear();
+        scratch.resize(range.len(), 0);
+        let mut next = starts;
+        for &i in &self.order[range.clone()] {
+            let o = octant(i);
+            scratch[next[o]] = i;
+            next[o] += 1;
+        }
+        self.order[range].copy_from_slice(scratch);
+        let first = self.cells.len() as u32;
+        self.cells[c as usize].first_child = first;
+        let h = 0.5 * cell.half;
+        for k in 0..8 {
+            let bit = |a: usize| (k >> (2 - a)) & 1;
+            self.cells.push(Cell {
+                centre: std::array::from_fn(|a| cell.centre[a] + if bit(a) == 1 { h } else { -h }),
+                half: h,
+                level: cell.level + 1,
+                coord: std::array::from_fn(|a| 2 * cell.coord[a] + bit(a) as i64),
+                first_child: NONE,
+                begin: cell.begin + starts[k] as u32,
+                end: cell.begin + (starts[k] + counts[k]) as u32,
+            });
+        }
+        first
+    }
+
+    /// The levels and the interaction lists, from scratch.
+    fn lists(&mut self, nodes: usize) {
+        let depth = self.cells.iter().map(|c| c.level).max().unwrap_or(0) as usize;
+        self.levels = vec![Vec::new(); depth + 1];
+        for (i, c) in self.cells.iter().enumerate() {
+            self.levels[c.level as usize].push(i as u32);
+        }
+        let n = self.cells.len();
+        self.near = vec![Vec::new(); n];
+        self.m2p = vec![Vec::new(); n];
+        self.p2l = vec![Vec::new(); n];
+        self.m2l = vec![vec![Vec::new(); 343]; depth + 1];
+        self.adjacent_pair(0, 0, nodes);
+        for level in &mut self.m2l {
             for pairs in level.iter_mut() {
                 pairs.sort_unstable();
             }
         }
-        tree
     }
 
     /// The leaf containing `x`, or `None` outside the root (closed) cube.

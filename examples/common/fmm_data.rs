@@ -1,0 +1,95 @@
+//! RBF fields of about `N` centres from real scans, for the fast multipole examples: `N/3`
+//! points of a cloud (evenly strided in file order), each with value 0 and `±ε` along its
+//! normal (`Offset::Auto`, 1% of the diagonal), fitted with `Solver::Auto`. The fit is cached
+//! as a `.zsf` file under `target/fmm_fields/` (fitting 10,000 centres takes seconds to tens of
+//! seconds; the cache makes repeated runs cheap). Delete the folder to refit.
+
+#![allow(dead_code)] // each example uses what it needs
+
+use std::path::{Path, PathBuf};
+
+use zeroset::bases::field_file::{AnyField, RbfAny, read_any_field, write_rbf_field};
+use zeroset::bases::rbf::{Biharmonic, Constraints, Offset, RbfField, RbfFit, Solver, Triharmonic};
+use zeroset::core::PointCloud;
+use zeroset::core::io::read_point_cloud;
+
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+/// The data folder: `../shared/data` from the current directory, else next to the workspace.
+pub fn data_dir() -> PathBuf {
+    let here = PathBuf::from("../shared/data");
+    if here.is_dir() {
+        here
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
+    }
+}
+
+/// A field of `kernel` (`"r"` or `"r3"`) with about `sources` centres from `cloud_file`.
+pub enum Field {
+    R(RbfField<Biharmonic, 3>),
+    R3(RbfField<Triharmonic, 3>),
+}
+
+pub fn load(data: &Path, cloud_file: &str, kernel: &str, sources: usize) -> Res<Field> {
+    let cache = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fmm_fields");
+    std::fs::create_dir_all(&cache)?;
+    let stem = cloud_file.split('.').next().unwrap_or(cloud_file);
+    let path = cache.join(format!("{stem}_{kernel}_{sources}.zsf"));
+    if path.is_file()
+        && let Ok(AnyField::Rbf(any)) = read_any_field::<3>(&path)
+    {
+        match (any, kernel) {
+            (RbfAny::R(f), "r") => return Ok(Field::R(f)),
+            (RbfAny::R3(f), "r3") => return Ok(Field::R3(f)),
+            _ => {}
+        }
+    }
+    let cloud = read_point_cloud(data.join(cloud_file))?;
+    let (positions, normals) = cloud.into_parts();
+    let normals = normals.ok_or(format!("{cloud_file} has no normals"))?;
+    let want = sources.div_ceil(3).min(positions.len());
+    let picked: Vec<usize> = (0..want).map(|i| i * positions.len() / want).collect();
+    let sub = PointCloud::with_normals(
+        picked.iter().map(|&i| positions[i]).collect(),
+        picked.iter().map(|&i| normals[i]).collect(),
+    )?;
+    let (c, _) = Constraints::off_surface(&sub, Offset::Auto { fraction: 0.01 })?;
+    let field = match kernel {
+        "r" => Field::R(fit(Biharmonic, &c)?),
+        "r3" => Field::R3(fit(Triharmonic, &c)?),
+        other => return Err(format!("unknown kernel {other} (r or r3)").into()),
+    };
+    match &field {
+        Field::R(f) => write_rbf_field(&path, f)?,
+        Field::R3(f) => write_rbf_field(&path, f)?,
+    }
+    Ok(field)
+}
+
+fn fit<K: zeroset::bases::rbf::Kernel + Clone>(
+    kernel: K,
+    c: &Constraints<3>,
+) -> Res<RbfField<K, 3>> {
+    eprintln!(
+        "fitting {} constraints ({}), cached afterwards",
+        c.len(),
+        kernel.name()
+    );
+    Ok(RbfFit::new(kernel).with_solver(Solver::Auto).fit(c)?.field)
+}
+
+/// `count` points drawn uniformly (seeded) in `field`'s bounds.
+pub fn uniform_targets(bounds: &zeroset::core::Aabb<3>, count: usize, seed: u64) -> Vec<[f64; 3]> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (lo, hi) = (bounds.min(), bounds.max());
+    (0..count)
+        .map(|_| std::array::from_fn(|a| lo[a] + next() * (hi[a] - lo[a])))
+        .collect()
+}

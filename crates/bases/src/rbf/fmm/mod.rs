@@ -12,7 +12,9 @@
 //!
 //! accurate when the cells are well separated, with an error falling geometrically in `p`. It
 //! needs no analytic expansion of the kernel ("black box"): `r` and `r³` work alike. The
-//! method's steps, over an [adaptive octree](tree):
+//! method's steps, over an adaptive octree (a cell with too many sources is split into all eight
+//! children; an empty leaf next to much finer cells is split too, so that no point sums more
+//! than a few leaves directly):
 //!
 //! - **P2M**: a leaf's multipole expansion `M_B = Σⱼ wⱼ S(ȳ_B, yⱼ) + vⱼ · ∇S(ȳ_B, yⱼ)` (the
 //!   second term for the gradient constraints of Hermite fits: a centre `j` with derivative
@@ -20,7 +22,7 @@
 //! - **M2M**, **L2L**: between a cell and its children, exactly (the interpolant of a
 //!   polynomial of degree `p − 1` is itself), as three `p × p` products.
 //! - **M2L**: `L_A += Σ_B φ(x̄_A, ȳ_B) M_B` between well-separated cells of one level, with
-//!   the 316 operators reduced to 16 by symmetry and compressed by SVD ([`operators`]).
+//!   the 316 operators reduced to 16 by symmetry and compressed by SVD (see [`FmmOperators`]).
 //! - **P2L**, **M2P**, **P2P**: the adaptive tree's X, W and U lists (a small cell next to a
 //!   large leaf), the last a direct sum over the near field.
 //! - **L2P**: `s(x) ≈ Σ_A L_A S(x̄_A, x)` plus the near field, and the polynomial part added

@@ -187,6 +187,16 @@ pub fn mesh_field<F: ScalarField<3> + ?Sized>(
     samples::check(grid, None, level, SAMPLES)?;
     let values = grid.sample(field);
     let mesh = marching_cubes(grid, &values, level, &options.with_normals(false))?;
+    with_gradient_normals(mesh, field, options)
+}
+
+/// `mesh` with normals `∇f/‖∇f‖` of `field` at its vertices when `options.normals`, as
+/// [`mesh_field`] takes them.
+pub(crate) fn with_gradient_normals<F: ScalarField<3> + ?Sized>(
+    mesh: TriMesh,
+    field: &F,
+    options: &McOptions,
+) -> Result<TriMesh> {
     if !options.normals {
         return Ok(mesh);
     }

@@ -78,7 +78,9 @@ use zeroset_field_core::{Grid, ScalarField};
 
 #[cfg(doc)]
 use crate::cubes::mesh_field;
-use crate::cubes::{CellMask, McOptions, SAMPLES, marching_cubes, marching_cubes_masked, unit};
+use crate::cubes::{
+    CellMask, McOptions, SAMPLES, marching_cubes, marching_cubes_masked, with_gradient_normals,
+};
 use crate::error::{MeshError, Result};
 use crate::samples;
 use crate::trimesh::TriMesh;
@@ -468,22 +470,4 @@ fn mixed_cells(n: [usize; 3], status: &[u8]) -> Vec<bool> {
             }
         });
     out
-}
-
-/// `mesh` with normals `∇f/‖∇f‖` of `field` at its vertices when `options.normals`, as
-/// [`mesh_field`] takes them.
-fn with_gradient_normals<F: ScalarField<3> + ?Sized>(
-    mesh: TriMesh,
-    field: &F,
-    options: &McOptions,
-) -> Result<TriMesh> {
-    if !options.normals {
-        return Ok(mesh);
-    }
-    let normals: Vec<Point3> = mesh
-        .vertices()
-        .par_iter()
-        .map(|p| unit(field.gradient(p)))
-        .collect();
-    mesh.with_normals(normals)
 }

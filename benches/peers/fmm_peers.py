@@ -61,7 +61,7 @@ TIMING_KEYS = ("kernel", "order", "sources", "targets", "fmm_build_ms", "fmm_eva
                "direct_ms", "threads")  # fmt: skip
 ARRAYS = ("sources", "weights", "poly", "targets", "fmm_values", "direct_values")
 CHUNK_BYTES = 64 << 20  # one target chunk's distance matrix
-DIRECT_TOL = 1e-12  # sanity: zeroset's direct sum vs NumPy's, max relative error
+DIRECT_TOL = 1e-11  # sanity: zeroset's direct sum vs NumPy's, max relative error
 
 
 @dataclass

@@ -71,7 +71,6 @@ fn table<K: Kernel + Clone>(
     field.values(&targets, &mut exact);
     let direct = t.elapsed().as_secs_f64();
     let scale = exact.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let rms_exact = (exact.iter().map(|v| v * v).sum::<f64>() / m as f64).sqrt();
     println!(
         "\n{cloud}, kernel {}: {} centres, {m} targets, direct sum {direct:.2} s, max |s| {scale:.3e}",
         field.kernel().name(),
@@ -89,16 +88,12 @@ fn table<K: Kernel + Clone>(
         let t = Instant::now();
         f.values(&targets, &mut fast);
         let eval = t.elapsed().as_secs_f64();
-        let (mut max, mut sum) = (0.0f64, 0.0);
-        for (a, b) in fast.iter().zip(&exact) {
-            max = max.max((a - b).abs());
-            sum += (a - b) * (a - b);
-        }
+        let (max, max_rel, rms_rel) = fmm_data::errors(&fast, &exact);
         let r = f.report();
         println!(
             "{p:>3} {max:>10.2e} {:>10.2e} {:>10.2e} {:>5} {:>8.2} {:>8.2} {eval:>8.2}",
-            max / scale,
-            (sum / m as f64).sqrt() / rms_exact,
+            max_rel,
+            rms_rel,
             r.max_rank,
             r.operator_seconds,
             build - r.operator_seconds

@@ -163,15 +163,8 @@ fn run<K: Kernel + Clone>(args: &Args, field: &RbfField<K, 3>) -> Res<()> {
         let total = ops + build + eval;
         let (direct_ms, ratio, max_rel, rms_rel) = if args.direct {
             let d = timing::median(direct);
-            let scale = exact.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let (mut max, mut sum) = (0.0f64, 0.0);
-            for (a, b) in fast_values.iter().zip(&exact) {
-                max = max.max((a - b).abs());
-                sum += (a - b) * (a - b);
-            }
-            let rms = (sum / m as f64).sqrt();
-            let rms_exact = (exact.iter().map(|v| v * v).sum::<f64>() / m as f64).sqrt();
-            (ms(d), ms(d) / ms(total), max / scale, rms / rms_exact)
+            let (_, max_rel, rms_rel) = fmm_data::errors(&fast_values, &exact);
+            (ms(d), ms(d) / ms(total), max_rel, rms_rel)
         } else {
             (f64::NAN, f64::NAN, f64::NAN, f64::NAN)
         };

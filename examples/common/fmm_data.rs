@@ -93,3 +93,16 @@ pub fn uniform_targets(bounds: &zeroset::core::Aabb<3>, count: usize, seed: u64)
         .map(|_| std::array::from_fn(|a| lo[a] + next() * (hi[a] - lo[a])))
         .collect()
 }
+
+/// `(max |a − b|, max |a − b| / max |b|, rms(a − b) / rms(b))`: the FMM's error against the
+/// exact values `b`.
+pub fn errors(a: &[f64], b: &[f64]) -> (f64, f64, f64) {
+    let (mut max, mut sum, mut scale, mut norm) = (0.0f64, 0.0, 0.0f64, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        max = max.max((x - y).abs());
+        sum += (x - y) * (x - y);
+        scale = scale.max(y.abs());
+        norm += y * y;
+    }
+    (max, max / scale, (sum / norm).sqrt())
+}

@@ -64,7 +64,7 @@ impl Chebyshev {
     }
 
     /// `s[m] = Sₚ(x̄ₘ, x)`.
-    #[inline]
+    #[inline(always)]
     pub fn weights(&self, x: f64, s: &mut [f64]) {
         let p = self.p;
         let mut tx = [0.0; MAX_ORDER];
@@ -110,7 +110,7 @@ impl Chebyshev {
 pub(crate) const MAX_ORDER: usize = 16;
 
 /// `t[k] = T_k(x)` for `k < t.len()`, by the three-term recurrence (valid for every `x`).
-#[inline]
+#[inline(always)]
 fn chebyshev_t(x: f64, t: &mut [f64]) {
     if let Some(t0) = t.first_mut() {
         *t0 = 1.0;

@@ -61,7 +61,7 @@ use super::kernel::{self, Kernel};
 use super::system::{self, Functional, Polynomial};
 use chebyshev::MAX_ORDER;
 pub use operators::FmmOperators;
-use operators::Shared;
+use operators::{CodedPair, Shared};
 use tree::{Cell, Tree, TreeShape};
 
 /// The smallest expansion order (nodes per axis).
@@ -303,7 +303,7 @@ impl<K: Kernel + Clone> FmmField<K> {
 
     /// The M2L operators for `kernel` at `options.order`, to share between fields of one kernel
     /// ([`FmmField::with_operators`]): building them is the one step whose cost does not grow
-    /// with the data (for `r` and `r³`, 0.1 s at `p = 8`, seconds at `p = 12`).
+    /// with the data (for `r` and `r³` on two cores, about 0.2 s at `p = 8` and 3 s at `p = 12`).
     ///
     /// # Errors
     /// [`FmmError`] for an order or tolerance out of range.
@@ -509,8 +509,9 @@ impl<K: Kernel> FmmField<K> {
         self.report.upward_seconds = start.elapsed().as_secs_f64();
     }
 
-    /// M2L pairs level by level and offset by offset (each target once per offset, so the
-    /// order of additions into a local expansion is fixed), then P2L.
+    /// M2L pairs level by level and, within a level, canonical operator by canonical operator
+    /// (pairs sorted by target and offset, in blocks that keep a target's pairs together, so
+    /// the order of additions into a local expansion is fixed), then P2L.
     fn m2l(&mut self) {
         let start = Instant::now();
         let n = self.n();
@@ -527,33 +528,45 @@ impl<K: Kernel> FmmField<K> {
             let (ops, scale) = self.ops.level(&self.kernel, width);
             op_seconds += t.elapsed().as_secs_f64();
             max_rank = max_rank.max(ops.ranks().into_iter().max().unwrap_or(0));
+            let mut classes = vec![Vec::new(); ops.canonical.len()];
             for (code, pairs) in codes.iter().enumerate() {
-                if !pairs.is_empty() {
-                    operators::apply(
-                        &ops,
-                        &self.ops.symmetry,
-                        code,
-                        pairs,
-                        scale,
-                        &self.multipoles,
-                        locals,
-                        n,
-                    );
+                for pair in pairs {
+                    classes[self.ops.symmetry.canonical_of[code]].push(CodedPair {
+                        target: pair.target,
+                        code: code as u16,
+                        source: pair.source,
+                    });
                 }
+            }
+            for (canonical, mut pairs) in classes.into_iter().enumerate() {
+                pairs.sort_unstable();
+                operators::apply(
+                    &ops,
+                    &self.ops.symmetry,
+                    canonical,
+                    &pairs,
+                    scale,
+                    &self.multipoles,
+                    locals,
+                    n,
+                );
             }
         }
         let this = &*self;
         let tree = &this.tree;
         // P2L: each cell adds its own list into its own expansion.
+        let arch = pulp::Arch::new();
         (0..tree.cells.len())
             .into_par_iter()
             .filter(|&c| !tree.p2l[c].is_empty())
             .for_each(|c| {
                 // SAFETY: each task writes only cell `c`'s range.
                 let local = unsafe { locals.range(c * n, n) };
-                for &s in &tree.p2l[c] {
-                    this.p2l(&tree.cells[c], this.cell(s), local);
-                }
+                arch.dispatch(P2lTask {
+                    field: this,
+                    target: c as u32,
+                    local,
+                });
             });
         self.report.max_rank = max_rank;
         self.report.operator_seconds = op_seconds;
@@ -584,47 +597,63 @@ impl<K: Kernel> FmmField<K> {
     }
 
     /// M2M (`out += E ⊗ E ⊗ E · src`) or, `transpose`, L2L (`out += Eᵀ ⊗ Eᵀ ⊗ Eᵀ · src`) for
-    /// child octant `k`.
+    /// child octant `k`: one `p × p` map per axis, each pass a sum of scaled contiguous rows.
     fn transfer(&self, k: usize, src: &[f64], out: &mut [f64], transpose: bool) {
         let p = self.ops.order();
         let cheb = &self.ops.cheb;
-        let e: [&[f64]; 3] = std::array::from_fn(|a| cheb.transfer((k >> (2 - a)) & 1));
-        // entry (o, i) of the 1-D map along one axis: output index o, input index i.
-        let at = |m: &[f64], o: usize, i: usize| {
-            if transpose {
-                m[i * p + o]
-            } else {
-                m[o * p + i]
-            }
-        };
-        let mut t1 = vec![0.0; p * p * p];
-        let mut t2 = vec![0.0; p * p * p];
-        // Along z, then y, then x.
-        for ab in 0..p * p {
+        // maps[a][o * p + i]: the weight of input index i in output index o along axis a.
+        let maps: [[f64; MAX_ORDER * MAX_ORDER]; 3] = std::array::from_fn(|a| {
+            let e = cheb.transfer((k >> (2 - a)) & 1);
+            let mut m = [0.0; MAX_ORDER * MAX_ORDER];
             for o in 0..p {
-                t1[ab * p + o] = (0..p).map(|i| at(e[2], o, i) * src[ab * p + i]).sum();
+                for i in 0..p {
+                    m[o * p + i] = if transpose {
+                        e[i * p + o]
+                    } else {
+                        e[o * p + i]
+                    };
+                }
             }
-        }
-        for a in 0..p {
-            for o in 0..p {
-                for c in 0..p {
-                    t2[(a * p + o) * p + c] = (0..p)
-                        .map(|i| at(e[1], o, i) * t1[(a * p + i) * p + c])
-                        .sum();
+            m
+        });
+        let n = p * p * p;
+        let mut t1 = vec![0.0; n];
+        let mut t2 = vec![0.0; n];
+        // Along z: t1[ab, o] = Σᵢ m₂[o, i] src[ab, i].
+        for (row, dst) in src[..n].chunks_exact(p).zip(t1[..n].chunks_exact_mut(p)) {
+            for (i, &v) in row.iter().enumerate() {
+                for (o, d) in dst.iter_mut().enumerate() {
+                    *d += maps[2][o * p + i] * v;
                 }
             }
         }
+        // Along y: t2[a, o, :] = Σᵢ m₁[o, i] t1[a, i, :].
+        for a in 0..p {
+            for o in 0..p {
+                let dst = &mut t2[(a * p + o) * p..][..p];
+                for i in 0..p {
+                    let w = maps[1][o * p + i];
+                    for (d, &v) in dst.iter_mut().zip(&t1[(a * p + i) * p..][..p]) {
+                        *d += w * v;
+                    }
+                }
+            }
+        }
+        // Along x: out[o, :] += Σᵢ m₀[o, i] t2[i, :].
         for o in 0..p {
-            for bc in 0..p * p {
-                out[o * p * p + bc] += (0..p)
-                    .map(|i| at(e[0], o, i) * t2[i * p * p + bc])
-                    .sum::<f64>();
+            let dst = &mut out[o * p * p..][..p * p];
+            for i in 0..p {
+                let w = maps[0][o * p + i];
+                for (d, &v) in dst.iter_mut().zip(&t2[i * p * p..][..p * p]) {
+                    *d += w * v;
+                }
             }
         }
     }
 
     /// The 1-D Chebyshev weights of `x` in `cell` along each axis (and their derivatives in
     /// `x`'s units when `ds` is given).
+    #[inline(always)]
     fn axis_weights(
         &self,
         cell: &Cell,
@@ -704,24 +733,47 @@ impl<K: Kernel> FmmField<K> {
         })
     }
 
-    /// P2L: the sources of `source` into the local expansion of `target`.
+    /// P2L: the sources of `source` into the local expansion of `target`. Without dipoles the
+    /// loop runs over sources outside and the nodes along z inside (vectorised, as a cell
+    /// in a P2L list often has only a few sources).
+    #[inline(always)]
     fn p2l(&self, target: &Cell, source: &Cell, local: &mut [f64]) {
         let p = self.ops.order();
         let xs = self.node_coordinates(target);
-        for a in 0..p {
-            for b in 0..p {
-                for c in 0..p {
-                    let x = [xs[0][a], xs[1][b], xs[2][c]];
-                    local[(a * p + b) * p + c] += self.direct(source, &x);
+        if self.dipoles.is_some() {
+            for a in 0..p {
+                for b in 0..p {
+                    for c in 0..p {
+                        let x = [xs[0][a], xs[1][b], xs[2][c]];
+                        local[(a * p + b) * p + c] += self.direct(source.range(), &x);
+                    }
+                }
+            }
+            return;
+        }
+        let zs = &xs[2][..p];
+        for j in source.begin as usize..source.end as usize {
+            let w = self.weights[j];
+            let y = [self.pos[0][j], self.pos[1][j], self.pos[2][j]];
+            for a in 0..p {
+                let dx = xs[0][a] - y[0];
+                for b in 0..p {
+                    let dy = xs[1][b] - y[1];
+                    let rxy = dx * dx + dy * dy;
+                    let row = &mut local[(a * p + b) * p..][..p];
+                    for (l, &z) in row.iter_mut().zip(zs) {
+                        let dz = z - y[2];
+                        *l += w * self.kernel.value_of_squared(rxy + dz * dz);
+                    }
                 }
             }
         }
     }
 
-    /// The direct sum over `cell`'s sources at `x`.
+    /// The direct sum over the sources `begin..end` (tree order) at `x`.
     #[inline(always)]
-    fn direct(&self, cell: &Cell, x: &Point<3>) -> f64 {
-        let r = cell.begin as usize..cell.end as usize;
+    fn direct(&self, (begin, end): (u32, u32), x: &Point<3>) -> f64 {
+        let r = begin as usize..end as usize;
         match &self.dipoles {
             None => system::kernel_sum_slices(
                 &self.kernel,
@@ -748,10 +800,10 @@ impl<K: Kernel> FmmField<K> {
         }
     }
 
-    /// The gradient of the direct sum over `cell`'s sources at `x`.
-    fn direct_gradient(&self, cell: &Cell, x: &Point<3>) -> [f64; 3] {
+    /// The gradient of the direct sum over the sources `begin..end` at `x`.
+    fn direct_gradient(&self, (begin, end): (u32, u32), x: &Point<3>) -> [f64; 3] {
         let mut g = [0.0; 3];
-        for j in cell.begin as usize..cell.end as usize {
+        for j in begin as usize..end as usize {
             let d = [
                 x[0] - self.pos[0][j],
                 x[1] - self.pos[1][j],
@@ -863,14 +915,14 @@ impl<K: Kernel> FmmField<K> {
         g
     }
 
-    /// The kernel part of the field at `x`.
+    /// The kernel part of the field at `x`, which lies in `leaf` (`None`: outside the root).
     #[inline(always)]
-    fn kernel_part(&self, x: &Point<3>) -> f64 {
-        match self.tree.leaf_of(x) {
+    fn kernel_part(&self, leaf: Option<u32>, x: &Point<3>) -> f64 {
+        match leaf {
             Some(leaf) => {
                 let mut v = self.l2p(leaf, x);
-                for &s in &self.tree.near[leaf as usize] {
-                    v += self.direct(self.cell(s), x);
+                for &run in &self.tree.near_runs[leaf as usize] {
+                    v += self.direct(run, x);
                 }
                 for &s in &self.tree.m2p[leaf as usize] {
                     v += self.m2p(s, x);
@@ -883,12 +935,18 @@ impl<K: Kernel> FmmField<K> {
                     v += if far {
                         self.m2p(c, x)
                     } else {
-                        self.direct(self.cell(c), x)
+                        self.direct(self.cell(c).range(), x)
                     };
                 });
                 v
             }
         }
+    }
+
+    /// [`ScalarField::value`], inlined into [`Batch`]'s instruction set.
+    #[inline(always)]
+    fn value_inline(&self, leaf: Option<u32>, x: &Point<3>) -> f64 {
+        self.kernel_part(leaf, x) + self.poly.value(&self.poly_coefficients, x)
     }
 
     /// Visits, for a point outside the root, the cells it is far from (`true`: use the
@@ -913,7 +971,7 @@ impl<K: Kernel> FmmField<K> {
 
 impl<K: Kernel> ScalarField<3> for FmmField<K> {
     fn value(&self, x: &Point<3>) -> f64 {
-        self.kernel_part(x) + self.poly.value(&self.poly_coefficients, x)
+        self.value_inline(self.tree.leaf_of(x), x)
     }
 
     fn gradient(&self, x: &Point<3>) -> Point<3> {
@@ -926,8 +984,8 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
         match self.tree.leaf_of(x) {
             Some(leaf) => {
                 add(self.l2p_gradient(leaf, x));
-                for &s in &self.tree.near[leaf as usize] {
-                    add(self.direct_gradient(self.cell(s), x));
+                for &run in &self.tree.near_runs[leaf as usize] {
+                    add(self.direct_gradient(run, x));
                 }
                 for &s in &self.tree.m2p[leaf as usize] {
                     add(self.m2p_gradient(s, x));
@@ -937,7 +995,7 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
                 add(if far {
                     self.m2p_gradient(c, x)
                 } else {
-                    self.direct_gradient(self.cell(c), x)
+                    self.direct_gradient(self.cell(c).range(), x)
                 })
             }),
         }
@@ -951,8 +1009,8 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
             "values: points and out differ in length"
         );
         let arch = pulp::Arch::new();
-        out.par_chunks_mut(256)
-            .zip(points.par_chunks(256))
+        out.par_chunks_mut(EVAL_CHUNK)
+            .zip(points.par_chunks(EVAL_CHUNK))
             .for_each(|(o, p)| {
                 arch.dispatch(Batch {
                     field: self,
@@ -967,6 +1025,9 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
     }
 }
 
+/// Points per evaluation task.
+const EVAL_CHUNK: usize = 2048;
+
 /// A batch of evaluations, compiled per instruction set.
 struct Batch<'a, K> {
     field: &'a FmmField<K>,
@@ -979,8 +1040,40 @@ impl<K: Kernel> pulp::WithSimd for Batch<'_, K> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) {
-        for (o, x) in self.out.iter_mut().zip(self.points) {
-            *o = self.field.value(x);
+        // Points are visited leaf by leaf, so that a leaf's local expansion and near sources
+        // stay in cache; each value is computed exactly as alone.
+        let mut order: Vec<(u32, u32)> = self
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, x)| (self.field.tree.leaf_of(x).unwrap_or(u32::MAX), i as u32))
+            .collect();
+        order.sort_unstable();
+        for (leaf, i) in order {
+            let x = &self.points[i as usize];
+            self.out[i as usize] = self
+                .field
+                .value_inline((leaf != u32::MAX).then_some(leaf), x);
+        }
+    }
+}
+
+/// The P2L list of one cell into its local expansion, compiled per instruction set.
+struct P2lTask<'a, K> {
+    field: &'a FmmField<K>,
+    target: u32,
+    local: &'a mut [f64],
+}
+
+impl<K: Kernel> pulp::WithSimd for P2lTask<'_, K> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let f = self.field;
+        let target = f.cell(self.target);
+        for &s in &f.tree.p2l[self.target as usize] {
+            f.p2l(target, f.cell(s), self.local);
         }
     }
 }

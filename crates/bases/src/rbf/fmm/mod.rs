@@ -619,11 +619,17 @@ impl<K: Kernel> FmmField<K> {
         let n = p * p * p;
         let mut t1 = vec![0.0; n];
         let mut t2 = vec![0.0; n];
-        // Along z: t1[ab, o] = Σᵢ m₂[o, i] src[ab, i].
-        for (row, dst) in src[..n].chunks_exact(p).zip(t1[..n].chunks_exact_mut(p)) {
+        // Along z: t1[ab, o] = Σᵢ m₂[o, i] src[ab, i], as rows m₂[·, i] scaled and added.
+        let mut z_cols = [0.0; MAX_ORDER * MAX_ORDER];
+        for o in 0..p {
+            for i in 0..p {
+                z_cols[i * p + o] = maps[2][o * p + i];
+            }
+        }
+        for (row, dst) in src[..n].chunks_exact(p).zip(t1.chunks_exact_mut(p)) {
             for (i, &v) in row.iter().enumerate() {
-                for (o, d) in dst.iter_mut().enumerate() {
-                    *d += maps[2][o * p + i] * v;
+                for (d, &m) in dst.iter_mut().zip(&z_cols[i * p..][..p]) {
+                    *d += m * v;
                 }
             }
         }
@@ -877,20 +883,17 @@ impl<K: Kernel> FmmField<K> {
         let mut s = [[0.0; MAX_ORDER]; 3];
         self.axis_weights(cell, x, &mut s, None);
         let l = &self.locals[c as usize * p * p * p..][..p * p * p];
-        let mut acc = 0.0;
+        // Contract x and y into a row along z (vectorised over z), then z.
+        let mut row = [0.0; MAX_ORDER];
         for a in 0..p {
-            let mut part_a = 0.0;
             for b in 0..p {
-                let row = &l[(a * p + b) * p..][..p];
-                let mut part_b = 0.0;
-                for (cc, &lv) in row.iter().enumerate() {
-                    part_b += lv * s[2][cc];
+                let w = s[0][a] * s[1][b];
+                for (r, &lv) in row[..p].iter_mut().zip(&l[(a * p + b) * p..][..p]) {
+                    *r += w * lv;
                 }
-                part_a += part_b * s[1][b];
             }
-            acc += part_a * s[0][a];
         }
-        acc
+        row[..p].iter().zip(&s[2][..p]).map(|(r, w)| r * w).sum()
     }
 
     /// The gradient of [`Self::l2p`].

@@ -1,5 +1,92 @@
 //! # zeroset-tensor
 //!
-//! Nothing here yet. This crate will hold 3-way tensors, their unfoldings, singular-value
-//! thresholding and the trace norm, and CP decomposition by alternating least squares with an
-//! adaptive rank (the compression step of MRAS).
+//! Dense 3-way tensors and the low-rank machinery that MRAS (paper 004 §3) compresses spline
+//! coefficients with.
+//!
+//! ## The maths
+//!
+//! A tensor `X ∈ ℝ^{I₀×I₁×I₂}` has three **mode-n unfoldings** `X₍ₙ₎ ∈ ℝ^{Iₙ × ∏_{m≠n} I_m}`
+//! (Kolda & Bader 2009, §2.4): entry `(i₀, i₁, i₂)` goes to row `iₙ` and column
+//! `Σ_{k≠n} i_k J_k` with `J_k = ∏_{m<k, m≠n} I_m` (the lower remaining mode runs fastest).
+//! With this ordering a Kruskal tensor `X = Σ_r a_r ∘ b_r ∘ c_r` unfolds as
+//! `X₍₀₎ = A (C ⊙ B)ᵀ`, `X₍₁₎ = B (C ⊙ A)ᵀ`, `X₍₂₎ = C (B ⊙ A)ᵀ`, where `⊙` is the
+//! [`khatri_rao`] product. The **n-mode product** `X ×ₙ U` multiplies every mode-n fibre by
+//! `U`: `(X ×ₙ U)₍ₙ₎ = U X₍ₙ₎`.
+//!
+//! The **trace norm** of an unfolding is the sum of its singular values, `‖X₍ₙ₎‖_*`, the convex
+//! surrogate of its rank that paper 004 (eq. 7) penalises over the three modes. Its proximal
+//! operator is **singular-value thresholding** (Cai, Candès & Shen 2010):
+//! `D_τ(M) = U max(Σ − τ, 0) Vᵀ` minimises `τ‖Y‖_* + ½‖Y − M‖²_F` ([`svt`]).
+//!
+//! ## Layout
+//!
+//! [`Tensor3`] stores its entries contiguously in row-major (C) order, `i₂` fastest: the
+//! standard layout of an `ndarray::Array3`, which converts both ways without reordering.
+//!
+//! ```
+//! use zeroset_tensor::Tensor3;
+//!
+//! let x = Tensor3::from_fn([2, 3, 4], |i, j, k| (100 * i + 10 * j + k) as f64);
+//! let m = x.unfold(1)?;
+//! assert_eq!((m.nrows(), m.ncols()), (3, 8));
+//! assert_eq!(m[(2, 1 + 2 * 3)], 123.0); // (i₀, i₁, i₂) = (1, 2, 3) → row 2, column 1 + 3·2
+//! assert_eq!(Tensor3::fold(1, &m, [2, 3, 4])?, x);
+//! # Ok::<(), zeroset_tensor::TensorError>(())
+//! ```
+
+mod dense;
+mod lowrank;
+
+pub use dense::{Tensor3, khatri_rao};
+pub use lowrank::{svt, thin_svd, trace_norm};
+
+/// What can go wrong with tensor shapes and data.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TensorError {
+    /// A tensor with a zero extent.
+    #[error("a tensor needs every extent at least 1, not {shape:?}")]
+    EmptyShape {
+        /// The shape given.
+        shape: [usize; 3],
+    },
+    /// The data does not fill the shape.
+    #[error("{len} entries cannot fill a tensor of shape {shape:?}")]
+    Length {
+        /// The shape given.
+        shape: [usize; 3],
+        /// The number of entries given.
+        len: usize,
+    },
+    /// A mode outside `0..3`.
+    #[error("a 3-way tensor has modes 0, 1 and 2, not {mode}")]
+    Mode {
+        /// The mode asked for.
+        mode: usize,
+    },
+    /// Matrix dimensions that do not match the operation.
+    #[error("{what}: expected {expected:?}, got {got:?}")]
+    Dimensions {
+        /// The operation and operand.
+        what: &'static str,
+        /// The dimensions it needs (rows, columns; `usize::MAX` for any).
+        expected: (usize, usize),
+        /// The dimensions given.
+        got: (usize, usize),
+    },
+    /// An entry is NaN or infinite.
+    #[error("entry {index} is not finite")]
+    NonFinite {
+        /// The entry's index in row-major order.
+        index: usize,
+    },
+    /// A threshold that is negative or not finite.
+    #[error("the threshold must be finite and non-negative, not {tau}")]
+    Threshold {
+        /// The threshold given.
+        tau: f64,
+    },
+    /// The SVD did not converge.
+    #[error("the singular value decomposition did not converge")]
+    Svd,
+}

@@ -240,16 +240,16 @@ fn sampled_svd(k: MatRef<'_, f64>, l: usize, tolerance: f64) -> Option<Compresse
     });
     let mut y = Mat::<f64>::zeros(n, l);
     product(y.as_mut(), k, omega.as_ref(), 1.0);
-    let q = thin_svd(y.as_ref())?.0;
+    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.0;
     let mut z = Mat::<f64>::zeros(n, l);
     product(z.as_mut(), k.transpose(), q.as_ref(), 1.0);
-    let q = thin_svd(z.as_ref())?.0;
+    let q = zeroset_tensor::thin_svd(z.as_ref()).ok()?.0;
     product(y.as_mut(), k, q.as_ref(), 1.0);
-    let q = thin_svd(y.as_ref())?.0;
+    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.0;
     // B = Qᵀ K (l × n) = Ũ Σ Vᵀ, so K ≈ (Q Ũ) Σ Vᵀ.
     let mut b = Mat::<f64>::zeros(l, n);
     product(b.as_mut(), q.transpose(), k, 1.0);
-    let (ub, sv, v) = thin_svd(b.as_ref())?;
+    let (ub, sv, v) = zeroset_tensor::thin_svd(b.as_ref()).ok()?;
     let rank = sv
         .iter()
         .take_while(|&&x| x > tolerance * sv[0])
@@ -266,36 +266,6 @@ fn sampled_svd(k: MatRef<'_, f64>, l: usize, tolerance: f64) -> Option<Compresse
         us,
         v: v.subcols(0, rank).to_owned(),
     })
-}
-
-/// The thin SVD `A = U Σ Vᵀ` (`U`: `m × k`, `V`: `n × k`, `k = min(m, n)`), sequential.
-fn thin_svd(a: MatRef<'_, f64>) -> Option<(Mat<f64>, Vec<f64>, Mat<f64>)> {
-    let (m, n) = (a.nrows(), a.ncols());
-    let k = m.min(n);
-    let mut u = Mat::<f64>::zeros(m, k);
-    let mut v = Mat::<f64>::zeros(n, k);
-    let mut s = faer::diag::Diag::<f64>::zeros(k);
-    let par = Par::Seq;
-    let compute = faer::linalg::svd::ComputeSvdVectors::Thin;
-    let mut mem = faer::dyn_stack::MemBuffer::new(faer::linalg::svd::svd_scratch::<f64>(
-        m,
-        n,
-        compute,
-        compute,
-        par,
-        Default::default(),
-    ));
-    faer::linalg::svd::svd(
-        a,
-        s.as_mut(),
-        Some(u.as_mut()),
-        Some(v.as_mut()),
-        par,
-        faer::dyn_stack::MemStack::new(&mut mem),
-        Default::default(),
-    )
-    .ok()?;
-    Some((u, (0..k).map(|i| s[i]).collect(), v))
 }
 
 /// Pairs per dense product (about): fixed, so that results never depend on the thread count.

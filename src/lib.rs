@@ -8,10 +8,10 @@
 //! |---|---|---|
 //! | [`core`] | `zeroset-field-core` | geometry, grids, masks, point clouds and file formats, the `ScalarField` / `Basis` / `LeastSquaresSolver` traits |
 //! | [`solvers`] | `zeroset-solvers` | CGLS, LSQR, dense QR, LU on normal equations, sparse QR, sparse Cholesky, PCG |
-//! | [`bases`] | `zeroset-bases` | RBF, B-spline, MRAS and neural fields (coming) |
-//! | [`restore`] | `zeroset-restore` | protrusion removal and de-noising by least squares (coming) |
-//! | [`tensor`] | `zeroset-tensor` | CP decomposition (coming) |
-//! | [`mesh`] | `zeroset-mesh` | marching cubes and signed marching cubes (coming) |
+//! | [`bases`] | `zeroset-bases` | RBF fields (with a fast multipole evaluator) and B-spline fields; MRAS and neural fields (coming) |
+//! | [`restore`] | `zeroset-restore` | protrusion removal and de-noising by least squares |
+//! | [`tensor`] | `zeroset-tensor` | 3-way tensors, unfoldings, trace norm, singular-value thresholding, CP-ALS with the adaptive rank of MRAS |
+//! | [`mesh`] | `zeroset-mesh` | marching cubes and the two-step signed marching cubes |
 //!
 //! ```
 //! use zeroset::core::analytic::Sphere;

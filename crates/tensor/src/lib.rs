@@ -1,7 +1,9 @@
 //! # zeroset-tensor
 //!
 //! Dense 3-way tensors and the low-rank machinery that MRAS (paper 004 §3) compresses spline
-//! coefficients with.
+//! coefficients with: unfoldings, n-mode and Khatri–Rao products, the trace norm and
+//! singular-value thresholding (here), CP decomposition by alternating least squares and the
+//! paper's adaptive rank ([`cp`]).
 //!
 //! ## The maths
 //!
@@ -34,11 +36,16 @@
 //! # Ok::<(), zeroset_tensor::TensorError>(())
 //! ```
 
+pub mod cp;
 mod dense;
 mod lowrank;
 
+pub use cp::{
+    AdaptiveOptions, AdaptiveResult, CpInit, CpOptions, CpProgress, CpResult, CpStop, Kruskal,
+    cp_adaptive, cp_als,
+};
 pub use dense::{Tensor3, khatri_rao};
-pub use lowrank::{svt, thin_svd, trace_norm};
+pub use lowrank::{ThinSvd, svt, thin_svd, trace_norm};
 
 /// What can go wrong with tensor shapes and data.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -85,6 +92,21 @@ pub enum TensorError {
     Threshold {
         /// The threshold given.
         tau: f64,
+    },
+    /// A CP rank of 0, or above the largest a tensor of this shape can need.
+    #[error("the CP rank must be between 1 and {max} for this shape, not {rank}")]
+    Rank {
+        /// The rank asked for.
+        rank: usize,
+        /// The largest allowed, `min(I₀I₁, I₀I₂, I₁I₂)`.
+        max: usize,
+    },
+    /// A stopping tolerance or error bound that is negative, zero where it must be positive, or
+    /// NaN.
+    #[error("the tolerance must be a non-negative number (an error bound: positive), not {tol}")]
+    Tolerance {
+        /// The value given.
+        tol: f64,
     },
     /// The SVD did not converge.
     #[error("the singular value decomposition did not converge")]

@@ -4,12 +4,23 @@ use faer::{Mat, MatRef, Par};
 
 use crate::TensorError;
 
-/// The thin SVD `A = U Σ Vᵀ` (`U`: `m × k`, `V`: `n × k`, `k = min(m, n)`, singular values
-/// non-increasing), computed sequentially so that the bits never depend on the thread count.
+/// A thin SVD `A = U Σ Vᵀ`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThinSvd {
+    /// `U`, `m × k`.
+    pub u: Mat<f64>,
+    /// The singular values, non-increasing, `k = min(m, n)` of them.
+    pub s: Vec<f64>,
+    /// `V`, `n × k`.
+    pub v: Mat<f64>,
+}
+
+/// The thin SVD `A = U Σ Vᵀ` (`k = min(m, n)`), computed sequentially so that the bits never
+/// depend on the thread count.
 ///
 /// # Errors
 /// [`TensorError::Svd`] if the SVD does not converge.
-pub fn thin_svd(a: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>, Mat<f64>), TensorError> {
+pub fn thin_svd(a: MatRef<'_, f64>) -> Result<ThinSvd, TensorError> {
     let (m, n) = (a.nrows(), a.ncols());
     let k = m.min(n);
     let mut u = Mat::<f64>::zeros(m, k);
@@ -35,7 +46,11 @@ pub fn thin_svd(a: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>, Mat<f64>), Te
         Default::default(),
     )
     .map_err(|_| TensorError::Svd)?;
-    Ok((u, (0..k).map(|i| s[i]).collect(), v))
+    Ok(ThinSvd {
+        u,
+        s: (0..k).map(|i| s[i]).collect(),
+        v,
+    })
 }
 
 /// The trace (nuclear) norm `‖M‖_* = Σ σᵢ`.
@@ -45,7 +60,7 @@ pub fn thin_svd(a: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>, Mat<f64>), Te
 /// [`TensorError::Svd`] if the SVD does not converge.
 pub fn trace_norm(m: MatRef<'_, f64>) -> Result<f64, TensorError> {
     check_finite(m)?;
-    Ok(thin_svd(m)?.1.iter().sum())
+    Ok(thin_svd(m)?.s.iter().sum())
 }
 
 /// Singular-value thresholding `D_τ(M) = U max(Σ − τ, 0) Vᵀ`, the minimiser of
@@ -71,7 +86,7 @@ pub fn svt(m: MatRef<'_, f64>, tau: f64) -> Result<(Mat<f64>, usize), TensorErro
         return Err(TensorError::Threshold { tau });
     }
     check_finite(m)?;
-    let (u, s, v) = thin_svd(m)?;
+    let ThinSvd { u, s, v } = thin_svd(m)?;
     let rank = s.iter().take_while(|&&x| x > tau).count();
     let us = Mat::from_fn(m.nrows(), rank, |i, r| u[(i, r)] * (s[r] - tau));
     Ok((us * v.subcols(0, rank).transpose(), rank))
@@ -121,12 +136,12 @@ mod tests {
         let m = Mat::from_fn(6, 9, |i, j| {
             ((i * 5 + j * 3) % 7) as f64 - 3.0 + 0.1 * j as f64
         });
-        let (_, sm, _) = thin_svd(m.as_ref()).unwrap();
+        let sm = thin_svd(m.as_ref()).unwrap().s;
         let tau = 0.5 * (sm[2] + sm[3]);
         let (y, rank) = svt(m.as_ref(), tau).unwrap();
         assert_eq!(rank, 3);
         let g = (&m - &y) * (1.0 / tau);
-        let (_, s, _) = thin_svd(g.as_ref()).unwrap();
+        let s = thin_svd(g.as_ref()).unwrap().s;
         assert!(
             s[0] <= 1.0 + 1e-10,
             "spectral norm of the subgradient {}",

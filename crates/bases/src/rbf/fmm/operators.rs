@@ -240,16 +240,16 @@ fn sampled_svd(k: MatRef<'_, f64>, l: usize, tolerance: f64) -> Option<Compresse
     });
     let mut y = Mat::<f64>::zeros(n, l);
     product(y.as_mut(), k, omega.as_ref(), 1.0);
-    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.0;
+    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.u;
     let mut z = Mat::<f64>::zeros(n, l);
     product(z.as_mut(), k.transpose(), q.as_ref(), 1.0);
-    let q = zeroset_tensor::thin_svd(z.as_ref()).ok()?.0;
+    let q = zeroset_tensor::thin_svd(z.as_ref()).ok()?.u;
     product(y.as_mut(), k, q.as_ref(), 1.0);
-    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.0;
+    let q = zeroset_tensor::thin_svd(y.as_ref()).ok()?.u;
     // B = Qᵀ K (l × n) = Ũ Σ Vᵀ, so K ≈ (Q Ũ) Σ Vᵀ.
     let mut b = Mat::<f64>::zeros(l, n);
     product(b.as_mut(), q.transpose(), k, 1.0);
-    let (ub, sv, v) = zeroset_tensor::thin_svd(b.as_ref()).ok()?;
+    let zeroset_tensor::ThinSvd { u: ub, s: sv, v } = zeroset_tensor::thin_svd(b.as_ref()).ok()?;
     let rank = sv
         .iter()
         .take_while(|&&x| x > tolerance * sv[0])

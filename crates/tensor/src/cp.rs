@@ -1,0 +1,690 @@
+//! CP (CANDECOMP/PARAFAC) decomposition by alternating least squares, and the adaptive rank of
+//! paper 004 (Algorithm 2).
+//!
+//! ## CP-ALS
+//!
+//! A rank-`R` [`Kruskal`] tensor `X̂ = Σ_r w_r a_r ∘ b_r ∘ c_r` is fitted to `X` in least squares
+//! by updating one factor at a time with the others fixed (Kolda & Bader 2009, §3.4): with
+//! `V₀ = (BᵀB) ∗ (CᵀC)` (Hadamard product) and the MTTKRP `M₀ = X₍₀₎ (C ⊙ B)`,
+//! `A ← M₀ V₀⁻¹`, and likewise for `B` and `C`. One sweep over the three modes is one iteration.
+//! `V` is solved by Cholesky (its pseudo-inverse if it is singular, as when `R` exceeds the
+//! rank that the data supports).
+//!
+//! The relative error `‖X − X̂‖/‖X‖` is tracked each iteration without forming `X̂`, from
+//! `‖X − X̂‖² = ‖X‖² − 2⟨X, X̂⟩ + ‖X̂‖²` with `⟨X, X̂⟩ = Σ (C ∗ M₂)` and
+//! `‖X̂‖² = 1ᵀ (AᵀA ∗ BᵀB ∗ CᵀC) 1`; the run stops when it changes by less than `tol` between
+//! iterations (TensorLy's `parafac` rule, so the two can be compared iteration for iteration).
+//! The reported final error is computed exactly, by reconstruction.
+//!
+//! An optional line search (Bro 1998; as TensorLy's `linesearch`) extrapolates each iteration's
+//! step, `F ← F_prev + (F − F_prev) · t^{1/3}`, and keeps the extrapolation when it lowers the
+//! error.
+//!
+//! ## Adaptive rank (paper 004, §5.4, Algorithm 2)
+//!
+//! Start at `R⁰ = ⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` (`γᵢ = 1/3`; the trace norm as a convex surrogate of the
+//! rank), fit, and while the absolute error `‖X − X̂‖` exceeds `ε` grow
+//! `R ← R + ⌈3 ln(‖X − X̂‖/ε)⌉` (the paper does not name the logarithm's base; the natural one
+//! is used, and the step is at least 1). The paper uses `ε = 10^{−k−1}` at octree level `k`.
+//! `R` is capped at the largest rank a tensor of its shape can need, `min(I₀I₁, I₀I₂, I₁I₂)`.
+//! Because the step can overshoot, [`AdaptiveOptions::refine`] optionally bisects between the
+//! last rank that failed and the first that met `ε`, returning the smallest rank meeting it.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::Solve;
+use faer::{Accum, Mat, Par, Side};
+
+use crate::{Tensor3, TensorError, khatri_rao, lowrank};
+
+/// A Kruskal tensor: weights `w_r` and three factor matrices (`Iₙ × R`) whose columns are the
+/// components, `X̂ = Σ_r w_r a_r ∘ b_r ∘ c_r`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Kruskal {
+    weights: Vec<f64>,
+    factors: [Mat<f64>; 3],
+}
+
+impl Kruskal {
+    /// The Kruskal tensor of `weights` and `factors`.
+    ///
+    /// # Errors
+    /// [`TensorError::Dimensions`] if a factor has not `weights.len()` columns,
+    /// [`TensorError::NonFinite`] for a NaN or infinite weight or factor entry.
+    pub fn new(weights: Vec<f64>, factors: [Mat<f64>; 3]) -> Result<Self, TensorError> {
+        let rank = weights.len();
+        for f in &factors {
+            if f.ncols() != rank {
+                return Err(TensorError::Dimensions {
+                    what: "Kruskal: a factor",
+                    expected: (usize::MAX, rank),
+                    got: (f.nrows(), f.ncols()),
+                });
+            }
+        }
+        let entries = weights.iter().chain(
+            factors
+                .iter()
+                .flat_map(|f| f.col_iter().flat_map(|c| c.iter())),
+        );
+        if let Some(index) = entries.into_iter().position(|v| !v.is_finite()) {
+            return Err(TensorError::NonFinite { index });
+        }
+        Ok(Self { weights, factors })
+    }
+
+    /// The number of components `R`.
+    pub fn rank(&self) -> usize {
+        self.weights.len()
+    }
+
+    /// The shape of the tensor it stands for.
+    pub fn shape(&self) -> [usize; 3] {
+        std::array::from_fn(|n| self.factors[n].nrows())
+    }
+
+    /// The weights `w_r`.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// The factor matrices `A`, `B`, `C`.
+    pub fn factors(&self) -> &[Mat<f64>; 3] {
+        &self.factors
+    }
+
+    /// The numbers stored: `R (1 + I₀ + I₁ + I₂)`.
+    pub fn storage(&self) -> usize {
+        self.rank() * (1 + self.shape().iter().sum::<usize>())
+    }
+
+    /// The full tensor `Σ_r w_r a_r ∘ b_r ∘ c_r`.
+    pub fn to_tensor(&self) -> Tensor3 {
+        let [a, b, c] = &self.factors;
+        let aw = Mat::from_fn(a.nrows(), self.rank(), |i, r| a[(i, r)] * self.weights[r]);
+        let mut shape = self.shape();
+        if self.rank() == 0 {
+            return Tensor3::zeros(shape);
+        }
+        // X₍₀₎ = A W (C ⊙ B)ᵀ; khatri_rao cannot fail here (same column counts).
+        let kr = khatri_rao(c.as_ref(), b.as_ref()).unwrap_or_else(|_| Mat::zeros(0, 0));
+        let unfolded = &aw * kr.transpose();
+        shape[0] = a.nrows();
+        Tensor3::fold(0, &unfolded, shape).unwrap_or_else(|_| Tensor3::zeros(shape))
+    }
+
+    /// `‖X̂‖_F`, from the factors' Gram matrices.
+    pub fn norm(&self) -> f64 {
+        let g = hadamard_grams(&self.factors, None);
+        let r = self.rank();
+        let mut s = 0.0;
+        for i in 0..r {
+            for j in 0..r {
+                s += self.weights[i] * g[(i, j)] * self.weights[j];
+            }
+        }
+        s.max(0.0).sqrt()
+    }
+
+    /// Every factor column scaled to unit length, its norm moved into the weight (a zero
+    /// column gets weight 0 and stays zero).
+    pub fn normalize(&mut self) {
+        for r in 0..self.rank() {
+            for f in &mut self.factors {
+                let norm = f.col(r).norm_l2();
+                if norm > 0.0 {
+                    for i in 0..f.nrows() {
+                        f[(i, r)] /= norm;
+                    }
+                }
+                self.weights[r] *= norm;
+            }
+        }
+    }
+
+    /// The canonical form, so that two decompositions of one tensor can be compared entry by
+    /// entry: normalised; each column of `A` and `B` with its largest-magnitude entry positive
+    /// (the sign moved into `C`); each weight non-negative (the sign moved into `C`);
+    /// components sorted by decreasing weight (ties kept in order).
+    pub fn canonical(&self) -> Self {
+        let mut k = self.clone();
+        k.normalize();
+        for r in 0..k.rank() {
+            for n in 0..2 {
+                let col = k.factors[n].col(r);
+                let (mut best, mut sign) = (0.0, 1.0);
+                for v in col.iter() {
+                    if v.abs() > best {
+                        best = v.abs();
+                        sign = v.signum();
+                    }
+                }
+                if sign < 0.0 {
+                    flip(&mut k.factors[n], r);
+                    flip(&mut k.factors[2], r);
+                }
+            }
+            if k.weights[r] < 0.0 {
+                k.weights[r] = -k.weights[r];
+                flip(&mut k.factors[2], r);
+            }
+        }
+        let mut order: Vec<usize> = (0..k.rank()).collect();
+        order.sort_by(|&i, &j| k.weights[j].total_cmp(&k.weights[i]));
+        Self {
+            weights: order.iter().map(|&r| k.weights[r]).collect(),
+            factors: std::array::from_fn(|n| {
+                let f = &k.factors[n];
+                Mat::from_fn(f.nrows(), order.len(), |i, c| f[(i, order[c])])
+            }),
+        }
+    }
+}
+
+fn flip(f: &mut Mat<f64>, r: usize) {
+    for i in 0..f.nrows() {
+        f[(i, r)] = -f[(i, r)];
+    }
+}
+
+/// How CP-ALS starts.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CpInit {
+    /// The leading `R` left singular vectors of each unfolding (columns beyond the
+    /// unfolding's rank filled with seeded random numbers), as TensorLy's `init='svd'`.
+    Svd,
+    /// Entries uniform in `[0, 1)` from a SplitMix64 stream with this seed.
+    Random(u64),
+    /// Given factors (weights folded into the first).
+    Given(Kruskal),
+}
+
+/// Options of [`cp_als`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CpOptions {
+    /// The number of components `R`.
+    pub rank: usize,
+    /// The most iterations (sweeps over the three modes).
+    pub max_iter: usize,
+    /// Stop when the relative error changes by less than this between iterations.
+    pub tol: f64,
+    /// The starting factors.
+    pub init: CpInit,
+    /// Extrapolate each step (see the module docs).
+    pub line_search: bool,
+}
+
+impl CpOptions {
+    /// Rank `rank`, at most 500 iterations, `tol = 1e-10`, SVD initialisation, no line search.
+    pub fn new(rank: usize) -> Self {
+        Self {
+            rank,
+            max_iter: 500,
+            tol: 1e-10,
+            init: CpInit::Svd,
+            line_search: false,
+        }
+    }
+
+    /// With `max_iter` iterations at most.
+    pub fn with_max_iter(mut self, max_iter: usize) -> Self {
+        self.max_iter = max_iter;
+        self
+    }
+
+    /// With stopping tolerance `tol`.
+    pub fn with_tol(mut self, tol: f64) -> Self {
+        self.tol = tol;
+        self
+    }
+
+    /// Starting from `init`.
+    pub fn with_init(mut self, init: CpInit) -> Self {
+        self.init = init;
+        self
+    }
+
+    /// With or without the line search.
+    pub fn with_line_search(mut self, on: bool) -> Self {
+        self.line_search = on;
+        self
+    }
+}
+
+/// Why CP-ALS stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CpStop {
+    /// The relative error changed by less than `tol`.
+    Converged,
+    /// `max_iter` iterations ran.
+    MaxIterations,
+    /// The callback asked to stop.
+    Cancelled,
+}
+
+/// One iteration's state, given to the callback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CpProgress {
+    /// Iterations done.
+    pub iteration: usize,
+    /// The tracked relative error `‖X − X̂‖/‖X‖`.
+    pub rel_error: f64,
+    /// The rank being fitted.
+    pub rank: usize,
+}
+
+/// What [`cp_als`] returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CpResult {
+    /// The fitted Kruskal tensor (weights 1 unless normalised by the caller).
+    pub kruskal: Kruskal,
+    /// Iterations done.
+    pub iterations: usize,
+    /// The relative error per iteration, as tracked.
+    pub errors: Vec<f64>,
+    /// `‖X − X̂‖/‖X‖`, computed exactly by reconstruction.
+    pub rel_error: f64,
+    /// `‖X − X̂‖`.
+    pub abs_error: f64,
+    /// Why it stopped.
+    pub stop: CpStop,
+}
+
+/// CP-ALS of `x` (see the module docs); `progress` is called after every iteration and stops
+/// the run when it returns `false`.
+///
+/// ```
+/// use zeroset_tensor::{CpOptions, Tensor3, cp_als};
+///
+/// // A rank-2 tensor is recovered.
+/// let x = Tensor3::from_fn([4, 5, 6], |i, j, k| {
+///     let (i, j, k) = (i as f64, j as f64, k as f64);
+///     (i + 1.0) * (j + 2.0) * (k + 1.0) + i.cos() * (j + 1.0).sin() * k * k
+/// });
+/// let fit = cp_als(&x, &CpOptions::new(2).with_tol(1e-14).with_max_iter(2000), |_| true)?;
+/// assert!(fit.rel_error < 1e-6, "{}", fit.rel_error);
+/// # Ok::<(), zeroset_tensor::TensorError>(())
+/// ```
+///
+/// # Errors
+/// [`TensorError::EmptyShape`] for an empty tensor, [`TensorError::NonFinite`] for a NaN or
+/// infinite entry, [`TensorError::Rank`] for rank 0 or above `min(I₀I₁, I₀I₂, I₁I₂)`,
+/// [`TensorError::Tolerance`] for a negative or NaN `tol`, [`TensorError::Dimensions`] for
+/// given factors of the wrong shape, [`TensorError::Svd`] if an SVD does not converge.
+pub fn cp_als(
+    x: &Tensor3,
+    options: &CpOptions,
+    mut progress: impl FnMut(&CpProgress) -> bool,
+) -> Result<CpResult, TensorError> {
+    check_input(x, options.rank)?;
+    if options.tol.is_nan() || options.tol < 0.0 {
+        return Err(TensorError::Tolerance { tol: options.tol });
+    }
+    let rank = options.rank;
+    let unfoldings: [Mat<f64>; 3] = [x.unfold(0)?, x.unfold(1)?, x.unfold(2)?];
+    let mut factors = initial_factors(x, &unfoldings, options)?;
+    let norm_x = x.frobenius_norm();
+    let norm2 = norm_x * norm_x;
+    let mut errors: Vec<f64> = Vec::new();
+    let mut stop = CpStop::MaxIterations;
+    let mut previous: Option<[Mat<f64>; 3]> = None;
+    let mut iterations = 0;
+    while iterations < options.max_iter {
+        let before = factors.clone();
+        let mut inner = 0.0;
+        for mode in 0..3 {
+            let m = mttkrp(&unfoldings[mode], &factors, mode)?;
+            let v = hadamard_grams(&factors, Some(mode));
+            factors[mode] = solve_gram(&v, &m)?;
+            if mode == 2 {
+                inner = dot(&factors[2], &m);
+            }
+        }
+        let mut rel = tracked_error(norm2, inner, &factors);
+        if options.line_search
+            && iterations > 0
+            && let Some(prev) = &previous
+        {
+            let jump = (iterations as f64 + 1.0).powf(1.0 / 3.0);
+            let trial: [Mat<f64>; 3] = std::array::from_fn(|n| {
+                let (p, f) = (&prev[n], &factors[n]);
+                Mat::from_fn(f.nrows(), f.ncols(), |i, r| {
+                    p[(i, r)] + (f[(i, r)] - p[(i, r)]) * jump
+                })
+            });
+            let m = mttkrp(&unfoldings[2], &trial, 2)?;
+            let trial_rel = tracked_error(norm2, dot(&trial[2], &m), &trial);
+            if trial_rel < rel {
+                factors = trial;
+                rel = trial_rel;
+            }
+        }
+        previous = Some(before);
+        iterations += 1;
+        errors.push(rel);
+        if !progress(&CpProgress {
+            iteration: iterations,
+            rel_error: rel,
+            rank,
+        }) {
+            stop = CpStop::Cancelled;
+            break;
+        }
+        if errors.len() >= 2 && (errors[errors.len() - 2] - rel).abs() < options.tol {
+            stop = CpStop::Converged;
+            break;
+        }
+    }
+    let kruskal = Kruskal::new(vec![1.0; rank], factors)?;
+    let fitted = kruskal.to_tensor();
+    let abs_error = x
+        .as_slice()
+        .iter()
+        .zip(fitted.as_slice())
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt();
+    Ok(CpResult {
+        kruskal,
+        iterations,
+        errors,
+        rel_error: if norm_x > 0.0 {
+            abs_error / norm_x
+        } else {
+            0.0
+        },
+        abs_error,
+        stop,
+    })
+}
+
+/// The largest rank a CP fit of `shape` is allowed: `min(I₀I₁, I₀I₂, I₁I₂)`, enough for any
+/// tensor of that shape.
+pub fn max_rank(shape: [usize; 3]) -> usize {
+    let [a, b, c] = shape;
+    (a * b).min(a * c).min(b * c)
+}
+
+fn check_input(x: &Tensor3, rank: usize) -> Result<(), TensorError> {
+    if x.is_empty() {
+        return Err(TensorError::EmptyShape { shape: x.shape() });
+    }
+    x.check_finite()?;
+    let max = max_rank(x.shape());
+    if rank == 0 || rank > max {
+        return Err(TensorError::Rank { rank, max });
+    }
+    Ok(())
+}
+
+/// The starting factors of `options.init` (weights folded into the first factor).
+fn initial_factors(
+    x: &Tensor3,
+    unfoldings: &[Mat<f64>; 3],
+    options: &CpOptions,
+) -> Result<[Mat<f64>; 3], TensorError> {
+    let rank = options.rank;
+    let shape = x.shape();
+    let mut rng = SplitMix(0x00C0_FFEE);
+    match &options.init {
+        CpInit::Given(k) => {
+            if k.rank() != rank || k.shape() != shape {
+                return Err(TensorError::Dimensions {
+                    what: "cp_als: the given factors (rows of the first, rank)",
+                    expected: (shape[0], rank),
+                    got: (k.shape()[0], k.rank()),
+                });
+            }
+            let mut f = k.factors().clone();
+            for r in 0..rank {
+                for i in 0..f[0].nrows() {
+                    f[0][(i, r)] *= k.weights()[r];
+                }
+            }
+            Ok(f)
+        }
+        CpInit::Random(seed) => {
+            let mut rng = SplitMix(*seed);
+            Ok(std::array::from_fn(|n| {
+                Mat::from_fn(shape[n], rank, |_, _| rng.uniform())
+            }))
+        }
+        CpInit::Svd => {
+            let mut out: [Mat<f64>; 3] = std::array::from_fn(|_| Mat::zeros(0, 0));
+            for (n, slot) in out.iter_mut().enumerate() {
+                let u = lowrank::thin_svd(unfoldings[n].as_ref())?.u;
+                *slot = Mat::from_fn(shape[n], rank, |i, r| {
+                    if r < u.ncols() {
+                        u[(i, r)]
+                    } else {
+                        rng.uniform()
+                    }
+                });
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// `X₍ₙ₎ (⊙ of the other factors)`, the matricised tensor times Khatri–Rao product.
+fn mttkrp(
+    unfolded: &Mat<f64>,
+    factors: &[Mat<f64>; 3],
+    mode: usize,
+) -> Result<Mat<f64>, TensorError> {
+    let kr = match mode {
+        0 => khatri_rao(factors[2].as_ref(), factors[1].as_ref())?,
+        1 => khatri_rao(factors[2].as_ref(), factors[0].as_ref())?,
+        _ => khatri_rao(factors[1].as_ref(), factors[0].as_ref())?,
+    };
+    let mut m = Mat::zeros(unfolded.nrows(), kr.ncols());
+    matmul(
+        m.as_mut(),
+        Accum::Replace,
+        unfolded.as_ref(),
+        kr.as_ref(),
+        1.0,
+        Par::rayon(0),
+    );
+    Ok(m)
+}
+
+/// The Hadamard product of the factors' Gram matrices `FᵀF`, leaving out `skip`.
+fn hadamard_grams(factors: &[Mat<f64>; 3], skip: Option<usize>) -> Mat<f64> {
+    let r = factors[0].ncols();
+    let mut v = Mat::from_fn(r, r, |_, _| 1.0);
+    for (n, f) in factors.iter().enumerate() {
+        if Some(n) == skip {
+            continue;
+        }
+        let g = f.transpose() * f;
+        for j in 0..r {
+            for i in 0..r {
+                v[(i, j)] *= g[(i, j)];
+            }
+        }
+    }
+    v
+}
+
+/// `M V⁻¹` for the symmetric positive semi-definite `V`: Cholesky, or the pseudo-inverse
+/// (singular values below `1e-12 σ₁` dropped) where `V` is singular.
+fn solve_gram(v: &Mat<f64>, m: &Mat<f64>) -> Result<Mat<f64>, TensorError> {
+    if let Ok(llt) = v.llt(Side::Lower) {
+        let solved = llt.solve(m.transpose());
+        if solved.col_iter().all(|c| c.iter().all(|x| x.is_finite())) {
+            return Ok(solved.transpose().to_owned());
+        }
+    }
+    let lowrank::ThinSvd { u, s, v: w } = lowrank::thin_svd(v.as_ref())?;
+    let cut = 1e-12 * s.first().copied().unwrap_or(0.0);
+    let r = v.nrows();
+    // V⁺ = W Σ⁺ Uᵀ; M V⁺ (V symmetric).
+    let pinv = Mat::from_fn(r, r, |i, j| {
+        (0..r)
+            .filter(|&k| s[k] > cut)
+            .map(|k| w[(i, k)] * u[(j, k)] / s[k])
+            .sum::<f64>()
+    });
+    Ok(m * pinv)
+}
+
+fn dot(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
+    let mut s = 0.0;
+    for j in 0..a.ncols() {
+        for i in 0..a.nrows() {
+            s += a[(i, j)] * b[(i, j)];
+        }
+    }
+    s
+}
+
+/// `‖X − X̂‖/‖X‖` from `‖X‖²`, `⟨X, X̂⟩` and the factors (TensorLy's formula).
+fn tracked_error(norm2: f64, inner: f64, factors: &[Mat<f64>; 3]) -> f64 {
+    let g = hadamard_grams(factors, None);
+    let fit2: f64 = (0..g.nrows())
+        .flat_map(|i| (0..g.ncols()).map(move |j| (i, j)))
+        .map(|(i, j)| g[(i, j)])
+        .sum();
+    let e2 = (norm2 - 2.0 * inner + fit2).abs();
+    if norm2 > 0.0 {
+        (e2 / norm2).sqrt()
+    } else {
+        e2.sqrt()
+    }
+}
+
+/// SplitMix64, for seeded initial factors.
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Options of [`cp_adaptive`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveOptions {
+    /// The absolute error `‖X − X̂‖` to reach (paper 004: `ε_cp = 10^{−k−1}` at level `k`).
+    pub epsilon: f64,
+    /// The first rank; `None`: `⌈Σ γᵢ ‖X₍ᵢ₎‖_*⌉` with `γᵢ = 1/3` (at least 1).
+    pub initial_rank: Option<usize>,
+    /// The largest rank tried (at most [`max_rank`] of the shape).
+    pub max_rank: Option<usize>,
+    /// After Algorithm 2 meets `ε`, bisect down to the smallest rank that meets it.
+    pub refine: bool,
+    /// The CP-ALS options for each fit (their `rank` is set by the search).
+    pub cp: CpOptions,
+}
+
+impl AdaptiveOptions {
+    /// Error bound `epsilon`, the paper's initial rank, no refinement, default CP-ALS options.
+    pub fn new(epsilon: f64) -> Self {
+        Self {
+            epsilon,
+            initial_rank: None,
+            max_rank: None,
+            refine: false,
+            cp: CpOptions::new(1),
+        }
+    }
+
+    /// The paper's tolerance at octree level `level`: `ε = 10^{−level−1}`.
+    pub fn for_level(level: u32) -> Self {
+        Self::new(10f64.powi(-(level as i32) - 1))
+    }
+}
+
+/// What [`cp_adaptive`] returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveResult {
+    /// The fit at the chosen rank.
+    pub fit: CpResult,
+    /// The chosen rank.
+    pub rank: usize,
+    /// Every rank tried with its absolute error, in order.
+    pub history: Vec<(usize, f64)>,
+    /// Whether the error bound was met (false: stopped at the rank cap).
+    pub met: bool,
+}
+
+/// The adaptive-rank CP decomposition of paper 004, Algorithm 2 (see the module docs);
+/// `progress` is passed to every CP-ALS run.
+///
+/// # Errors
+/// As [`cp_als`], and [`TensorError::Tolerance`] for an `epsilon` that is not positive.
+pub fn cp_adaptive(
+    x: &Tensor3,
+    options: &AdaptiveOptions,
+    mut progress: impl FnMut(&CpProgress) -> bool,
+) -> Result<AdaptiveResult, TensorError> {
+    if options.epsilon.is_nan() || options.epsilon <= 0.0 {
+        return Err(TensorError::Tolerance {
+            tol: options.epsilon,
+        });
+    }
+    check_input(x, 1)?;
+    let cap = options
+        .max_rank
+        .unwrap_or(usize::MAX)
+        .min(max_rank(x.shape()));
+    let mut rank = match options.initial_rank {
+        Some(r) => r,
+        None => {
+            let mut s = 0.0;
+            for mode in 0..3 {
+                s += lowrank::trace_norm(x.unfold(mode)?.as_ref())? / 3.0;
+            }
+            s.ceil() as usize
+        }
+    }
+    .clamp(1, cap.max(1));
+    let mut history = Vec::new();
+    let fit_at = |rank: usize, progress: &mut dyn FnMut(&CpProgress) -> bool| {
+        let mut cp = options.cp.clone();
+        cp.rank = rank;
+        if let CpInit::Given(_) = cp.init {
+            cp.init = CpInit::Svd;
+        }
+        cp_als(x, &cp, |p| progress(p))
+    };
+    let mut fit = fit_at(rank, &mut progress)?;
+    history.push((rank, fit.abs_error));
+    let mut failed = 0;
+    while fit.abs_error > options.epsilon && rank < cap && fit.stop != CpStop::Cancelled {
+        failed = rank;
+        let step = (3.0 * (fit.abs_error / options.epsilon).ln())
+            .ceil()
+            .max(1.0) as usize;
+        rank = (rank + step).min(cap);
+        fit = fit_at(rank, &mut progress)?;
+        history.push((rank, fit.abs_error));
+    }
+    let met = fit.abs_error <= options.epsilon;
+    if met && options.refine {
+        // Invariant: `failed` does not meet ε (or is 0), `rank` does.
+        let (mut lo, mut hi) = (failed, rank);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let trial = fit_at(mid, &mut progress)?;
+            history.push((mid, trial.abs_error));
+            if trial.abs_error <= options.epsilon {
+                hi = mid;
+                fit = trial;
+            } else {
+                lo = mid;
+            }
+        }
+        rank = hi;
+    }
+    Ok(AdaptiveResult {
+        fit,
+        rank,
+        history,
+        met,
+    })
+}

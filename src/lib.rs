@@ -7,7 +7,7 @@
 //! | module | crate | what it holds |
 //! |---|---|---|
 //! | [`core`] | `zeroset-field-core` | geometry, grids, masks, point clouds and file formats, the `ScalarField` / `Basis` / `LeastSquaresSolver` traits |
-//! | [`solvers`] | `zeroset-solvers` | CGLS, LSQR, dense QR, LU on normal equations, sparse QR, sparse Cholesky, PCG |
+//! | [`solvers`] | `zeroset-solvers` | CGLS, LSQR, dense QR, LU on normal equations, sparse QR, sparse Cholesky, PCG, ADMM |
 //! | [`bases`] | `zeroset-bases` | RBF fields (with a fast multipole evaluator) and B-spline fields; MRAS and neural fields (coming) |
 //! | [`restore`] | `zeroset-restore` | protrusion removal and de-noising by least squares |
 //! | [`tensor`] | `zeroset-tensor` | 3-way tensors, unfoldings, trace norm, singular-value thresholding, CP-ALS with the adaptive rank of MRAS |

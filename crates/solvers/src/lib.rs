@@ -23,6 +23,10 @@
 //! calls an optional progress [`Monitor`](zeroset_field_core::lsq::Monitor) that can cancel, and
 //! is deterministic: the same bits for 1 or N threads (see [`kernels`]).
 //!
+//! Beyond least squares, [`admm`] minimises a quadratic plus a sum of proximable terms seen
+//! through orthogonal maps (MRAS's trace-norm-regularised fit, paper 004 §5.3), factoring the
+//! c-step matrix once.
+//!
 //! ```
 //! use zeroset_field_core::lsq::LeastSquaresSolverExt;
 //! use zeroset_solvers::{Lsqr, SparseCholesky, problems::protrusion_problem};
@@ -38,6 +42,7 @@
 
 #![warn(missing_docs)]
 
+pub mod admm;
 mod common;
 mod dense;
 pub mod dst;

@@ -121,10 +121,16 @@ impl Tensor3 {
         let [a, b] = others(mode);
         let s = self.shape;
         let mut m = Mat::zeros(s[mode], s[a] * s[b]);
-        for (lin, &v) in self.data.iter().enumerate() {
-            let idx = [lin / (s[1] * s[2]), (lin / s[2]) % s[1], lin % s[2]];
-            let (r, c) = Self::unfolded_index(s, mode, idx);
-            m[(r, c)] = v;
+        let mut values = self.data.iter();
+        for i in 0..s[0] {
+            for j in 0..s[1] {
+                for k in 0..s[2] {
+                    let (r, c) = Self::unfolded_index(s, mode, [i, j, k]);
+                    if let Some(&v) = values.next() {
+                        m[(r, c)] = v;
+                    }
+                }
+            }
         }
         Ok(m)
     }
@@ -219,10 +225,19 @@ pub fn khatri_rao(c: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Result<Mat<f64>, Te
             got: (b.nrows(), b.ncols()),
         });
     }
-    let j = b.nrows();
-    Ok(Mat::from_fn(c.nrows() * j, c.ncols(), |row, r| {
-        c[(row / j, r)] * b[(row % j, r)]
-    }))
+    let (j, k) = (b.nrows(), c.nrows());
+    let mut out = Mat::<f64>::zeros(k * j, c.ncols());
+    for r in 0..c.ncols() {
+        let (bc, cc) = (b.col(r), c.col(r));
+        let mut col = out.col_mut(r);
+        for kk in 0..k {
+            let ck = cc[kk];
+            for jj in 0..j {
+                col[kk * j + jj] = ck * bc[jj];
+            }
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

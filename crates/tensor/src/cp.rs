@@ -32,7 +32,7 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::{Accum, Mat, Par, Side};
+use faer::{Accum, Mat, MatRef, Par, Side};
 
 use crate::{Tensor3, TensorError, khatri_rao, lowrank};
 
@@ -320,8 +320,7 @@ pub fn cp_als(
         return Err(TensorError::Tolerance { tol: options.tol });
     }
     let rank = options.rank;
-    let unfoldings: [Mat<f64>; 3] = [x.unfold(0)?, x.unfold(1)?, x.unfold(2)?];
-    let mut factors = initial_factors(x, &unfoldings, options)?;
+    let mut factors = initial_factors(x, options)?;
     let norm_x = x.frobenius_norm();
     let norm2 = norm_x * norm_x;
     let mut errors: Vec<f64> = Vec::new();
@@ -330,15 +329,15 @@ pub fn cp_als(
     let mut iterations = 0;
     while iterations < options.max_iter {
         let before = factors.clone();
-        let mut inner = 0.0;
-        for mode in 0..3 {
-            let m = mttkrp(&unfoldings[mode], &factors, mode)?;
-            let v = hadamard_grams(&factors, Some(mode));
-            factors[mode] = solve_gram(&v, &m)?;
-            if mode == 2 {
-                inner = dot(&factors[2], &m);
-            }
-        }
+        // T = X ×₂ C serves the MTTKRPs of modes 0 and 1 (C is fixed while A and B move).
+        let t = times_last(x, &factors[2]);
+        let m = contract_middle(&t, x.shape(), &factors[1], 0);
+        factors[0] = solve_gram(&hadamard_grams(&factors, Some(0)), &m)?;
+        let m = contract_middle(&t, x.shape(), &factors[0], 1);
+        factors[1] = solve_gram(&hadamard_grams(&factors, Some(1)), &m)?;
+        let m = mttkrp_last(x, &factors[0], &factors[1]);
+        factors[2] = solve_gram(&hadamard_grams(&factors, Some(2)), &m)?;
+        let inner = dot(&factors[2], &m);
         let mut rel = tracked_error(norm2, inner, &factors);
         if options.line_search
             && iterations > 0
@@ -351,7 +350,7 @@ pub fn cp_als(
                     p[(i, r)] + (f[(i, r)] - p[(i, r)]) * jump
                 })
             });
-            let m = mttkrp(&unfoldings[2], &trial, 2)?;
+            let m = mttkrp_last(x, &trial[0], &trial[1]);
             let trial_rel = tracked_error(norm2, dot(&trial[2], &m), &trial);
             if trial_rel < rel {
                 factors = trial;
@@ -417,11 +416,7 @@ fn check_input(x: &Tensor3, rank: usize) -> Result<(), TensorError> {
 }
 
 /// The starting factors of `options.init` (weights folded into the first factor).
-fn initial_factors(
-    x: &Tensor3,
-    unfoldings: &[Mat<f64>; 3],
-    options: &CpOptions,
-) -> Result<[Mat<f64>; 3], TensorError> {
+fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], TensorError> {
     let rank = options.rank;
     let shape = x.shape();
     let mut rng = SplitMix(0x00C0_FFEE);
@@ -451,7 +446,7 @@ fn initial_factors(
         CpInit::Svd => {
             let mut out: [Mat<f64>; 3] = std::array::from_fn(|_| Mat::zeros(0, 0));
             for (n, slot) in out.iter_mut().enumerate() {
-                let u = lowrank::thin_svd(unfoldings[n].as_ref())?.u;
+                let u = lowrank::thin_svd(x.unfold(n)?.as_ref())?.u;
                 *slot = Mat::from_fn(shape[n], rank, |i, r| {
                     if r < u.ncols() {
                         u[(i, r)]
@@ -465,27 +460,72 @@ fn initial_factors(
     }
 }
 
-/// `X₍ₙ₎ (⊙ of the other factors)`, the matricised tensor times Khatri–Rao product.
-fn mttkrp(
-    unfolded: &Mat<f64>,
-    factors: &[Mat<f64>; 3],
-    mode: usize,
-) -> Result<Mat<f64>, TensorError> {
-    let kr = match mode {
-        0 => khatri_rao(factors[2].as_ref(), factors[1].as_ref())?,
-        1 => khatri_rao(factors[2].as_ref(), factors[0].as_ref())?,
-        _ => khatri_rao(factors[1].as_ref(), factors[0].as_ref())?,
-    };
-    let mut m = Mat::zeros(unfolded.nrows(), kr.ncols());
-    matmul(
-        m.as_mut(),
-        Accum::Replace,
-        unfolded.as_ref(),
-        kr.as_ref(),
-        1.0,
-        Par::rayon(0),
-    );
-    Ok(m)
+/// Work (`I₀I₁I₂ R`) above which the products run on all threads. Below, threads cost more
+/// than they save; either way the bits do not depend on the thread count.
+const PARALLEL_WORK: usize = 1 << 20;
+
+fn par_for(x: &Tensor3, rank: usize) -> Par {
+    if x.len() * rank >= PARALLEL_WORK {
+        Par::rayon(0)
+    } else {
+        Par::Seq
+    }
+}
+
+/// `T = X ×₂ Cᵀ` as an `(I₀I₁) × R` matrix: row `i₀I₁ + i₁`, `T[·, r] = Σ_k X[i₀, i₁, k] C[k, r]`
+/// (one product with the row-major data, no unfolding).
+fn times_last(x: &Tensor3, c: &Mat<f64>) -> Mat<f64> {
+    let [i, j, k] = x.shape();
+    let xm = MatRef::from_row_major_slice(x.as_slice(), i * j, k);
+    let mut t = Mat::zeros(i * j, c.ncols());
+    matmul(t.as_mut(), Accum::Replace, xm, c.as_ref(), 1.0, par_for(x, c.ncols()));
+    t
+}
+
+/// The MTTKRP of mode 0 (`mode = 0`: `M[i₀, r] = Σ_{i₁} T[i₀I₁ + i₁, r] F[i₁, r]`, `F = B`) or
+/// of mode 1 (`mode = 1`: `M[i₁, r] = Σ_{i₀} T[i₀I₁ + i₁, r] F[i₀, r]`, `F = A`) from
+/// [`times_last`].
+fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -> Mat<f64> {
+    let [i, j, _] = shape;
+    let rank = t.ncols();
+    let mut m = Mat::zeros(shape[mode], rank);
+    for r in 0..rank {
+        let (tc, fc) = (t.col(r), f.col(r));
+        let mut out = m.col_mut(r);
+        for a in 0..i {
+            for b in 0..j {
+                let v = tc[a * j + b];
+                if mode == 0 {
+                    out[a] += v * fc[b];
+                } else {
+                    out[b] += v * fc[a];
+                }
+            }
+        }
+    }
+    m
+}
+
+/// The MTTKRP of mode 2, `M[k, r] = Σ_{i₀, i₁} X[i₀, i₁, k] A[i₀, r] B[i₁, r]`: first
+/// `U = Aᵀ X₍₀₎` (`R × I₁I₂`, one product with the row-major data), then the sum over `i₁`.
+fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let [i, j, k] = x.shape();
+    let rank = a.ncols();
+    let xm = MatRef::from_row_major_slice(x.as_slice(), i, j * k);
+    let mut u = Mat::zeros(rank, j * k);
+    matmul(u.as_mut(), Accum::Replace, a.transpose(), xm, 1.0, par_for(x, rank));
+    let mut m = Mat::zeros(k, rank);
+    for r in 0..rank {
+        let bc = b.col(r);
+        let mut out = m.col_mut(r);
+        for jj in 0..j {
+            let w = bc[jj];
+            for kk in 0..k {
+                out[kk] += w * u[(r, jj * k + kk)];
+            }
+        }
+    }
+    m
 }
 
 /// The Hadamard product of the factors' Gram matrices `FᵀF`, leaving out `skip`.

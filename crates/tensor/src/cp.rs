@@ -460,9 +460,10 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
     }
 }
 
-/// Work (`I₀I₁I₂ R`) above which the products run on all threads. Below, threads cost more
-/// than they save; either way the bits do not depend on the thread count.
-const PARALLEL_WORK: usize = 1 << 20;
+/// Work (`I₀I₁I₂ R`) above which the products run on all threads. Below (measured on two
+/// cores: up to 100³ × 30), threads cost more than they save; either way the bits do not
+/// depend on the thread count.
+const PARALLEL_WORK: usize = 1 << 25;
 
 fn par_for(x: &Tensor3, rank: usize) -> Par {
     if x.len() * rank >= PARALLEL_WORK {
@@ -478,7 +479,14 @@ fn times_last(x: &Tensor3, c: &Mat<f64>) -> Mat<f64> {
     let [i, j, k] = x.shape();
     let xm = MatRef::from_row_major_slice(x.as_slice(), i * j, k);
     let mut t = Mat::zeros(i * j, c.ncols());
-    matmul(t.as_mut(), Accum::Replace, xm, c.as_ref(), 1.0, par_for(x, c.ncols()));
+    matmul(
+        t.as_mut(),
+        Accum::Replace,
+        xm,
+        c.as_ref(),
+        1.0,
+        par_for(x, c.ncols()),
+    );
     t
 }
 
@@ -486,19 +494,25 @@ fn times_last(x: &Tensor3, c: &Mat<f64>) -> Mat<f64> {
 /// of mode 1 (`mode = 1`: `M[i₁, r] = Σ_{i₀} T[i₀I₁ + i₁, r] F[i₀, r]`, `F = A`) from
 /// [`times_last`].
 fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -> Mat<f64> {
-    let [i, j, _] = shape;
+    let j = shape[1];
     let rank = t.ncols();
-    let mut m = Mat::zeros(shape[mode], rank);
+    let mut m = Mat::<f64>::zeros(shape[mode], rank);
     for r in 0..rank {
-        let (tc, fc) = (t.col(r), f.col(r));
-        let mut out = m.col_mut(r);
-        for a in 0..i {
-            for b in 0..j {
-                let v = tc[a * j + b];
-                if mode == 0 {
-                    out[a] += v * fc[b];
-                } else {
-                    out[b] += v * fc[a];
+        let (Some(tc), Some(fc), Some(out)) = (
+            t.col(r).try_as_col_major(),
+            f.col(r).try_as_col_major(),
+            m.col_mut(r).try_as_col_major_mut(),
+        ) else {
+            continue; // owned matrices are column-major: not reached
+        };
+        let (tc, fc, out) = (tc.as_slice(), fc.as_slice(), out.as_slice_mut());
+        for (a, row) in tc.chunks_exact(j).enumerate() {
+            if mode == 0 {
+                out[a] = row.iter().zip(fc).map(|(v, w)| v * w).sum();
+            } else {
+                let w = fc[a];
+                for (o, v) in out.iter_mut().zip(row) {
+                    *o += w * v;
                 }
             }
         }
@@ -507,21 +521,33 @@ fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -
 }
 
 /// The MTTKRP of mode 2, `M[k, r] = Σ_{i₀, i₁} X[i₀, i₁, k] A[i₀, r] B[i₁, r]`: first
-/// `U = Aᵀ X₍₀₎` (`R × I₁I₂`, one product with the row-major data), then the sum over `i₁`.
+/// `U = X₍₀₎ᵀ A` (`I₁I₂ × R`, one product with the row-major data), then the sum over `i₁`.
 fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let [i, j, k] = x.shape();
     let rank = a.ncols();
     let xm = MatRef::from_row_major_slice(x.as_slice(), i, j * k);
-    let mut u = Mat::zeros(rank, j * k);
-    matmul(u.as_mut(), Accum::Replace, a.transpose(), xm, 1.0, par_for(x, rank));
-    let mut m = Mat::zeros(k, rank);
+    let mut u = Mat::<f64>::zeros(j * k, rank);
+    matmul(
+        u.as_mut(),
+        Accum::Replace,
+        xm.transpose(),
+        a.as_ref(),
+        1.0,
+        par_for(x, rank),
+    );
+    let mut m = Mat::<f64>::zeros(k, rank);
     for r in 0..rank {
-        let bc = b.col(r);
-        let mut out = m.col_mut(r);
-        for jj in 0..j {
-            let w = bc[jj];
-            for kk in 0..k {
-                out[kk] += w * u[(r, jj * k + kk)];
+        let (Some(uc), Some(bc), Some(out)) = (
+            u.col(r).try_as_col_major(),
+            b.col(r).try_as_col_major(),
+            m.col_mut(r).try_as_col_major_mut(),
+        ) else {
+            continue; // owned matrices are column-major: not reached
+        };
+        let out = out.as_slice_mut();
+        for (row, &w) in uc.as_slice().chunks_exact(k).zip(bc.as_slice()) {
+            for (o, v) in out.iter_mut().zip(row) {
+                *o += w * v;
             }
         }
     }

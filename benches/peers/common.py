@@ -80,14 +80,20 @@ def int_list(p: argparse.ArgumentParser, value: str, flag: str, minimum: int, na
 # running and timing
 
 
-def run_logged(cmd: list[str], capture: bool = False) -> str:
-    """Runs `cmd` in the repository root with the original environment; exits on failure.
+def run_logged(cmd: list[str], capture: bool = False, env: dict[str, str] | None = None) -> str:
+    """Runs `cmd` in the repository root with the original environment (plus the overrides in
+    `env`, if any); exits on failure.
 
     With `capture`, stdout is captured (and echoed) and returned."""
-    print(f"$ (cd {REPO} && {' '.join(cmd)})", flush=True)
+    prefix = "".join(f"{k}={v} " for k, v in (env or {}).items())
+    print(f"$ (cd {REPO} && {prefix}{' '.join(cmd)})", flush=True)
     t = time.perf_counter()
     res = subprocess.run(
-        cmd, cwd=REPO, env=ORIGINAL_ENV, stdout=subprocess.PIPE if capture else None, text=True
+        cmd,
+        cwd=REPO,
+        env={**ORIGINAL_ENV, **(env or {})},
+        stdout=subprocess.PIPE if capture else None,
+        text=True,
     )
     if capture and res.stdout:
         print(res.stdout, end="", flush=True)

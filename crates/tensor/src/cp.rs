@@ -321,6 +321,9 @@ pub fn cp_als(
     }
     let rank = options.rank;
     let mut factors = initial_factors(x, options)?;
+    // Work space of the MTTKRPs, overwritten every iteration.
+    let [i0, i1, i2] = x.shape();
+    let (mut t, mut u) = (Mat::zeros(i0 * i1, rank), Mat::zeros(i1 * i2, rank));
     let norm_x = x.frobenius_norm();
     let norm2 = norm_x * norm_x;
     let mut errors: Vec<f64> = Vec::new();
@@ -330,12 +333,12 @@ pub fn cp_als(
     while iterations < options.max_iter {
         let before = factors.clone();
         // T = X ×₂ C serves the MTTKRPs of modes 0 and 1 (C is fixed while A and B move).
-        let t = times_last(x, &factors[2]);
+        times_last(x, &factors[2], &mut t);
         let m = contract_middle(&t, x.shape(), &factors[1], 0);
         factors[0] = solve_gram(&hadamard_grams(&factors, Some(0)), &m)?;
         let m = contract_middle(&t, x.shape(), &factors[0], 1);
         factors[1] = solve_gram(&hadamard_grams(&factors, Some(1)), &m)?;
-        let m = mttkrp_last(x, &factors[0], &factors[1]);
+        let m = mttkrp_last(x, &factors[0], &factors[1], &mut u);
         factors[2] = solve_gram(&hadamard_grams(&factors, Some(2)), &m)?;
         let inner = dot(&factors[2], &m);
         let mut rel = tracked_error(norm2, inner, &factors);
@@ -350,7 +353,7 @@ pub fn cp_als(
                     p[(i, r)] + (f[(i, r)] - p[(i, r)]) * jump
                 })
             });
-            let m = mttkrp_last(x, &trial[0], &trial[1]);
+            let m = mttkrp_last(x, &trial[0], &trial[1], &mut u);
             let trial_rel = tracked_error(norm2, dot(&trial[2], &m), &trial);
             if trial_rel < rel {
                 factors = trial;
@@ -475,10 +478,9 @@ fn par_for(x: &Tensor3, rank: usize) -> Par {
 
 /// `T = X ×₂ Cᵀ` as an `(I₀I₁) × R` matrix: row `i₀I₁ + i₁`, `T[·, r] = Σ_k X[i₀, i₁, k] C[k, r]`
 /// (one product with the row-major data, no unfolding).
-fn times_last(x: &Tensor3, c: &Mat<f64>) -> Mat<f64> {
+fn times_last(x: &Tensor3, c: &Mat<f64>, t: &mut Mat<f64>) {
     let [i, j, k] = x.shape();
     let xm = MatRef::from_row_major_slice(x.as_slice(), i * j, k);
-    let mut t = Mat::zeros(i * j, c.ncols());
     matmul(
         t.as_mut(),
         Accum::Replace,
@@ -487,7 +489,6 @@ fn times_last(x: &Tensor3, c: &Mat<f64>) -> Mat<f64> {
         1.0,
         par_for(x, c.ncols()),
     );
-    t
 }
 
 /// The MTTKRP of mode 0 (`mode = 0`: `M[i₀, r] = Σ_{i₁} T[i₀I₁ + i₁, r] F[i₁, r]`, `F = B`) or
@@ -508,7 +509,7 @@ fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -
         let (tc, fc, out) = (tc.as_slice(), fc.as_slice(), out.as_slice_mut());
         for (a, row) in tc.chunks_exact(j).enumerate() {
             if mode == 0 {
-                out[a] = row.iter().zip(fc).map(|(v, w)| v * w).sum();
+                out[a] = dot4(row, fc);
             } else {
                 let w = fc[a];
                 for (o, v) in out.iter_mut().zip(row) {
@@ -522,11 +523,10 @@ fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -
 
 /// The MTTKRP of mode 2, `M[k, r] = Σ_{i₀, i₁} X[i₀, i₁, k] A[i₀, r] B[i₁, r]`: first
 /// `U = X₍₀₎ᵀ A` (`I₁I₂ × R`, one product with the row-major data), then the sum over `i₁`.
-fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>, u: &mut Mat<f64>) -> Mat<f64> {
     let [i, j, k] = x.shape();
     let rank = a.ncols();
     let xm = MatRef::from_row_major_slice(x.as_slice(), i, j * k);
-    let mut u = Mat::<f64>::zeros(j * k, rank);
     matmul(
         u.as_mut(),
         Accum::Replace,
@@ -592,6 +592,20 @@ fn solve_gram(v: &Mat<f64>, m: &Mat<f64>) -> Result<Mat<f64>, TensorError> {
             .sum::<f64>()
     });
     Ok(m * pinv)
+}
+
+/// `Σ xᵢ yᵢ` with four running partial sums (vectorised; a fixed order).
+fn dot4(x: &[f64], y: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (xc, xt) = x.as_chunks::<4>();
+    let (yc, yt) = y.as_chunks::<4>();
+    for (a, b) in xc.iter().zip(yc) {
+        for l in 0..4 {
+            acc[l] += a[l] * b[l];
+        }
+    }
+    let tail: f64 = xt.iter().zip(yt).map(|(a, b)| a * b).sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 fn dot(a: &Mat<f64>, b: &Mat<f64>) -> f64 {

@@ -166,6 +166,8 @@ def parse_args() -> argparse.Namespace:
                    help="stop when |Δ rel_err| < tol (both sides); 0 = no test, exactly --max-iter iterations")  # fmt: skip
     p.add_argument("--max-iter", type=int, default=1000, help="iteration limit (sweeps over the 3 modes)")
     p.add_argument("--repeat", type=int, default=5, help="timed runs per configuration (after one warm-up)")
+    p.add_argument("--line-search", action="store_true",
+                   help="both sides with their line search (TensorLy linesearch=True, zeroset --line-search)")
     default_mt = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     p.add_argument("--mt-blas-threads", type=int, default=default_mt, metavar="N",
                    help="also time TensorLy with BLAS at N threads (a child process); 0 or 1 = skip")  # fmt: skip
@@ -221,13 +223,13 @@ def load_case(d: Path, rank: int) -> tuple[np.ndarray, list[np.ndarray]]:
 # Step 3: TensorLy
 
 
-def time_tensorly(d: Path, rank: int, tol: float, max_iter: int, repeat: int) -> dict:
+def time_tensorly(d: Path, rank: int, tol: float, max_iter: int, repeat: int, line_search: bool = False) -> dict:
     """Times parafac on DIR's tensor from DIR's factors (warm-up + median of `repeat`)."""
     x, factors = load_case(d, rank)
     init = CPTensor((np.ones(rank), factors))  # initialize_cp copies the factors; init is not modified
 
     def fit():
-        return parafac(x, rank, n_iter_max=max_iter, init=init, tol=tol, linesearch=False,
+        return parafac(x, rank, n_iter_max=max_iter, init=init, tol=tol, linesearch=line_search,
                        normalize_factors=False, return_errors=True)  # fmt: skip
 
     (cp, errors), ms, times = common.timed(fit, repeat)
@@ -249,7 +251,7 @@ def tensorly_child(d: Path, case: Case, args, threads: int) -> Run | None:
     out.unlink(missing_ok=True)
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(d), "--worker-rank", str(case.rank),
            "--tol", repr(args.tol), "--max-iter", str(args.max_iter), "--repeat", str(args.repeat),
-           "--blas-threads", str(threads)]  # fmt: skip
+           "--blas-threads", str(threads)] + (["--line-search"] if args.line_search else [])  # fmt: skip
     res = subprocess.run(cmd, env=common.ORIGINAL_ENV)
     if res.returncode != 0 or not out.is_file():
         case.notes.append(f"TensorLy BLAS {threads}: child failed (exit {res.returncode})")
@@ -265,10 +267,11 @@ def worker_main() -> None:
     p.add_argument("--tol", type=float, required=True)
     p.add_argument("--max-iter", type=int, required=True)
     p.add_argument("--repeat", type=int, required=True)
+    p.add_argument("--line-search", action="store_true")
     common.add_blas_arg(p)
     a = p.parse_args()
     d = Path(a.worker)
-    res = time_tensorly(d, a.worker_rank, a.tol, a.max_iter, a.repeat)
+    res = time_tensorly(d, a.worker_rank, a.tol, a.max_iter, a.repeat, a.line_search)
     (d / f"tensorly_blas{a.blas_threads}.json").write_text(json.dumps(res))
 
 
@@ -288,7 +291,8 @@ def run_zeroset(binary: Path, case: Case, args, one_thread: bool) -> Run | None:
     result.unlink(missing_ok=True)  # no stale result from an earlier run
     common.run_logged(
         [str(binary), "--input", str(d), "--rank", str(case.rank), "--tol", repr(args.tol),
-         "--max-iter", str(args.max_iter), "--repeat", str(args.repeat)],
+         "--max-iter", str(args.max_iter), "--repeat", str(args.repeat)]
+        + (["--line-search"] if args.line_search else []),
         env={"RAYON_NUM_THREADS": "1"} if one_thread else None,
     )  # fmt: skip
     if not result.is_file():
@@ -476,7 +480,8 @@ def main() -> None:
 
         t0 = time.perf_counter()
         print(f"  TensorLy parafac, {BLAS_COL} (warm-up + {args.repeat}) …", flush=True)
-        case.tl1 = tensorly_run(time_tensorly(d, rank, args.tol, args.max_iter, args.repeat), BLAS_COL)
+        case.tl1 = tensorly_run(time_tensorly(d, rank, args.tol, args.max_iter, args.repeat, args.line_search),
+                                BLAS_COL)  # fmt: skip
         print(f"    {case.tl1.iterations} iterations, {case.tl1.ms:.1f} ms ({case.tl1.ms_per_iter:.3f} ms/iter), "
               f"rel error {case.tl1.rel_error:.6e}, converged {fmt_bool(case.tl1.converged)}", flush=True)  # fmt: skip
         if mt > 1:
@@ -536,7 +541,8 @@ def main() -> None:
         "initial factors = TensorLy's SVD initialisation (`initialize_cp(init='svd')`), computed once and given to "
         f"both sides. Stop when |Δ rel err| < {args.tol:g} (TensorLy's `abs_rec_error` test, from the second "
         f"iteration on) or after {args.max_iter} iterations (one iteration = one sweep over the three modes). "
-        f"TensorLy {tl.__version__}: `parafac(…, linesearch=False, normalize_factors=False, return_errors=True)`, "
+        f"TensorLy {tl.__version__}: `parafac(…, linesearch={args.line_search}, normalize_factors=False, "
+        "return_errors=True)`, "
         f"median of {args.repeat} runs after one warm-up, BLAS threads {BLAS_NOTE}"
         + (f", and again with BLAS at {mt} threads" if mt > 1 else "")
         + f". zeroset: {zs_text}. `rel error (exact)` = ‖X − X̂‖_F / ‖X‖_F computed exactly at the end "

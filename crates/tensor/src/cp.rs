@@ -16,9 +16,11 @@
 //! iterations (TensorLy's `parafac` rule, so the two can be compared iteration for iteration).
 //! The reported final error is computed exactly, by reconstruction.
 //!
-//! An optional line search (Bro 1998; as TensorLy's `linesearch`) extrapolates each iteration's
-//! step, `F ← F_prev + (F − F_prev) · t^{1/3}`, and keeps the extrapolation when it lowers the
-//! error.
+//! An optional line search (after Bro 1998; TensorLy's `linesearch` follows another schedule)
+//! extrapolates from the second iteration on over the last two updates,
+//! `F ← F_{t−1} + (F_{t+1} − F_{t−1}) · (t + 1)^{1/3}` (`F_t`: the factors before iteration `t`),
+//! and keeps the extrapolation when its tracked error is below that of `F_{t+1}`. On the
+//! 60³ rank-20 benchmark it reaches the same final error in 61 iterations instead of 137.
 //!
 //! ## Adaptive rank (paper 004, §5.4, Algorithm 2)
 //!

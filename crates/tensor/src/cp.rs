@@ -332,18 +332,22 @@ pub fn cp_als(
     let mut stop = CpStop::MaxIterations;
     let mut previous: Option<[Mat<f64>; 3]> = None;
     let mut iterations = 0;
+    let mut grams: [Mat<f64>; 3] = std::array::from_fn(|n| factors[n].transpose() * &factors[n]);
     while iterations < options.max_iter {
-        let before = factors.clone();
+        let before = options.line_search.then(|| factors.clone());
         // T = X ×₂ C serves the MTTKRPs of modes 0 and 1 (C is fixed while A and B move).
         times_last(x, &factors[2], &mut t);
         let m = contract_middle(&t, x.shape(), &factors[1], 0);
-        factors[0] = solve_gram(&hadamard_grams(&factors, Some(0)), &m)?;
+        factors[0] = solve_gram(&hadamard(&grams, Some(0)), &m)?;
+        grams[0] = factors[0].transpose() * &factors[0];
         let m = contract_middle(&t, x.shape(), &factors[0], 1);
-        factors[1] = solve_gram(&hadamard_grams(&factors, Some(1)), &m)?;
+        factors[1] = solve_gram(&hadamard(&grams, Some(1)), &m)?;
+        grams[1] = factors[1].transpose() * &factors[1];
         let m = mttkrp_last(x, &factors[0], &factors[1], &mut u);
-        factors[2] = solve_gram(&hadamard_grams(&factors, Some(2)), &m)?;
+        factors[2] = solve_gram(&hadamard(&grams, Some(2)), &m)?;
+        grams[2] = factors[2].transpose() * &factors[2];
         let inner = dot(&factors[2], &m);
-        let mut rel = tracked_error(norm2, inner, &factors);
+        let mut rel = error_from(norm2, inner, &hadamard(&grams, None));
         if options.line_search
             && iterations > 0
             && let Some(prev) = &previous
@@ -360,9 +364,10 @@ pub fn cp_als(
             if trial_rel < rel {
                 factors = trial;
                 rel = trial_rel;
+                grams = std::array::from_fn(|n| factors[n].transpose() * &factors[n]);
             }
         }
-        previous = Some(before);
+        previous = before;
         iterations += 1;
         errors.push(rel);
         if !progress(&CpProgress {
@@ -558,13 +563,20 @@ fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>, u: &mut Mat<f64>) -> Mat
 
 /// The Hadamard product of the factors' Gram matrices `FᵀF`, leaving out `skip`.
 fn hadamard_grams(factors: &[Mat<f64>; 3], skip: Option<usize>) -> Mat<f64> {
-    let r = factors[0].ncols();
+    hadamard(
+        &std::array::from_fn(|n| factors[n].transpose() * &factors[n]),
+        skip,
+    )
+}
+
+/// The Hadamard product of the Gram matrices `grams`, leaving out `skip`.
+fn hadamard(grams: &[Mat<f64>; 3], skip: Option<usize>) -> Mat<f64> {
+    let r = grams[0].ncols();
     let mut v = Mat::from_fn(r, r, |_, _| 1.0);
-    for (n, f) in factors.iter().enumerate() {
+    for (n, g) in grams.iter().enumerate() {
         if Some(n) == skip {
             continue;
         }
-        let g = f.transpose() * f;
         for j in 0..r {
             for i in 0..r {
                 v[(i, j)] *= g[(i, j)];
@@ -622,7 +634,11 @@ fn dot(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
 
 /// `‖X − X̂‖/‖X‖` from `‖X‖²`, `⟨X, X̂⟩` and the factors (TensorLy's formula).
 fn tracked_error(norm2: f64, inner: f64, factors: &[Mat<f64>; 3]) -> f64 {
-    let g = hadamard_grams(factors, None);
+    error_from(norm2, inner, &hadamard_grams(factors, None))
+}
+
+/// `‖X − X̂‖/‖X‖` from `‖X‖²`, `⟨X, X̂⟩` and the Hadamard product `g` of all three Grams.
+fn error_from(norm2: f64, inner: f64, g: &Mat<f64>) -> f64 {
     let fit2: f64 = (0..g.nrows())
         .flat_map(|i| (0..g.ncols()).map(move |j| (i, j)))
         .map(|(i, j)| g[(i, j)])

@@ -67,7 +67,7 @@ use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
 use faer::{Mat, MatMut, MatRef, Par};
-use zeroset_tensor::{TensorError, thin_svd};
+use zeroset_tensor::{TensorError, svt, thin_svd};
 
 /// What can go wrong in [`admm`], [`objective`] and [`TraceNormTerm::new`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -335,25 +335,16 @@ impl ProxTerm for TraceNormTerm {
         }
     }
 
-    /// Singular-value thresholding `U max(Σ − weight·step, 0) Vᵀ`, rebuilt sequentially.
+    /// Singular-value thresholding `U max(Σ − weight·step, 0) Vᵀ` ([`zeroset_tensor::svt`],
+    /// sequential).
     fn prox(&self, v: &[f64], step: f64, out: &mut [f64]) -> Result<(), AdmmError> {
-        let tau = self.weight * step;
-        if !(tau.is_finite() && tau >= 0.0) {
-            return Err(TensorError::Threshold { tau }.into());
-        }
-        let svd = thin_svd(self.matrix(v)?.as_ref())?;
-        out.fill(0.0);
-        for (r, &s) in svd.s.iter().enumerate() {
-            let shrunk = s - tau;
-            if shrunk <= 0.0 {
-                break; // non-increasing
-            }
-            for j in 0..self.cols {
-                let vj = shrunk * svd.v[(j, r)];
-                let col = &mut out[self.rows * j..self.rows * (j + 1)];
-                for (i, o) in col.iter_mut().enumerate() {
-                    *o += svd.u[(i, r)] * vj;
-                }
+        let (y, _) = svt(self.matrix(v)?.as_ref(), self.weight * step)?;
+        for j in 0..self.cols {
+            for (i, o) in out[self.rows * j..self.rows * (j + 1)]
+                .iter_mut()
+                .enumerate()
+            {
+                *o = y[(i, j)];
             }
         }
         Ok(())

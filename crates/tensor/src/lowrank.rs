@@ -64,7 +64,8 @@ pub fn trace_norm(m: MatRef<'_, f64>) -> Result<f64, TensorError> {
 }
 
 /// Singular-value thresholding `D_τ(M) = U max(Σ − τ, 0) Vᵀ`, the minimiser of
-/// `τ ‖Y‖_* + ½ ‖Y − M‖²_F`, and the rank it keeps.
+/// `τ ‖Y‖_* + ½ ‖Y − M‖²_F`, and the rank it keeps. Computed sequentially (the same bits on
+/// every thread count).
 ///
 /// ```
 /// use faer::Mat;
@@ -89,7 +90,17 @@ pub fn svt(m: MatRef<'_, f64>, tau: f64) -> Result<(Mat<f64>, usize), TensorErro
     let ThinSvd { u, s, v } = thin_svd(m)?;
     let rank = s.iter().take_while(|&&x| x > tau).count();
     let us = Mat::from_fn(m.nrows(), rank, |i, r| u[(i, r)] * (s[r] - tau));
-    Ok((us * v.subcols(0, rank).transpose(), rank))
+    let mut y = Mat::zeros(m.nrows(), m.ncols());
+    // Sequential, like the SVD: the same bits on every thread count.
+    faer::linalg::matmul::matmul(
+        y.as_mut(),
+        faer::Accum::Replace,
+        us.as_ref(),
+        v.subcols(0, rank).transpose(),
+        1.0,
+        Par::Seq,
+    );
+    Ok((y, rank))
 }
 
 fn check_finite(m: MatRef<'_, f64>) -> Result<(), TensorError> {

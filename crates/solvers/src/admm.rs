@@ -67,7 +67,7 @@ use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
 use faer::{Mat, MatMut, MatRef, Par};
-use zeroset_tensor::{TensorError, svt, thin_svd};
+use zeroset_tensor::{TensorError, svt, trace_norm};
 
 /// What can go wrong in [`admm`], [`objective`] and [`TraceNormTerm::new`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -308,13 +308,8 @@ impl TraceNormTerm {
     }
 
     /// `z` (column-major) as the unfolding matrix.
-    fn matrix(&self, z: &[f64]) -> Result<Mat<f64>, TensorError> {
-        if let Some(index) = z.iter().position(|v| !v.is_finite()) {
-            return Err(TensorError::NonFinite { index });
-        }
-        Ok(Mat::from_fn(self.rows, self.cols, |i, j| {
-            z[i + self.rows * j]
-        }))
+    fn matrix<'a>(&self, z: &'a [f64]) -> MatRef<'a, f64> {
+        MatRef::from_column_major_slice(&z[..self.rows * self.cols], self.rows, self.cols)
     }
 }
 
@@ -338,14 +333,10 @@ impl ProxTerm for TraceNormTerm {
     /// Singular-value thresholding `U max(Σ − weight·step, 0) Vᵀ` ([`zeroset_tensor::svt`],
     /// sequential).
     fn prox(&self, v: &[f64], step: f64, out: &mut [f64]) -> Result<(), AdmmError> {
-        let (y, _) = svt(self.matrix(v)?.as_ref(), self.weight * step)?;
-        for j in 0..self.cols {
-            for (i, o) in out[self.rows * j..self.rows * (j + 1)]
-                .iter_mut()
-                .enumerate()
-            {
-                *o = y[(i, j)];
-            }
+        // `svt` rejects NaN/∞ entries (index in column-major order, as `v`) and bad thresholds.
+        let (y, _) = svt(self.matrix(v), self.weight * step)?;
+        for (j, col) in out.chunks_exact_mut(self.rows).take(self.cols).enumerate() {
+            col.copy_from_slice(y.col_as_slice(j));
         }
         Ok(())
     }
@@ -354,8 +345,7 @@ impl ProxTerm for TraceNormTerm {
         if self.weight == 0.0 {
             return Ok(0.0);
         }
-        let s = thin_svd(self.matrix(z)?.as_ref())?.s;
-        Ok(self.weight * s.iter().sum::<f64>())
+        Ok(self.weight * trace_norm(self.matrix(z))?)
     }
 }
 

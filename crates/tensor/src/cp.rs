@@ -36,7 +36,8 @@ use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
 use faer::{Accum, Mat, MatRef, Par, Side};
 
-use crate::{Tensor3, TensorError, khatri_rao, lowrank};
+use crate::dense::khatri_rao_unchecked;
+use crate::{Tensor3, TensorError, lowrank};
 
 /// A Kruskal tensor: weights `w_r` and three factor matrices (`Iₙ × R`) whose columns are the
 /// components, `X̂ = Σ_r w_r a_r ∘ b_r ∘ c_r`.
@@ -102,16 +103,14 @@ impl Kruskal {
     /// The full tensor `Σ_r w_r a_r ∘ b_r ∘ c_r`.
     pub fn to_tensor(&self) -> Tensor3 {
         let [a, b, c] = &self.factors;
-        let aw = Mat::from_fn(a.nrows(), self.rank(), |i, r| a[(i, r)] * self.weights[r]);
-        let mut shape = self.shape();
+        let shape = self.shape();
         if self.rank() == 0 {
             return Tensor3::zeros(shape);
         }
-        // X₍₀₎ = A W (C ⊙ B)ᵀ; khatri_rao cannot fail here (same column counts).
-        let kr = khatri_rao(c.as_ref(), b.as_ref()).unwrap_or_else(|_| Mat::zeros(0, 0));
-        let unfolded = &aw * kr.transpose();
-        shape[0] = a.nrows();
-        Tensor3::fold(0, &unfolded, shape).unwrap_or_else(|_| Tensor3::zeros(shape))
+        // X₍₀₎ = A W (C ⊙ B)ᵀ: entry (i₀, i₁ + I₁ i₂).
+        let aw = Mat::from_fn(a.nrows(), self.rank(), |i, r| a[(i, r)] * self.weights[r]);
+        let unfolded = &aw * khatri_rao_unchecked(c.as_ref(), b.as_ref()).transpose();
+        Tensor3::from_fn(shape, |i, j, k| unfolded[(i, j + shape[1] * k)])
     }
 
     /// `‖X̂‖_F`, from the factors' Gram matrices.
@@ -506,14 +505,7 @@ fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -
     let rank = t.ncols();
     let mut m = Mat::<f64>::zeros(shape[mode], rank);
     for r in 0..rank {
-        let (Some(tc), Some(fc), Some(out)) = (
-            t.col(r).try_as_col_major(),
-            f.col(r).try_as_col_major(),
-            m.col_mut(r).try_as_col_major_mut(),
-        ) else {
-            continue; // owned matrices are column-major: not reached
-        };
-        let (tc, fc, out) = (tc.as_slice(), fc.as_slice(), out.as_slice_mut());
+        let (tc, fc, out) = (t.col_as_slice(r), f.col_as_slice(r), m.col_as_slice_mut(r));
         for (a, row) in tc.chunks_exact(j).enumerate() {
             if mode == 0 {
                 out[a] = dot4(row, fc);
@@ -544,15 +536,8 @@ fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>, u: &mut Mat<f64>) -> Mat
     );
     let mut m = Mat::<f64>::zeros(k, rank);
     for r in 0..rank {
-        let (Some(uc), Some(bc), Some(out)) = (
-            u.col(r).try_as_col_major(),
-            b.col(r).try_as_col_major(),
-            m.col_mut(r).try_as_col_major_mut(),
-        ) else {
-            continue; // owned matrices are column-major: not reached
-        };
-        let out = out.as_slice_mut();
-        for (row, &w) in uc.as_slice().chunks_exact(k).zip(bc.as_slice()) {
+        let (uc, bc, out) = (u.col_as_slice(r), b.col_as_slice(r), m.col_as_slice_mut(r));
+        for (row, &w) in uc.chunks_exact(k).zip(bc) {
             for (o, v) in out.iter_mut().zip(row) {
                 *o += w * v;
             }

@@ -225,11 +225,16 @@ pub fn khatri_rao(c: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Result<Mat<f64>, Te
             got: (b.nrows(), b.ncols()),
         });
     }
+    Ok(khatri_rao_unchecked(c, b))
+}
+
+/// [`khatri_rao`] for factors known to have the same column count.
+pub(crate) fn khatri_rao_unchecked(c: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     let (j, k) = (b.nrows(), c.nrows());
     let mut out = Mat::<f64>::zeros(k * j, c.ncols());
     for r in 0..c.ncols() {
         let (bc, cc) = (b.col(r), c.col(r));
-        let mut col = out.col_mut(r);
+        let col = out.col_as_slice_mut(r);
         for kk in 0..k {
             let ck = cc[kk];
             for jj in 0..j {
@@ -237,7 +242,7 @@ pub fn khatri_rao(c: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Result<Mat<f64>, Te
             }
         }
     }
-    Ok(out)
+    out
 }
 
 #[cfg(test)]

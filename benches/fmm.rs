@@ -43,7 +43,7 @@ fn fmm_bench(c: &mut Criterion) {
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(5));
     for p in [4usize, 6, 8] {
-        let options = FmmOptions::new(p);
+        let options = FmmOptions::new(p).with_expected_points(targets.len());
         group.bench_with_input(BenchmarkId::new("operators+build", p), &p, |b, _| {
             b.iter(|| FmmField::new(&field, &options).map(|f| f.report().cells))
         });

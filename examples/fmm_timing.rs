@@ -5,9 +5,11 @@
 //! ```text
 //! cargo run --release --example fmm_timing -- [--kernel r|r3] [--sources N] [--targets M,…]
 //!     [--order P] [--leaf L] [--tolerance T] [--repeat K] [--cloud FILE] [--data DIR] [--dump DIR] [--no-direct]
+//!     [--unknown-targets]
 //! ```
 //!
-//! Targets are drawn uniformly (seeded) in the field's bounds. The operators' precomputation
+//! Targets are drawn uniformly (seeded) in the field's bounds, and each field is built for
+//! their count (`FmmOptions::with_expected_points`; `--unknown-targets` leaves it unset). The operators' precomputation
 //! (`ops`) depends on the kernel and order only: it is done once, on the first build, timed,
 //! and shared by all later builds (as `FmmField::with_operators` lets an application do). For
 //! each target count it prints the median over `K` runs of the build (tree, P2M/M2M, M2L, L2L)
@@ -45,6 +47,7 @@ struct Args {
     data: PathBuf,
     dump: Option<PathBuf>,
     direct: bool,
+    expected: bool,
 }
 
 fn parse() -> Res<Args> {
@@ -60,11 +63,16 @@ fn parse() -> Res<Args> {
         data: fmm_data::data_dir(),
         dump: None,
         direct: true,
+        expected: true,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         if flag == "--no-direct" {
             a.direct = false;
+            continue;
+        }
+        if flag == "--unknown-targets" {
+            a.expected = false;
             continue;
         }
         let value = it.next().ok_or(format!("{flag} needs a value"))?;
@@ -139,6 +147,11 @@ fn run<K: Kernel + Clone>(args: &Args, field: &RbfField<K, 3>) -> Res<()> {
     let shared = FmmField::operators(field.kernel(), &options)?;
     for &m in &args.targets {
         let targets = fmm_data::uniform_targets(&bounds, m, 7);
+        let options = if args.expected {
+            options.with_expected_points(m)
+        } else {
+            options
+        };
         let (mut ops, mut build, mut eval, mut direct) = (vec![], vec![], vec![], vec![]);
         let mut fast_values = vec![0.0; m];
         let mut exact = vec![0.0; m];

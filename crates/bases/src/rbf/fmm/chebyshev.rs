@@ -15,7 +15,8 @@
 pub(crate) struct Chebyshev {
     p: usize,
     nodes: Vec<f64>,
-    /// `t[m * p + k] = T_k(x̄ₘ)`.
+    /// `t[k * p + m] = 2 T_k(x̄ₘ) / p` (row `k = 0` unused): the weights are `1/p` plus these
+    /// rows scaled by `T_k(x)`, a sum vectorised over the nodes `m`.
     t: Vec<f64>,
     /// `transfer[c][m * p + n] = Sₚ(x̄ₘ, (2c − 1)/2 + x̄ₙ/2)`: the weight of the parent's node
     /// `m` at node `n` of its lower (`c = 0`) or upper (`c = 1`) half.
@@ -29,8 +30,12 @@ impl Chebyshev {
             .map(|m| ((2 * m + 1) as f64 * std::f64::consts::PI / (2 * p) as f64).cos())
             .collect();
         let mut t = vec![0.0; p * p];
+        let mut tm = vec![0.0; p];
         for (m, &x) in nodes.iter().enumerate() {
-            chebyshev_t(x, &mut t[m * p..(m + 1) * p]);
+            chebyshev_t(x, &mut tm);
+            for (k, &v) in tm.iter().enumerate() {
+                t[k * p + m] = 2.0 * v / p as f64;
+            }
         }
         let mut this = Self {
             p,
@@ -69,13 +74,13 @@ impl Chebyshev {
         let p = self.p;
         let mut tx = [0.0; MAX_ORDER];
         chebyshev_t(x, &mut tx[..p]);
-        for (m, sm) in s.iter_mut().enumerate().take(p) {
-            let row = &self.t[m * p..(m + 1) * p];
-            let mut acc = 0.0;
-            for k in 1..p {
-                acc += row[k] * tx[k];
+        let s = &mut s[..p];
+        s.fill(1.0 / p as f64);
+        for k in 1..p {
+            let w = tx[k];
+            for (sm, &t) in s.iter_mut().zip(&self.t[k * p..(k + 1) * p]) {
+                *sm += t * w;
             }
-            *sm = (1.0 + 2.0 * acc) / p as f64;
         }
     }
 
@@ -87,15 +92,16 @@ impl Chebyshev {
         let mut dtx = [0.0; MAX_ORDER];
         chebyshev_t(x, &mut tx[..p]);
         chebyshev_dt(x, &tx[..p], &mut dtx[..p]);
-        for m in 0..p {
-            let row = &self.t[m * p..(m + 1) * p];
-            let (mut acc, mut dacc) = (0.0, 0.0);
-            for k in 1..p {
-                acc += row[k] * tx[k];
-                dacc += row[k] * dtx[k];
+        let (s, ds) = (&mut s[..p], &mut ds[..p]);
+        s.fill(1.0 / p as f64);
+        ds.fill(0.0);
+        for k in 1..p {
+            let (w, dw) = (tx[k], dtx[k]);
+            let row = &self.t[k * p..(k + 1) * p];
+            for ((sm, dsm), &t) in s.iter_mut().zip(ds.iter_mut()).zip(row) {
+                *sm += t * w;
+                *dsm += t * dw;
             }
-            s[m] = (1.0 + 2.0 * acc) / p as f64;
-            ds[m] = 2.0 * dacc / p as f64;
         }
     }
 
@@ -108,6 +114,61 @@ impl Chebyshev {
 
 /// The largest order the fixed-size work arrays allow.
 pub(crate) const MAX_ORDER: usize = 16;
+
+/// `Σ_{a,b,c} s[0][a] s[1][b] s[2][c] e[(a p + b) p + c]`: an expansion `e` of order `p`
+/// (`2 ≤ p ≤ MAX_ORDER`) at a point with 1-D weights `s`, the order a compile-time constant
+/// inside (so that the partial sums stay in registers). The sums run in a fixed order: along
+/// `y` for each `x`, then along `x`, then along `z`.
+#[inline(always)]
+pub(crate) fn contract(p: usize, s: &[[f64; MAX_ORDER]; 3], e: &[f64]) -> f64 {
+    macro_rules! orders {
+        ($($p:literal)*) => {
+            match p {
+                $($p => contract_fixed::<$p>(s, e),)*
+                _ => contract_any(p, s, e),
+            }
+        };
+    }
+    orders!(2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+}
+
+/// [`contract`] for an order not known at compile time (order 1).
+fn contract_any(p: usize, s: &[[f64; MAX_ORDER]; 3], e: &[f64]) -> f64 {
+    let mut v = 0.0;
+    for a in 0..p.min(MAX_ORDER) {
+        for b in 0..p.min(MAX_ORDER) {
+            for c in 0..p.min(MAX_ORDER) {
+                v += s[0][a] * s[1][b] * s[2][c] * e[(a * p + b) * p + c];
+            }
+        }
+    }
+    v
+}
+
+#[inline(always)]
+fn contract_fixed<const P: usize>(s: &[[f64; MAX_ORDER]; 3], e: &[f64]) -> f64 {
+    let e = &e[..P * P * P];
+    let mut row = [0.0; P];
+    for a in 0..P {
+        let mut inner = [0.0; P];
+        for b in 0..P {
+            let w = s[1][b];
+            let line = &e[(a * P + b) * P..][..P];
+            for c in 0..P {
+                inner[c] += w * line[c];
+            }
+        }
+        let w = s[0][a];
+        for c in 0..P {
+            row[c] += w * inner[c];
+        }
+    }
+    let mut v = 0.0;
+    for c in 0..P {
+        v += row[c] * s[2][c];
+    }
+    v
+}
 
 /// `t[k] = T_k(x)` for `k < t.len()`, by the three-term recurrence (valid for every `x`).
 #[inline(always)]

@@ -34,6 +34,11 @@
 //! of threads (the upward and downward passes run in a fixed order too), which the two-step
 //! marching cubes relies on: a vertex evaluated twice gets the same bits.
 //!
+//! Told about how many points it will be evaluated at ([`FmmOptions::expected_points`]), the
+//! field moves far sources that a small cell would take into its expansion (P2L, `|S| p³`
+//! kernel evaluations) to the direct sums of that cell's points where they are fewer than `p³`
+//! (`|S|` per point): the cost changes, the accuracy does not.
+//!
 //! Points outside the root cube (which covers the centres and the field's bounds) are still
 //! exact to the same accuracy: they walk the tree from the root, using a cell's multipole
 //! expansion when they are at least its width away from it and its sources otherwise.
@@ -62,7 +67,7 @@ use super::system::{self, Functional, Polynomial};
 use chebyshev::MAX_ORDER;
 pub use operators::FmmOperators;
 use operators::{CodedPair, Shared};
-use tree::{Cell, Tree, TreeShape};
+use tree::{Cell, ExpectedPoints, Tree, TreeShape};
 
 /// The smallest expansion order (nodes per axis).
 pub const MIN_ORDER: usize = 2;
@@ -154,6 +159,12 @@ pub struct FmmOptions {
     /// A box the root cell must cover besides the centres (default: the field's bounds);
     /// points outside the root are exact but slower.
     pub domain: Option<Aabb<3>>,
+    /// About how many points the field will be evaluated at, spread over the domain (default:
+    /// unknown, many). A small cell next to a large leaf takes that leaf's sources into its
+    /// local expansion (P2L: `|S| p³` kernel evaluations, once); where fewer than `p³` points
+    /// are expected in the cell, they sum those sources directly instead (`|S|` per point).
+    /// Only the cost changes: every point is evaluated to the same accuracy either way.
+    pub expected_points: Option<usize>,
 }
 
 impl FmmOptions {
@@ -165,6 +176,7 @@ impl FmmOptions {
             max_depth: 16,
             tolerance: None,
             domain: None,
+            expected_points: None,
         }
     }
 
@@ -189,6 +201,12 @@ impl FmmOptions {
     /// These options with the root covering `domain`.
     pub fn with_domain(mut self, domain: Aabb<3>) -> Self {
         self.domain = Some(domain);
+        self
+    }
+
+    /// These options for about `count` evaluation points spread over the domain.
+    pub fn with_expected_points(mut self, count: usize) -> Self {
+        self.expected_points = Some(count);
         self
     }
 
@@ -361,6 +379,11 @@ impl<K: Kernel + Clone> FmmField<K> {
                 leaf_size: options.leaf_size(),
                 max_depth: options.max_depth,
                 nodes: p * p * p,
+                expected: options.expected_points.map(|count| ExpectedPoints {
+                    count: count as f64,
+                    lo: domain.min(),
+                    hi: domain.max(),
+                }),
             },
         );
         let reorder = |v: &dyn Fn(usize) -> f64| -> Vec<f64> {
@@ -882,18 +905,7 @@ impl<K: Kernel> FmmField<K> {
         let cell = self.cell(c);
         let mut s = [[0.0; MAX_ORDER]; 3];
         self.axis_weights(cell, x, &mut s, None);
-        let l = &self.locals[c as usize * p * p * p..][..p * p * p];
-        // Contract x and y into a row along z (vectorised over z), then z.
-        let mut row = [0.0; MAX_ORDER];
-        for a in 0..p {
-            for b in 0..p {
-                let w = s[0][a] * s[1][b];
-                for (r, &lv) in row[..p].iter_mut().zip(&l[(a * p + b) * p..][..p]) {
-                    *r += w * lv;
-                }
-            }
-        }
-        row[..p].iter().zip(&s[2][..p]).map(|(r, w)| r * w).sum()
+        chebyshev::contract(p, &s, &self.locals[c as usize * p * p * p..][..p * p * p])
     }
 
     /// The gradient of [`Self::l2p`].

@@ -153,6 +153,46 @@ fn points_outside_the_root_cube_are_exact_too() {
     }
 }
 
+/// Expected points move far sources from cells' expansions (P2L) to the points' direct sums:
+/// fewer P2L evaluations, the same accuracy (and gradients).
+#[test]
+fn expected_points_change_the_cost_not_the_accuracy() {
+    let c = blob(2000);
+    let exact = fit(Biharmonic, &c);
+    let points = probes(&exact.bounds().expect("bounds"), 3000, 0.0);
+    let options = FmmOptions::new(7).with_leaf_size(24);
+    let plain = FmmField::new(&exact, &options).expect("fmm");
+    let hinted = FmmField::new(&exact, &options.with_expected_points(3000)).expect("fmm");
+    let p2l = |f: &FmmField<Biharmonic>| -> usize {
+        f.tree
+            .p2l
+            .iter()
+            .flatten()
+            .map(|&s| f.cell(s).count())
+            .sum()
+    };
+    assert!(
+        p2l(&hinted) < p2l(&plain),
+        "{} vs {}",
+        p2l(&hinted),
+        p2l(&plain)
+    );
+    let (a, b) = (
+        relative_error(&plain, &exact, &points),
+        relative_error(&hinted, &exact, &points),
+    );
+    assert!(a < 1e-4 && b < 1e-4 && b < 2.0 * a + 1e-12, "{a:e} {b:e}");
+    for x in points.iter().step_by(100) {
+        let (g, h) = (hinted.gradient(x), exact.gradient(x));
+        for k in 0..3 {
+            assert!(
+                (g[k] - h[k]).abs() < 1e-3 * (1.0 + h[k].abs()),
+                "{g:?} {h:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn thin_plate_uses_operators_per_level() {
     let c = blob(500);

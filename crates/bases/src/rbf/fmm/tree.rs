@@ -13,7 +13,7 @@
 //! | leaf | leaf | `S` in `T`'s **near** list (direct sums, P2P) |
 //! | split | split | every pair of children: adjacent → recurse; otherwise a **M2L** pair of their level (a **P2L** entry if the source child has at most `FEW` sources) |
 //! | leaf | split | `S`'s descendants against `T`: well separated → `T`'s **M2P** list (or near, if it has fewer sources than nodes), leaves → near |
-//! | split | leaf | `T`'s descendants against `S`: well separated → their **P2L** list, leaves → near |
+//! | split | leaf | `T`'s descendants against `S`: well separated → their **P2L** list (or, where fewer than `p³` evaluation points are expected in the cell, the near lists of its leaves), leaves → near |
 //!
 //! "Well separated" for cells of different sizes: the gap between the cubes (∞-norm) is at
 //! least the smaller cell's width, the same ratio as the M2L pairs of one level, which are at
@@ -105,6 +105,34 @@ pub(crate) struct Tree {
     pub p2l: Vec<Vec<u32>>,
     /// `m2l[level][code]`: the M2L pairs of a level with one offset, sorted by target.
     pub m2l: Vec<Vec<Vec<M2lPair>>>,
+    /// Where the evaluation points are expected, once the tree's shape is settled.
+    expected: Option<ExpectedPoints>,
+}
+
+/// About `count` evaluation points spread uniformly over the box `lo..hi`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ExpectedPoints {
+    pub count: f64,
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+}
+
+impl ExpectedPoints {
+    /// The points expected in `cell` (`None` if the box has no volume).
+    fn in_cell(&self, cell: &Cell) -> Option<f64> {
+        let volume: f64 = (0..3).map(|a| self.hi[a] - self.lo[a]).product();
+        if !(volume > 0.0) {
+            return None;
+        }
+        let overlap: f64 = (0..3)
+            .map(|a| {
+                let lo = self.lo[a].max(cell.centre[a] - cell.half);
+                let hi = self.hi[a].min(cell.centre[a] + cell.half);
+                (hi - lo).max(0.0)
+            })
+            .product();
+        Some(self.count * overlap / volume)
+    }
 }
 
 /// Tree parameters.
@@ -116,6 +144,8 @@ pub(crate) struct TreeShape {
     pub max_depth: u32,
     /// Sources a multipole expansion stands for (`p³`): cheaper to sum fewer directly.
     pub nodes: usize,
+    /// Where the points the tree will be evaluated at are expected (`None`: everywhere, many).
+    pub expected: Option<ExpectedPoints>,
 }
 
 impl Tree {
@@ -145,6 +175,7 @@ impl Tree {
             m2p: Vec::new(),
             p2l: Vec::new(),
             m2l: Vec::new(),
+            expected: None,
         };
         let mut stack = vec![0u32];
         let mut scratch = Vec::new();
@@ -176,6 +207,12 @@ impl Tree {
             for c in costly {
                 tree.split(c, points, &mut scratch);
             }
+        }
+        // The expected points change which far sources a cell takes into its expansion (not
+        // where cells are split, which would feed back into the split rule).
+        if shape.expected.is_some() {
+            tree.expected = shape.expected;
+            tree.lists(shape.nodes);
         }
         tree.near_runs = tree
             .near
@@ -311,7 +348,7 @@ impl Tree {
             }
             (false, true) => {
                 for child in tc.children() {
-                    self.source_leaf(child, s);
+                    self.source_leaf(child, s, nodes);
                 }
             }
             (false, false) => {
@@ -359,15 +396,37 @@ impl Tree {
     }
 
     /// Targets in the smaller cell `t`, sources in the leaf `s`.
-    fn source_leaf(&mut self, t: u32, s: u32) {
+    fn source_leaf(&mut self, t: u32, s: u32, nodes: usize) {
         let tc = *self.cell(t);
         if separated(&tc, self.cell(s)) {
-            self.p2l[t as usize].push(s);
+            // P2L costs `|S| p³` kernel evaluations once; summing `S` at every point of `t`
+            // costs `|S|` per point: cheaper where fewer than `p³` points are expected.
+            let few = self
+                .expected
+                .and_then(|e| e.in_cell(&tc))
+                .is_some_and(|points| points < nodes as f64);
+            if few {
+                self.near_below(t, s);
+            } else {
+                self.p2l[t as usize].push(s);
+            }
         } else if tc.is_leaf() {
             self.near[t as usize].push(s);
         } else {
             for child in tc.children() {
-                self.source_leaf(child, s);
+                self.source_leaf(child, s, nodes);
+            }
+        }
+    }
+
+    /// `s` in the near list of every leaf in `t`.
+    fn near_below(&mut self, t: u32, s: u32) {
+        let tc = *self.cell(t);
+        if tc.is_leaf() {
+            self.near[t as usize].push(s);
+        } else {
+            for child in tc.children() {
+                self.near_below(child, s);
             }
         }
     }
@@ -424,9 +483,27 @@ mod tests {
     }
 
     /// Every (target leaf, source) pair is covered exactly once: by the near list, a M2P
-    /// cell, a P2L cell of the leaf or an ancestor, or a M2L pair of an ancestor (or itself).
+    /// cell, a P2L cell of the leaf or an ancestor, or a M2L pair of an ancestor (or itself);
+    /// with and without expected points (fewer P2L entries, more near ones).
     #[test]
     fn interaction_lists_cover_every_pair_exactly_once() {
+        let expected = [
+            None,
+            Some(ExpectedPoints {
+                count: 20_000.0,
+                lo: [-1.0; 3],
+                hi: [1.9; 3],
+            }),
+        ]
+        .map(lists_cover_every_pair_exactly_once);
+        assert!(
+            expected[1] < expected[0],
+            "P2L entries without and with expected points: {expected:?}"
+        );
+    }
+
+    /// Checks the coverage; returns the number of P2L entries.
+    fn lists_cover_every_pair_exactly_once(expected: Option<ExpectedPoints>) -> usize {
         let points = cloud(3000);
         let tree = Tree::build(
             &points,
@@ -436,6 +513,7 @@ mod tests {
                 leaf_size: 20,
                 max_depth: 10,
                 nodes: 27,
+                expected,
             },
         );
         let mut parent = vec![NONE; tree.cells.len()];
@@ -487,6 +565,7 @@ mod tests {
                 bad
             });
         }
+        tree.p2l.iter().map(Vec::len).sum()
     }
 
     #[test]
@@ -500,6 +579,7 @@ mod tests {
                 leaf_size: 8,
                 max_depth: 12,
                 nodes: 8,
+                expected: None,
             },
         );
         for (i, &o) in tree.order.iter().enumerate() {

@@ -22,7 +22,8 @@
 //! - **M2M**, **L2L**: between a cell and its children, exactly (the interpolant of a
 //!   polynomial of degree `p − 1` is itself), as three `p × p` products.
 //! - **M2L**: `L_A += Σ_B φ(x̄_A, ȳ_B) M_B` between well-separated cells of one level, with
-//!   the 316 operators reduced to 16 by symmetry and compressed by SVD (see [`FmmOperators`]).
+//!   the 316 operators reduced to 16 by symmetry and compressed by SVD, each on its own or in
+//!   one basis shared by all offsets ([`M2lCompression`]; see [`FmmOperators`]).
 //! - **P2L**, **M2P**, **P2P**: the adaptive tree's X, W and U lists (a small cell next to a
 //!   large leaf), the last a direct sum over the near field.
 //! - **L2P**: `s(x) ≈ Σ_A L_A S(x̄_A, x)` plus the near field, and the polynomial part added
@@ -51,6 +52,7 @@
 //! [`FmmField::sampled_error`] measures the error of a built field against the exact sum.
 
 mod chebyshev;
+mod m2l;
 mod operators;
 mod tree;
 
@@ -65,8 +67,9 @@ use super::field::RbfField;
 use super::kernel::{self, Kernel};
 use super::system::{self, Functional, Polynomial};
 use chebyshev::MAX_ORDER;
-pub use operators::FmmOperators;
-use operators::{CodedPair, Shared};
+use m2l::{CodedPair, Shared};
+use operators::LevelOperators;
+pub use operators::{FmmOperators, M2lCompression};
 use tree::{Cell, ExpectedPoints, Tree, TreeShape};
 
 /// The smallest expansion order (nodes per axis).
@@ -128,7 +131,8 @@ pub enum FmmError {
     /// The operators given were built for another kernel or order.
     #[error(
         "the operators were built for kernel `{built}` at order {built_order}, not for kernel \
-         `{kernel}` at order {order}"
+         `{kernel}` at order {order}, or compressed {built_compression:?} rather than \
+         {compression:?}"
     )]
     Operators {
         /// The operators' kernel.
@@ -139,6 +143,10 @@ pub enum FmmError {
         kernel: String,
         /// The order asked for.
         order: usize,
+        /// The operators' compression.
+        built_compression: M2lCompression,
+        /// The compression asked for.
+        compression: M2lCompression,
     },
 }
 
@@ -165,6 +173,8 @@ pub struct FmmOptions {
     /// are expected in the cell, they sum those sources directly instead (`|S|` per point).
     /// Only the cost changes: every point is evaluated to the same accuracy either way.
     pub expected_points: Option<usize>,
+    /// How the M2L operators are compressed (default: [`M2lCompression::for_order`]).
+    pub compression: Option<M2lCompression>,
 }
 
 impl FmmOptions {
@@ -177,6 +187,7 @@ impl FmmOptions {
             tolerance: None,
             domain: None,
             expected_points: None,
+            compression: None,
         }
     }
 
@@ -202,6 +213,18 @@ impl FmmOptions {
     pub fn with_domain(mut self, domain: Aabb<3>) -> Self {
         self.domain = Some(domain);
         self
+    }
+
+    /// These options with the M2L operators compressed as `compression` says.
+    pub fn with_compression(mut self, compression: M2lCompression) -> Self {
+        self.compression = Some(compression);
+        self
+    }
+
+    /// The M2L compression these options ask for.
+    pub fn compression(&self) -> M2lCompression {
+        self.compression
+            .unwrap_or_else(|| M2lCompression::for_order(self.order))
     }
 
     /// These options for about `count` evaluation points spread over the domain.
@@ -252,7 +275,8 @@ pub struct FmmReport {
     pub depth: usize,
     /// M2L pairs over all levels.
     pub m2l_pairs: usize,
-    /// The largest rank kept by the compression, over the 16 canonical operators.
+    /// The largest rank kept by the compression: over the 16 canonical operators (per
+    /// operator), or the dimension of the shared basis.
     pub max_rank: usize,
     /// Seconds spent computing (or fetching) the M2L operators.
     pub operator_seconds: f64,
@@ -331,6 +355,7 @@ impl<K: Kernel + Clone> FmmField<K> {
             kernel,
             options.order,
             options.tolerance(),
+            options.compression(),
         )))
     }
 
@@ -346,12 +371,17 @@ impl<K: Kernel + Clone> FmmField<K> {
     ) -> Result<Self, FmmError> {
         options.check()?;
         let kernel = field.kernel().clone();
-        if !ops.fits(&kernel) || ops.order() != options.order {
+        if !ops.fits(&kernel)
+            || ops.order() != options.order
+            || ops.compression() != options.compression()
+        {
             return Err(FmmError::Operators {
                 built: ops.kernel_name().to_owned(),
                 built_order: ops.order(),
                 kernel: kernel.name().to_owned(),
                 order: options.order,
+                built_compression: ops.compression(),
+                compression: options.compression(),
             });
         }
         let (points, weights, dipoles) = sources(field)?;
@@ -532,16 +562,20 @@ impl<K: Kernel> FmmField<K> {
         self.report.upward_seconds = start.elapsed().as_secs_f64();
     }
 
-    /// M2L pairs level by level and, within a level, canonical operator by canonical operator
-    /// (pairs sorted by target and offset, in blocks that keep a target's pairs together, so
-    /// the order of additions into a local expansion is fixed), then P2L.
+    /// The M2L pairs, then P2L. The pairs of all levels that one set of operators serves (every
+    /// level, for a homogeneous kernel) go together: per operator, level by level and canonical
+    /// operator by canonical operator (pairs sorted by target and offset, in blocks that keep a
+    /// target's pairs together, so the order of additions into a local expansion is fixed);
+    /// in the shared basis, all at once ([`m2l::shared`]).
     fn m2l(&mut self) {
         let start = Instant::now();
         let n = self.n();
         let root_width = 2.0 * self.tree.cells[0].half;
         let mut op_seconds = 0.0;
         let mut max_rank = 0;
-        let locals = Shared::new(&mut self.locals);
+        // Operator sets, with the pairs each serves, and every level's scale.
+        let mut sets: Vec<(Arc<LevelOperators>, Vec<CodedPair>)> = Vec::new();
+        let mut level_scale = vec![1.0; self.tree.m2l.len()];
         for (level, codes) in self.tree.m2l.iter().enumerate() {
             if codes.iter().all(Vec::is_empty) {
                 continue;
@@ -550,29 +584,66 @@ impl<K: Kernel> FmmField<K> {
             let t = Instant::now();
             let (ops, scale) = self.ops.level(&self.kernel, width);
             op_seconds += t.elapsed().as_secs_f64();
-            max_rank = max_rank.max(ops.ranks().into_iter().max().unwrap_or(0));
-            let mut classes = vec![Vec::new(); ops.canonical.len()];
-            for (code, pairs) in codes.iter().enumerate() {
-                for pair in pairs {
-                    classes[self.ops.symmetry.canonical_of[code]].push(CodedPair {
-                        target: pair.target,
-                        code: code as u16,
-                        source: pair.source,
-                    });
+            level_scale[level] = scale;
+            max_rank = max_rank.max(ops.rank());
+            let set = match sets.iter().position(|(o, _)| Arc::ptr_eq(o, &ops)) {
+                Some(i) => i,
+                None => {
+                    sets.push((ops, Vec::new()));
+                    sets.len() - 1
                 }
+            };
+            for (code, pairs) in codes.iter().enumerate() {
+                sets[set].1.extend(pairs.iter().map(|q| CodedPair {
+                    target: q.target,
+                    code: code as u16,
+                    source: q.source,
+                }));
             }
-            for (canonical, mut pairs) in classes.into_iter().enumerate() {
-                pairs.sort_unstable();
-                operators::apply(
-                    &ops,
-                    &self.ops.symmetry,
-                    canonical,
-                    &pairs,
-                    scale,
+        }
+        let locals = Shared::new(&mut self.locals);
+        let cells = &self.tree.cells;
+        let scale = |c: u32| level_scale[cells[c as usize].level as usize];
+        for (ops, pairs) in sets {
+            match &*ops {
+                LevelOperators::PerOperator(canonical) => {
+                    // Level by level (a level's pairs share one scale), class by class.
+                    let symmetry = &self.ops.symmetry;
+                    let mut groups: Vec<Vec<CodedPair>> =
+                        vec![Vec::new(); self.tree.m2l.len() * canonical.len()];
+                    for q in pairs {
+                        let level = cells[q.target as usize].level as usize;
+                        let class = symmetry.canonical_of[q.code as usize];
+                        groups[level * canonical.len() + class].push(q);
+                    }
+                    for (g, mut group) in groups.into_iter().enumerate() {
+                        if group.is_empty() {
+                            continue;
+                        }
+                        group.sort_unstable();
+                        let (level, class) = (g / canonical.len(), g % canonical.len());
+                        m2l::per_operator(
+                            canonical,
+                            symmetry,
+                            class,
+                            &group,
+                            level_scale[level],
+                            &self.multipoles,
+                            locals,
+                            n,
+                        );
+                    }
+                }
+                LevelOperators::Shared { basis, offsets } => m2l::shared(
+                    basis,
+                    offsets,
+                    pairs,
+                    &scale,
                     &self.multipoles,
                     locals,
                     n,
-                );
+                    cells.len(),
+                ),
             }
         }
         let this = &*self;

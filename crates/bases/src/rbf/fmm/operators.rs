@@ -1,17 +1,31 @@
-//! The M2L operators, compressed, and their application in blocks.
+//! The M2L operators, compressed two ways (applied in [`super::m2l`]).
 //!
 //! The M2L operator between two cells of one level whose integer offset is `t` (a vector in
 //! `{−3, …, 3}³` with `‖t‖∞ ≥ 2`: 316 of them) is the `p³ × p³` matrix
 //! `K_t[A, B] = φ(|w t + h (x̄_A − x̄_B)|)` over the cells' Chebyshev nodes (`w = 2h` the width).
-//! The 48 symmetries of the cube (axis permutations and reflections) map every offset onto one
-//! of **16 canonical offsets** `0 ≤ c₂ ≤ c₁ ≤ c₀`, and, because the Chebyshev nodes are
-//! symmetric (`−x̄_a = x̄_{p−1−a}`), they act on the node indices as a permutation `P`:
-//! `K_t[A, B] = K_c[P(A), P(B)]` (Messner, Schanz & Darve 2012, §3). Each `K_c` is compressed
-//! once by a truncated SVD, `K_c ≈ U_c Σ_c V_cᵀ`, keeping the singular values above
-//! `ε · σ₁` (computed by a seeded randomised range finder, exact to well below `ε` because the
-//! singular values of a smooth kernel fall geometrically). All pairs of one level whose offsets
-//! share a canonical operator are applied together, in blocks: two dense products per block,
-//! `U_cΣ_c (V_cᵀ X)`, with `X` the permuted expansions.
+//!
+//! **Symmetries.** The 48 symmetries of the cube (axis permutations and reflections) map every
+//! offset onto one of **16 canonical offsets** `0 ≤ c₂ ≤ c₁ ≤ c₀`, and, because the Chebyshev
+//! nodes are symmetric (`−x̄_a = x̄_{p−1−a}`), they act on the node indices as a permutation
+//! `Π_t`: `K_t[A, B] = K_c[Π_t(A), Π_t(B)]` (Messner, Schanz & Darve 2012, §3). Only the 16
+//! canonical operators are built, each compressed by a truncated SVD `K_c ≈ (U_cΣ_c) V_cᵀ`
+//! (singular values above `ε σ₁`, by a seeded randomised range finder, exact to well below `ε`
+//! because the singular values of a smooth kernel fall geometrically).
+//!
+//! **Per operator** ([`M2lCompression::PerOperator`]): a pair applies `U_cΣ_c (V_cᵀ Π_t M)` in
+//! the `p³`-dimensional node space, `4 p³ r_c` flops (`r_c` = 20–90, the canonical rank).
+//!
+//! **Shared basis** ([`M2lCompression::SharedBasis`], Fong & Darve 2009, §3.3): the columns of
+//! all 316 operators span, to `ε`, a space of dimension `r` well below `p³` (at `p = 8`:
+//! `r = 212` at `ε = 10⁻⁸`, 290 at `10⁻⁹`, against `p³ = 512`). `U` (`p³ × r`, orthonormal) is
+//! the left singular basis of `[Π_t U_cΣ_c / σ₁(K_c)]` over all offsets (each scaled to norm 1,
+//! so that every operator keeps `ε` relative to its own norm; the Gram matrix is that of the
+//! fat matrix `[K_t]`), cut at `ε`. The row space is the same `U`: `K_{−t} = K_tᵀ` for a
+//! radial kernel and the offsets come in pairs `±t`. Each offset keeps
+//! `C_t = Uᵀ K_t U ≈ A_t B_tᵀ` with `A_t = Uᵀ Π_t U_cΣ_c` and `B_t = Uᵀ Π_t V_c` (`r × r_c`):
+//! expansions are compressed (`M̃ = Uᵀ M`) and expanded (`L += U L̃`) once per cell, and a pair
+//! costs `4 r r_c` flops. It costs one SVD of a `p³ × Σ_t r_c` matrix to build (about 0.7 s at
+//! `p = 8` on 2 cores) and `316 · 2 r r̄_c` numbers (40–70 MB at `p = 8`).
 //!
 //! A kernel with [`homogeneity`](crate::rbf::Kernel::homogeneity) `k` (`r`, `r³`) has
 //! `K_t(w) = wᵏ K_t(1)`: one set of operators at unit width serves every level. Any other
@@ -20,7 +34,6 @@
 use std::sync::{Arc, Mutex};
 
 use faer::linalg::matmul::matmul;
-use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
@@ -28,7 +41,32 @@ use super::chebyshev::Chebyshev;
 use super::tree::offset_of;
 use crate::rbf::kernel::{self, Kernel};
 
-/// The compressed operator of one canonical offset.
+/// How the M2L operators are compressed and applied (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum M2lCompression {
+    /// Each canonical operator compressed on its own, pairs applied in the `p³`-dimensional
+    /// node space (Messner, Schanz & Darve 2012): cheapest to build.
+    PerOperator,
+    /// One basis for all offsets, pairs applied in its `r`-dimensional space (Fong & Darve
+    /// 2009): fewer flops per pair where `r` is well below `p³`, one larger SVD to build.
+    SharedBasis,
+}
+
+impl M2lCompression {
+    /// The default of order `p`: the shared basis at `p = 7` and 8, where it is measured
+    /// faster (at 10,000 bunny centres the M2L step takes 25–30% less time at `p = 8`); per
+    /// operator below (`r` is close to `p³`) and above (the SVD takes 3–17 s at `p` = 10–12
+    /// and the factors over 100 MB).
+    pub fn for_order(p: usize) -> Self {
+        if (7..=8).contains(&p) {
+            Self::SharedBasis
+        } else {
+            Self::PerOperator
+        }
+    }
+}
+
+/// The compressed operator of one canonical offset, `K_c ≈ (U_cΣ_c) V_cᵀ`.
 #[derive(Debug, Clone)]
 pub(crate) struct Compressed {
     /// `U Σ`, `p³ × r`.
@@ -37,16 +75,35 @@ pub(crate) struct Compressed {
     pub v: Mat<f64>,
 }
 
-/// The 16 compressed operators of one cell width.
+/// The operator of one offset in the shared basis, `C_t = Uᵀ K_t U ≈ A Bᵀ`.
 #[derive(Debug, Clone)]
-pub(crate) struct LevelOperators {
-    pub canonical: Vec<Compressed>,
+pub(crate) struct OffsetOperator {
+    /// `A_t`, `r × r_c`.
+    pub a: Mat<f64>,
+    /// `B_t`, `r × r_c`.
+    pub b: Mat<f64>,
+}
+
+/// The compressed M2L operators of one cell width.
+#[derive(Debug, Clone)]
+pub(crate) enum LevelOperators {
+    /// The 16 canonical operators.
+    PerOperator(Vec<Compressed>),
+    /// The shared basis `U` (`p³ × r`, orthonormal columns) and, per offset code, `C_t`
+    /// (`None` for the 27 adjacent offsets).
+    Shared {
+        basis: Mat<f64>,
+        offsets: Vec<Option<OffsetOperator>>,
+    },
 }
 
 impl LevelOperators {
-    /// The ranks kept, per canonical offset.
-    pub fn ranks(&self) -> Vec<usize> {
-        self.canonical.iter().map(|c| c.us.ncols()).collect()
+    /// The largest rank kept: of the canonical operators, or of the shared basis.
+    pub fn rank(&self) -> usize {
+        match self {
+            Self::PerOperator(c) => c.iter().map(|c| c.us.ncols()).max().unwrap_or(0),
+            Self::Shared { basis, .. } => basis.ncols(),
+        }
     }
 }
 
@@ -107,6 +164,7 @@ pub struct FmmOperators {
     pub(crate) cheb: Chebyshev,
     pub(crate) symmetry: Symmetry,
     pub(crate) tolerance: f64,
+    pub(crate) compression: M2lCompression,
     kernel_name: String,
     homogeneity: Option<i32>,
     /// `(width, operators)`; for homogeneous kernels only width 1.
@@ -115,13 +173,19 @@ pub struct FmmOperators {
 
 impl FmmOperators {
     /// The operators of `kernel` at order `p` (`p` Chebyshev nodes per axis), singular values
-    /// kept down to `tolerance` relative to the largest. Nothing is computed until a field
-    /// needs it.
-    pub(crate) fn new<K: Kernel + ?Sized>(kernel: &K, p: usize, tolerance: f64) -> Self {
+    /// kept down to `tolerance` relative to the largest, compressed as `compression` says.
+    /// Nothing is computed until a field needs it.
+    pub(crate) fn new<K: Kernel + ?Sized>(
+        kernel: &K,
+        p: usize,
+        tolerance: f64,
+        compression: M2lCompression,
+    ) -> Self {
         Self {
             cheb: Chebyshev::new(p),
             symmetry: Symmetry::new(p),
             tolerance,
+            compression,
             kernel_name: kernel.name().to_owned(),
             homogeneity: kernel.homogeneity(),
             cache: Mutex::new(Vec::new()),
@@ -141,6 +205,11 @@ impl FmmOperators {
     /// The relative singular-value cut-off of the compression.
     pub fn tolerance(&self) -> f64 {
         self.tolerance
+    }
+
+    /// How the operators are compressed.
+    pub fn compression(&self) -> M2lCompression {
+        self.compression
     }
 
     /// Whether `kernel` is the one these operators were built for (same name and homogeneity).
@@ -174,7 +243,7 @@ impl FmmOperators {
         let n = p * p * p;
         let h = 0.5 * width;
         let nodes = self.cheb.nodes();
-        let canonical = self
+        let canonical: Vec<Compressed> = self
             .symmetry
             .canonical
             .par_iter()
@@ -190,8 +259,101 @@ impl FmmOperators {
                 compress(k.as_ref(), self.tolerance)
             })
             .collect();
-        LevelOperators { canonical }
+        match self.compression {
+            M2lCompression::PerOperator => LevelOperators::PerOperator(canonical),
+            M2lCompression::SharedBasis => self.shared(&canonical),
+        }
     }
+
+    /// The shared basis and the offsets' factors from the canonical compressions.
+    fn shared(&self, canonical: &[Compressed]) -> LevelOperators {
+        let sym = &self.symmetry;
+        let n = self.cheb.order().pow(3);
+        let codes: Vec<usize> = (0..sym.perm.len())
+            .filter(|&code| sym.canonical_of[code] != usize::MAX)
+            .collect();
+        // [Π_t U_cΣ_c / σ₁(K_c)] over all offsets (σ₁ = ‖first column of U_cΣ_c‖).
+        let total: usize = codes
+            .iter()
+            .map(|&code| canonical[sym.canonical_of[code]].us.ncols())
+            .sum();
+        let norms: Vec<f64> = canonical
+            .iter()
+            .map(|c| c.us.col(0).norm_l2().max(f64::MIN_POSITIVE))
+            .collect();
+        let mut fat = Mat::<f64>::zeros(n, total);
+        let mut col = 0;
+        for &code in &codes {
+            let c = sym.canonical_of[code];
+            let us = &canonical[c].us;
+            let perm = &sym.perm[code];
+            for j in 0..us.ncols() {
+                for (i, &from) in perm.iter().enumerate() {
+                    fat[(i, col + j)] = us[(from as usize, j)] / norms[c];
+                }
+            }
+            col += us.ncols();
+        }
+        let basis = left_basis(fat.as_ref(), self.tolerance);
+        drop(fat);
+        let project = |m: &Mat<f64>, code: usize| {
+            let perm = &sym.perm[code];
+            let permuted = Mat::from_fn(n, m.ncols(), |i, j| m[(perm[i] as usize, j)]);
+            let mut out = Mat::<f64>::zeros(basis.ncols(), m.ncols());
+            product(out.as_mut(), basis.transpose(), permuted.as_ref(), 1.0);
+            out
+        };
+        let built: Vec<(usize, OffsetOperator)> = codes
+            .par_iter()
+            .map(|&code| {
+                let c = &canonical[sym.canonical_of[code]];
+                let op = OffsetOperator {
+                    a: project(&c.us, code),
+                    b: project(&c.v, code),
+                };
+                (code, op)
+            })
+            .collect();
+        let mut offsets: Vec<Option<OffsetOperator>> = vec![None; sym.perm.len()];
+        for (code, op) in built {
+            offsets[code] = Some(op);
+        }
+        LevelOperators::Shared { basis, offsets }
+    }
+}
+
+/// The left singular vectors of `f` whose singular values exceed `tolerance` (at least one),
+/// by a sequential SVD that leaves out the right vectors. If the SVD does not converge (it
+/// does not on a smooth kernel's operators), the identity: exact, uncompressed.
+fn left_basis(f: MatRef<'_, f64>, tolerance: f64) -> Mat<f64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::svd::{self, ComputeSvdVectors};
+    let (m, n) = (f.nrows(), f.ncols());
+    let k = m.min(n);
+    let mut u = Mat::<f64>::zeros(m, k);
+    let mut s = faer::diag::Diag::<f64>::zeros(k);
+    let mut mem = MemBuffer::new(svd::svd_scratch::<f64>(
+        m,
+        n,
+        ComputeSvdVectors::Thin,
+        ComputeSvdVectors::No,
+        Par::Seq,
+        Default::default(),
+    ));
+    let done = svd::svd(
+        f,
+        s.as_mut(),
+        Some(u.as_mut()),
+        None,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    if done.is_err() || k == 0 {
+        return Mat::identity(m, m);
+    }
+    let rank = (0..k).take_while(|&i| s[i] > tolerance).count().max(1);
+    u.subcols(0, rank).to_owned()
 }
 
 /// Truncated SVD `K ≈ (UΣ) Vᵀ`, keeping the singular values above `tolerance · σ₁`, by a
@@ -268,113 +430,8 @@ fn sampled_svd(k: MatRef<'_, f64>, l: usize, tolerance: f64) -> Option<Compresse
     })
 }
 
-/// Pairs per dense product (about): fixed, so that results never depend on the thread count.
-const BLOCK: usize = 96;
-
-/// A slice written from several threads at disjoint ranges.
-#[derive(Clone, Copy)]
-pub(crate) struct Shared(*mut f64);
-// SAFETY: `Shared` is only used to write disjoint ranges from different threads (see uses).
-unsafe impl Send for Shared {}
-unsafe impl Sync for Shared {}
-
-impl Shared {
-    pub fn new(s: &mut [f64]) -> Self {
-        Self(s.as_mut_ptr())
-    }
-
-    /// # Safety
-    /// `start..start + len` lies inside the slice `self` was made from, and no other
-    /// reference to that range is alive while the returned one is.
-    #[allow(clippy::mut_from_ref)]
-    pub unsafe fn range(&self, start: usize, len: usize) -> &mut [f64] {
-        // SAFETY: guaranteed by the caller.
-        unsafe { std::slice::from_raw_parts_mut(self.0.add(start), len) }
-    }
-}
-
-/// An M2L pair with the offset code of its target relative to its source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub(crate) struct CodedPair {
-    pub target: u32,
-    pub code: u16,
-    pub source: u32,
-}
-
-/// `L_T += scale · K_t M_S` for every pair of one level whose offset maps to the canonical
-/// operator `canonical`. `pairs` must be sorted (by target, then offset code).
-///
-/// The pairs are cut into blocks of about [`BLOCK`] that never split one target's pairs; a
-/// block gathers its permuted expansions into one matrix, applies `U_cΣ_c (V_cᵀ X)` as two
-/// dense products, and adds the permuted results into its own targets, in order. The blocks
-/// depend on the pairs alone, so the sums do not depend on the thread count.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn apply(
-    ops: &LevelOperators,
-    symmetry: &Symmetry,
-    canonical: usize,
-    pairs: &[CodedPair],
-    scale: f64,
-    multipoles: &[f64],
-    locals: Shared,
-    n: usize,
-) {
-    debug_assert!(pairs.is_sorted());
-    let op = &ops.canonical[canonical];
-    let rank = op.us.ncols();
-    let mut bounds = vec![0];
-    let mut end = 0;
-    while end < pairs.len() {
-        end = (end + BLOCK).min(pairs.len());
-        while end < pairs.len() && pairs[end].target == pairs[end - 1].target {
-            end += 1;
-        }
-        bounds.push(end);
-    }
-    bounds.par_windows(2).for_each(|w| {
-        let block = &pairs[w[0]..w[1]];
-        let m = block.len();
-        SCRATCH.with_borrow_mut(|buf| {
-            // x (n × m), y (rank × m), z (n × m): every entry is written before it is read.
-            if buf.len() < (2 * n + rank) * m {
-                buf.resize((2 * n + rank) * m, 0.0);
-            }
-            let (xs, rest) = buf.split_at_mut(n * m);
-            let (ys, rest) = rest.split_at_mut(rank * m);
-            let zs = &mut rest[..n * m];
-            for (pair, col) in block.iter().zip(xs.chunks_exact_mut(n)) {
-                let src = &multipoles[pair.source as usize * n..][..n];
-                let perm = &symmetry.perm[pair.code as usize][..n];
-                for (&v, &to) in src.iter().zip(perm) {
-                    // SAFETY: `perm` is a permutation of `0..n` (`Symmetry::new`).
-                    unsafe { *col.get_unchecked_mut(to as usize) = v };
-                }
-            }
-            let x = MatRef::from_column_major_slice(xs, n, m);
-            let mut y = MatMut::from_column_major_slice_mut(ys, rank, m);
-            product(y.rb_mut(), op.v.transpose(), x, 1.0);
-            let mut z = MatMut::from_column_major_slice_mut(zs, n, m);
-            product(z.rb_mut(), op.us.as_ref(), y.rb(), scale);
-            for (pair, col) in block.iter().zip(zs.chunks_exact(n)) {
-                let perm = &symmetry.perm[pair.code as usize][..n];
-                // SAFETY: all pairs of a target are in one block, and the blocks of one call
-                // run over distinct targets, so only this task writes this target's range now.
-                let local = unsafe { locals.range(pair.target as usize * n, n) };
-                for (l, &from) in local.iter_mut().zip(perm) {
-                    // SAFETY: `perm` is a permutation of `0..n`.
-                    *l += unsafe { *col.get_unchecked(from as usize) };
-                }
-            }
-        });
-    });
-}
-
-thread_local! {
-    /// Work space of [`apply`], kept per thread between blocks.
-    static SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-fn product(out: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
+/// `out = alpha a b`, sequential.
+pub(crate) fn product(out: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
     matmul(out, Accum::Replace, a, b, alpha, Par::Seq);
 }
 

@@ -193,6 +193,50 @@ fn expected_points_change_the_cost_not_the_accuracy() {
     }
 }
 
+/// Both compressions of the M2L operators reach the accuracy of the order, for `r`, `r³` and
+/// the thin plate (operators per level), and agree with each other to it; operators built for
+/// one are refused for the other.
+#[test]
+fn both_m2l_compressions_match_the_direct_sum() {
+    let c = blob(1500);
+    let r = fit(Biharmonic, &c);
+    let r3 = fit(Triharmonic, &c);
+    let tps = fit(ThinPlate, &c);
+    let points = probes(&r.bounds().expect("bounds"), 2000, 0.1);
+    for p in [6, 8] {
+        let options = |m| FmmOptions::new(p).with_leaf_size(24).with_compression(m);
+        let errors = |m: M2lCompression| {
+            [
+                relative_error(&FmmField::new(&r, &options(m)).expect("r"), &r, &points),
+                relative_error(&FmmField::new(&r3, &options(m)).expect("r3"), &r3, &points),
+                relative_error(
+                    &FmmField::new(&tps, &options(m)).expect("tps"),
+                    &tps,
+                    &points,
+                ),
+            ]
+        };
+        let (per, shared) = (
+            errors(M2lCompression::PerOperator),
+            errors(M2lCompression::SharedBasis),
+        );
+        eprintln!("p = {p}: per operator {per:?}, shared basis {shared:?}");
+        for (a, b) in per.iter().zip(&shared) {
+            assert!(*b < 2.0 * a + 1e-9, "p = {p}: {per:?} vs {shared:?}");
+        }
+    }
+    let ops = FmmField::operators(
+        &Biharmonic,
+        &FmmOptions::new(6).with_compression(M2lCompression::SharedBasis),
+    )
+    .expect("ops");
+    let per = FmmOptions::new(6).with_compression(M2lCompression::PerOperator);
+    assert!(matches!(
+        FmmField::with_operators(&r, &per, ops),
+        Err(FmmError::Operators { .. })
+    ));
+}
+
 #[test]
 fn thin_plate_uses_operators_per_level() {
     let c = blob(500);
@@ -208,21 +252,26 @@ fn values_have_the_same_bits_for_any_thread_count_and_batch() {
     let c = blob(700);
     let exact = fit(Biharmonic, &c);
     let points = probes(&exact.bounds().expect("bounds"), 5000, 0.1);
-    let run = |threads: usize| {
+    let run = |threads: usize, compression: M2lCompression| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("pool")
             .install(|| {
-                let fast =
-                    FmmField::new(&exact, &FmmOptions::new(6).with_leaf_size(10)).expect("fmm");
+                let options = FmmOptions::new(6)
+                    .with_leaf_size(10)
+                    .with_compression(compression);
+                let fast = FmmField::new(&exact, &options).expect("fmm");
                 let mut out = vec![0.0; points.len()];
                 fast.values(&points, &mut out);
                 (fast, out)
             })
     };
-    let (one, a) = run(1);
-    let (_, b) = run(3);
+    let (_, s1) = run(1, M2lCompression::SharedBasis);
+    let (_, s3) = run(3, M2lCompression::SharedBasis);
+    assert!(s1.iter().zip(&s3).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let (one, a) = run(1, M2lCompression::PerOperator);
+    let (_, b) = run(3, M2lCompression::PerOperator);
     assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
     // One point at a time, or in another batch: the same bits.
     for (i, x) in points.iter().enumerate().step_by(97) {

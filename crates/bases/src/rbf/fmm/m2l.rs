@@ -1,0 +1,288 @@
+//! The M2L step: the pairs of the interaction lists applied through the compressed operators
+//! of [`super::operators`], per operator or in the shared basis.
+
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Mat, MatMut, MatRef};
+use rayon::prelude::*;
+
+use super::operators::{Compressed, OffsetOperator, Symmetry, product};
+
+/// Pairs per dense product (per operator; about): fixed, so that results never depend on the
+/// thread count.
+const BLOCK: usize = 96;
+
+/// A slice written from several threads at disjoint ranges.
+#[derive(Clone, Copy)]
+pub(crate) struct Shared(*mut f64);
+// SAFETY: `Shared` is only used to write disjoint ranges from different threads (see uses).
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    pub fn new(s: &mut [f64]) -> Self {
+        Self(s.as_mut_ptr())
+    }
+
+    /// # Safety
+    /// `start..start + len` lies inside the slice `self` was made from, and no other
+    /// reference to that range is alive while the returned one is.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn range(&self, start: usize, len: usize) -> &mut [f64] {
+        // SAFETY: guaranteed by the caller.
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(start), len) }
+    }
+}
+
+/// An M2L pair with the offset code of its target relative to its source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct CodedPair {
+    pub target: u32,
+    pub code: u16,
+    pub source: u32,
+}
+
+/// Per operator: `L_T += scale · K_t M_S` for every pair of one level whose offset maps to the
+/// canonical operator `class`. `pairs` must be sorted (by target, then offset code).
+///
+/// The pairs are cut into blocks of about [`BLOCK`] that never split one target's pairs; a
+/// block gathers its permuted expansions into one matrix, applies `U_cΣ_c (V_cᵀ X)` as two
+/// dense products, and adds the permuted results into its own targets, in order. The blocks
+/// depend on the pairs alone, so the sums do not depend on the thread count.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn per_operator(
+    canonical: &[Compressed],
+    symmetry: &Symmetry,
+    class: usize,
+    pairs: &[CodedPair],
+    scale: f64,
+    multipoles: &[f64],
+    locals: Shared,
+    n: usize,
+) {
+    debug_assert!(pairs.is_sorted());
+    let op = &canonical[class];
+    let rank = op.us.ncols();
+    let mut bounds = vec![0];
+    let mut end = 0;
+    while end < pairs.len() {
+        end = (end + BLOCK).min(pairs.len());
+        while end < pairs.len() && pairs[end].target == pairs[end - 1].target {
+            end += 1;
+        }
+        bounds.push(end);
+    }
+    bounds.par_windows(2).for_each(|w| {
+        let block = &pairs[w[0]..w[1]];
+        let m = block.len();
+        SCRATCH.with_borrow_mut(|buf| {
+            // x (n × m), y (rank × m), z (n × m): every entry is written before it is read.
+            if buf.len() < (2 * n + rank) * m {
+                buf.resize((2 * n + rank) * m, 0.0);
+            }
+            let (xs, rest) = buf.split_at_mut(n * m);
+            let (ys, rest) = rest.split_at_mut(rank * m);
+            let zs = &mut rest[..n * m];
+            for (pair, col) in block.iter().zip(xs.chunks_exact_mut(n)) {
+                let src = &multipoles[pair.source as usize * n..][..n];
+                let perm = &symmetry.perm[pair.code as usize][..n];
+                for (&v, &to) in src.iter().zip(perm) {
+                    // SAFETY: `perm` is a permutation of `0..n` (`Symmetry::new`).
+                    unsafe { *col.get_unchecked_mut(to as usize) = v };
+                }
+            }
+            let x = MatRef::from_column_major_slice(xs, n, m);
+            let mut y = MatMut::from_column_major_slice_mut(ys, rank, m);
+            product(y.rb_mut(), op.v.transpose(), x, 1.0);
+            let mut z = MatMut::from_column_major_slice_mut(zs, n, m);
+            product(z.rb_mut(), op.us.as_ref(), y.rb(), scale);
+            for (pair, col) in block.iter().zip(zs.chunks_exact(n)) {
+                let perm = &symmetry.perm[pair.code as usize][..n];
+                // SAFETY: all pairs of a target are in one block, and the blocks of one call
+                // run over distinct targets, so only this task writes this target's range now.
+                let local = unsafe { locals.range(pair.target as usize * n, n) };
+                for (l, &from) in local.iter_mut().zip(perm) {
+                    // SAFETY: `perm` is a permutation of `0..n`.
+                    *l += unsafe { *col.get_unchecked(from as usize) };
+                }
+            }
+        });
+    });
+}
+
+/// Shared basis: `L_T += K_t (s_S M_S)` for every pair of `pairs` (all served by `basis` and
+/// `offsets`; `scale(S)` the
+/// factor of the source's level; cells numbered below `cells`), in three steps:
+///
+/// 1. every source's expansion is compressed, `M̃_S = s_S Uᵀ M_S`, in blocks of [`CELLS`];
+/// 2. the pairs, sorted by offset, are cut into blocks of at most [`BLOCK`] that share one
+///    offset; a block gathers its sources' `M̃` into one matrix and applies `A_t (B_tᵀ X)` as
+///    two dense products. Blocks run in groups of about [`GROUP`] pairs (a work array that
+///    stays in cache); after each group, every target adds its pairs' columns, in offset
+///    order, to its compressed local expansion `L̃_T`;
+/// 3. every target adds `U L̃_T` to its local expansion, in blocks of [`CELLS`].
+///
+/// Every block, group and order of summation depends on the pairs alone, so the sums do not
+/// depend on the thread count.
+pub(crate) fn shared(
+    basis: &Mat<f64>,
+    offsets: &[Option<OffsetOperator>],
+    mut pairs: Vec<CodedPair>,
+    scale: &(dyn Fn(u32) -> f64 + Sync),
+    multipoles: &[f64],
+    locals: Shared,
+    n: usize,
+    cells: usize,
+) {
+    if pairs.is_empty() {
+        return;
+    }
+    let r = basis.ncols();
+    pairs.sort_unstable_by_key(|q| (q.code, q.target, q.source));
+    // Dense numbering of the sources and targets.
+    let number = |of: &dyn Fn(&CodedPair) -> u32| {
+        let mut list: Vec<u32> = pairs.iter().map(of).collect();
+        list.sort_unstable();
+        list.dedup();
+        let mut index = vec![u32::MAX; cells];
+        for (i, &c) in list.iter().enumerate() {
+            index[c as usize] = i as u32;
+        }
+        (list, index)
+    };
+    let (sources, source_index) = number(&|q| q.source);
+    let (targets, target_index) = number(&|q| q.target);
+    // 1. Compressed expansions of the sources.
+    let mut compressed = vec![0.0; r * sources.len()];
+    compressed
+        .par_chunks_mut(r * CELLS)
+        .zip(sources.par_chunks(CELLS))
+        .for_each(|(out, chunk)| {
+            let m = chunk.len();
+            with_scratch(n * m, |x| {
+                for (col, &c) in x.chunks_exact_mut(n).zip(chunk) {
+                    let s = scale(c);
+                    for (d, &v) in col.iter_mut().zip(&multipoles[c as usize * n..][..n]) {
+                        *d = s * v;
+                    }
+                }
+                let x = MatRef::from_column_major_slice(x, n, m);
+                let y = MatMut::from_column_major_slice_mut(out, r, m);
+                product(y, basis.transpose(), x, 1.0);
+            });
+        });
+    // 2. Blocks of one offset each, in groups.
+    let mut bounds = vec![0];
+    let mut end = 0;
+    while end < pairs.len() {
+        let code = pairs[end].code;
+        let limit = (end + BLOCK).min(pairs.len());
+        while end < limit && pairs[end].code == code {
+            end += 1;
+        }
+        bounds.push(end);
+    }
+    let mut compressed_locals = vec![0.0; r * targets.len()];
+    let mut results = vec![0.0; r * GROUP.min(pairs.len()).max(BLOCK.min(pairs.len()))];
+    let mut first = 0;
+    while first + 1 < bounds.len() {
+        let mut last = first + 1;
+        while last + 1 < bounds.len() && bounds[last + 1] - bounds[first] <= GROUP {
+            last += 1;
+        }
+        let group = &pairs[bounds[first]..bounds[last]];
+        let mut slots: Vec<&mut [f64]> = Vec::with_capacity(last - first);
+        let mut rest = &mut results[..r * group.len()];
+        for w in bounds[first..=last].windows(2) {
+            let (head, tail) = rest.split_at_mut(r * (w[1] - w[0]));
+            slots.push(head);
+            rest = tail;
+        }
+        slots
+            .into_par_iter()
+            .zip(bounds[first..=last].par_windows(2))
+            .for_each(|(out, w)| {
+                let block = &pairs[w[0]..w[1]];
+                let Some(op) = &offsets[block[0].code as usize] else {
+                    return;
+                };
+                let (m, rc) = (block.len(), op.b.ncols());
+                with_scratch((r + rc) * m, |buf| {
+                    let (x, y) = buf.split_at_mut(r * m);
+                    for (col, q) in x.chunks_exact_mut(r).zip(block) {
+                        let i = source_index[q.source as usize] as usize;
+                        col.copy_from_slice(&compressed[i * r..][..r]);
+                    }
+                    let x = MatRef::from_column_major_slice(x, r, m);
+                    let mut y = MatMut::from_column_major_slice_mut(y, rc, m);
+                    product(y.rb_mut(), op.b.transpose(), x, 1.0);
+                    let z = MatMut::from_column_major_slice_mut(out, r, m);
+                    product(z, op.a.as_ref(), y.rb(), 1.0);
+                });
+            });
+        // Each target's columns of this group, in offset order (the group's order).
+        let mut entries: Vec<(u32, u32)> = group
+            .iter()
+            .enumerate()
+            .map(|(i, q)| (target_index[q.target as usize], i as u32))
+            .collect();
+        entries.sort_unstable();
+        let results = &results;
+        compressed_locals
+            .par_chunks_mut(r * CELLS)
+            .enumerate()
+            .for_each(|(k, out)| {
+                let (lo, hi) = ((k * CELLS) as u32, ((k + 1) * CELLS) as u32);
+                let from = entries.partition_point(|e| e.0 < lo);
+                let to = entries.partition_point(|e| e.0 < hi);
+                for &(t, i) in &entries[from..to] {
+                    let dst = &mut out[(t - lo) as usize * r..][..r];
+                    for (d, &v) in dst.iter_mut().zip(&results[i as usize * r..][..r]) {
+                        *d += v;
+                    }
+                }
+            });
+        first = last;
+    }
+    // 3. Expanded into the local expansions.
+    compressed_locals
+        .par_chunks(r * CELLS)
+        .zip(targets.par_chunks(CELLS))
+        .for_each(|(lt, chunk)| {
+            let m = chunk.len();
+            with_scratch(n * m, |full| {
+                let lt = MatRef::from_column_major_slice(lt, r, m);
+                let z = MatMut::from_column_major_slice_mut(full, n, m);
+                product(z, basis.as_ref(), lt, 1.0);
+                for (col, &t) in full.chunks_exact(n).zip(chunk) {
+                    // SAFETY: every target appears once in `targets`, so only this task
+                    // writes this target's range now.
+                    let local = unsafe { locals.range(t as usize * n, n) };
+                    for (l, &v) in local.iter_mut().zip(col) {
+                        *l += v;
+                    }
+                }
+            });
+        });
+}
+
+/// Expansions compressed or expanded per dense product (shared basis): fixed, as [`BLOCK`].
+const CELLS: usize = 64;
+
+/// Pairs per group of blocks (about 2 MB of results at rank 128).
+const GROUP: usize = 2048;
+
+thread_local! {
+    /// Work space of [`apply`], kept per thread between blocks.
+    static SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Runs `f` on this thread's work space of at least `len` numbers (contents unspecified:
+/// every entry is written before it is read).
+fn with_scratch(len: usize, f: impl FnOnce(&mut [f64])) {
+    SCRATCH.with_borrow_mut(|buf| {
+        if buf.len() < len {
+            buf.resize(len, 0.0);
+        }
+        f(&mut buf[..len]);
+    });
+}

@@ -76,9 +76,8 @@ impl Chebyshev {
         chebyshev_t(x, &mut tx[..p]);
         let s = &mut s[..p];
         s.fill(1.0 / p as f64);
-        for k in 1..p {
-            let w = tx[k];
-            for (sm, &t) in s.iter_mut().zip(&self.t[k * p..(k + 1) * p]) {
+        for (&w, row) in tx[1..p].iter().zip(self.t.chunks_exact(p).skip(1)) {
+            for (sm, &t) in s.iter_mut().zip(row) {
                 *sm += t * w;
             }
         }
@@ -95,9 +94,8 @@ impl Chebyshev {
         let (s, ds) = (&mut s[..p], &mut ds[..p]);
         s.fill(1.0 / p as f64);
         ds.fill(0.0);
-        for k in 1..p {
-            let (w, dw) = (tx[k], dtx[k]);
-            let row = &self.t[k * p..(k + 1) * p];
+        let rows = self.t.chunks_exact(p).skip(1);
+        for ((&w, &dw), row) in tx[1..p].iter().zip(&dtx[1..p]).zip(rows) {
             for ((sm, dsm), &t) in s.iter_mut().zip(ds.iter_mut()).zip(row) {
                 *sm += t * w;
                 *dsm += t * dw;

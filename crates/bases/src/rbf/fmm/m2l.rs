@@ -123,6 +123,7 @@ pub(crate) fn per_operator(
 ///
 /// Every block, group and order of summation depends on the pairs alone, so the sums do not
 /// depend on the thread count.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn shared(
     basis: &Mat<f64>,
     offsets: &[Option<OffsetOperator>],

@@ -121,7 +121,7 @@ impl ExpectedPoints {
     /// The points expected in `cell` (`None` if the box has no volume).
     fn in_cell(&self, cell: &Cell) -> Option<f64> {
         let volume: f64 = (0..3).map(|a| self.hi[a] - self.lo[a]).product();
-        if !(volume > 0.0) {
+        if volume.is_nan() || volume <= 0.0 {
             return None;
         }
         let overlap: f64 = (0..3)

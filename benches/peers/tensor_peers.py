@@ -395,8 +395,16 @@ def check_bars(cases: list[Case], mt: int) -> common.Bars:
         if (c.n, c.rank) not in BAR_CASES:
             continue
         tl1, tlmt, zs1, zsmt = c.tl1, c.tlmt, c.zs1, c.zsmt
+        # The bar: each side at its fastest thread setting (TensorLy is usually fastest on
+        # one BLAS thread at these sizes; zeroset on all its threads).
+        tl_runs = [r for r in (tl1, tlmt) if r is not None and not math.isnan(r.ms)]
+        tl_best = min(tl_runs, key=lambda r: r.ms) if tl_runs else None
+        rb = ratio(tl_best.ms if tl_best else None, zsmt.ms if zsmt else None)
+        best_label = tl_best.threads if tl_best else BLAS_COL
+        bars.check(f"{c.name}: TensorLy at its fastest ({best_label}) ÷ zeroset (all threads) ≥ {SPEED_BAR:g}",
+                   None if math.isnan(rb) else rb >= SPEED_BAR, fmt_ratio(rb))  # fmt: skip
         r1 = ratio(tl1.ms if tl1 else None, zs1.ms if zs1 else None)
-        bars.check(f"{c.name}: TensorLy ({BLAS_COL}) ÷ zeroset (rayon 1) ≥ {SPEED_BAR:g}",
+        bars.check(f"{c.name}: one thread each, TensorLy ({BLAS_COL}) ÷ zeroset (rayon 1) ≥ {SPEED_BAR:g} (reported)",
                    None if math.isnan(r1) else r1 >= SPEED_BAR, fmt_ratio(r1))  # fmt: skip
         ref_mt, label_mt = (tlmt, f"BLAS {mt}") if tlmt is not None else (tl1, BLAS_COL)
         rmt = ratio(ref_mt.ms if ref_mt else None, zsmt.ms if zsmt else None)

@@ -34,9 +34,10 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::{Accum, Mat, MatRef, Par, Side};
+use faer::{Accum, Mat, MatMut, Par, Side};
 
 use crate::dense::khatri_rao_unchecked;
+use crate::mttkrp::Mttkrp;
 use crate::{Tensor3, TensorError, lowrank};
 
 /// A Kruskal tensor: weights `w_r` and three factor matrices (`Iₙ × R`) whose columns are the
@@ -107,10 +108,21 @@ impl Kruskal {
         if self.rank() == 0 {
             return Tensor3::zeros(shape);
         }
-        // X₍₀₎ = A W (C ⊙ B)ᵀ: entry (i₀, i₁ + I₁ i₂).
+        // The row-major data is the I₀ × (I₁I₂) matrix A W (B ⊙' C)ᵀ, column i₁I₂ + i₂ (the
+        // Khatri–Rao product with B's index outer), written in place by one product.
         let aw = Mat::from_fn(a.nrows(), self.rank(), |i, r| a[(i, r)] * self.weights[r]);
-        let unfolded = &aw * khatri_rao_unchecked(c.as_ref(), b.as_ref()).transpose();
-        Tensor3::from_fn(shape, |i, j, k| unfolded[(i, j + shape[1] * k)])
+        let kr = khatri_rao_unchecked(b.as_ref(), c.as_ref());
+        let mut data = vec![0.0; shape.iter().product()];
+        let out = MatMut::from_row_major_slice_mut(&mut data, shape[0], shape[1] * shape[2]);
+        matmul(
+            out,
+            Accum::Replace,
+            aw.as_ref(),
+            kr.transpose(),
+            1.0,
+            Par::Seq,
+        );
+        Tensor3::from_row_major(shape, data)
     }
 
     /// `‖X̂‖_F`, from the factors' Gram matrices.
@@ -291,7 +303,8 @@ pub struct CpResult {
 }
 
 /// CP-ALS of `x` (see the module docs); `progress` is called after every iteration and stops
-/// the run when it returns `false`.
+/// the run when it returns `false`. The sweeps run on a worker thread of the current rayon
+/// pool (so that their parallel products start there), hence `Send`.
 ///
 /// ```
 /// use zeroset_tensor::{CpOptions, Tensor3, cp_als};
@@ -314,6 +327,16 @@ pub struct CpResult {
 pub fn cp_als(
     x: &Tensor3,
     options: &CpOptions,
+    progress: impl FnMut(&CpProgress) -> bool + Send,
+) -> Result<CpResult, TensorError> {
+    // The sweeps run on a worker of the thread pool: their parallel products then start
+    // without handing work across threads (tens of microseconds each, twice a sweep).
+    rayon::scope(|_| sweeps(x, options, progress))
+}
+
+fn sweeps(
+    x: &Tensor3,
+    options: &CpOptions,
     mut progress: impl FnMut(&CpProgress) -> bool,
 ) -> Result<CpResult, TensorError> {
     check_input(x, options.rank)?;
@@ -323,8 +346,7 @@ pub fn cp_als(
     let rank = options.rank;
     let mut factors = initial_factors(x, options)?;
     // Work space of the MTTKRPs, overwritten every iteration.
-    let [i0, i1, i2] = x.shape();
-    let (mut t, mut u) = (Mat::zeros(i0 * i1, rank), Mat::zeros(i1 * i2, rank));
+    let mut work = Mttkrp::new(x.shape(), rank);
     let norm_x = x.frobenius_norm();
     let norm2 = norm_x * norm_x;
     let mut errors: Vec<f64> = Vec::new();
@@ -335,14 +357,14 @@ pub fn cp_als(
     while iterations < options.max_iter {
         let before = options.line_search.then(|| factors.clone());
         // T = X ×₂ C serves the MTTKRPs of modes 0 and 1 (C is fixed while A and B move).
-        times_last(x, &factors[2], &mut t);
-        let m = contract_middle(&t, x.shape(), &factors[1], 0);
+        work.times_last(x.as_slice(), &factors[2]);
+        let m = work.contract_t(0, &factors[1]);
         factors[0] = solve_gram(&hadamard(&grams, Some(0)), &m)?;
         grams[0] = factors[0].transpose() * &factors[0];
-        let m = contract_middle(&t, x.shape(), &factors[0], 1);
+        let m = work.contract_t(1, &factors[0]);
         factors[1] = solve_gram(&hadamard(&grams, Some(1)), &m)?;
         grams[1] = factors[1].transpose() * &factors[1];
-        let m = mttkrp_last(x, &factors[0], &factors[1], &mut u);
+        let m = work.last(x.as_slice(), &factors[0], &factors[1]);
         factors[2] = solve_gram(&hadamard(&grams, Some(2)), &m)?;
         grams[2] = factors[2].transpose() * &factors[2];
         let inner = dot(&factors[2], &m);
@@ -358,7 +380,7 @@ pub fn cp_als(
                     p[(i, r)] + (f[(i, r)] - p[(i, r)]) * jump
                 })
             });
-            let m = mttkrp_last(x, &trial[0], &trial[1], &mut u);
+            let m = work.last(x.as_slice(), &trial[0], &trial[1]);
             let trial_rel = tracked_error(norm2, dot(&trial[2], &m), &trial);
             if trial_rel < rel {
                 factors = trial;
@@ -469,83 +491,6 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
     }
 }
 
-/// Work (`I₀I₁I₂ R`) above which the products run on all threads. Below (measured on two
-/// cores: up to 100³ × 30), threads cost more than they save; either way the bits do not
-/// depend on the thread count.
-const PARALLEL_WORK: usize = 1 << 25;
-
-fn par_for(x: &Tensor3, rank: usize) -> Par {
-    if x.len() * rank >= PARALLEL_WORK {
-        Par::rayon(0)
-    } else {
-        Par::Seq
-    }
-}
-
-/// `T = X ×₂ Cᵀ` as an `(I₀I₁) × R` matrix: row `i₀I₁ + i₁`, `T[·, r] = Σ_k X[i₀, i₁, k] C[k, r]`
-/// (one product with the row-major data, no unfolding).
-fn times_last(x: &Tensor3, c: &Mat<f64>, t: &mut Mat<f64>) {
-    let [i, j, k] = x.shape();
-    let xm = MatRef::from_row_major_slice(x.as_slice(), i * j, k);
-    matmul(
-        t.as_mut(),
-        Accum::Replace,
-        xm,
-        c.as_ref(),
-        1.0,
-        par_for(x, c.ncols()),
-    );
-}
-
-/// The MTTKRP of mode 0 (`mode = 0`: `M[i₀, r] = Σ_{i₁} T[i₀I₁ + i₁, r] F[i₁, r]`, `F = B`) or
-/// of mode 1 (`mode = 1`: `M[i₁, r] = Σ_{i₀} T[i₀I₁ + i₁, r] F[i₀, r]`, `F = A`) from
-/// [`times_last`].
-fn contract_middle(t: &Mat<f64>, shape: [usize; 3], f: &Mat<f64>, mode: usize) -> Mat<f64> {
-    let j = shape[1];
-    let rank = t.ncols();
-    let mut m = Mat::<f64>::zeros(shape[mode], rank);
-    for r in 0..rank {
-        let (tc, fc, out) = (t.col_as_slice(r), f.col_as_slice(r), m.col_as_slice_mut(r));
-        for (a, row) in tc.chunks_exact(j).enumerate() {
-            if mode == 0 {
-                out[a] = dot4(row, fc);
-            } else {
-                let w = fc[a];
-                for (o, v) in out.iter_mut().zip(row) {
-                    *o += w * v;
-                }
-            }
-        }
-    }
-    m
-}
-
-/// The MTTKRP of mode 2, `M[k, r] = Σ_{i₀, i₁} X[i₀, i₁, k] A[i₀, r] B[i₁, r]`: first
-/// `U = X₍₀₎ᵀ A` (`I₁I₂ × R`, one product with the row-major data), then the sum over `i₁`.
-fn mttkrp_last(x: &Tensor3, a: &Mat<f64>, b: &Mat<f64>, u: &mut Mat<f64>) -> Mat<f64> {
-    let [i, j, k] = x.shape();
-    let rank = a.ncols();
-    let xm = MatRef::from_row_major_slice(x.as_slice(), i, j * k);
-    matmul(
-        u.as_mut(),
-        Accum::Replace,
-        xm.transpose(),
-        a.as_ref(),
-        1.0,
-        par_for(x, rank),
-    );
-    let mut m = Mat::<f64>::zeros(k, rank);
-    for r in 0..rank {
-        let (uc, bc, out) = (u.col_as_slice(r), b.col_as_slice(r), m.col_as_slice_mut(r));
-        for (row, &w) in uc.chunks_exact(k).zip(bc) {
-            for (o, v) in out.iter_mut().zip(row) {
-                *o += w * v;
-            }
-        }
-    }
-    m
-}
-
 /// The Hadamard product of the factors' Gram matrices `FᵀF`, leaving out `skip`.
 fn hadamard_grams(factors: &[Mat<f64>; 3], skip: Option<usize>) -> Mat<f64> {
     hadamard(
@@ -591,20 +536,6 @@ fn solve_gram(v: &Mat<f64>, m: &Mat<f64>) -> Result<Mat<f64>, TensorError> {
             .sum::<f64>()
     });
     Ok(m * pinv)
-}
-
-/// `Σ xᵢ yᵢ` with four running partial sums (vectorised; a fixed order).
-fn dot4(x: &[f64], y: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (xc, xt) = x.as_chunks::<4>();
-    let (yc, yt) = y.as_chunks::<4>();
-    for (a, b) in xc.iter().zip(yc) {
-        for l in 0..4 {
-            acc[l] += a[l] * b[l];
-        }
-    }
-    let tail: f64 = xt.iter().zip(yt).map(|(a, b)| a * b).sum();
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 fn dot(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
@@ -703,7 +634,7 @@ pub struct AdaptiveResult {
 pub fn cp_adaptive(
     x: &Tensor3,
     options: &AdaptiveOptions,
-    mut progress: impl FnMut(&CpProgress) -> bool,
+    mut progress: impl FnMut(&CpProgress) -> bool + Send,
 ) -> Result<AdaptiveResult, TensorError> {
     if options.epsilon.is_nan() || options.epsilon <= 0.0 {
         return Err(TensorError::Tolerance {
@@ -727,7 +658,7 @@ pub fn cp_adaptive(
     }
     .clamp(1, cap.max(1));
     let mut history = Vec::new();
-    let fit_at = |rank: usize, progress: &mut dyn FnMut(&CpProgress) -> bool| {
+    let fit_at = |rank: usize, progress: &mut (dyn FnMut(&CpProgress) -> bool + Send)| {
         let mut cp = options.cp.clone();
         cp.rank = rank;
         if let CpInit::Given(_) = cp.init {

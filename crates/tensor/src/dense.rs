@@ -29,6 +29,12 @@ impl Tensor3 {
         Ok(Self { shape, data })
     }
 
+    /// The tensor of `shape` with row-major `data`, whose length the caller guarantees.
+    pub(crate) fn from_row_major(shape: [usize; 3], data: Vec<f64>) -> Self {
+        debug_assert_eq!(data.len(), shape.iter().product::<usize>());
+        Self { shape, data }
+    }
+
     /// The zero tensor of `shape`.
     pub fn zeros(shape: [usize; 3]) -> Self {
         Self {

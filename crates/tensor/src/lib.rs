@@ -39,6 +39,7 @@
 pub mod cp;
 mod dense;
 mod lowrank;
+mod mttkrp;
 
 pub use cp::{
     AdaptiveOptions, AdaptiveResult, CpInit, CpOptions, CpProgress, CpResult, CpStop, Kruskal,

@@ -19,5 +19,6 @@
 
 pub mod bspline;
 pub mod field_file;
+pub mod neural;
 pub mod rbf;
 pub mod tangent_plane;

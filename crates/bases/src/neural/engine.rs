@@ -1,0 +1,521 @@
+//! The batched forward pass with input jets, and its reverse pass.
+//!
+//! A chunk of `n` points is pushed through the net as a block of columns. Without jets there is
+//! one column per point (the value). With jets every point has `C = 1 + D + D(D+1)/2` columns:
+//! its value, its `D` first derivatives `∂ₖ` and its packed second derivatives `∂ₖ∂ₗ`, `k ≤ l`
+//! (see [`pairs`]). The columns are grouped into `C` blocks of `n` (block `b` holds component
+//! `b` of every point), so every layer's activations are a `width × (C·n)` column-major matrix
+//! whose blocks are contiguous:
+//!
+//! ```text
+//! column b·n + p  =  component b of point p;     entry (j, c) at  j + width · c.
+//! ```
+//!
+//! A hidden layer maps the jets of its input `h` to those of `a = W h + b` — one matrix product
+//! (`W` against all `C·n` columns; the bias only enters the value block) — and then through the
+//! activation with the chain rule,
+//!
+//! ```text
+//! σ(a),   ∂ₖσ(a) = σ'(a) aₖ,   ∂ₖ∂ₗσ(a) = σ''(a) aₖ aₗ + σ'(a) aₖₗ.
+//! ```
+//!
+//! The first layer's jets are known in closed form (`aₖ = W₁[:, k]/h`, `aₖₗ = 0`, `h` the input
+//! scale), so its product is skipped. The reverse pass takes the adjoints of the output's
+//! columns and runs the same steps backwards: per layer the adjoint of the activation's chain
+//! rule (below), then two products, `W̄ += Ā Hᵀ` and `H̄ = Wᵀ Ā`. For `ā` (value), `āₖ`, `āₖₗ`:
+//!
+//! ```text
+//! āₖₗ = H̄ₖₗ σ',
+//! āₖ  = ḡₖ σ' + σ'' Σₗ H̄ₖₗ aₗ · (2 if k = l),
+//! ā   = h̄ σ' + σ'' Σₖ ḡₖ aₖ + Σₖₗ H̄ₖₗ (σ''' aₖ aₗ + σ'' aₖₗ).
+//! ```
+//!
+//! All products are faer's, sequential (`Par::Seq`): the parallelism is across chunks, whose
+//! partial gradients the caller adds in chunk order, so the bits do not depend on the thread
+//! count. The element-wise loops run under `pulp`'s dispatch so that they vectorise for the
+//! machine; they use plain `*` and `+`, which every instruction set rounds the same way.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+use zeroset_field_core::geometry::Point;
+
+use super::Activation;
+use super::field::NeuralField;
+use super::net::{Layout, pairs};
+
+/// The buffers of one chunk, kept between steps.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Work {
+    /// Points in the chunk.
+    n: usize,
+    /// Whether the chunk carries jets.
+    jets: bool,
+    /// `D × n` scaled inputs `u = (x − c)/h`.
+    u: Vec<f64>,
+    /// Per hidden layer, `w × cols`: pre-activations (the first layer: the value block only).
+    a: Vec<Vec<f64>>,
+    /// Per hidden layer, `w × cols`: activations (after dropout).
+    h: Vec<Vec<f64>>,
+    /// Per hidden layer, `w × n`: `σ'`, and with jets `σ''`, `σ'''` at the values.
+    d1: Vec<Vec<f64>>,
+    d2: Vec<Vec<f64>>,
+    d3: Vec<Vec<f64>>,
+    /// Per hidden layer, `w × n`: the dropout factors (0 or `1/(1 − rate)`), when dropout is on.
+    pub mask: Vec<Vec<f64>>,
+    /// The output's columns (`f` and its jets).
+    pub f: Vec<f64>,
+    /// The adjoints of the output's columns, set by the caller before [`backward`].
+    pub fbar: Vec<f64>,
+    /// Scratch for the reverse pass (`width_max × cols` each).
+    hbar: Vec<f64>,
+    abar: Vec<f64>,
+    /// The first layer's constant jets: `W₁[:, k]/h` per `k`, then their products per pair.
+    g1: Vec<f64>,
+    /// This chunk's gradient (the caller zeroes it).
+    pub grad: Vec<f64>,
+}
+
+/// `1 + D + D(D+1)/2`: the columns of one point with jets.
+pub(crate) fn jet_columns(d: usize) -> usize {
+    1 + d + d * (d + 1) / 2
+}
+
+fn resize(v: &mut Vec<f64>, len: usize) {
+    v.resize(len, 0.0);
+}
+
+impl Work {
+    /// Sizes the buffers for `n` points (with or without jets) of `layout`'s net.
+    pub fn prepare(&mut self, layout: &Layout, n: usize, jets: bool, dropout: bool) {
+        let d = layout.dims[0];
+        let cols = if jets { n * jet_columns(d) } else { n };
+        let hidden = layout.hidden();
+        self.n = n;
+        self.jets = jets;
+        resize(&mut self.u, d * n);
+        for v in [
+            &mut self.a,
+            &mut self.h,
+            &mut self.d1,
+            &mut self.d2,
+            &mut self.d3,
+            &mut self.mask,
+        ] {
+            v.resize_with(hidden, Vec::new);
+        }
+        for l in 0..hidden {
+            let w = layout.dims[l + 1];
+            resize(&mut self.a[l], w * cols);
+            resize(&mut self.h[l], w * cols);
+            resize(&mut self.d1[l], w * n);
+            let jet_len = if jets { w * n } else { 0 };
+            resize(&mut self.d2[l], jet_len);
+            resize(&mut self.d3[l], jet_len);
+            resize(&mut self.mask[l], if dropout { w * n } else { 0 });
+        }
+        resize(&mut self.f, cols);
+        resize(&mut self.fbar, cols);
+        let wmax = layout.max_width();
+        resize(&mut self.hbar, wmax * cols);
+        resize(&mut self.abar, wmax * cols);
+        let w1 = layout.dims[1];
+        resize(&mut self.g1, w1 * (d + d * (d + 1) / 2));
+        resize(&mut self.grad, layout.total);
+    }
+
+}
+
+fn mat(data: &[f64], nrows: usize, ncols: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(data, nrows, ncols)
+}
+
+fn mat_mut(data: &mut [f64], nrows: usize, ncols: usize) -> MatMut<'_, f64> {
+    MatMut::from_column_major_slice_mut(data, nrows, ncols)
+}
+
+/// Fills `h`, `d1` (and with jets `d2`, `d3`) from the pre-activations `a` (all `len` long).
+#[inline(always)]
+fn activate(
+    act: Activation,
+    a: &[f64],
+    h: &mut [f64],
+    d1: &mut [f64],
+    jets: Option<(&mut [f64], &mut [f64])>,
+) {
+    match jets {
+        None => {
+            for ((a, h), d1) in a.iter().zip(h.iter_mut()).zip(d1.iter_mut()) {
+                (*h, *d1) = act.value_d1(*a);
+            }
+        }
+        Some((d2, d3)) => {
+            for ((((a, h), d1), d2), d3) in a
+                .iter()
+                .zip(h.iter_mut())
+                .zip(d1.iter_mut())
+                .zip(d2.iter_mut())
+                .zip(d3.iter_mut())
+            {
+                [*h, *d1, *d2, *d3] = act.all(*a);
+            }
+        }
+    }
+}
+
+/// The forward pass of `points` through `net` into `work` (prepared for them). Dropout
+/// factors, if `work.mask` holds them, multiply every hidden activation and its jets.
+pub(crate) fn forward<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: &mut Work) {
+    let arch = pulp::Arch::new();
+    arch.dispatch(|| forward_imp(net, points, work));
+}
+
+#[inline(always)]
+fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: &mut Work) {
+    let layout = net.layout();
+    let params = net.parameters();
+    let act = net.architecture().activation();
+    let n = work.n;
+    debug_assert_eq!(points.len(), n);
+    let jets = work.jets;
+    let pr = pairs(D);
+    let np = pr.len();
+    let hidden = layout.hidden();
+    let (centre, scale) = (net.centre(), net.input_scale());
+    for (p, x) in points.iter().enumerate() {
+        for k in 0..D {
+            work.u[k + D * p] = (x[k] - centre[k]) / scale;
+        }
+    }
+    let Work {
+        u,
+        a,
+        h,
+        d1,
+        d2,
+        d3,
+        mask,
+        f,
+        g1,
+        ..
+    } = work;
+    for l in 0..hidden {
+        let w = layout.dims[l + 1];
+        let wn = w * n;
+        let weights = layout.weight(params, l);
+        let bias = layout.bias(params, l);
+        let (h_done, h_rest) = h.split_at_mut(l);
+        let h_l = &mut h_rest[0];
+        let a_l = &mut a[l];
+        if l == 0 {
+            // a = W₁ u + b₁, value block only.
+            for p in 0..n {
+                let col = &mut a_l[w * p..w * (p + 1)];
+                col.copy_from_slice(bias);
+                for k in 0..D {
+                    let uk = u[k + D * p];
+                    let wk = &weights[w * k..w * (k + 1)];
+                    for (c, wjk) in col.iter_mut().zip(wk) {
+                        *c += wjk * uk;
+                    }
+                }
+            }
+        } else {
+            let prev = layout.dims[l];
+            let cols = h_l.len() / w;
+            matmul(
+                mat_mut(a_l, w, cols),
+                Accum::Replace,
+                mat(weights, w, prev),
+                mat(&h_done[l - 1], prev, cols),
+                1.0,
+                Par::Seq,
+            );
+            for p in 0..n {
+                for (c, b) in a_l[w * p..w * (p + 1)].iter_mut().zip(bias) {
+                    *c += b;
+                }
+            }
+        }
+        let a_l = &a[l];
+        if jets {
+            activate(
+                act,
+                &a_l[..wn],
+                &mut h_l[..wn],
+                &mut d1[l],
+                Some((&mut d2[l], &mut d3[l])),
+            );
+        } else {
+            activate(act, &a_l[..wn], &mut h_l[..wn], &mut d1[l], None);
+        }
+        if jets {
+            let (d1, d2) = (&d1[l], &d2[l]);
+            if l == 0 {
+                let inv = 1.0 / scale;
+                for k in 0..D {
+                    for j in 0..w {
+                        g1[j + w * k] = weights[j + w * k] * inv;
+                    }
+                }
+                for (q, &(k, m)) in pr.iter().enumerate() {
+                    for j in 0..w {
+                        g1[j + w * (D + q)] = g1[j + w * k] * g1[j + w * m];
+                    }
+                }
+                for k in 0..D {
+                    let gk = &g1[w * k..w * (k + 1)];
+                    let out = &mut h_l[(1 + k) * wn..(2 + k) * wn];
+                    for p in 0..n {
+                        let o = &mut out[w * p..w * (p + 1)];
+                        let s = &d1[w * p..w * (p + 1)];
+                        for ((o, s), g) in o.iter_mut().zip(s).zip(gk) {
+                            *o = s * g;
+                        }
+                    }
+                }
+                for q in 0..np {
+                    let gq = &g1[w * (D + q)..w * (D + q + 1)];
+                    let out = &mut h_l[(1 + D + q) * wn..(2 + D + q) * wn];
+                    for p in 0..n {
+                        let o = &mut out[w * p..w * (p + 1)];
+                        let s = &d2[w * p..w * (p + 1)];
+                        for ((o, s), g) in o.iter_mut().zip(s).zip(gq) {
+                            *o = s * g;
+                        }
+                    }
+                }
+            } else {
+                for k in 0..D {
+                    let ak = &a_l[(1 + k) * wn..(2 + k) * wn];
+                    let out = &mut h_l[(1 + k) * wn..(2 + k) * wn];
+                    for ((o, s), ak) in out.iter_mut().zip(d1.iter()).zip(ak) {
+                        *o = s * ak;
+                    }
+                }
+                for (q, &(k, m)) in pr.iter().enumerate() {
+                    let ak = &a_l[(1 + k) * wn..(2 + k) * wn];
+                    let am = &a_l[(1 + m) * wn..(2 + m) * wn];
+                    let aq = &a_l[(1 + D + q) * wn..(2 + D + q) * wn];
+                    let out = &mut h_l[(1 + D + q) * wn..(2 + D + q) * wn];
+                    for (e, o) in out.iter_mut().enumerate() {
+                        *o = d2[e] * ak[e] * am[e] + d1[e] * aq[e];
+                    }
+                }
+            }
+        }
+        let m = &mask[l];
+        if !m.is_empty() {
+            for block in h_l.chunks_exact_mut(wn) {
+                for (o, m) in block.iter_mut().zip(m.iter()) {
+                    *o *= m;
+                }
+            }
+        }
+    }
+    // Output: f = o · (w · h_L + b) on the value block, o · (w · jets) elsewhere.
+    let last = hidden;
+    let w = layout.dims[last];
+    let cols = f.len();
+    matmul(
+        mat_mut(f, 1, cols),
+        Accum::Replace,
+        mat(layout.weight(params, last), 1, w),
+        mat(&h[last - 1], w, cols),
+        1.0,
+        Par::Seq,
+    );
+    let b = layout.bias(params, last)[0];
+    let o = net.output_scale();
+    for (c, v) in f.iter_mut().enumerate() {
+        *v = if c < n { o * (*v + b) } else { o * *v };
+    }
+}
+
+/// The reverse pass: adds to `work.grad` the gradient, with respect to the parameters, of
+/// `Σ_c work.fbar[c] · work.f[c]` (the adjoints set by the caller), for the state left by
+/// [`forward`] on the same points.
+pub(crate) fn backward<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
+    let arch = pulp::Arch::new();
+    arch.dispatch(|| backward_imp(net, work));
+}
+
+#[inline(always)]
+fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
+    let layout = net.layout();
+    let params = net.parameters();
+    let n = work.n;
+    let jets = work.jets;
+    let pr = pairs(D);
+    let np = pr.len();
+    let hidden = layout.hidden();
+    let scale = net.input_scale();
+    let Work {
+        u,
+        a,
+        h,
+        d1,
+        d2,
+        d3,
+        mask,
+        fbar,
+        hbar,
+        abar,
+        g1,
+        grad,
+        ..
+    } = work;
+    let cols = fbar.len();
+    let o = net.output_scale();
+    for v in fbar.iter_mut() {
+        *v *= o;
+    }
+    // Output layer.
+    let last = hidden;
+    let w = layout.dims[last];
+    {
+        let (gw, gb) = grad[layout.weight[last]..layout.bias[last] + 1].split_at_mut(w);
+        matmul(
+            mat_mut(gw, w, 1),
+            Accum::Add,
+            mat(&h[last - 1], w, cols),
+            mat(fbar, cols, 1),
+            1.0,
+            Par::Seq,
+        );
+        gb[0] += fbar[..n].iter().sum::<f64>();
+    }
+    let w_out = layout.weight(params, last);
+    for (c, y) in fbar.iter().enumerate() {
+        for (o, wj) in hbar[w * c..w * (c + 1)].iter_mut().zip(w_out) {
+            *o = wj * y;
+        }
+    }
+    for l in (0..hidden).rev() {
+        let w = layout.dims[l + 1];
+        let wn = w * n;
+        let hb = &mut hbar[..w * cols];
+        let ab = &mut abar[..w * cols];
+        let m = &mask[l];
+        if !m.is_empty() {
+            for block in hb.chunks_exact_mut(wn) {
+                for (o, m) in block.iter_mut().zip(m.iter()) {
+                    *o *= m;
+                }
+            }
+        }
+        let (d1, d2, d3) = (&d1[l], &d2[l], &d3[l]);
+        // ā for the value block (and the jet blocks).
+        if !jets {
+            for ((o, hb), s) in ab.iter_mut().zip(hb.iter()).zip(d1.iter()) {
+                *o = hb * s;
+            }
+        } else if l == 0 {
+            // aₖ = g1ₖ (per row), aₖₗ = 0; āₖₗ is not needed.
+            for p in 0..n {
+                for j in 0..w {
+                    let e = j + w * p;
+                    let (s1, s2, s3) = (d1[e], d2[e], d3[e]);
+                    let mut av = hb[e] * s1;
+                    for q in 0..np {
+                        let hq = hb[(1 + D + q) * wn + e];
+                        av += hq * (s3 * g1[j + w * (D + q)]);
+                    }
+                    for k in 0..D {
+                        let gk = hb[(1 + k) * wn + e];
+                        av += s2 * (gk * g1[j + w * k]);
+                        let mut ak = gk * s1;
+                        for (q, &(k1, k2)) in pr.iter().enumerate() {
+                            let hq = hb[(1 + D + q) * wn + e];
+                            if k1 == k && k2 == k {
+                                ak += s2 * (2.0 * hq * g1[j + w * k]);
+                            } else if k1 == k {
+                                ak += s2 * (hq * g1[j + w * k2]);
+                            } else if k2 == k {
+                                ak += s2 * (hq * g1[j + w * k1]);
+                            }
+                        }
+                        ab[(1 + k) * wn + e] = ak;
+                    }
+                    ab[e] = av;
+                }
+            }
+        } else {
+            let a_l = &a[l];
+            for e in 0..wn {
+                let (s1, s2, s3) = (d1[e], d2[e], d3[e]);
+                let mut av = hb[e] * s1;
+                for k in 0..D {
+                    let gk = hb[(1 + k) * wn + e];
+                    let akv = a_l[(1 + k) * wn + e];
+                    av += s2 * (gk * akv);
+                    let mut ak = gk * s1;
+                    for (q, &(k1, k2)) in pr.iter().enumerate() {
+                        let hq = hb[(1 + D + q) * wn + e];
+                        if k1 == k && k2 == k {
+                            ak += s2 * (2.0 * hq * akv);
+                        } else if k1 == k {
+                            ak += s2 * (hq * a_l[(1 + k2) * wn + e]);
+                        } else if k2 == k {
+                            ak += s2 * (hq * a_l[(1 + k1) * wn + e]);
+                        }
+                    }
+                    ab[(1 + k) * wn + e] = ak;
+                }
+                for (q, &(k1, k2)) in pr.iter().enumerate() {
+                    let hq = hb[(1 + D + q) * wn + e];
+                    let x1 = a_l[(1 + k1) * wn + e];
+                    let x2 = a_l[(1 + k2) * wn + e];
+                    let aq = a_l[(1 + D + q) * wn + e];
+                    av += hq * (s3 * x1 * x2 + s2 * aq);
+                    ab[(1 + D + q) * wn + e] = hq * s1;
+                }
+                ab[e] = av;
+            }
+        }
+        let ab = &abar[..w * cols];
+        let (gw, gb) = grad[layout.weight[l]..layout.bias[l] + w].split_at_mut(layout.bias[l] - layout.weight[l]);
+        for p in 0..n {
+            for (g, v) in gb.iter_mut().zip(&ab[w * p..w * (p + 1)]) {
+                *g += v;
+            }
+        }
+        if l > 0 {
+            let prev = layout.dims[l];
+            matmul(
+                mat_mut(gw, w, prev),
+                Accum::Add,
+                mat(ab, w, cols),
+                mat(&h[l - 1], prev, cols).transpose(),
+                1.0,
+                Par::Seq,
+            );
+            matmul(
+                mat_mut(&mut hbar[..prev * cols], prev, cols),
+                Accum::Replace,
+                mat(layout.weight(params, l), w, prev).transpose(),
+                mat(ab, w, cols),
+                1.0,
+                Par::Seq,
+            );
+        } else {
+            let inv = 1.0 / scale;
+            for k in 0..D {
+                let gk = &mut gw[w * k..w * (k + 1)];
+                for p in 0..n {
+                    let uk = u[k + D * p];
+                    for (g, v) in gk.iter_mut().zip(&ab[w * p..w * (p + 1)]) {
+                        *g += v * uk;
+                    }
+                }
+                if jets {
+                    let block = &ab[(1 + k) * wn..(2 + k) * wn];
+                    for p in 0..n {
+                        for (g, v) in gk.iter_mut().zip(&block[w * p..w * (p + 1)]) {
+                            *g += v * inv;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

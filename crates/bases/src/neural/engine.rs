@@ -3,7 +3,7 @@
 //! A chunk of `n` points is pushed through the net as a block of columns. Without jets there is
 //! one column per point (the value). With jets every point has `C = 1 + D + D(D+1)/2` columns:
 //! its value, its `D` first derivatives `∂ₖ` and its packed second derivatives `∂ₖ∂ₗ`, `k ≤ l`
-//! (see [`pairs`]). The columns are grouped into `C` blocks of `n` (block `b` holds component
+//! (see `net::pairs`). The columns are grouped into `C` blocks of `n` (block `b` holds component
 //! `b` of every point), so every layer's activations are a `width × (C·n)` column-major matrix
 //! whose blocks are contiguous:
 //!
@@ -41,7 +41,7 @@ use zeroset_field_core::geometry::Point;
 
 use super::Activation;
 use super::field::NeuralField;
-use super::net::{Layout, pairs};
+use super::net::Layout;
 
 /// The buffers of one chunk, kept between steps.
 #[derive(Debug, Clone, Default)]
@@ -134,6 +134,7 @@ fn mat_mut(data: &mut [f64], nrows: usize, ncols: usize) -> MatMut<'_, f64> {
 }
 
 /// Fills `h`, `d1` (and with jets `d2`, `d3`) from the pre-activations `a` (all `len` long).
+/// One loop per activation, so that the loop body has no branch and vectorises.
 #[inline(always)]
 fn activate(
     act: Activation,
@@ -142,31 +143,60 @@ fn activate(
     d1: &mut [f64],
     jets: Option<(&mut [f64], &mut [f64])>,
 ) {
-    match jets {
-        None => {
-            for ((a, h), d1) in a.iter().zip(h.iter_mut()).zip(d1.iter_mut()) {
-                (*h, *d1) = act.value_d1(*a);
+    #[inline(always)]
+    fn run<F: Fn(f64) -> [f64; 4]>(
+        all: F,
+        a: &[f64],
+        h: &mut [f64],
+        d1: &mut [f64],
+        jets: Option<(&mut [f64], &mut [f64])>,
+    ) {
+        match jets {
+            None => {
+                for ((a, h), d1) in a.iter().zip(h.iter_mut()).zip(d1.iter_mut()) {
+                    let [v, s, _, _] = all(*a);
+                    (*h, *d1) = (v, s);
+                }
+            }
+            Some((d2, d3)) => {
+                for ((((a, h), d1), d2), d3) in a
+                    .iter()
+                    .zip(h.iter_mut())
+                    .zip(d1.iter_mut())
+                    .zip(d2.iter_mut())
+                    .zip(d3.iter_mut())
+                {
+                    [*h, *d1, *d2, *d3] = all(*a);
+                }
             }
         }
-        Some((d2, d3)) => {
-            for ((((a, h), d1), d2), d3) in a
-                .iter()
-                .zip(h.iter_mut())
-                .zip(d1.iter_mut())
-                .zip(d2.iter_mut())
-                .zip(d3.iter_mut())
-            {
-                [*h, *d1, *d2, *d3] = act.all(*a);
-            }
-        }
+    }
+    match act {
+        Activation::Tanh => run(|a| Activation::Tanh.all(a), a, h, d1, jets),
+        Activation::Softplus => run(|a| Activation::Softplus.all(a), a, h, d1, jets),
     }
 }
 
 /// The forward pass of `points` through `net` into `work` (prepared for them). Dropout
 /// factors, if `work.mask` holds them, multiply every hidden activation and its jets.
 pub(crate) fn forward<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: &mut Work) {
-    let arch = pulp::Arch::new();
-    arch.dispatch(|| forward_imp(net, points, work));
+    pulp::Arch::new().dispatch(Forward { net, points, work });
+}
+
+/// [`forward`], compiled for the instruction set `pulp` picks (the body is inlined into
+/// `with_simd`, so the element-wise loops vectorise for it).
+struct Forward<'a, const D: usize> {
+    net: &'a NeuralField<D>,
+    points: &'a [Point<D>],
+    work: &'a mut Work,
+}
+
+impl<const D: usize> pulp::WithSimd for Forward<'_, D> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        forward_imp(self.net, self.points, self.work);
+    }
 }
 
 #[inline(always)]
@@ -177,8 +207,7 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
     let n = work.n;
     debug_assert_eq!(points.len(), n);
     let jets = work.jets;
-    let pr = pairs(D);
-    let np = pr.len();
+    let np = D * (D + 1) / 2;
     let hidden = layout.hidden();
     let (centre, scale) = (net.centre(), net.input_scale());
     for (p, x) in points.iter().enumerate() {
@@ -257,9 +286,13 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
                         g1[j + w * k] = weights[j + w * k] * inv;
                     }
                 }
-                for (q, &(k, m)) in pr.iter().enumerate() {
-                    for j in 0..w {
-                        g1[j + w * (D + q)] = g1[j + w * k] * g1[j + w * m];
+                let mut q = 0;
+                for k in 0..D {
+                    for m in k..D {
+                        for j in 0..w {
+                            g1[j + w * (D + q)] = g1[j + w * k] * g1[j + w * m];
+                        }
+                        q += 1;
                     }
                 }
                 for k in 0..D {
@@ -292,13 +325,23 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
                         *o = s * ak;
                     }
                 }
-                for (q, &(k, m)) in pr.iter().enumerate() {
-                    let ak = &a_l[(1 + k) * wn..(2 + k) * wn];
-                    let am = &a_l[(1 + m) * wn..(2 + m) * wn];
-                    let aq = &a_l[(1 + D + q) * wn..(2 + D + q) * wn];
-                    let out = &mut h_l[(1 + D + q) * wn..(2 + D + q) * wn];
-                    for (e, o) in out.iter_mut().enumerate() {
-                        *o = d2[e] * ak[e] * am[e] + d1[e] * aq[e];
+                let mut q = 0;
+                for k in 0..D {
+                    for m in k..D {
+                        let ak = &a_l[(1 + k) * wn..(2 + k) * wn];
+                        let am = &a_l[(1 + m) * wn..(2 + m) * wn];
+                        let aq = &a_l[(1 + D + q) * wn..(2 + D + q) * wn];
+                        let out = &mut h_l[(1 + D + q) * wn..(2 + D + q) * wn];
+                        for ((((o, s2), s1), (ak, am)), aq) in out
+                            .iter_mut()
+                            .zip(d2.iter())
+                            .zip(d1.iter())
+                            .zip(ak.iter().zip(am))
+                            .zip(aq)
+                        {
+                            *o = s2 * ak * am + s1 * aq;
+                        }
+                        q += 1;
                     }
                 }
             }
@@ -335,8 +378,21 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
 /// `Σ_c work.fbar[c] · work.f[c]` (the adjoints set by the caller), for the state left by
 /// [`forward`] on the same points.
 pub(crate) fn backward<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
-    let arch = pulp::Arch::new();
-    arch.dispatch(|| backward_imp(net, work));
+    pulp::Arch::new().dispatch(Backward { net, work });
+}
+
+/// [`backward`], compiled for the instruction set `pulp` picks.
+struct Backward<'a, const D: usize> {
+    net: &'a NeuralField<D>,
+    work: &'a mut Work,
+}
+
+impl<const D: usize> pulp::WithSimd for Backward<'_, D> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        backward_imp(self.net, self.work);
+    }
 }
 
 #[inline(always)]
@@ -345,8 +401,6 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
     let params = net.parameters();
     let n = work.n;
     let jets = work.jets;
-    let pr = pairs(D);
-    let np = pr.len();
     let hidden = layout.hidden();
     let scale = net.input_scale();
     let Work {
@@ -404,72 +458,16 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
             }
         }
         let (d1, d2, d3) = (&d1[l], &d2[l], &d3[l]);
-        // ā for the value block (and the jet blocks).
-        if !jets {
-            for ((o, hb), s) in ab.iter_mut().zip(hb.iter()).zip(d1.iter()) {
-                *o = hb * s;
-            }
-        } else if l == 0 {
-            // aₖ = g1ₖ (per row), aₖₗ = 0; āₖₗ is not needed.
-            for p in 0..n {
-                for j in 0..w {
-                    let e = j + w * p;
-                    let (s1, s2, s3) = (d1[e], d2[e], d3[e]);
-                    let mut av = hb[e] * s1;
-                    for q in 0..np {
-                        let hq = hb[(1 + D + q) * wn + e];
-                        av += hq * (s3 * g1[j + w * (D + q)]);
-                    }
-                    for k in 0..D {
-                        let gk = hb[(1 + k) * wn + e];
-                        av += s2 * (gk * g1[j + w * k]);
-                        let mut ak = gk * s1;
-                        for (q, &(k1, k2)) in pr.iter().enumerate() {
-                            let hq = hb[(1 + D + q) * wn + e];
-                            if k1 == k && k2 == k {
-                                ak += s2 * (2.0 * hq * g1[j + w * k]);
-                            } else if k1 == k {
-                                ak += s2 * (hq * g1[j + w * k2]);
-                            } else if k2 == k {
-                                ak += s2 * (hq * g1[j + w * k1]);
-                            }
-                        }
-                        ab[(1 + k) * wn + e] = ak;
-                    }
-                    ab[e] = av;
-                }
-            }
+        // ā for the value block (and the jet blocks), in passes over whole blocks.
+        let (ab_v, ab_jets) = ab.split_at_mut(wn);
+        for ((o, hb), s) in ab_v.iter_mut().zip(hb[..wn].iter()).zip(d1.iter()) {
+            *o = hb * s;
+        }
+        if jets {
+            adjoint_jets::<D>(l == 0, w, n, hb, &a[l], g1, d1, d2, d3, ab_v, ab_jets);
         } else {
-            let a_l = &a[l];
-            for e in 0..wn {
-                let (s1, s2, s3) = (d1[e], d2[e], d3[e]);
-                let mut av = hb[e] * s1;
-                for k in 0..D {
-                    let gk = hb[(1 + k) * wn + e];
-                    let akv = a_l[(1 + k) * wn + e];
-                    av += s2 * (gk * akv);
-                    let mut ak = gk * s1;
-                    for (q, &(k1, k2)) in pr.iter().enumerate() {
-                        let hq = hb[(1 + D + q) * wn + e];
-                        if k1 == k && k2 == k {
-                            ak += s2 * (2.0 * hq * akv);
-                        } else if k1 == k {
-                            ak += s2 * (hq * a_l[(1 + k2) * wn + e]);
-                        } else if k2 == k {
-                            ak += s2 * (hq * a_l[(1 + k1) * wn + e]);
-                        }
-                    }
-                    ab[(1 + k) * wn + e] = ak;
-                }
-                for (q, &(k1, k2)) in pr.iter().enumerate() {
-                    let hq = hb[(1 + D + q) * wn + e];
-                    let x1 = a_l[(1 + k1) * wn + e];
-                    let x2 = a_l[(1 + k2) * wn + e];
-                    let aq = a_l[(1 + D + q) * wn + e];
-                    av += hq * (s3 * x1 * x2 + s2 * aq);
-                    ab[(1 + D + q) * wn + e] = hq * s1;
-                }
-                ab[e] = av;
+            for (o, hb) in ab_jets.iter_mut().zip(&hb[wn..]) {
+                *o = *hb;
             }
         }
         let ab = &abar[..w * cols];
@@ -516,6 +514,111 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
                     }
                 }
             }
+        }
+    }
+}
+
+/// The adjoint of the activation's chain rule on the jet blocks (see the module docs):
+/// adds to `ab_v` (which holds `h̄ σ'`) and fills the derivative blocks `ab_jets` (`āₖ`, then
+/// `āₖₗ`) from the adjoints `hb` of all blocks. At the first layer (`first`) the jets of `a`
+/// are the per-row constants of `g1` and `āₖₗ` is left alone (nothing needs it).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn adjoint_jets<const D: usize>(
+    first: bool,
+    w: usize,
+    n: usize,
+    hb: &[f64],
+    a_l: &[f64],
+    g1: &[f64],
+    d1: &[f64],
+    d2: &[f64],
+    d3: &[f64],
+    ab_v: &mut [f64],
+    ab_jets: &mut [f64],
+) {
+    let wn = w * n;
+    let block = |b: usize| b * wn..(b + 1) * wn;
+    // āₖ = ḡₖ σ' first; ā += σ'' ḡₖ aₖ.
+    for k in 0..D {
+        let gk = &hb[block(1 + k)];
+        let out = &mut ab_jets[block(k)];
+        for ((o, g), s) in out.iter_mut().zip(gk).zip(d1) {
+            *o = g * s;
+        }
+        if first {
+            let c = &g1[w * k..w * (k + 1)];
+            for p in 0..n {
+                let r = w * p..w * (p + 1);
+                for (((o, g), s), c) in ab_v[r.clone()].iter_mut().zip(&gk[r.clone()]).zip(&d2[r]).zip(c) {
+                    *o += s * (g * c);
+                }
+            }
+        } else {
+            let ak = &a_l[block(1 + k)];
+            for (((o, g), s), ak) in ab_v.iter_mut().zip(gk).zip(d2).zip(ak) {
+                *o += s * (g * ak);
+            }
+        }
+    }
+    let mut q = 0;
+    for k in 0..D {
+        for m in k..D {
+            let hq = &hb[block(1 + D + q)];
+            let twice = if k == m { 2.0 } else { 1.0 };
+            if first {
+                let (ck, cm, cq) = (
+                    &g1[w * k..w * (k + 1)],
+                    &g1[w * m..w * (m + 1)],
+                    &g1[w * (D + q)..w * (D + q + 1)],
+                );
+                for p in 0..n {
+                    let r = w * p..w * (p + 1);
+                    for (((o, t), s3), cq) in ab_v[r.clone()].iter_mut().zip(&hq[r.clone()]).zip(&d3[r.clone()]).zip(cq) {
+                        *o += t * (s3 * cq);
+                    }
+                    let (lo, hi) = ab_jets.split_at_mut(wn * (k + 1));
+                    let ab_k = &mut lo[wn * k + r.start..wn * k + r.end];
+                    for (((o, t), s2), cm) in ab_k.iter_mut().zip(&hq[r.clone()]).zip(&d2[r.clone()]).zip(cm) {
+                        *o += s2 * (twice * t * cm);
+                    }
+                    if k != m {
+                        let at = wn * (m - k - 1);
+                        let ab_m = &mut hi[at + r.start..at + r.end];
+                        for (((o, t), s2), ck) in ab_m.iter_mut().zip(&hq[r.clone()]).zip(&d2[r.clone()]).zip(ck) {
+                            *o += s2 * (t * ck);
+                        }
+                    }
+                }
+            } else {
+                let (ak, am, aq) = (&a_l[block(1 + k)], &a_l[block(1 + m)], &a_l[block(1 + D + q)]);
+                for (((((o, t), s3), s2), (ak, am)), aq) in ab_v
+                    .iter_mut()
+                    .zip(hq)
+                    .zip(d3)
+                    .zip(d2)
+                    .zip(ak.iter().zip(am))
+                    .zip(aq)
+                {
+                    *o += t * (s3 * ak * am + s2 * aq);
+                }
+                let (lo, hi) = ab_jets.split_at_mut(wn * (k + 1));
+                let ab_k = &mut lo[block(k)];
+                for (((o, t), s2), am) in ab_k.iter_mut().zip(hq).zip(d2).zip(am) {
+                    *o += s2 * (twice * t * am);
+                }
+                if k != m {
+                    let ab_m = &mut hi[wn * (m - k - 1)..wn * (m - k)];
+                    for (((o, t), s2), ak) in ab_m.iter_mut().zip(hq).zip(d2).zip(ak) {
+                        *o += s2 * (t * ak);
+                    }
+                }
+                let out = &mut ab_jets[block(D + q)];
+                for ((o, t), s1) in out.iter_mut().zip(hq).zip(d1) {
+                    *o = t * s1;
+                }
+            }
+            q += 1;
         }
     }
 }

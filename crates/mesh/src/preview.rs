@@ -560,11 +560,11 @@ pub fn render_slice<F: ScalarField<3>>(
 /// use zeroset_mesh::preview::render_field_2d;
 ///
 /// let circle = FnField::new(|p: &[f64; 2]| p[0].hypot(p[1]) - 0.5, None);
-/// let image = render_field_2d(&circle, zeroset_field_core::Aabb::new([-1.0, -1.0], [1.0, 0.5])?, 200)?;
+/// let image = render_field_2d(&circle, Aabb::new([-1.0, -1.0], [1.0, 0.0])?, 200)?;
 /// assert_eq!((image.width(), image.height()), (200, 100));
-/// let [r, _, b] = image.pixel(100, 33); // near the origin: inside, blue
+/// let [r, _, b] = image.pixel(100, 25); // (0, −0.25): inside, blue
 /// assert!(b > r);
-/// let [r, _, b] = image.pixel(0, 0); // the corner (−1, 0.5): outside, red
+/// let [r, _, b] = image.pixel(0, 0); // near the corner (−1, 0): outside, red
 /// assert!(r > b);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```

@@ -822,6 +822,34 @@ pub fn read_metadata(path: impl AsRef<Path>) -> Result<Vec<(String, String)>, Fi
         .collect())
 }
 
+/// The dimension `D` of the field in a field file (any version and kind), from its header,
+/// without reading the rest: to pick `read_any_field::<2>` or `::<3>`.
+///
+/// # Errors
+/// [`FieldFileError::Io`], [`FieldFileError::BadMagic`], [`FieldFileError::Truncated`] (a
+/// file shorter than its header), [`FieldFileError::NewerVersion`].
+pub fn read_dimension(path: impl AsRef<Path>) -> Result<u32, FieldFileError> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let mut head = Vec::with_capacity(16);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(16).read_to_end(&mut head))
+        .map_err(|source| FieldFileError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+    check_head(&head, path)?;
+    let mut cursor = Cursor {
+        bytes: &head,
+        at: 12,
+    };
+    cursor.u32().ok_or(FieldFileError::Truncated {
+        path: path.to_owned(),
+        expected: 16,
+        got: head.len(),
+    })
+}
+
 /// Checks the magic and returns the version (refusing newer ones).
 fn check_head(bytes: &[u8], path: &Path) -> Result<u32, FieldFileError> {
     let truncated = |expected: usize| FieldFileError::Truncated {

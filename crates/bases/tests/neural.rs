@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use zeroset_bases::field_file::{
     AnyField, FieldFileError, KIND_NEURAL, decode_any, encode_neural, read_any_field, read_field,
-    read_metadata, write_neural_field,
+    read_dimension, read_metadata, write_neural_field,
 };
 use zeroset_bases::neural::{
     Activation, Architecture, CurvatureSites, HiddenBasis, NeuralError, NeuralField, NeuralFit,
@@ -316,7 +316,7 @@ fn refitting_the_last_layer_lowers_the_data_term_with_any_solver() {
 fn rescaling_moves_the_field() {
     let t = train2(quick(20));
     let (c, s) = ([3.0, -2.0], 0.25);
-    let moved = t.field.rescaled(c, s).unwrap();
+    let moved = t.field.transformed(c, s, s).unwrap();
     for u in [[0.1, 0.2], [-0.7, 0.4]] {
         let x = [c[0] + s * u[0], c[1] + s * u[1]];
         let want = s * t.field.value(&u);
@@ -326,7 +326,10 @@ fn rescaling_moves_the_field() {
     }
     let b = moved.domain();
     assert_eq!((b.min(), b.max()), ([2.75, -2.25], [3.25, -1.75]));
-    assert!(t.field.rescaled(c, 0.0).is_err());
+    assert!(t.field.transformed(c, 0.0, 1.0).is_err());
+    assert!(t.field.transformed(c, 1.0, 0.0).is_err());
+    let plain = t.field.transformed(c, s, 1.0).unwrap();
+    assert!((plain.value(&[c[0], c[1]]) - t.field.value(&[0.0, 0.0])).abs() < 1e-15);
 }
 
 struct TempDir(PathBuf);
@@ -359,7 +362,7 @@ fn assert_same_field<const D: usize>(a: &NeuralField<D>, b: &NeuralField<D>, pro
 #[test]
 fn field_files_round_trip_bit_for_bit() {
     let dir = TempDir::new("roundtrip");
-    let two = train2(quick(20)).field.rescaled([0.5, 0.25], 2.0).unwrap();
+    let two = train2(quick(20)).field.transformed([0.5, 0.25], 2.0, 2.0).unwrap();
     let path2 = dir.file("curve.zsf");
     write_neural_field(&path2, &two).unwrap();
     let AnyField::Neural(back) = read_any_field::<2>(&path2).unwrap() else {
@@ -377,6 +380,7 @@ fn field_files_round_trip_bit_for_bit() {
     assert_eq!(back.kind(), KIND_NEURAL);
     let back = back.into_neural().unwrap();
     assert_same_field(&three, &back, &[[0.0; 3], [0.3, -0.2, 0.5]]);
+    assert_eq!((read_dimension(&path2).unwrap(), read_dimension(&path3).unwrap()), (2, 3));
     let meta = read_metadata(&path3).unwrap();
     assert!(meta.contains(&("widths".into(), "7,5,3".into())), "{meta:?}");
     assert!(meta.contains(&("activation".into(), "softplus".into())), "{meta:?}");

@@ -176,26 +176,35 @@ impl<const D: usize> NeuralField<D> {
         &mut self.params
     }
 
-    /// The field `x ↦ s · self((x − c)/s)`: this field fitted in coordinates `u = (x − c)/s`
-    /// (values in units of `s`) moved back to `x`. Used to fit a cloud scaled into a
-    /// standard box and save it in the cloud's own units.
+    /// The field `x ↦ v · self((x − c)/s)`: this field, fitted in coordinates `u = (x − c)/s`
+    /// with values in units of `1/v`, moved back to `x`. The CLI fits inputs scaled into
+    /// `[−1, 1]ᴰ` (so that λ does not depend on their units) and saves them this way; with
+    /// `v = s` a field that approximates a distance in `u` does so in `x`.
     ///
     /// # Errors
-    /// [`NeuralError::InvalidParameter`] unless `s` is finite and positive and `c` finite.
-    pub fn rescaled(&self, c: Point<D>, s: f64) -> Result<Self, NeuralError> {
-        if !(s.is_finite() && s > 0.0) || c.iter().any(|v| !v.is_finite()) {
+    /// [`NeuralError::InvalidParameter`] unless `s` is finite and positive, `v` finite and
+    /// non-zero and `c` finite.
+    pub fn transformed(&self, c: Point<D>, s: f64, v: f64) -> Result<Self, NeuralError> {
+        if !(s.is_finite() && s > 0.0) || c.iter().any(|x| !x.is_finite()) {
             return Err(NeuralError::InvalidParameter {
-                name: "rescaling factor",
+                name: "coordinate scale",
                 value: s,
                 expected: "a finite value > 0 and a finite centre",
+            });
+        }
+        if !(v.is_finite() && v != 0.0) {
+            return Err(NeuralError::InvalidParameter {
+                name: "value scale",
+                value: v,
+                expected: "a finite value ≠ 0",
             });
         }
         let map = |p: Point<D>| -> Point<D> { std::array::from_fn(|a| c[a] + s * p[a]) };
         let bounds = Aabb::new(map(self.bounds.min()), map(self.bounds.max())).map_err(|_| {
             NeuralError::InvalidParameter {
-                name: "rescaling factor",
+                name: "coordinate scale",
                 value: s,
-                expected: "a factor that keeps the box finite",
+                expected: "a scale that keeps the box finite",
             }
         })?;
         Self::new(
@@ -203,7 +212,7 @@ impl<const D: usize> NeuralField<D> {
             self.params.clone(),
             map(self.centre),
             s * self.input_scale,
-            s * self.output_scale,
+            v * self.output_scale,
             bounds,
         )
     }

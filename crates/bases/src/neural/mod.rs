@@ -23,7 +23,7 @@
 //! widths configurable ([`Architecture`], default 32, 32) and a smooth activation
 //! ([`Activation`]: `tanh`, the default, or softplus; ReLU would zero the curvature term).
 //! The input map (centre `c`, scale `h`, the domain's centre and longest half-extent) and the
-//! output scale `o` (1 unless [`NeuralField::rescaled`]) are fixed, not trained.
+//! output scale `o` (1 unless [`NeuralField::transformed`]) are fixed, not trained.
 //! Parameters are one flat vector, layer after layer:
 //!
 //! | block | size | layout |

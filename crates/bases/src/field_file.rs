@@ -1234,7 +1234,10 @@ fn neural_body<const D: usize>(
     let activation = Activation::from_code(code)
         .ok_or_else(|| malformed(format!("unknown activation code {code}")))?;
     let layers = c.u32().ok_or_else(&short)? as usize;
-    if layers.checked_mul(8).is_none_or(|b| b > c.bytes.len() - c.at) {
+    if layers
+        .checked_mul(8)
+        .is_none_or(|b| b > c.bytes.len() - c.at)
+    {
         return Err(short());
     }
     let mut widths = Vec::with_capacity(layers);

@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use zeroset_bases::field_file::{
-    AnyField, FieldFileError, KIND_NEURAL, decode_any, encode_neural, read_any_field, read_field,
-    read_dimension, read_metadata, write_neural_field,
+    AnyField, FieldFileError, KIND_NEURAL, decode_any, encode_neural, read_any_field,
+    read_dimension, read_field, read_metadata, write_neural_field,
 };
 use zeroset_bases::neural::{
     Activation, Architecture, CurvatureSites, HiddenBasis, NeuralError, NeuralField, NeuralFit,
@@ -59,12 +59,17 @@ fn square() -> Aabb<2> {
 }
 
 fn quick(steps: usize) -> NeuralParams {
-    NeuralParams::default().with_steps(steps).with_aux_points(100)
+    NeuralParams::default()
+        .with_steps(steps)
+        .with_aux_points(100)
 }
 
 fn train2(params: NeuralParams) -> Trained<2> {
     let (p, z) = circle();
-    NeuralFit::new(params).with_domain(square()).fit(&p, &z).unwrap()
+    NeuralFit::new(params)
+        .with_domain(square())
+        .fit(&p, &z)
+        .unwrap()
 }
 
 #[test]
@@ -73,7 +78,12 @@ fn training_fits_a_circle_with_the_right_signs() {
     let r = &t.report;
     assert_eq!((r.steps, r.history.len()), (400, 400));
     assert!(r.max_residual < 0.4, "max residual {}", r.max_residual);
-    assert!(r.loss < 0.2 * r.history[0], "{} vs {}", r.loss, r.history[0]);
+    assert!(
+        r.loss < 0.2 * r.history[0],
+        "{} vs {}",
+        r.loss,
+        r.history[0]
+    );
     assert!((r.loss - (r.data_term + r.curvature_term)).abs() <= 1e-12 * r.loss);
     // λ|Ω|/P with |Ω| = 4.
     assert!((r.curvature_weight - 0.05 * 4.0 / 100.0).abs() < 1e-15);
@@ -117,10 +127,12 @@ fn the_same_bits_on_one_and_three_threads() {
     let three = train_in_pool(3, || fit.fit(&p, &z).unwrap());
     assert_eq!(one.field.parameters(), three.field.parameters());
     assert_eq!(one.report.history, three.report.history);
-    let probes: Vec<Point<3>> = (0..3000).map(|i| {
-        let t = i as f64 * 0.013;
-        [0.6 * t.sin(), 0.5 * (1.7 * t).cos(), 0.4 * (0.3 * t).sin()]
-    }).collect();
+    let probes: Vec<Point<3>> = (0..3000)
+        .map(|i| {
+            let t = i as f64 * 0.013;
+            [0.6 * t.sin(), 0.5 * (1.7 * t).cos(), 0.4 * (0.3 * t).sin()]
+        })
+        .collect();
     let (mut a, mut b) = (vec![0.0; probes.len()], vec![0.0; probes.len()]);
     train_in_pool(1, || one.field.values(&probes, &mut a));
     train_in_pool(3, || one.field.values(&probes, &mut b));
@@ -164,12 +176,18 @@ fn variants_are_the_paper_baselines() {
     assert_eq!(p.architecture.widths(), &[32, 32]);
     assert_eq!(NeuralParams::variant(Variant::NoCurvature).lambda, 0.0);
     let b = NeuralParams::variant(Variant::CurvatureAtConstraints);
-    assert_eq!((b.lambda, b.curvature_at), (0.05, CurvatureSites::Constraints));
+    assert_eq!(
+        (b.lambda, b.curvature_at),
+        (0.05, CurvatureSites::Constraints)
+    );
     let d = NeuralParams::variant(Variant::Dropout);
     assert_eq!((d.lambda, d.dropout), (0.0, 0.1));
     // Without curvature there is no curvature term; at the constraints its weight is λ|Ω|/N.
     let t = train2(NeuralParams::variant(Variant::NoCurvature).with_steps(5));
-    assert_eq!((t.report.curvature_term, t.report.curvature_weight), (0.0, 0.0));
+    assert_eq!(
+        (t.report.curvature_term, t.report.curvature_weight),
+        (0.0, 0.0)
+    );
     let t = train2(NeuralParams::variant(Variant::CurvatureAtConstraints).with_steps(5));
     let n = circle().0.len() as f64;
     assert!((t.report.curvature_weight - 0.05 * 4.0 / n).abs() < 1e-15);
@@ -182,7 +200,9 @@ fn warm_starts_and_cancellation() {
     let fit = NeuralFit::new(quick(50)).with_domain(square());
     let first = fit.fit(&p, &z).unwrap();
     let again = fit
-        .fit_with(&p, &z, Some(first.field.clone()), &mut |_| std::ops::ControlFlow::Continue(()))
+        .fit_with(&p, &z, Some(first.field.clone()), &mut |_| {
+            std::ops::ControlFlow::Continue(())
+        })
         .unwrap();
     assert!(again.report.history[0] < first.report.history[0]);
     let mut seen = 0;
@@ -212,13 +232,27 @@ fn bad_input_gives_specific_errors() {
     let mut nan = z.clone();
     nan[3] = f64::NAN;
     let e = fit.fit(&p, &nan).unwrap_err();
-    assert!(matches!(e, NeuralError::NonFinite { index: 3, what: "target", .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            NeuralError::NonFinite {
+                index: 3,
+                what: "target",
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert!(e.to_string().contains("constraint 3"), "{e}");
     let mut bad = p.clone();
     bad[5][1] = f64::INFINITY;
     assert!(matches!(
         fit.fit(&bad, &z).unwrap_err(),
-        NeuralError::NonFinite { index: 5, what: "coordinate", .. }
+        NeuralError::NonFinite {
+            index: 5,
+            what: "coordinate",
+            ..
+        }
     ));
     for (params, name) in [
         (quick(5).with_lambda(-0.1), "λ"),
@@ -237,11 +271,17 @@ fn bad_input_gives_specific_errors() {
         assert!(matches!(e, NeuralError::InvalidWidths { .. }), "{e}");
     }
     assert!(matches!(
-        NeuralFit::new(quick(5).with_aux_points(0)).fit(&p, &z).unwrap_err(),
+        NeuralFit::new(quick(5).with_aux_points(0))
+            .fit(&p, &z)
+            .unwrap_err(),
         NeuralError::NoAuxiliaryPoints { .. }
     ));
     // λ = 0 needs no auxiliary point; one constraint point gives a flat default domain.
-    assert!(NeuralFit::new(quick(3).with_aux_points(0).with_lambda(0.0)).fit(&p, &z).is_ok());
+    assert!(
+        NeuralFit::new(quick(3).with_aux_points(0).with_lambda(0.0))
+            .fit(&p, &z)
+            .is_ok()
+    );
     assert!(matches!(
         fit.fit(&[[0.5, 0.5]], &[0.0]).unwrap_err(),
         NeuralError::FlatDomain { .. }
@@ -268,11 +308,21 @@ fn refitting_the_last_layer_lowers_the_data_term_with_any_solver() {
     let mut row = zeroset_field_core::basis::BasisRow::new();
     basis.eval_row(&[0.1, -0.3], true, &mut row);
     let (w, b) = t.field.layer(2);
-    let expansion: f64 = row.values.iter().zip(w.iter().chain(b)).map(|(v, c)| v * c).sum();
+    let expansion: f64 = row
+        .values
+        .iter()
+        .zip(w.iter().chain(b))
+        .map(|(v, c)| v * c)
+        .sum();
     assert!((expansion - t.field.value(&[0.1, -0.3])).abs() < 1e-12);
     let grad = t.field.gradient(&[0.1, -0.3]);
     for a in 0..2 {
-        let g: f64 = row.gradients.iter().zip(w.iter().chain(b)).map(|(v, c)| v[a] * c).sum();
+        let g: f64 = row
+            .gradients
+            .iter()
+            .zip(w.iter().chain(b))
+            .map(|(v, c)| v[a] * c)
+            .sum();
         assert!((g - grad[a]).abs() < 1e-12);
     }
 
@@ -306,9 +356,18 @@ fn refitting_the_last_layer_lowers_the_data_term_with_any_solver() {
         }
     }
     // Fewer points than coefficients: the direct solver says so.
-    let e = t.field.refit_last_layer(&p[..10], &z[..10], &DenseQr::default()).unwrap_err();
-    assert!(matches!(e, NeuralError::Solve(SolveError::Underdetermined { .. })), "{e}");
-    let e = t.field.refit_last_layer(&p, &z[..3], &DenseQr::default()).unwrap_err();
+    let e = t
+        .field
+        .refit_last_layer(&p[..10], &z[..10], &DenseQr::default())
+        .unwrap_err();
+    assert!(
+        matches!(e, NeuralError::Solve(SolveError::Underdetermined { .. })),
+        "{e}"
+    );
+    let e = t
+        .field
+        .refit_last_layer(&p, &z[..3], &DenseQr::default())
+        .unwrap_err();
     assert!(matches!(e, NeuralError::LengthMismatch { .. }), "{e}");
 }
 
@@ -320,7 +379,11 @@ fn rescaling_moves_the_field() {
     for u in [[0.1, 0.2], [-0.7, 0.4]] {
         let x = [c[0] + s * u[0], c[1] + s * u[1]];
         let want = s * t.field.value(&u);
-        assert!((moved.value(&x) - want).abs() < 1e-14, "{} vs {want}", moved.value(&x));
+        assert!(
+            (moved.value(&x) - want).abs() < 1e-14,
+            "{} vs {want}",
+            moved.value(&x)
+        );
         let (g0, g1) = (t.field.gradient(&u), moved.gradient(&x));
         assert!((g0[0] - g1[0]).abs() < 1e-12 && (g0[1] - g1[1]).abs() < 1e-12);
     }
@@ -362,7 +425,10 @@ fn assert_same_field<const D: usize>(a: &NeuralField<D>, b: &NeuralField<D>, pro
 #[test]
 fn field_files_round_trip_bit_for_bit() {
     let dir = TempDir::new("roundtrip");
-    let two = train2(quick(20)).field.transformed([0.5, 0.25], 2.0, 2.0).unwrap();
+    let two = train2(quick(20))
+        .field
+        .transformed([0.5, 0.25], 2.0, 2.0)
+        .unwrap();
     let path2 = dir.file("curve.zsf");
     write_neural_field(&path2, &two).unwrap();
     let AnyField::Neural(back) = read_any_field::<2>(&path2).unwrap() else {
@@ -380,10 +446,22 @@ fn field_files_round_trip_bit_for_bit() {
     assert_eq!(back.kind(), KIND_NEURAL);
     let back = back.into_neural().unwrap();
     assert_same_field(&three, &back, &[[0.0; 3], [0.3, -0.2, 0.5]]);
-    assert_eq!((read_dimension(&path2).unwrap(), read_dimension(&path3).unwrap()), (2, 3));
+    assert_eq!(
+        (
+            read_dimension(&path2).unwrap(),
+            read_dimension(&path3).unwrap()
+        ),
+        (2, 3)
+    );
     let meta = read_metadata(&path3).unwrap();
-    assert!(meta.contains(&("widths".into(), "7,5,3".into())), "{meta:?}");
-    assert!(meta.contains(&("activation".into(), "softplus".into())), "{meta:?}");
+    assert!(
+        meta.contains(&("widths".into(), "7,5,3".into())),
+        "{meta:?}"
+    );
+    assert!(
+        meta.contains(&("activation".into(), "softplus".into())),
+        "{meta:?}"
+    );
 }
 
 #[test]
@@ -398,7 +476,10 @@ fn corrupt_truncated_and_mismatched_files_are_reported() {
     let e = decode_any::<2>(&bytes[..bytes.len() - 20], path).unwrap_err();
     assert!(matches!(e, FieldFileError::Truncated { .. }), "{e}");
     let e = decode_any::<3>(&bytes, path).unwrap_err();
-    assert!(matches!(e, FieldFileError::WrongDimension { found: 2, .. }), "{e}");
+    assert!(
+        matches!(e, FieldFileError::WrongDimension { found: 2, .. }),
+        "{e}"
+    );
     let dir = TempDir::new("kinds");
     let file = dir.file("net.zsf");
     write_neural_field(&file, &field).unwrap();
@@ -417,9 +498,12 @@ fn corrupt_truncated_and_mismatched_files_are_reported() {
     let meta_len = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
     let payload = 36 + meta_len;
     let bad_activation = reframe(&|b| b[payload] = 9);
-    let e = decode_any::<2>(&bad_activation, path).unwrap_err().to_string();
+    let e = decode_any::<2>(&bad_activation, path)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("activation code 9"), "{e}");
-    let zero_width = reframe(&|b| b[payload + 8..payload + 16].copy_from_slice(&0u64.to_le_bytes()));
+    let zero_width =
+        reframe(&|b| b[payload + 8..payload + 16].copy_from_slice(&0u64.to_le_bytes()));
     let e = decode_any::<2>(&zero_width, path).unwrap_err().to_string();
     assert!(e.contains("invalid network"), "{e}");
     let count_at = payload + 8 + 16 + 8 * (3 * 2 + 2);
@@ -427,7 +511,8 @@ fn corrupt_truncated_and_mismatched_files_are_reported() {
     let e = decode_any::<2>(&bad_count, path).unwrap_err().to_string();
     assert!(e.contains("7 parameters"), "{e}");
     let nan_scale_at = payload + 8 + 16 + 16;
-    let nan_scale = reframe(&|b| b[nan_scale_at..nan_scale_at + 8].copy_from_slice(&f64::NAN.to_le_bytes()));
+    let nan_scale =
+        reframe(&|b| b[nan_scale_at..nan_scale_at + 8].copy_from_slice(&f64::NAN.to_le_bytes()));
     let e = decode_any::<2>(&nan_scale, path).unwrap_err().to_string();
     assert!(e.contains("input scale"), "{e}");
 }

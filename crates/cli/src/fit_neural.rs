@@ -35,11 +35,14 @@ use zeroset_bases::neural::{
     Activation, Architecture, NeuralField, NeuralFit, NeuralParams, RefitReport, Trained,
 };
 use zeroset_bases::rbf::{Constraints, Offset, Prescribed};
+use zeroset_field_core::Error;
 use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::io::{read_value_points, value_file_dimension};
 use zeroset_solvers::DenseQr;
 
-use crate::fit::{AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, more, print_check, print_input};
+use crate::fit::{
+    AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, more, print_check, print_input,
+};
 use crate::info::g;
 
 const HEADING: &str = "Neural (--method neural)";
@@ -63,9 +66,9 @@ pub struct Widths(pub Vec<usize>);
 fn parse_widths(text: &str) -> Result<Widths, String> {
     text.split(',')
         .map(|w| {
-            w.trim()
-                .parse::<usize>()
-                .map_err(|_| format!("expected comma-separated layer widths such as 32,32, got {text:?}"))
+            w.trim().parse::<usize>().map_err(|_| {
+                format!("expected comma-separated layer widths such as 32,32, got {text:?}")
+            })
         })
         .collect::<Result<Vec<_>, _>>()
         .map(Widths)
@@ -219,7 +222,24 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 
 fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let path = &args.points;
-    let c = read_value_points::<D>(path).with_context(|| format!("reading {}", path.display()))?;
+    let c = match read_value_points::<D>(path) {
+        Ok(c) => c,
+        Err(Error::NonFinite {
+            record,
+            line,
+            field,
+            value,
+            ..
+        }) => {
+            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
+            bail!(
+                "{}: {at}constraint {record}: non-finite {field} ({value}); the constraints \
+                 must be finite",
+                path.display()
+            );
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context(format!("reading {}", path.display()))),
+    };
     let n = c.points.len();
     line(
         "constraints",
@@ -253,8 +273,8 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
         },
         OffsetArg::Fixed(eps) => Offset::Fixed(eps),
     };
-    let (constraints, report) = Constraints::off_surface(&cloud, offset)
-        .context("building the off-surface constraints")?;
+    let (constraints, report) =
+        Constraints::off_surface(&cloud, offset).context("building the off-surface constraints")?;
     let (points, targets) = values_of(&constraints);
     line(
         "constraints",

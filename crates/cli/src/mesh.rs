@@ -469,7 +469,10 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         (args.ascii, "--ascii"),
     ];
     if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
-        bail!("{flag} applies to 3-D fields; {} holds a 2-D field", args.field.display());
+        bail!(
+            "{flag} applies to 3-D fields; {} holds a 2-D field",
+            args.field.display()
+        );
     }
     if !args.level.is_finite() {
         bail!("--level must be finite, got {}", args.level);
@@ -495,7 +498,11 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
     }
     let counts = ext.map(|e| ((e / h).ceil() as usize).max(1) + 1);
     if counts[0].saturating_mul(counts[1]) > 100_000_000 {
-        bail!("a {}×{} grid is too fine; choose a larger --voxel", counts[0], counts[1]);
+        bail!(
+            "a {}×{} grid is too fine; choose a larger --voxel",
+            counts[0],
+            counts[1]
+        );
     }
     let grid = Grid::vertex_centered(bounds, counts).context("building the sampling grid")?;
     say!(
@@ -508,7 +515,12 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
     )?;
     let start = Instant::now();
     let contour = contour_field(&field, &grid, args.level).context("tracing the level curve")?;
-    let area: f64 = contour.lines.iter().filter(|l| l.closed).map(|l| l.signed_area()).sum();
+    let area: f64 = contour
+        .lines
+        .iter()
+        .filter(|l| l.closed)
+        .map(|l| l.signed_area())
+        .sum();
     say!(
         out,
         "curve: {} closed loop(s), {} open piece(s), {} vertices, length {}, enclosed area {} \

@@ -585,7 +585,10 @@ pub fn render_field_2d<F: ScalarField<2> + ?Sized>(
             return Err(MeshError::InvalidSlice {
                 axis: 2,
                 position: 0.0,
-                detail: format!("the box has zero extent on axis {a} ([{}, {}])", lo[a], hi[a]),
+                detail: format!(
+                    "the box has zero extent on axis {a} ([{}, {}])",
+                    lo[a], hi[a]
+                ),
             });
         }
     }

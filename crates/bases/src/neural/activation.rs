@@ -197,7 +197,17 @@ mod tests {
             );
         }
         assert!(worst <= 4.0, "{worst} ulps");
-        for a in [0.0, -0.0, 1e-300, -1e-20, 19.0, 25.0, -700.0, 1e308, f64::INFINITY] {
+        for a in [
+            0.0,
+            -0.0,
+            1e-300,
+            -1e-20,
+            19.0,
+            25.0,
+            -700.0,
+            1e308,
+            f64::INFINITY,
+        ] {
             let (t, _) = tanh_parts(a);
             assert!(ulps(t, a.tanh()) <= 4.0, "{a}: {t}");
         }
@@ -212,7 +222,11 @@ mod tests {
                 let h = 1e-5;
                 for k in 0..3 {
                     let fd = (act.all(a + h)[k] - act.all(a - h)[k]) / (2.0 * h);
-                    assert!((fd - d[k + 1]).abs() < 1e-8, "{act:?} {a} {k}: {fd} vs {}", d[k + 1]);
+                    assert!(
+                        (fd - d[k + 1]).abs() < 1e-8,
+                        "{act:?} {a} {k}: {fd} vs {}",
+                        d[k + 1]
+                    );
                 }
                 assert_eq!(act.value(a), d[0]);
                 assert_eq!(act.value_d1(a), (d[0], d[1]));

@@ -30,7 +30,11 @@ impl<'a, const D: usize> HiddenBasis<'a, D> {
 
 impl<const D: usize> Basis<D> for HiddenBasis<'_, D> {
     fn num_coefficients(&self) -> usize {
-        self.field.layer(self.field.architecture().widths().len()).0.len() + 1
+        self.field
+            .layer(self.field.architecture().widths().len())
+            .0
+            .len()
+            + 1
     }
 
     fn bounds(&self) -> Aabb<D> {
@@ -50,8 +54,7 @@ impl<const D: usize> Basis<D> for HiddenBasis<'_, D> {
         row.values.extend(h.iter().map(|v| o * v));
         row.values.push(o);
         if with_gradients {
-            row.gradients
-                .extend(g.iter().map(|gj| gj.map(|v| o * v)));
+            row.gradients.extend(g.iter().map(|gj| gj.map(|v| o * v)));
             row.gradients.push([0.0; D]);
         }
     }
@@ -73,7 +76,11 @@ pub struct RefitReport {
     pub elapsed: Duration,
 }
 
-fn data_term<const D: usize>(field: &NeuralField<D>, points: &[Point<D>], targets: &[f64]) -> (f64, f64) {
+fn data_term<const D: usize>(
+    field: &NeuralField<D>,
+    points: &[Point<D>],
+    targets: &[f64],
+) -> (f64, f64) {
     let mut v = vec![0.0; points.len()];
     field.values(points, &mut v);
     v.iter().zip(targets).fold((0.0, 0.0), |(s, m), (f, z)| {

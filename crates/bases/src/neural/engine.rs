@@ -122,7 +122,6 @@ impl Work {
         resize(&mut self.g1, w1 * (d + d * (d + 1) / 2));
         resize(&mut self.grad, layout.total);
     }
-
 }
 
 fn mat(data: &[f64], nrows: usize, ncols: usize) -> MatRef<'_, f64> {
@@ -471,7 +470,8 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
             }
         }
         let ab = &abar[..w * cols];
-        let (gw, gb) = grad[layout.weight[l]..layout.bias[l] + w].split_at_mut(layout.bias[l] - layout.weight[l]);
+        let (gw, gb) = grad[layout.weight[l]..layout.bias[l] + w]
+            .split_at_mut(layout.bias[l] - layout.weight[l]);
         for p in 0..n {
             for (g, v) in gb.iter_mut().zip(&ab[w * p..w * (p + 1)]) {
                 *g += v;
@@ -550,7 +550,12 @@ fn adjoint_jets<const D: usize>(
             let c = &g1[w * k..w * (k + 1)];
             for p in 0..n {
                 let r = w * p..w * (p + 1);
-                for (((o, g), s), c) in ab_v[r.clone()].iter_mut().zip(&gk[r.clone()]).zip(&d2[r]).zip(c) {
+                for (((o, g), s), c) in ab_v[r.clone()]
+                    .iter_mut()
+                    .zip(&gk[r.clone()])
+                    .zip(&d2[r])
+                    .zip(c)
+                {
                     *o += s * (g * c);
                 }
             }
@@ -574,24 +579,43 @@ fn adjoint_jets<const D: usize>(
                 );
                 for p in 0..n {
                     let r = w * p..w * (p + 1);
-                    for (((o, t), s3), cq) in ab_v[r.clone()].iter_mut().zip(&hq[r.clone()]).zip(&d3[r.clone()]).zip(cq) {
+                    for (((o, t), s3), cq) in ab_v[r.clone()]
+                        .iter_mut()
+                        .zip(&hq[r.clone()])
+                        .zip(&d3[r.clone()])
+                        .zip(cq)
+                    {
                         *o += t * (s3 * cq);
                     }
                     let (lo, hi) = ab_jets.split_at_mut(wn * (k + 1));
                     let ab_k = &mut lo[wn * k + r.start..wn * k + r.end];
-                    for (((o, t), s2), cm) in ab_k.iter_mut().zip(&hq[r.clone()]).zip(&d2[r.clone()]).zip(cm) {
+                    for (((o, t), s2), cm) in ab_k
+                        .iter_mut()
+                        .zip(&hq[r.clone()])
+                        .zip(&d2[r.clone()])
+                        .zip(cm)
+                    {
                         *o += s2 * (twice * t * cm);
                     }
                     if k != m {
                         let at = wn * (m - k - 1);
                         let ab_m = &mut hi[at + r.start..at + r.end];
-                        for (((o, t), s2), ck) in ab_m.iter_mut().zip(&hq[r.clone()]).zip(&d2[r.clone()]).zip(ck) {
+                        for (((o, t), s2), ck) in ab_m
+                            .iter_mut()
+                            .zip(&hq[r.clone()])
+                            .zip(&d2[r.clone()])
+                            .zip(ck)
+                        {
                             *o += s2 * (t * ck);
                         }
                     }
                 }
             } else {
-                let (ak, am, aq) = (&a_l[block(1 + k)], &a_l[block(1 + m)], &a_l[block(1 + D + q)]);
+                let (ak, am, aq) = (
+                    &a_l[block(1 + k)],
+                    &a_l[block(1 + m)],
+                    &a_l[block(1 + D + q)],
+                );
                 for (((((o, t), s3), s2), (ak, am)), aq) in ab_v
                     .iter_mut()
                     .zip(hq)

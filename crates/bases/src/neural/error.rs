@@ -47,13 +47,17 @@ pub enum NeuralError {
         expected: &'static str,
     },
     /// Curvature at auxiliary points was asked for with no auxiliary point.
-    #[error("λ = {lambda} > 0 with curvature at auxiliary points needs at least one auxiliary point (P = 0)")]
+    #[error(
+        "λ = {lambda} > 0 with curvature at auxiliary points needs at least one auxiliary point (P = 0)"
+    )]
     NoAuxiliaryPoints {
         /// λ.
         lambda: f64,
     },
     /// A domain of zero measure (a flat box) where the auxiliary points must be drawn.
-    #[error("the domain {min:?} – {max:?} has zero extent on some axis; auxiliary points need a box of positive measure")]
+    #[error(
+        "the domain {min:?} – {max:?} has zero extent on some axis; auxiliary points need a box of positive measure"
+    )]
     FlatDomain {
         /// Its lower corner.
         min: Vec<f64>,
@@ -69,9 +73,7 @@ pub enum NeuralError {
         got: usize,
     },
     /// Training produced a NaN or infinite loss (a learning rate too large, usually).
-    #[error(
-        "training diverged at step {step}: the loss is {loss} (try a smaller learning rate)"
-    )]
+    #[error("training diverged at step {step}: the loss is {loss} (try a smaller learning rate)")]
     Diverged {
         /// The step (1-based).
         step: usize,

@@ -407,9 +407,7 @@ impl<const D: usize> NeuralField<D> {
         }
         let hess: Vec<f64> = hh.iter().map(|v| o * dot(v)).collect();
         let features_grad = if order >= 1 {
-            (0..w)
-                .map(|j| std::array::from_fn(|k| hg[k][j]))
-                .collect()
+            (0..w).map(|j| std::array::from_fn(|k| hg[k][j])).collect()
         } else {
             Vec::new()
         };

@@ -45,7 +45,11 @@ fn check_jets<const D: usize>(f: &NeuralField<D>) {
             a[k] += h;
             b[k] -= h;
             let fd = (f.value(&a) - f.value(&b)) / (2.0 * h);
-            assert!((fd - g[k]).abs() < 1e-7 * (1.0 + g[k].abs()), "∂{k}: {fd} vs {}", g[k]);
+            assert!(
+                (fd - g[k]).abs() < 1e-7 * (1.0 + g[k].abs()),
+                "∂{k}: {fd} vs {}",
+                g[k]
+            );
             let (ga, gb) = (f.gradient(&a), f.gradient(&b));
             let full = f.hessian(&x);
             for l in 0..D {
@@ -109,7 +113,9 @@ fn trainer<const D: usize>(
 ) -> (Trainer<D>, NeuralParams) {
     let pts = random_points::<D>(70, 11);
     let targets: Vec<f64> = pts.iter().map(|p| p[0] * p[0] - 0.3).collect();
-    let mut params = NeuralParams::default().with_aux_points(150).with_dropout(dropout);
+    let mut params = NeuralParams::default()
+        .with_aux_points(150)
+        .with_dropout(dropout);
     params.curvature_at = at;
     let t = Trainer::new(f, &pts, &targets, &params, f.domain(), 0.37);
     (t, params)
@@ -143,7 +149,11 @@ fn check_loss_gradient<const D: usize>(f: &NeuralField<D>, at: CurvatureSites, d
         let fd = ((la.data + la.curvature) - (lb.data + lb.curvature)) / (2.0 * h);
         let err = (fd - grad[i]).abs() / (1.0 + grad[i].abs());
         worst = worst.max(err);
-        assert!(err < 1e-5, "parameter {i}: finite difference {fd}, gradient {}", grad[i]);
+        assert!(
+            err < 1e-5,
+            "parameter {i}: finite difference {fd}, gradient {}",
+            grad[i]
+        );
     }
     assert!(worst < 1e-5);
 }
@@ -157,14 +167,30 @@ fn loss_gradient_matches_finite_differences() {
             check_loss_gradient(&net::<2>(&[4], act, 8), at, 0.0);
         }
     }
-    check_loss_gradient(&net::<2>(&[32, 32], Activation::Tanh, 9), CurvatureSites::Auxiliary, 0.0);
-    check_loss_gradient(&net::<3>(&[32, 32], Activation::Tanh, 10), CurvatureSites::Auxiliary, 0.0);
+    check_loss_gradient(
+        &net::<2>(&[32, 32], Activation::Tanh, 9),
+        CurvatureSites::Auxiliary,
+        0.0,
+    );
+    check_loss_gradient(
+        &net::<3>(&[32, 32], Activation::Tanh, 10),
+        CurvatureSites::Auxiliary,
+        0.0,
+    );
 }
 
 #[test]
 fn dropout_gradient_matches_finite_differences_for_fixed_masks() {
-    check_loss_gradient(&net::<2>(&[6, 5], Activation::Tanh, 12), CurvatureSites::Auxiliary, 0.3);
-    check_loss_gradient(&net::<3>(&[5, 4], Activation::Softplus, 13), CurvatureSites::Constraints, 0.2);
+    check_loss_gradient(
+        &net::<2>(&[6, 5], Activation::Tanh, 12),
+        CurvatureSites::Auxiliary,
+        0.3,
+    );
+    check_loss_gradient(
+        &net::<3>(&[5, 4], Activation::Softplus, 13),
+        CurvatureSites::Constraints,
+        0.2,
+    );
 }
 
 #[test]
@@ -182,7 +208,11 @@ fn curvature_term_is_the_thin_plate_sum() {
             0.37 * (h[0][0] * h[0][0] + 2.0 * h[0][1] * h[0][1] + h[1][1] * h[1][1])
         })
         .sum();
-    assert!((parts.curvature - expected).abs() < 1e-10 * expected, "{} vs {expected}", parts.curvature);
+    assert!(
+        (parts.curvature - expected).abs() < 1e-10 * expected,
+        "{} vs {expected}",
+        parts.curvature
+    );
     assert_eq!(pairs(2), vec![(0, 0), (0, 1), (1, 1)]);
 }
 
@@ -197,7 +227,10 @@ fn thin_plate_energy_of_a_quadratic_is_exact() {
     let mut s = 0.0;
     for i in 0..4 {
         for j in 0..4 {
-            let p = [lo[0] + ext[0] * (i as f64 + 0.5) / 4.0, lo[1] + ext[1] * (j as f64 + 0.5) / 4.0];
+            let p = [
+                lo[0] + ext[0] * (i as f64 + 0.5) / 4.0,
+                lo[1] + ext[1] * (j as f64 + 0.5) / 4.0,
+            ];
             let h = f.hessian(&p);
             s += h[0][0].powi(2) + 2.0 * h[0][1].powi(2) + h[1][1].powi(2);
         }

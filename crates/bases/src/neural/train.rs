@@ -183,11 +183,13 @@ impl NeuralParams {
     /// # Errors
     /// [`NeuralError::InvalidParameter`] naming the first parameter out of range.
     pub fn validate(&self) -> Result<(), NeuralError> {
-        let bad = |name, value, expected| Err(NeuralError::InvalidParameter {
-            name,
-            value,
-            expected,
-        });
+        let bad = |name, value, expected| {
+            Err(NeuralError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
             return bad("λ (curvature weight)", self.lambda, "a finite value ≥ 0");
         }
@@ -427,7 +429,12 @@ impl<const D: usize> Trainer<D> {
 
     /// Draws the next set of auxiliary points (in chunk order).
     fn resample(&mut self) {
-        let n: usize = self.chunks.iter().filter(|c| c.aux).map(|c| c.points.len()).sum();
+        let n: usize = self
+            .chunks
+            .iter()
+            .filter(|c| c.aux)
+            .map(|c| c.points.len())
+            .sum();
         draw_points(&mut self.aux_rng, &self.domain, n, &mut self.scratch);
         let mut at = 0;
         for c in self.chunks.iter_mut().filter(|c| c.aux) {
@@ -524,12 +531,7 @@ impl Adam {
         let bc2_sqrt = (1.0 - self.beta2.powi(self.t)).sqrt();
         let step = self.lr / bc1;
         let (b1, b2) = (self.beta1, self.beta2);
-        for (((x, g), m), v) in theta
-            .iter_mut()
-            .zip(g)
-            .zip(&mut self.m)
-            .zip(&mut self.v)
-        {
+        for (((x, g), m), v) in theta.iter_mut().zip(g).zip(&mut self.m).zip(&mut self.v) {
             *m = b1 * *m + (1.0 - b1) * g;
             *v = b2 * *v + (1.0 - b2) * g * g;
             let denom = v.sqrt() / bc2_sqrt + self.eps;
@@ -675,7 +677,9 @@ impl<const D: usize> NeuralFit<D> {
             .zip(targets)
             .map(|(f, z)| (f - z).abs())
             .fold(0.0, f64::max);
-        if !(parts.data + parts.curvature).is_finite() || net.parameters().iter().any(|v| !v.is_finite()) {
+        if !(parts.data + parts.curvature).is_finite()
+            || net.parameters().iter().any(|v| !v.is_finite())
+        {
             return Err(NeuralError::Diverged {
                 step: p.steps,
                 loss: parts.data + parts.curvature,

@@ -110,7 +110,10 @@ mod tests {
 
     #[test]
     fn reads_both_dimensions_with_comments() {
-        let (_d, p) = file("c.xyv", "# header\n0.5 0 0\n\n0.1, 0.0, -1 # inside\n 1 1 1\n");
+        let (_d, p) = file(
+            "c.xyv",
+            "# header\n0.5 0 0\n\n0.1, 0.0, -1 # inside\n 1 1 1\n",
+        );
         let c = read_value_points::<2>(&p).unwrap();
         assert_eq!(c.points, vec![[0.5, 0.0], [0.1, 0.0], [1.0, 1.0]]);
         assert_eq!(c.values, vec![0.0, -1.0, 1.0]);
@@ -126,7 +129,10 @@ mod tests {
     fn errors_name_the_file_and_line() {
         let (_d, p) = file("bad.xyv", "0 0 0\n1 2\n");
         let e = read_value_points::<2>(&p).unwrap_err().to_string();
-        assert!(e.contains("bad.xyv:2") && e.contains("expected 3 numbers (x y value)"), "{e}");
+        assert!(
+            e.contains("bad.xyv:2") && e.contains("expected 3 numbers (x y value)"),
+            "{e}"
+        );
         let (_d, p) = file("nan.xyv", "0 0 0\n# c\n1 2 nan\n");
         match read_value_points::<2>(&p).unwrap_err() {
             Error::NonFinite {

@@ -149,9 +149,10 @@ fn tanh_parts(a: f64) -> (f64, f64) {
     let y = -2.0 * a.abs();
     let y = if y < -708.0 { -708.0 } else { y };
     let (e, ey) = expm1_nonpositive(y);
-    let d = e + 2.0;
-    let t = (-e / d).copysign(a);
-    let s = 4.0 * ey / (d * d);
+    // One division for both (the vector divider is the slow unit).
+    let inv = 1.0 / (e + 2.0);
+    let t = (-e * inv).copysign(a);
+    let s = 4.0 * ey * (inv * inv);
     (t, s)
 }
 

@@ -73,6 +73,14 @@ pub(crate) struct Work {
     g1: Vec<f64>,
     /// This chunk's gradient (the caller zeroes it).
     pub grad: Vec<f64>,
+    /// Whether the last hidden layer skips its second derivatives (see [`lean`]).
+    lean: bool,
+    /// The lean last layer's `U = w_out ⊙ mask ⊙ σ'` (`w × n`), `V = Wᵀ U` (`w' × n`) and
+    /// their adjoints.
+    lu: Vec<f64>,
+    lv: Vec<f64>,
+    lubar: Vec<f64>,
+    lvbar: Vec<f64>,
 }
 
 /// `1 + D + D(D+1)/2`: the columns of one point with jets.
@@ -92,6 +100,7 @@ impl Work {
         let hidden = layout.hidden();
         self.n = n;
         self.jets = jets;
+        self.lean = jets && hidden >= 2;
         resize(&mut self.u, d * n);
         for v in [
             &mut self.a,
@@ -105,8 +114,13 @@ impl Work {
         }
         for l in 0..hidden {
             let w = layout.dims[l + 1];
-            resize(&mut self.a[l], w * cols);
-            resize(&mut self.h[l], w * cols);
+            let layer_cols = if self.lean && l + 1 == hidden {
+                n * (1 + d)
+            } else {
+                cols
+            };
+            resize(&mut self.a[l], w * layer_cols);
+            resize(&mut self.h[l], w * layer_cols);
             resize(&mut self.d1[l], w * n);
             let jet_len = if jets { w * n } else { 0 };
             resize(&mut self.d2[l], jet_len);
@@ -121,6 +135,15 @@ impl Work {
         let w1 = layout.dims[1];
         resize(&mut self.g1, w1 * (d + d * (d + 1) / 2));
         resize(&mut self.grad, layout.total);
+        let (w, wp) = if self.lean {
+            (layout.dims[hidden], layout.dims[hidden - 1])
+        } else {
+            (0, 0)
+        };
+        resize(&mut self.lu, w * n);
+        resize(&mut self.lubar, w * n);
+        resize(&mut self.lv, wp * n);
+        resize(&mut self.lvbar, wp * n);
     }
 }
 
@@ -214,6 +237,7 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
             work.u[k + D * p] = (x[k] - centre[k]) / scale;
         }
     }
+    let lean = work.lean;
     let Work {
         u,
         a,
@@ -224,9 +248,12 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
         mask,
         f,
         g1,
+        lu,
+        lv,
         ..
     } = work;
     for l in 0..hidden {
+        let skip_hessian = lean && l + 1 == hidden;
         let w = layout.dims[l + 1];
         let wn = w * n;
         let weights = layout.weight(params, l);
@@ -254,7 +281,7 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
                 mat_mut(a_l, w, cols),
                 Accum::Replace,
                 mat(weights, w, prev),
-                mat(&h_done[l - 1], prev, cols),
+                mat(&h_done[l - 1][..prev * cols], prev, cols),
                 1.0,
                 Par::Seq,
             );
@@ -327,6 +354,9 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
                 let mut q = 0;
                 for k in 0..D {
                     for m in k..D {
+                        if skip_hessian {
+                            break;
+                        }
                         let ak = &a_l[(1 + k) * wn..(2 + k) * wn];
                         let am = &a_l[(1 + m) * wn..(2 + m) * wn];
                         let aq = &a_l[(1 + D + q) * wn..(2 + D + q) * wn];
@@ -357,20 +387,134 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
     // Output: f = o · (w · h_L + b) on the value block, o · (w · jets) elsewhere.
     let last = hidden;
     let w = layout.dims[last];
-    let cols = f.len();
+    let cols = if lean { (1 + D) * n } else { f.len() };
     matmul(
-        mat_mut(f, 1, cols),
+        mat_mut(&mut f[..cols], 1, cols),
         Accum::Replace,
         mat(layout.weight(params, last), 1, w),
-        mat(&h[last - 1], w, cols),
+        mat(&h[last - 1][..w * cols], w, cols),
         1.0,
         Par::Seq,
     );
     let b = layout.bias(params, last)[0];
     let o = net.output_scale();
-    for (c, v) in f.iter_mut().enumerate() {
+    for (c, v) in f[..cols].iter_mut().enumerate() {
         *v = if c < n { o * (*v + b) } else { o * *v };
     }
+    if lean {
+        lean_forward::<D>(net, n, a, h, d1, d2, mask, f, lu, lv);
+    }
+}
+
+/// The output's second derivatives when the last hidden layer carries no second derivatives
+/// of its own ("lean"): with `a = W h' + b` that layer's pre-activation, `h'` the layer below
+/// (with its packed Hessian blocks `Q_q`), `M` the dropout factors and `w` the output weights,
+///
+/// ```text
+/// ∂ₖ∂ₗ f = o · [ Σⱼ wⱼ Mⱼ σ''(aⱼ) ∂ₖaⱼ ∂ₗaⱼ  +  Σᵢ Vᵢ Q_{kl,i} ],    V = Wᵀ (w ⊙ M ⊙ σ'(a)),
+/// ```
+///
+/// which is `Σⱼ wⱼ Mⱼ (σ'' aₖ aₗ + σ' aₖₗ)` without forming `aₖₗ = W Q_{kl}`: one product of
+/// `Wᵀ` per point instead of `D(D+1)/2` of `W` — and the reverse pass saves as many.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn lean_forward<const D: usize>(
+    net: &NeuralField<D>,
+    n: usize,
+    a: &[Vec<f64>],
+    h: &[Vec<f64>],
+    d1: &[Vec<f64>],
+    d2: &[Vec<f64>],
+    mask: &[Vec<f64>],
+    f: &mut [f64],
+    lu: &mut [f64],
+    lv: &mut [f64],
+) {
+    let layout = net.layout();
+    let params = net.parameters();
+    let hidden = layout.hidden();
+    let last = hidden - 1;
+    let (w, wp) = (layout.dims[hidden], layout.dims[hidden - 1]);
+    let (wn, wpn) = (w * n, wp * n);
+    let w_out = layout.weight(params, hidden);
+    let m = &mask[last];
+    let (s1, s2) = (&d1[last], &d2[last]);
+    let a_l = &a[last];
+    // U = w ⊙ M ⊙ σ', then V = Wᵀ U.
+    for p in 0..n {
+        let r = w * p..w * (p + 1);
+        for ((o, s), wj) in lu[r.clone()].iter_mut().zip(&s1[r.clone()]).zip(w_out) {
+            *o = wj * s;
+        }
+        if !m.is_empty() {
+            for (o, mj) in lu[r.clone()].iter_mut().zip(&m[r]) {
+                *o *= mj;
+            }
+        }
+    }
+    matmul(
+        mat_mut(lv, wp, n),
+        Accum::Replace,
+        mat(layout.weight(params, hidden - 1), w, wp).transpose(),
+        mat(lu, w, n),
+        1.0,
+        Par::Seq,
+    );
+    let h_prev = &h[last - 1];
+    let o = net.output_scale();
+    let ones = vec![1.0; w];
+    let mut terms = vec![0.0; w];
+    let mut q = 0;
+    for k in 0..D {
+        for l in k..D {
+            let (ak, al) = (
+                &a_l[(1 + k) * wn..(2 + k) * wn],
+                &a_l[(1 + l) * wn..(2 + l) * wn],
+            );
+            let hq = &h_prev[(1 + D + q) * wpn..(2 + D + q) * wpn];
+            for p in 0..n {
+                let r = w * p..w * (p + 1);
+                let mrow = if m.is_empty() {
+                    &ones[..]
+                } else {
+                    &m[r.clone()]
+                };
+                // The products vectorise; the sum is in `dot`'s fixed order.
+                for ((((t, wo), mj), s), (x, y)) in terms
+                    .iter_mut()
+                    .zip(w_out)
+                    .zip(mrow)
+                    .zip(&s2[r.clone()])
+                    .zip(ak[r.clone()].iter().zip(&al[r.clone()]))
+                {
+                    *t = (wo * mj) * s * x * y;
+                }
+                let first = dot(&terms, &ones[..w]);
+                let rp = wp * p..wp * (p + 1);
+                let second = dot(&lv[rp.clone()], &hq[rp]);
+                f[(1 + D + q) * n + p] = o * (first + second);
+            }
+            q += 1;
+        }
+    }
+}
+
+/// `Σ xᵢ yᵢ` in a fixed order (four interleaved partial sums, then `(s₀ + s₁) + (s₂ + s₃)`).
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let mut s = [0.0; 4];
+    let (xc, xr) = x.as_chunks::<4>();
+    let (yc, yr) = y.as_chunks::<4>();
+    for (a, b) in xc.iter().zip(yc) {
+        for i in 0..4 {
+            s[i] += a[i] * b[i];
+        }
+    }
+    let mut tail = 0.0;
+    for (a, b) in xr.iter().zip(yr) {
+        tail += a * b;
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
 /// The reverse pass: adds to `work.grad` the gradient, with respect to the parameters, of
@@ -402,6 +546,7 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
     let jets = work.jets;
     let hidden = layout.hidden();
     let scale = net.input_scale();
+    let lean = work.lean;
     let Work {
         u,
         a,
@@ -415,6 +560,10 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
         abar,
         g1,
         grad,
+        lu,
+        lv,
+        lubar,
+        lvbar,
         ..
     } = work;
     let cols = fbar.len();
@@ -422,28 +571,42 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
     for v in fbar.iter_mut() {
         *v *= o;
     }
-    // Output layer.
+    // Output layer (the lean last hidden layer with it).
     let last = hidden;
     let w = layout.dims[last];
-    {
-        let (gw, gb) = grad[layout.weight[last]..layout.bias[last] + 1].split_at_mut(w);
-        matmul(
-            mat_mut(gw, w, 1),
-            Accum::Add,
-            mat(&h[last - 1], w, cols),
-            mat(fbar, cols, 1),
-            1.0,
-            Par::Seq,
+    let top = if lean {
+        let lean_work = LeanBack {
+            u: lu,
+            v: lv,
+            ubar: lubar,
+            vbar: lvbar,
+        };
+        lean_backward::<D>(
+            net, n, a, h, d1, d2, d3, mask, fbar, hbar, abar, grad, lean_work,
         );
-        gb[0] += fbar[..n].iter().sum::<f64>();
-    }
-    let w_out = layout.weight(params, last);
-    for (c, y) in fbar.iter().enumerate() {
-        for (o, wj) in hbar[w * c..w * (c + 1)].iter_mut().zip(w_out) {
-            *o = wj * y;
+        hidden - 1
+    } else {
+        {
+            let (gw, gb) = grad[layout.weight[last]..layout.bias[last] + 1].split_at_mut(w);
+            matmul(
+                mat_mut(gw, w, 1),
+                Accum::Add,
+                mat(&h[last - 1], w, cols),
+                mat(fbar, cols, 1),
+                1.0,
+                Par::Seq,
+            );
+            gb[0] += fbar[..n].iter().sum::<f64>();
         }
-    }
-    for l in (0..hidden).rev() {
+        let w_out = layout.weight(params, last);
+        for (c, y) in fbar.iter().enumerate() {
+            for (o, wj) in hbar[w * c..w * (c + 1)].iter_mut().zip(w_out) {
+                *o = wj * y;
+            }
+        }
+        hidden
+    };
+    for l in (0..top).rev() {
         let w = layout.dims[l + 1];
         let wn = w * n;
         let hb = &mut hbar[..w * cols];
@@ -645,4 +808,178 @@ fn adjoint_jets<const D: usize>(
             q += 1;
         }
     }
+}
+
+/// The lean last layer's buffers in the reverse pass.
+struct LeanBack<'a> {
+    u: &'a [f64],
+    v: &'a [f64],
+    ubar: &'a mut [f64],
+    vbar: &'a mut [f64],
+}
+
+/// The reverse pass through the output layer and a lean last hidden layer (see
+/// [`lean_forward`]): adds their parameters' gradients to `grad` and leaves in `hbar` the
+/// adjoints of every block of the layer below.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn lean_backward<const D: usize>(
+    net: &NeuralField<D>,
+    n: usize,
+    a: &[Vec<f64>],
+    h: &[Vec<f64>],
+    d1: &[Vec<f64>],
+    d2: &[Vec<f64>],
+    d3: &[Vec<f64>],
+    mask: &[Vec<f64>],
+    ybar: &[f64],
+    hbar: &mut [f64],
+    abar: &mut [f64],
+    grad: &mut [f64],
+    lw: LeanBack<'_>,
+) {
+    let layout = net.layout();
+    let params = net.parameters();
+    let hidden = layout.hidden();
+    let last = hidden - 1;
+    let (w, wp) = (layout.dims[hidden], layout.dims[hidden - 1]);
+    let (wn, wpn) = (w * n, wp * n);
+    let nl = (1 + D) * n;
+    let w_out = layout.weight(params, hidden);
+    let w_last = layout.weight(params, last);
+    let m = &mask[last];
+    let (s1, s2, s3) = (&d1[last], &d2[last], &d3[last]);
+    let (a_l, h_l, h_prev) = (&a[last], &h[last], &h[last - 1]);
+    let np = D * (D + 1) / 2;
+    // Output weights and bias through the value and gradient outputs.
+    {
+        let (gw, gb) = grad[layout.weight[hidden]..layout.bias[hidden] + 1].split_at_mut(w);
+        matmul(
+            mat_mut(gw, w, 1),
+            Accum::Add,
+            mat(&h_l[..w * nl], w, nl),
+            mat(&ybar[..nl], nl, 1),
+            1.0,
+            Par::Seq,
+        );
+        gb[0] += ybar[..n].iter().sum::<f64>();
+    }
+    // V̄ = Σ_q ȳ_q Q_q and the adjoints of the Hessian blocks below, Q̄_q = ȳ_q V.
+    lw.vbar.fill(0.0);
+    for q in 0..np {
+        let hq = &h_prev[(1 + D + q) * wpn..(2 + D + q) * wpn];
+        let out = &mut hbar[(1 + D + q) * wpn..(2 + D + q) * wpn];
+        for p in 0..n {
+            let y = ybar[(1 + D + q) * n + p];
+            let r = wp * p..wp * (p + 1);
+            for ((vb, qv), (ob, v)) in lw.vbar[r.clone()]
+                .iter_mut()
+                .zip(&hq[r.clone()])
+                .zip(out[r.clone()].iter_mut().zip(&lw.v[r]))
+            {
+                *vb += y * qv;
+                *ob = y * v;
+            }
+        }
+    }
+    // W̄ += U V̄ᵀ, Ū = W V̄.
+    matmul(
+        mat_mut(&mut grad[layout.weight[last]..layout.bias[last]], w, wp),
+        Accum::Add,
+        mat(lw.u, w, n),
+        mat(lw.vbar, wp, n).transpose(),
+        1.0,
+        Par::Seq,
+    );
+    matmul(
+        mat_mut(lw.ubar, w, n),
+        Accum::Replace,
+        mat(w_last, w, wp),
+        mat(lw.vbar, wp, n),
+        1.0,
+        Par::Seq,
+    );
+    // Ā of the last hidden layer (value and gradient blocks), and the rest of w̄_out: per
+    // point, loops over the neurons with the point's adjoints hoisted (they vectorise).
+    let gw_out = &mut grad[layout.weight[hidden]..layout.weight[hidden] + w];
+    let ones = vec![1.0; w];
+    let (ab_v, ab_rest) = abar[..w * nl].split_at_mut(wn);
+    let mut ab_k: Vec<&mut [f64]> = ab_rest.chunks_exact_mut(wn).collect();
+    let mut yq = vec![0.0; np];
+    for p in 0..n {
+        let r = w * p..w * (p + 1);
+        let mrow = if m.is_empty() {
+            &ones[..]
+        } else {
+            &m[r.clone()]
+        };
+        let yv = ybar[p];
+        let yk: [f64; D] = std::array::from_fn(|k| ybar[(1 + k) * n + p]);
+        for (q, y) in yq.iter_mut().enumerate() {
+            *y = ybar[(1 + D + q) * n + p];
+        }
+        let ak: [&[f64]; D] =
+            std::array::from_fn(|k| &a_l[(1 + k) * wn + r.start..(1 + k) * wn + r.end]);
+        let (t1, t2, t3) = (&s1[r.clone()], &s2[r.clone()], &s3[r.clone()]);
+        let ub = &lw.ubar[r.clone()];
+        for j in 0..w {
+            let mj = mrow[j];
+            let wj = w_out[j] * mj;
+            let mut gout = ub[j] * mj * t1[j];
+            let mut s2bar = 0.0;
+            let mut av = (w_out[j] * yv) * mj * t1[j] + (ub[j] * wj) * t2[j];
+            let mut akbar = [0.0; D];
+            let mut q = 0;
+            for k in 0..D {
+                let a = ak[k][j];
+                let gk = (w_out[j] * yk[k]) * mj;
+                av += gk * t2[j] * a;
+                akbar[k] += gk * t1[j];
+                for l in k..D {
+                    let b = ak[l][j];
+                    let y = yq[q];
+                    s2bar += y * wj * a * b;
+                    gout += y * mj * t2[j] * a * b;
+                    let yw = y * wj * t2[j];
+                    if k == l {
+                        akbar[k] += 2.0 * yw * a;
+                    } else {
+                        akbar[k] += yw * b;
+                        akbar[l] += yw * a;
+                    }
+                    q += 1;
+                }
+            }
+            av += s2bar * t3[j];
+            ab_v[r.start + j] = av;
+            for (block, v) in ab_k.iter_mut().zip(akbar) {
+                block[r.start + j] = v;
+            }
+            gw_out[j] += gout;
+        }
+    }
+    // Through a = W h' + b on the value and gradient blocks.
+    let gb_last = &mut grad[layout.bias[last]..layout.bias[last] + w];
+    for p in 0..n {
+        for (g, v) in gb_last.iter_mut().zip(&abar[w * p..w * (p + 1)]) {
+            *g += v;
+        }
+    }
+    let gw_last = &mut grad[layout.weight[last]..layout.bias[last]];
+    matmul(
+        mat_mut(gw_last, w, wp),
+        Accum::Add,
+        mat(&abar[..w * nl], w, nl),
+        mat(&h_prev[..wp * nl], wp, nl).transpose(),
+        1.0,
+        Par::Seq,
+    );
+    matmul(
+        mat_mut(&mut hbar[..wp * nl], wp, nl),
+        Accum::Replace,
+        mat(w_last, w, wp).transpose(),
+        mat(&abar[..w * nl], w, nl),
+        1.0,
+        Par::Seq,
+    );
 }

@@ -606,7 +606,7 @@ impl<const D: usize> NeuralFit<D> {
         points: &[Point<D>],
         targets: &[f64],
         initial: Option<NeuralField<D>>,
-        monitor: &mut dyn FnMut(&TrainProgress) -> ControlFlow<()>,
+        monitor: &mut (dyn FnMut(&TrainProgress) -> ControlFlow<()> + Send),
     ) -> Result<Trained<D>, NeuralError> {
         let start = Instant::now();
         let p = &self.params;
@@ -640,34 +640,39 @@ impl<const D: usize> NeuralFit<D> {
         let mut adam = Adam::new(net.parameters().len(), p);
         let mut grad = vec![0.0; net.parameters().len()];
         let mut history = Vec::with_capacity(p.steps);
-        for step in 0..p.steps {
-            if p.resample_aux && step > 0 {
-                trainer.resample();
-            }
-            if trainer.dropout > 0.0 {
-                trainer.draw_masks();
-            }
-            let parts = trainer.evaluate(&net, true, &mut grad);
-            let loss = parts.data + parts.curvature;
-            if !loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
-                return Err(NeuralError::Diverged {
+        // The loop runs on a worker of the current rayon pool, so that each step's parallel
+        // pass neither wakes the calling thread nor waits for it (a step is ~0.3 ms).
+        rayon::scope(|_| -> Result<(), NeuralError> {
+            for step in 0..p.steps {
+                if p.resample_aux && step > 0 {
+                    trainer.resample();
+                }
+                if trainer.dropout > 0.0 {
+                    trainer.draw_masks();
+                }
+                let parts = trainer.evaluate(&net, true, &mut grad);
+                let loss = parts.data + parts.curvature;
+                if !loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
+                    return Err(NeuralError::Diverged {
+                        step: step + 1,
+                        loss,
+                    });
+                }
+                history.push(loss);
+                adam.step(net.parameters_mut(), &grad);
+                let progress = TrainProgress {
                     step: step + 1,
+                    steps: p.steps,
                     loss,
-                });
+                    data_term: parts.data,
+                    curvature_term: parts.curvature,
+                };
+                if monitor(&progress).is_break() {
+                    return Err(NeuralError::Cancelled { steps: step + 1 });
+                }
             }
-            history.push(loss);
-            adam.step(net.parameters_mut(), &grad);
-            let progress = TrainProgress {
-                step: step + 1,
-                steps: p.steps,
-                loss,
-                data_term: parts.data,
-                curvature_term: parts.curvature,
-            };
-            if monitor(&progress).is_break() {
-                return Err(NeuralError::Cancelled { steps: step + 1 });
-            }
-        }
+            Ok(())
+        })?;
         trainer.without_dropout(&net);
         let parts = trainer.evaluate(&net, false, &mut grad);
         let mut values = vec![0.0; points.len()];

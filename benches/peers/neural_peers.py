@@ -30,15 +30,23 @@ steps.
      median of R (each a fresh model from the exported weights and a fresh optimiser). Only the
      training loop is timed (no imports, data loading or model set-up), on both sides.
   3. Prints and writes out/neural_peers.md / .csv: times, ms/step, the ratio PyTorch ÷ zeroset
-     (> 1: zeroset is faster), the max constraint residual per seed on both sides, and the bars
-     (PASS / FAIL, exit 0):
+     (> 1: zeroset is faster), the max constraint residual per seed on both sides — zeroset after
+     Adam alone (the same model and arithmetic as PyTorch's) and after its least-squares refit of
+     the output layer (`--refit-last-layer` in the CLI; dense QR, ~1 ms) — and the bars (PASS /
+     FAIL, exit 0):
        - speed: PyTorch (1 thread) ms ÷ zeroset (RAYON_NUM_THREADS=1) ms ≥ 5;
        - accuracy: zeroset's max constraint residual ≤ PyTorch's, on the timed seed and as the
-         median over --seeds.
+         median over --seeds, for Adam alone and with the refit.
 
-`--float64` adds a PyTorch float64 run (timed the same way) to separate the precision from
-the arithmetic. The machine is shared in CI-like set-ups: run it when nothing else runs, and
-look at the load averages in the report.
+Why both: zeroset follows PyTorch in float64 step for step (the agreement bar: after
+--agree-steps = 100 steps the residuals agree to ~1e-13), but from a few hundred steps on the
+optimisation amplifies rounding — even between two float64 implementations that sum in another
+order — until the 3000-step residual is a draw from the same distribution on both sides; against
+PyTorch float32 either side wins on a given seed. The median over seeds is the fair comparison of
+Adam alone; the refit lowers the data term for certain (and raises the curvature).
+
+The machine is shared in CI-like set-ups: run it when nothing else runs, and look at the load
+averages in the report.
 """
 
 from __future__ import annotations
@@ -65,11 +73,14 @@ BAR_SPEED = 5.0
 def parse_args() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--repeat", type=int, default=5, help="timed runs after one warm-up (default 5)")
-    p.add_argument("--seeds", default="0,1,2,3,4", help="seeds for the residual comparison; the first is timed")
+    p.add_argument("--seeds", default="0,1,2,3,4,5,6,7,8,9",
+                   help="seeds for the residual comparison; the first is timed (default 0 to 9)")
     p.add_argument("--steps", type=int, default=3000, help="Adam steps (default 3000)")
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32",
                    help="PyTorch's precision for the bar (default float32, as in PEERS.md)")
     p.add_argument("--float64", action="store_true", help="also time PyTorch in float64 (informational)")
+    p.add_argument("--agree-steps", type=int, default=100,
+                   help="steps of the float64 agreement check (default 100; 0 skips it)")
     p.add_argument("--out", type=Path, default=common.HERE / "out")
     p.add_argument("--skip-build", action="store_true", help="reuse the built example")
     a = p.parse_args()
@@ -222,15 +233,27 @@ def main() -> None:
         print(f"    {th64['ms']:.1f} ms ({th64['ms_per_step']:.3f} ms/step), residual {th64['max_residual']:.4f}",
               flush=True)  # fmt: skip
 
-    seeds = [(timed_seed, zs1["max_residual"], th["max_residual"])]
+    seeds = [(timed_seed, zs1["max_residual"], zs1["refit_max_residual"], th["max_residual"])]
     for s in args.seed_list[1:]:
         d = out / "neural" / f"seed{s}"
         d.mkdir(parents=True, exist_ok=True)
         print(f"\n--- residuals, seed {s} ---", flush=True)
-        z = run_zeroset(binary, d, s, args.steps, 1, None)["max_residual"]
+        zj = run_zeroset(binary, d, s, args.steps, 1, None)
         t = torch_residual(d, args.dtype, args.steps, np)
-        print(f"  zeroset {z:.4f}, PyTorch {t:.4f}", flush=True)
-        seeds.append((s, z, t))
+        print(f"  zeroset {zj['max_residual']:.4f} (refit {zj['refit_max_residual']:.4f}), PyTorch {t:.4f}",
+              flush=True)  # fmt: skip
+        seeds.append((s, zj["max_residual"], zj["refit_max_residual"], t))
+    agree = None
+    if args.agree_steps > 0:
+        d = out / "neural" / f"agree_seed{timed_seed}"
+        d.mkdir(parents=True, exist_ok=True)
+        print(f"\n--- agreement: {args.agree_steps} steps in float64 on both sides, seed {timed_seed} ---", flush=True)
+        zj = run_zeroset(binary, d, timed_seed, args.agree_steps, 1, None)
+        arrays, layers = load_case(d, np)
+        train, residual = torch_trainer(arrays, layers, "float64", args.agree_steps)
+        _, net = train()
+        agree = (zj["max_residual"], residual(net))
+        print(f"  zeroset {agree[0]!r}, PyTorch float64 {agree[1]!r}", flush=True)
     load_end = common.loadavg()
 
     ratio1 = th["ms"] / zs1["ms"]
@@ -247,18 +270,30 @@ def main() -> None:
     if th64:
         body.append(["PyTorch", "1", "float64", f"{th64['ms']:.1f}", f"{th64['ms_per_step']:.4f}",
                      f"{th['ms'] / th64['ms']:.2f}×", f"{th64['max_residual']:.4f}"])  # fmt: skip
-    seed_header = ["seed", "zeroset residual", f"PyTorch {args.dtype} residual", "zeroset ≤ PyTorch"]
-    seed_body = [[str(s), f"{z:.4f}", f"{t:.4f}", "yes" if z <= t else "no"] for s, z, t in seeds]
-    med_z = statistics.median(z for _, z, _ in seeds)
-    med_t = statistics.median(t for _, _, t in seeds)
-    seed_body.append(["median", f"{med_z:.4f}", f"{med_t:.4f}", "yes" if med_z <= med_t else "no"])
+    seed_header = ["seed", "zeroset (Adam)", "zeroset + refit", f"PyTorch {args.dtype}", "Adam ≤ PyTorch",
+                   "refit ≤ PyTorch"]  # fmt: skip
+    yes = lambda ok: "yes" if ok else "no"  # noqa: E731
+    seed_body = [[str(s), f"{z:.4f}", f"{zr:.4f}", f"{t:.4f}", yes(z <= t), yes(zr <= t)] for s, z, zr, t in seeds]
+    med_z = statistics.median(z for _, z, _, _ in seeds)
+    med_zr = statistics.median(zr for _, _, zr, _ in seeds)
+    med_t = statistics.median(t for _, _, _, t in seeds)
+    seed_body.append(["median", f"{med_z:.4f}", f"{med_zr:.4f}", f"{med_t:.4f}", yes(med_z <= med_t),
+                      yes(med_zr <= med_t)])  # fmt: skip
 
     bars = common.Bars()
     bars.check(f"speed: PyTorch (1 thread, {args.dtype}) ÷ zeroset (1 thread) ≥ {BAR_SPEED:g}", ratio1 >= BAR_SPEED,
                f"{ratio1:.2f}× ({th['ms']:.0f} ms / {zs1['ms']:.0f} ms); all threads {ratio_all:.2f}×")  # fmt: skip
-    bars.check("accuracy: zeroset max residual ≤ PyTorch's (timed seed)", seeds[0][1] <= seeds[0][2],
-               f"{seeds[0][1]:.4f} vs {seeds[0][2]:.4f}")  # fmt: skip
-    bars.check(f"accuracy: median over seeds {args.seeds}", med_z <= med_t, f"{med_z:.4f} vs {med_t:.4f}")
+    s0 = seeds[0]
+    bars.check("accuracy, Adam alone: zeroset max residual ≤ PyTorch's (timed seed)", s0[1] <= s0[3],
+               f"{s0[1]:.4f} vs {s0[3]:.4f}")  # fmt: skip
+    bars.check(f"accuracy, Adam alone: median over seeds {args.seeds}", med_z <= med_t, f"{med_z:.4f} vs {med_t:.4f}")
+    bars.check("accuracy, with the refit: zeroset ≤ PyTorch (timed seed)", s0[2] <= s0[3],
+               f"{s0[2]:.4f} vs {s0[3]:.4f}")  # fmt: skip
+    bars.check(f"accuracy, with the refit: median over seeds {args.seeds}", med_zr <= med_t,
+               f"{med_zr:.4f} vs {med_t:.4f}")  # fmt: skip
+    if agree:
+        bars.check(f"same model: |zeroset − PyTorch float64| max residual ≤ 1e-9 after {args.agree_steps} steps",
+                   abs(agree[0] - agree[1]) <= 1e-9, f"{agree[0]:.15f} vs {agree[1]:.15f}")  # fmt: skip
 
     print("\n" + common.render_text(header, body, left=3))
     print("\n" + common.render_text(seed_header, seed_body, left=1))
@@ -276,8 +311,8 @@ def main() -> None:
             if r:
                 w.writerow(["pytorch", 1, name, r["ms"], r["ms_per_step"], r["max_residual"],
                             " ".join(f"{t:.3f}" for t in r["times_ms"])])  # fmt: skip
-        for s, z, t in seeds:
-            w.writerow([f"seed {s}", "", "", "", "", f"zeroset {z!r} pytorch {t!r}", ""])
+        for s, z, zr, t in seeds:
+            w.writerow([f"seed {s}", "", "", "", "", f"zeroset {z!r} refit {zr!r} pytorch {t!r}", ""])
     lines = [
         "## Neural curve: zeroset vs PyTorch (CPU, one thread)",
         "",

@@ -43,7 +43,7 @@
 //! | 16·D | bounding box min then max (`f64`) |
 //!
 //! The `neural` payload, for the net `f(x) = o · N((x − c)/h)` of
-//! [`NeuralField`](crate::neural::NeuralField) (added within version 2: a reader from before it
+//! [`NeuralField`] (added within version 2: a reader from before it
 //! reports the kind as unknown):
 //!
 //! | bytes | content |

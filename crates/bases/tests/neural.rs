@@ -1,7 +1,7 @@
 //! Neural fields: training behaviour, determinism across thread counts, bad input, the
 //! last-layer refit through any least-squares solver, and the field file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use zeroset_bases::field_file::{
     AnyField, FieldFileError, KIND_NEURAL, decode_any, encode_neural, read_any_field,
@@ -259,6 +259,7 @@ fn bad_input_gives_specific_errors() {
         (quick(5).with_lambda(f64::NAN), "λ"),
         (quick(5).with_learning_rate(0.0), "learning rate"),
         (quick(5).with_dropout(1.0), "dropout"),
+        (quick(5).with_aux_points(usize::MAX), "auxiliary points"),
     ] {
         let e = NeuralFit::new(params).fit(&p, &z).unwrap_err();
         assert!(
@@ -395,25 +396,6 @@ fn rescaling_moves_the_field() {
     assert!((plain.value(&[c[0], c[1]]) - t.field.value(&[0.0, 0.0])).abs() < 1e-15);
 }
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("zsf-neural-{name}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-    fn file(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn assert_same_field<const D: usize>(a: &NeuralField<D>, b: &NeuralField<D>, probes: &[Point<D>]) {
     assert_eq!(a, b);
     for x in probes {
@@ -424,12 +406,12 @@ fn assert_same_field<const D: usize>(a: &NeuralField<D>, b: &NeuralField<D>, pro
 
 #[test]
 fn field_files_round_trip_bit_for_bit() {
-    let dir = TempDir::new("roundtrip");
+    let dir = tempfile::tempdir().unwrap();
     let two = train2(quick(20))
         .field
         .transformed([0.5, 0.25], 2.0, 2.0)
         .unwrap();
-    let path2 = dir.file("curve.zsf");
+    let path2 = dir.path().join("curve.zsf");
     write_neural_field(&path2, &two).unwrap();
     let AnyField::Neural(back) = read_any_field::<2>(&path2).unwrap() else {
         panic!("not a neural field");
@@ -440,7 +422,7 @@ fn field_files_round_trip_bit_for_bit() {
     let mut params = quick(10);
     params.architecture = Architecture::new(vec![7, 5, 3], Activation::Softplus).unwrap();
     let three = NeuralFit::new(params).fit(&p, &z).unwrap().field;
-    let path3 = dir.file("sphere.zsf");
+    let path3 = dir.path().join("sphere.zsf");
     write_neural_field(&path3, &three).unwrap();
     let back = read_any_field::<3>(&path3).unwrap();
     assert_eq!(back.kind(), KIND_NEURAL);
@@ -480,8 +462,8 @@ fn corrupt_truncated_and_mismatched_files_are_reported() {
         matches!(e, FieldFileError::WrongDimension { found: 2, .. }),
         "{e}"
     );
-    let dir = TempDir::new("kinds");
-    let file = dir.file("net.zsf");
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("net.zsf");
     write_neural_field(&file, &field).unwrap();
     let e = read_field::<2>(&file).unwrap_err().to_string();
     assert!(e.contains("neural field") && e.contains("[32, 32]"), "{e}");

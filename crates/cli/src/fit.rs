@@ -305,26 +305,14 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     if let Some(format) = &args.format {
         options = options.with_format(format.parse().context("--format")?);
     }
-    let cloud = match read_point_cloud_with(path, &options) {
-        Ok(cloud) => cloud,
-        Err(Error::NonFinite {
-            record,
-            line,
-            field,
-            value,
-            ..
-        }) => {
-            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
-            bail!(
-                "{}: {at}record {record}: non-finite {field} ({value}); zeroset fit needs \
-                 finite coordinates and normals (`zeroset info` counts them all)",
-                path.display()
-            );
-        }
-        Err(e) => {
-            return Err(anyhow::Error::new(e).context(format!("reading {}", path.display())));
-        }
-    };
+    let cloud = read_point_cloud_with(path, &options).map_err(|e| {
+        read_error(
+            path,
+            e,
+            "record",
+            "zeroset fit needs finite coordinates and normals (`zeroset info` counts them all)",
+        )
+    })?;
     if cloud.normals().is_none() {
         bail!(
             "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \
@@ -333,6 +321,27 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     Ok(cloud)
+}
+
+/// A reading error for the user: a non-finite value named by file, line, `noun` (record,
+/// constraint) and field, followed by `advice`; any other error with the file as context.
+pub(crate) fn read_error(path: &Path, e: Error, noun: &str, advice: &str) -> anyhow::Error {
+    match e {
+        Error::NonFinite {
+            record,
+            line,
+            field,
+            value,
+            ..
+        } => {
+            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
+            anyhow::anyhow!(
+                "{}: {at}{noun} {record}: non-finite {field} ({value}); {advice}",
+                path.display()
+            )
+        }
+        e => anyhow::Error::new(e).context(format!("reading {}", path.display())),
+    }
 }
 
 pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {

@@ -35,13 +35,13 @@ use zeroset_bases::neural::{
     Activation, Architecture, NeuralField, NeuralFit, NeuralParams, RefitReport, Trained,
 };
 use zeroset_bases::rbf::{Constraints, Offset, Prescribed};
-use zeroset_field_core::Error;
 use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::io::{read_value_points, value_file_dimension};
 use zeroset_solvers::DenseQr;
 
 use crate::fit::{
     AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, more, print_check, print_input,
+    read_error,
 };
 use crate::info::g;
 
@@ -222,24 +222,8 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 
 fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let path = &args.points;
-    let c = match read_value_points::<D>(path) {
-        Ok(c) => c,
-        Err(Error::NonFinite {
-            record,
-            line,
-            field,
-            value,
-            ..
-        }) => {
-            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
-            bail!(
-                "{}: {at}constraint {record}: non-finite {field} ({value}); the constraints \
-                 must be finite",
-                path.display()
-            );
-        }
-        Err(e) => return Err(anyhow::Error::new(e).context(format!("reading {}", path.display()))),
-    };
+    let c = read_value_points::<D>(path)
+        .map_err(|e| read_error(path, e, "constraint", "the constraints must be finite"))?;
     let n = c.points.len();
     line(
         "constraints",

@@ -1291,20 +1291,19 @@ fn fit_neural_on_a_small_cloud_then_mesh_info_preview_and_restore() {
     );
     // Restoration samples the neural field on a grid like an RBF field.
     let restored = dir.path().join("restored.zsf");
-    let o = zeroset([
-        OsStr::new("restore"),
-        field.as_os_str(),
-        OsStr::new("--mode"),
-        OsStr::new("denoise"),
-        OsStr::new("--mask"),
-        OsStr::new("0.0,-0.3,0.2:0.2,-0.1,0.4"),
-        OsStr::new("--coarse"),
-        OsStr::new("3,3,3"),
-        OsStr::new("--grid"),
-        OsStr::new("24,24,24"),
-        OsStr::new("-o"),
-        restored.as_os_str(),
-    ]);
+    let (f, r) = (field.to_str().unwrap(), restored.to_str().unwrap());
+    let o = zeroset(
+        [
+            "restore",
+            f,
+            "--mode",
+            "denoise",
+            "--mask",
+            "0.0,-0.3,0.2:0.2,-0.1,0.4",
+        ]
+        .into_iter()
+        .chain(["--coarse", "3,3,3", "--grid", "24,24,24", "-o", r]),
+    );
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert!(stdout(&o).contains("neural field"), "{}", stdout(&o));
 }

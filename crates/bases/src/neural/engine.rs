@@ -402,7 +402,15 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
         *v = if c < n { o * (*v + b) } else { o * *v };
     }
     if lean {
-        lean_forward::<D>(net, n, a, h, d1, d2, mask, f, lu, lv);
+        let state = Layers {
+            a: &a[..],
+            h: &h[..],
+            d1: &d1[..],
+            d2: &d2[..],
+            d3: &d3[..],
+            mask: &mask[..],
+        };
+        lean_forward::<D>(net, n, state, f, lu, lv);
     }
 }
 
@@ -416,20 +424,18 @@ fn forward_imp<const D: usize>(net: &NeuralField<D>, points: &[Point<D>], work: 
 ///
 /// which is `Σⱼ wⱼ Mⱼ (σ'' aₖ aₗ + σ' aₖₗ)` without forming `aₖₗ = W Q_{kl}`: one product of
 /// `Wᵀ` per point instead of `D(D+1)/2` of `W` — and the reverse pass saves as many.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn lean_forward<const D: usize>(
     net: &NeuralField<D>,
     n: usize,
-    a: &[Vec<f64>],
-    h: &[Vec<f64>],
-    d1: &[Vec<f64>],
-    d2: &[Vec<f64>],
-    mask: &[Vec<f64>],
+    state: Layers<'_>,
     f: &mut [f64],
     lu: &mut [f64],
     lv: &mut [f64],
 ) {
+    let Layers {
+        a, h, d1, d2, mask, ..
+    } = state;
     let layout = net.layout();
     let params = net.parameters();
     let hidden = layout.hidden();
@@ -581,9 +587,15 @@ fn backward_imp<const D: usize>(net: &NeuralField<D>, work: &mut Work) {
             ubar: lubar,
             vbar: lvbar,
         };
-        lean_backward::<D>(
-            net, n, a, h, d1, d2, d3, mask, fbar, hbar, abar, grad, lean_work,
-        );
+        let state = Layers {
+            a: &a[..],
+            h: &h[..],
+            d1: &d1[..],
+            d2: &d2[..],
+            d3: &d3[..],
+            mask: &mask[..],
+        };
+        lean_backward::<D>(net, n, state, fbar, hbar, abar, grad, lean_work);
         hidden - 1
     } else {
         {
@@ -810,6 +822,18 @@ fn adjoint_jets<const D: usize>(
     }
 }
 
+/// The per-layer state the forward pass leaves: pre-activations, activations, `σ'`, `σ''`,
+/// `σ'''` and dropout factors (see [`Work`]).
+#[derive(Clone, Copy)]
+struct Layers<'a> {
+    a: &'a [Vec<f64>],
+    h: &'a [Vec<f64>],
+    d1: &'a [Vec<f64>],
+    d2: &'a [Vec<f64>],
+    d3: &'a [Vec<f64>],
+    mask: &'a [Vec<f64>],
+}
+
 /// The lean last layer's buffers in the reverse pass.
 struct LeanBack<'a> {
     u: &'a [f64],
@@ -826,18 +850,21 @@ struct LeanBack<'a> {
 fn lean_backward<const D: usize>(
     net: &NeuralField<D>,
     n: usize,
-    a: &[Vec<f64>],
-    h: &[Vec<f64>],
-    d1: &[Vec<f64>],
-    d2: &[Vec<f64>],
-    d3: &[Vec<f64>],
-    mask: &[Vec<f64>],
+    state: Layers<'_>,
     ybar: &[f64],
     hbar: &mut [f64],
     abar: &mut [f64],
     grad: &mut [f64],
     lw: LeanBack<'_>,
 ) {
+    let Layers {
+        a,
+        h,
+        d1,
+        d2,
+        d3,
+        mask,
+    } = state;
     let layout = net.layout();
     let params = net.parameters();
     let hidden = layout.hidden();

@@ -267,10 +267,12 @@ impl<const D: usize> NeuralField<D> {
     }
 
     /// The thin-plate energy `∫_Ω f_xx² + 2 f_xy² + f_yy²` (3-D: `Σₖₗ (∂ₖ∂ₗf)²`) over the
-    /// field's box, by the midpoint rule on `samples_per_axis`ᴰ cells (at least 1). Exact
-    /// Hessians, batched; the same bits for any thread count.
+    /// field's box, by the midpoint rule on `samples_per_axis`ᴰ cells (at least 1; capped so
+    /// that there are at most 2²⁴ cells in all). Exact Hessians, batched; the same bits for any
+    /// thread count.
     pub fn thin_plate_energy(&self, samples_per_axis: usize) -> f64 {
-        let n = samples_per_axis.max(1);
+        let cap = (f64::from(1u32 << 24).powf(1.0 / D as f64)).floor() as usize;
+        let n = samples_per_axis.clamp(1, cap.max(1));
         let (lo, ext) = (self.bounds.min(), self.bounds.extent());
         let total = n.pow(D as u32);
         let points: Vec<Point<D>> = (0..total)

@@ -88,8 +88,8 @@ fn check_batched<const D: usize>(f: &NeuralField<D>) {
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * (1.0 + b.abs());
         assert!(close(work.f[p], v), "{} vs {v}", work.f[p]);
         assert!(close(values[p], v));
-        for k in 0..D {
-            assert!(close(work.f[(1 + k) * n + p], g[k]));
+        for (k, gk) in g.iter().enumerate() {
+            assert!(close(work.f[(1 + k) * n + p], *gk));
         }
         for (q, hq) in h.iter().enumerate() {
             assert!(close(work.f[(1 + D + q) * n + p], *hq), "{q}");

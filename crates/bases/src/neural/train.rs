@@ -20,6 +20,9 @@ const TRAIN_JET_CHUNK: usize = 64;
 const TRAIN_VALUE_CHUNK: usize = 256;
 /// The default domain is the constraints' box grown by this fraction of its diagonal.
 pub const DOMAIN_MARGIN: f64 = 0.05;
+/// The most auxiliary points a fit takes (memory grows with them; 10⁷ points with their
+/// derivatives through a 32-wide net are several GB).
+pub const MAX_AUX_POINTS: usize = 10_000_000;
 
 /// Where the curvature term of the loss is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -196,16 +199,23 @@ impl NeuralParams {
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
             return bad("learning rate", self.learning_rate, "a finite value > 0");
         }
-        if !(self.dropout >= 0.0 && self.dropout < 1.0) {
+        if !(0.0..1.0).contains(&self.dropout) {
             return bad("dropout rate", self.dropout, "a rate in [0, 1)");
         }
         for (name, b) in [("Adam β₁", self.beta1), ("Adam β₂", self.beta2)] {
-            if !(b >= 0.0 && b < 1.0) {
+            if !(0.0..1.0).contains(&b) {
                 return bad(name, b, "a value in [0, 1)");
             }
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
             return bad("Adam ε", self.epsilon, "a finite value > 0");
+        }
+        if self.aux_points > MAX_AUX_POINTS {
+            return bad(
+                "number of auxiliary points",
+                self.aux_points as f64,
+                "at most 10,000,000",
+            );
         }
         Ok(())
     }
@@ -329,10 +339,10 @@ impl<const D: usize> Chunk<D> {
         let mut parts = Parts::default();
         work.fbar.fill(0.0);
         if let Some(z) = &self.targets {
-            for p in 0..n {
-                let r = work.f[p] - z[p];
+            for ((f, fbar), z) in work.f[..n].iter().zip(&mut work.fbar[..n]).zip(z) {
+                let r = f - z;
                 parts.data += r * r;
-                work.fbar[p] = 2.0 * r;
+                *fbar = 2.0 * r;
             }
         }
         if self.jets() {

@@ -188,7 +188,7 @@ fn train(params: NeuralParams, label: &str, grid: &Grid<2>) -> Result<Row, BoxEr
 
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<34} {:>10} {:>10} {:>11} {:>12} {:>9} {:>8} {:>8}",
+        "{:<40} {:>10} {:>10} {:>11} {:>12} {:>9} {:>8} {:>8}",
         "variant",
         "max resid",
         "data term",
@@ -201,7 +201,7 @@ fn print_table(rows: &[Row]) {
     for r in rows {
         let rep = &r.trained.report;
         println!(
-            "{:<34} {:>10.4} {:>10.4} {:>11.4} {:>12.2} {:>7}/{:<2} {:>8.2} {:>8.3}",
+            "{:<40} {:>10.4} {:>10.4} {:>11.4} {:>12.2} {:>7}/{:<2} {:>8.2} {:>8.3}",
             r.label,
             rep.max_residual,
             rep.data_term,

@@ -92,12 +92,6 @@ def parse_args() -> argparse.Namespace:
     return a
 
 
-def example_binary() -> Path:
-    target = common.ORIGINAL_ENV.get("CARGO_TARGET_DIR")
-    target_dir = (common.REPO / target) if target else common.REPO / "target"
-    return target_dir / "release" / "examples" / EXAMPLE
-
-
 def run_zeroset(binary: Path, d: Path, seed: int, steps: int, repeat: int, one_thread: bool | None) -> dict:
     """One `neural_curve --only paper` run; `one_thread` None: no timing repeats (residual only)."""
     result = d / "zeroset.json"
@@ -206,13 +200,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     load_start = common.loadavg()
     print(f"torch {torch.__version__}, {torch.get_num_threads()} thread; load average {load_start}\n", flush=True)
-    binary = example_binary()
-    if args.skip_build:
-        print(f"--skip-build: using {binary}", flush=True)
-    else:
-        common.run_logged(["cargo", "build", "--release", "--example", EXAMPLE])
-    if not binary.is_file():
-        sys.exit(f"{binary} not found (cargo build failed, or CARGO_TARGET_DIR elsewhere?)")
+    binary = common.built_example(EXAMPLE, args.skip_build)
 
     timed_seed = args.seed_list[0]
     d0 = out / "neural" / f"seed{timed_seed}"

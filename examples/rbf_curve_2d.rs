@@ -45,7 +45,7 @@
 //! Tests (a coarser grid): `cargo test --release --example rbf_curve_2d`.
 
 use std::error::Error;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -60,18 +60,20 @@ use zeroset::core::grid::Grid;
 use zeroset::mesh::squares::{Contour, Polyline, contour_field, marching_squares};
 use zeroset::mesh::svg::SvgPlot;
 
+#[path = "common/curve.rs"]
+mod curve;
+
+use curve::{
+    INSIDE, INSIDE_SCALE, Kind, ON_CURVE, OUTSIDE, OUTSIDE_SCALE, Site, curve_point, sites,
+    true_area,
+};
+
 type BoxError = Box<dyn Error>;
 
 const USAGE: &str = "usage: rbf_curve_2d [--out DIR]   (default DIR: target/rbf_curve_2d)";
 
-/// Points of each kind in the full set, and in the coarse set of Fig. 2.
-const ON_CURVE: usize = 30;
-const INSIDE: usize = 15;
-const OUTSIDE: usize = 15;
+/// The points of each kind in the coarse set of Fig. 2.
 const COARSE: [usize; 3] = [12, 4, 4];
-/// Radial scales of the inside and outside points.
-const INSIDE_SCALE: f64 = 0.5;
-const OUTSIDE_SCALE: f64 = 1.4;
 /// The grid: `GRID_N × GRID_N` vertices over `[−HALF, HALF]²`.
 const GRID_N: usize = 257;
 const HALF: f64 = 1.2;
@@ -84,77 +86,12 @@ const REMOVE: usize = 3;
 /// Each timing is the best of this many runs.
 const REPEAT: usize = 3;
 
-/// `r(t) = 0.6 + 0.15 cos 3t`.
-fn radius(t: f64) -> f64 {
-    0.6 + 0.15 * (3.0 * t).cos()
-}
-
-/// The point at angle `t` and `scale · r(t)` from the origin.
-fn curve_point(t: f64, scale: f64) -> Point2 {
-    let r = scale * radius(t);
-    [r * t.cos(), r * t.sin()]
-}
-
-/// The area enclosed by the curve, `½ ∫ r² dt = π (0.6² + 0.15²/2)`.
-fn true_area() -> f64 {
-    PI * (0.6 * 0.6 + 0.15 * 0.15 / 2.0)
-}
-
-/// What a constraint point prescribes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    OnCurve,
-    Inside,
-    Outside,
-}
-
-impl Kind {
-    /// The prescribed value, in zeroset's negative-inside convention (the paper's signs
-    /// flipped).
-    fn value(self) -> f64 {
-        match self {
-            Kind::OnCurve => 0.0,
-            Kind::Inside => -1.0,
-            Kind::Outside => 1.0,
-        }
+fn colour(kind: Kind) -> &'static str {
+    match kind {
+        Kind::OnCurve => "black",
+        Kind::Inside => "#9467bd",
+        Kind::Outside => "#ff7f0e",
     }
-
-    fn colour(self) -> &'static str {
-        match self {
-            Kind::OnCurve => "black",
-            Kind::Inside => "#9467bd",
-            Kind::Outside => "#ff7f0e",
-        }
-    }
-}
-
-/// A constraint point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Site {
-    point: Point2,
-    kind: Kind,
-    /// Its angle `t`.
-    t: f64,
-}
-
-/// The 60 constraint points: on-curve, then inside, then outside.
-fn sites() -> Vec<Site> {
-    let mut out = Vec::with_capacity(ON_CURVE + INSIDE + OUTSIDE);
-    for (kind, count, scale) in [
-        (Kind::OnCurve, ON_CURVE, 1.0),
-        (Kind::Inside, INSIDE, INSIDE_SCALE),
-        (Kind::Outside, OUTSIDE, OUTSIDE_SCALE),
-    ] {
-        for k in 0..count {
-            let t = TAU * k as f64 / count as f64;
-            out.push(Site {
-                point: curve_point(t, scale),
-                kind,
-                t,
-            });
-        }
-    }
-    out
 }
 
 fn constraints(sites: &[Site]) -> Constraints<2> {
@@ -304,7 +241,7 @@ fn write_figure1(fig: &Figure1, sites: &[Site], path: &Path) -> Result<(), BoxEr
     .polylines(&[true_curve(1024)], "#cccccc", 6.0)?
     .polylines(&fig.contour, "#1f77b4", 2.0)?;
     for kind in [Kind::Inside, Kind::Outside, Kind::OnCurve] {
-        plot.points(&points_of(sites, Some(kind)), kind.colour(), 4.0)?;
+        plot.points(&points_of(sites, Some(kind)), colour(kind), 4.0)?;
     }
     plot.write(path)?;
     Ok(())
@@ -485,7 +422,7 @@ fn write_figure2(fig: &Figure2, path: &Path) -> Result<(), BoxError> {
     for kind in [Kind::Inside, Kind::Outside, Kind::OnCurve] {
         let mut points = points_of(&fig.base, Some(kind));
         points.extend(points_of(&fig.added, Some(kind)));
-        plot.points(&points, kind.colour(), 3.5)?;
+        plot.points(&points, colour(kind), 3.5)?;
     }
     plot.write(path)?;
     Ok(())

@@ -103,6 +103,20 @@ def run_logged(cmd: list[str], capture: bool = False, env: dict[str, str] | None
     return res.stdout or ""
 
 
+def built_example(name: str, skip_build: bool) -> Path:
+    """The release binary of the zeroset example `name` (`CARGO_TARGET_DIR` honoured), built
+    first with cargo unless `skip_build`; exits if it is missing."""
+    target = ORIGINAL_ENV.get("CARGO_TARGET_DIR")
+    binary = ((REPO / target) if target else REPO / "target") / "release" / "examples" / name
+    if skip_build:
+        print(f"--skip-build: using {binary}", flush=True)
+    else:
+        run_logged(["cargo", "build", "--release", "--example", name])
+    if not binary.is_file():
+        sys.exit(f"{binary} not found (cargo build failed, or CARGO_TARGET_DIR elsewhere?)")
+    return binary
+
+
 def timed(fn, repeat: int, warmup: bool = True):
     """Optionally one warm-up, then `repeat` timed runs; returns (last result, upper median ms,
     all times in ms). The upper median `sorted[n // 2]` is the rule of the Rust examples."""

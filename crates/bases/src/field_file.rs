@@ -1,4 +1,4 @@
-//! The zeroset field file (`.zsf`): a B-spline or RBF field, versioned and checksummed.
+//! The zeroset field file (`.zsf`): a B-spline, RBF or neural field, versioned and checksummed.
 //!
 //! A restored or fitted field is saved so that the next command (restore again, mesh, …) can
 //! load it bit for bit. All numbers are little-endian; `f64` values are stored as their IEEE
@@ -11,7 +11,7 @@
 //! | 8 | magic `ZSFIELD\0` |
 //! | 4 | format version (`u32`, 2) |
 //! | 4 | dimension `D` (`u32`, 2 or 3) |
-//! | 8 | kind tag, ASCII padded with NULs: `bspline` or `rbf` |
+//! | 8 | kind tag, ASCII padded with NULs: `bspline`, `rbf` or `neural` |
 //! | 4 | metadata length `m` (`u32`) |
 //! | 8 | payload length `p` (`u64`) |
 //! | m | metadata: UTF-8 `key=value` lines (`created-by`, `kind`, `dimension`, `kernel`, …); informative only |
@@ -42,6 +42,22 @@
 //! | 8 + 8·q | polynomial coefficients: count `q = D + 1` (`u64`), then `f64`s |
 //! | 16·D | bounding box min then max (`f64`) |
 //!
+//! The `neural` payload, for the net `f(x) = o · N((x − c)/h)` of
+//! [`NeuralField`] (added within version 2: a reader from before it
+//! reports the kind as unknown):
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 4 | activation (`u32`: 0 = tanh, 1 = softplus) |
+//! | 4 | number of hidden layers `L` (`u32`, at least 1) |
+//! | 8·L | hidden widths (`u64`, each at least 1) |
+//! | 8·D | input centre `c` (`f64`) |
+//! | 8 | input scale `h` (`f64`, > 0) |
+//! | 8 | output scale `o` (`f64`, ≠ 0) |
+//! | 16·D | bounding box min then max (`f64`) |
+//! | 8 | parameter count `n` (`u64`; must be the widths' count) |
+//! | 8·n | parameters (`f64`), layer after layer: `W₁` column-major (`w₁ × D`), `b₁`, …, `w_out`, `b_out` |
+//!
 //! # Version 1 (still read)
 //!
 //! | bytes | content |
@@ -55,7 +71,7 @@
 //! Writes are atomic (temporary file + rename). Reads check the magic, version, sizes,
 //! checksum, kind and values and say what is wrong ([`FieldFileError`]; [`read_field`] and
 //! [`decode`] convert it into the crate-wide [`Error`] for compatibility).
-//! [`read_field`] reads B-spline fields only; [`read_any_field`] reads either kind.
+//! [`read_field`] reads B-spline fields only; [`read_any_field`] reads every kind.
 //!
 //! ```
 //! use zeroset_bases::bspline::{BSplineField, Degree};
@@ -77,7 +93,8 @@
 //! ```
 //!
 //! An RBF field goes through [`write_rbf_field`] and comes back from [`read_any_field`] as
-//! [`AnyField::Rbf`], a [`ScalarField`] like the field written.
+//! [`AnyField::Rbf`], a [`ScalarField`] like the field written; a neural field goes through
+//! [`write_neural_field`] and comes back as [`AnyField::Neural`].
 
 use std::path::{Path, PathBuf};
 
@@ -88,6 +105,7 @@ use zeroset_field_core::grid::{Centering, Grid};
 use zeroset_field_core::io::write_atomic;
 
 use crate::bspline::{BSplineField, Boundary, Degree};
+use crate::neural::{Activation, Architecture, NeuralField};
 use crate::rbf::system::{Functional, Polynomial};
 use crate::rbf::{Biharmonic, Kernel, RbfField, ThinPlate, Triharmonic, Wendland};
 
@@ -100,6 +118,8 @@ pub const VERSION: u32 = 2;
 pub const KIND_BSPLINE: &str = "bspline";
 /// The kind tag of an RBF field.
 pub const KIND_RBF: &str = "rbf";
+/// The kind tag of a neural field.
+pub const KIND_NEURAL: &str = "neural";
 
 /// Bytes before the metadata in a version-2 file.
 const V2_HEADER: usize = 36;
@@ -159,8 +179,8 @@ pub enum FieldFileError {
         /// The CRC-32 of the contents.
         computed: u32,
     },
-    /// A kind tag other than `bspline` and `rbf`.
-    #[error("{}: unknown field kind {kind:?} (this build reads \"bspline\" and \"rbf\")", path.display())]
+    /// A kind tag other than `bspline`, `rbf` and `neural`.
+    #[error("{}: unknown field kind {kind:?} (this build reads \"bspline\", \"rbf\" and \"neural\")", path.display())]
     UnknownKind {
         /// The file.
         path: PathBuf,
@@ -187,6 +207,17 @@ pub enum FieldFileError {
         path: PathBuf,
         /// The RBF kernel's tag.
         kernel: String,
+    },
+    /// A B-spline field was asked for ([`read_field`]) but the file holds a neural field.
+    #[error(
+        "{}: this file holds a neural field (hidden widths {widths:?}), not a B-spline field",
+        path.display()
+    )]
+    HoldsNeural {
+        /// The file.
+        path: PathBuf,
+        /// The hidden widths.
+        widths: Vec<usize>,
     },
     /// An RBF kernel this build does not know.
     #[error(
@@ -230,6 +261,7 @@ impl FieldFileError {
             | Self::UnknownKind { path, .. }
             | Self::WrongDimension { path, .. }
             | Self::HoldsRbf { path, .. }
+            | Self::HoldsNeural { path, .. }
             | Self::UnknownKernel { path, .. }
             | Self::Malformed { path, .. }
             | Self::Invalid { path, .. } => path,
@@ -419,21 +451,34 @@ rbf_from!(Triharmonic, R3);
 rbf_from!(ThinPlate, Tps);
 rbf_from!(Wendland, Wendland);
 
-/// A field of either kind, as read by [`read_any_field`].
+/// A field of any kind, as read by [`read_any_field`].
 #[derive(Debug, Clone)]
 pub enum AnyField<const D: usize> {
     /// A B-spline field.
     BSpline(BSplineField<D>),
     /// An RBF field.
     Rbf(RbfAny<D>),
+    /// A neural field.
+    Neural(NeuralField<D>),
+}
+
+macro_rules! each_field {
+    ($self:expr, $f:ident => $body:expr) => {
+        match $self {
+            AnyField::BSpline($f) => $body,
+            AnyField::Rbf($f) => $body,
+            AnyField::Neural($f) => $body,
+        }
+    };
 }
 
 impl<const D: usize> AnyField<D> {
-    /// The kind tag: [`KIND_BSPLINE`] or [`KIND_RBF`].
+    /// The kind tag: [`KIND_BSPLINE`], [`KIND_RBF`] or [`KIND_NEURAL`].
     pub fn kind(&self) -> &'static str {
         match self {
             Self::BSpline(_) => KIND_BSPLINE,
             Self::Rbf(_) => KIND_RBF,
+            Self::Neural(_) => KIND_NEURAL,
         }
     }
 
@@ -441,43 +486,39 @@ impl<const D: usize> AnyField<D> {
     pub fn into_bspline(self) -> Option<BSplineField<D>> {
         match self {
             Self::BSpline(f) => Some(f),
-            Self::Rbf(_) => None,
+            _ => None,
         }
     }
 
     /// The RBF field, if it is one.
     pub fn into_rbf(self) -> Option<RbfAny<D>> {
         match self {
-            Self::BSpline(_) => None,
             Self::Rbf(f) => Some(f),
+            _ => None,
+        }
+    }
+
+    /// The neural field, if it is one.
+    pub fn into_neural(self) -> Option<NeuralField<D>> {
+        match self {
+            Self::Neural(f) => Some(f),
+            _ => None,
         }
     }
 }
 
 impl<const D: usize> ScalarField<D> for AnyField<D> {
     fn value(&self, p: &Point<D>) -> f64 {
-        match self {
-            Self::BSpline(f) => f.value(p),
-            Self::Rbf(f) => f.value(p),
-        }
+        each_field!(self, f => f.value(p))
     }
     fn gradient(&self, p: &Point<D>) -> Point<D> {
-        match self {
-            Self::BSpline(f) => f.gradient(p),
-            Self::Rbf(f) => f.gradient(p),
-        }
+        each_field!(self, f => f.gradient(p))
     }
     fn values(&self, points: &[Point<D>], out: &mut [f64]) {
-        match self {
-            Self::BSpline(f) => f.values(points, out),
-            Self::Rbf(f) => f.values(points, out),
-        }
+        each_field!(self, f => f.values(points, out))
     }
     fn bounds(&self) -> Option<Aabb<D>> {
-        match self {
-            Self::BSpline(f) => ScalarField::bounds(f),
-            Self::Rbf(f) => f.bounds(),
-        }
+        each_field!(self, f => ScalarField::bounds(f))
     }
 }
 
@@ -515,7 +556,19 @@ pub fn write_rbf_field<K: StoredKernel, const D: usize>(
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// Writes either kind of field to `path` atomically.
+/// Writes the neural `field` to `path` atomically (format version [`VERSION`]).
+///
+/// # Errors
+/// [`Error::Io`] naming `path`.
+pub fn write_neural_field<const D: usize>(
+    path: impl AsRef<Path>,
+    field: &NeuralField<D>,
+) -> Result<(), Error> {
+    let bytes = encode_neural(field);
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// Writes a field of any kind to `path` atomically.
 ///
 /// # Errors
 /// [`Error::Io`] naming `path`.
@@ -526,6 +579,7 @@ pub fn write_any_field<const D: usize>(
     let bytes = match field {
         AnyField::BSpline(f) => encode(f),
         AnyField::Rbf(r) => each_rbf!(r, f => encode_rbf(f)),
+        AnyField::Neural(f) => encode_neural(f),
     };
     write_atomic(path, |w| w.write_all(&bytes))
 }
@@ -655,6 +709,46 @@ pub fn encode_rbf<K: StoredKernel, const D: usize>(field: &RbfField<K, D>) -> Ve
     frame(D, KIND_RBF, &meta, &p)
 }
 
+/// The bytes of the field file of the neural `field` (version [`VERSION`]).
+pub fn encode_neural<const D: usize>(field: &NeuralField<D>) -> Vec<u8> {
+    let arch = field.architecture();
+    let widths = arch.widths();
+    let params = field.parameters();
+    let mut p = Vec::with_capacity(8 + 8 * widths.len() + 8 * (3 * D + 3) + 8 * params.len());
+    p.extend_from_slice(&arch.activation().code().to_le_bytes());
+    p.extend_from_slice(&(widths.len() as u32).to_le_bytes());
+    for &w in widths {
+        p.extend_from_slice(&(w as u64).to_le_bytes());
+    }
+    let bounds = field.domain();
+    put_f64s(
+        &mut p,
+        field
+            .centre()
+            .iter()
+            .chain([&field.input_scale(), &field.output_scale()])
+            .chain(bounds.min().iter())
+            .chain(bounds.max().iter()),
+    );
+    p.extend_from_slice(&(params.len() as u64).to_le_bytes());
+    put_f64s(&mut p, params);
+    let list = widths
+        .iter()
+        .map(|w| w.to_string())
+        .collect::<Vec<_>>()
+        .join(",");
+    frame(
+        D,
+        KIND_NEURAL,
+        &[
+            ("activation", arch.activation().name().to_string()),
+            ("widths", list),
+            ("parameters", params.len().to_string()),
+        ],
+        &p,
+    )
+}
+
 fn read_bytes(path: &Path) -> Result<Vec<u8>, FieldFileError> {
     std::fs::read(path).map_err(|source| FieldFileError::Io {
         path: path.to_owned(),
@@ -688,10 +782,15 @@ pub fn decode<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<
             kernel: r.kernel_tag().to_string(),
         }
         .into()),
+        AnyField::Neural(n) => Err(FieldFileError::HoldsNeural {
+            path: path.to_owned(),
+            widths: n.architecture().widths().to_vec(),
+        }
+        .into()),
     }
 }
 
-/// Reads a `D`-dimensional field file of either kind (any version).
+/// Reads a `D`-dimensional field file of any kind (any version).
 ///
 /// # Errors
 /// The [`FieldFileError`] saying what is wrong.
@@ -723,6 +822,34 @@ pub fn read_metadata(path: impl AsRef<Path>) -> Result<Vec<(String, String)>, Fi
         .collect())
 }
 
+/// The dimension `D` of the field in a field file (any version and kind), from its header,
+/// without reading the rest: to pick `read_any_field::<2>` or `::<3>`.
+///
+/// # Errors
+/// [`FieldFileError::Io`], [`FieldFileError::BadMagic`], [`FieldFileError::Truncated`] (a
+/// file shorter than its header), [`FieldFileError::NewerVersion`].
+pub fn read_dimension(path: impl AsRef<Path>) -> Result<u32, FieldFileError> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let mut head = Vec::with_capacity(16);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(16).read_to_end(&mut head))
+        .map_err(|source| FieldFileError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+    check_head(&head, path)?;
+    let mut cursor = Cursor {
+        bytes: &head,
+        at: 12,
+    };
+    cursor.u32().ok_or(FieldFileError::Truncated {
+        path: path.to_owned(),
+        expected: 16,
+        got: head.len(),
+    })
+}
+
 /// Checks the magic and returns the version (refusing newer ones).
 fn check_head(bytes: &[u8], path: &Path) -> Result<u32, FieldFileError> {
     let truncated = |expected: usize| FieldFileError::Truncated {
@@ -752,7 +879,7 @@ fn check_head(bytes: &[u8], path: &Path) -> Result<u32, FieldFileError> {
     }
 }
 
-/// Parses the bytes of a field file of either kind; `path` is only used in error messages.
+/// Parses the bytes of a field file of any kind; `path` is only used in error messages.
 ///
 /// # Errors
 /// As [`read_any_field`].
@@ -870,6 +997,8 @@ fn decode_v2<const D: usize>(bytes: &[u8], path: &Path) -> Result<AnyField<D>, F
         AnyField::BSpline(bspline_body(&mut cursor, path, short)?)
     } else if kind == KIND_RBF.as_bytes() {
         AnyField::Rbf(rbf_body(&mut cursor, path, short)?)
+    } else if kind == KIND_NEURAL.as_bytes() {
+        AnyField::Neural(neural_body(&mut cursor, path, short)?)
     } else {
         return Err(FieldFileError::UnknownKind {
             path: path.to_owned(),
@@ -1089,6 +1218,55 @@ fn rbf_body<const D: usize>(
             });
         }
     })
+}
+
+/// The neural body; `short` is the error for running out.
+fn neural_body<const D: usize>(
+    c: &mut Cursor<'_>,
+    path: &Path,
+    short: impl Fn() -> FieldFileError,
+) -> Result<NeuralField<D>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
+    };
+    let code = c.u32().ok_or_else(&short)?;
+    let activation = Activation::from_code(code)
+        .ok_or_else(|| malformed(format!("unknown activation code {code}")))?;
+    let layers = c.u32().ok_or_else(&short)? as usize;
+    if layers
+        .checked_mul(8)
+        .is_none_or(|b| b > c.bytes.len() - c.at)
+    {
+        return Err(short());
+    }
+    let mut widths = Vec::with_capacity(layers);
+    for _ in 0..layers {
+        let w = c.u64().ok_or_else(&short)?;
+        widths.push(usize::try_from(w).map_err(|_| malformed(format!("hidden width {w}")))?);
+    }
+    let arch = Architecture::new(widths, activation)
+        .map_err(|e| malformed(format!("invalid network: {e}")))?;
+    let centre: Point<D> = c.point().ok_or_else(&short)?;
+    let input_scale = c.f64().ok_or_else(&short)?;
+    let output_scale = c.f64().ok_or_else(&short)?;
+    let min: Point<D> = c.point().ok_or_else(&short)?;
+    let max: Point<D> = c.point().ok_or_else(&short)?;
+    let n = c.u64().ok_or_else(&short)?;
+    let expected = arch.num_parameters(D);
+    if n != expected as u64 {
+        return Err(malformed(format!(
+            "{n} parameters where the widths {:?} need {expected}",
+            arch.widths()
+        )));
+    }
+    let params = c.f64s(expected).ok_or_else(&short)?;
+    let bounds = Aabb::new(min, max).map_err(|source| FieldFileError::Invalid {
+        path: path.to_owned(),
+        source,
+    })?;
+    NeuralField::new(arch, params, centre, input_scale, output_scale, bounds)
+        .map_err(|e| malformed(format!("invalid neural field: {e}")))
 }
 
 struct Cursor<'a> {

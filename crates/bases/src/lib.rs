@@ -8,16 +8,21 @@
 //!   gradients and Hessians, and the B-splines as a sparse [`Basis`](zeroset_field_core::basis::Basis).
 //! - [`tangent_plane`] — Hoppe et al.'s signed distance to the nearest sample's tangent plane
 //!   (optionally a weighted mean over `k` neighbours): no fit, a baseline (a field, not a basis).
-//! - [`field_file`] — the versioned, checksummed `.zsf` file of a B-spline field.
+//! - [`field_file`] — the versioned, checksummed `.zsf` file of B-spline, RBF and neural fields.
 //! - [`rbf`] — radial basis functions (`r`, `r³`, thin plate, user kernels) through value and
 //!   gradient (Hermite) constraints, with Carr's off-surface points, dense, mixed-precision and
 //!   iterative fits, and incremental constraints by the Schur complement (Jiang–Turk).
 //!
-//! Still to come: multilevel low-rank splines (MRAS, Pan–Tong–Chen) and small neural fields.
+//! - [`neural`] — a small multilayer perceptron trained with Jiang–Turk's thin-plate curvature
+//!   loss (input Hessians and their parameter gradients written out over faer products), its
+//!   hidden layers as a learned [`Basis`](zeroset_field_core::basis::Basis).
+//!
+//! Still to come: multilevel low-rank splines (MRAS, Pan–Tong–Chen).
 
 #![warn(missing_docs)]
 
 pub mod bspline;
 pub mod field_file;
+pub mod neural;
 pub mod rbf;
 pub mod tangent_plane;

@@ -1,5 +1,7 @@
-//! `zeroset fit POINTS --method rbf`: fit an implicit field to an oriented point cloud and
-//! report how well it fits.
+//! `zeroset fit POINTS --method rbf|neural`: fit an implicit field to an oriented point cloud
+//! (or, for `neural`, to a file of value constraints) and report how well it fits.
+//!
+//! `--method neural` lives in [`crate::fit_neural`]; the rest of this module is the RBF fit.
 //!
 //! The radial-basis-function fit (`zeroset_bases::rbf`) interpolates either Carr et al.'s
 //! off-surface constraints (value 0 at each point, `±ε` at `p ± ε n`) or Hermite constraints
@@ -25,7 +27,7 @@ use zeroset_bases::rbf::{
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Point, dot, norm};
 use zeroset_field_core::grid::Grid;
-use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
+use zeroset_field_core::io::{ReadOptions, read_point_cloud_with, value_file_dimension};
 use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
@@ -43,6 +45,12 @@ Examples:
   # a fixed off-surface offset, and the RBF field itself saved, then meshed
   zeroset fit samples/bunny_2k.xyzn --method rbf --offset 0.001 -o bunny.zsf
   zeroset mesh bunny.zsf -o bunny.ply
+  # a neural field (MLP 3 → 32 → 32 → 1 with the thin-plate curvature loss), then meshed
+  zeroset fit samples/bunny_2k.xyzn --method neural --steps 1500 -o bunny_nn.zsf
+  zeroset mesh bunny_nn.zsf -o bunny_nn.ply
+  # a 2-D curve from value constraints (x y value per line: -1 inside, 0 on, +1 outside)
+  zeroset fit samples/curve.xyv --method neural -o curve.zsf
+  zeroset preview curve.zsf -o curve.png
   # the field sampled on a 96-cell grid as a quadratic B-spline, for `zeroset restore`
   zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny_bs.zsf --sampled --grid 96,96,75
   zeroset restore bunny_bs.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
@@ -58,6 +66,9 @@ quadratic B-spline instead: an approximation, on the grid `zeroset restore` work
 pub enum Method {
     /// Radial basis functions: an exact interpolant of the constraints (dense or iterative).
     Rbf,
+    /// A small neural net (MLP) trained with Adam on the data term plus Jiang–Turk's
+    /// thin-plate curvature term; takes point clouds and .xyv/.xyzv value files.
+    Neural,
 }
 
 /// The `--kernel` values.
@@ -106,7 +117,7 @@ pub enum OffsetArg {
 }
 
 /// The starting offset of `--offset auto`, as a fraction of the bounding-box diagonal.
-const AUTO_FRACTION: f64 = 0.01;
+pub(crate) const AUTO_FRACTION: f64 = 0.01;
 
 /// Cells along the longest axis of the default `-o` grid.
 const DEFAULT_CELLS: usize = 64;
@@ -121,10 +132,12 @@ const CHECK_POINTS: usize = 5;
 #[derive(Debug, Args)]
 pub struct FitArgs {
     /// An oriented point cloud: .ply (with nx ny nz), .xyzn/.xyz/.txt/.pts (x y z nx ny nz
-    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid.
+    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid. With
+    /// --method neural also a value-constraint file: .xyv (x y value per line, a 2-D curve) or
+    /// .xyzv (x y z value); values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,
 
-    /// The fitting method (rbf: radial basis functions).
+    /// The fitting method (rbf: radial basis functions; neural: a small MLP).
     #[arg(long, value_enum)]
     pub method: Method,
 
@@ -173,11 +186,26 @@ pub struct FitArgs {
     /// No progress spinner or bar.
     #[arg(long)]
     pub quiet: bool,
+
+    #[command(flatten)]
+    pub neural: crate::fit_neural::NeuralArgs,
 }
 
 /// Runs `zeroset fit`.
 pub fn run(args: &FitArgs) -> anyhow::Result<()> {
-    let Method::Rbf = args.method;
+    if args.method == Method::Neural {
+        return crate::fit_neural::run(args);
+    }
+    if let Some(flag) = args.neural.given() {
+        bail!("{flag} is an option of --method neural, not of --method rbf");
+    }
+    if value_file_dimension(&args.points).is_some() {
+        bail!(
+            "{} is a value-constraint file (.xyv / .xyzv); --method rbf fits oriented point \
+             clouds: use --method neural",
+            args.points.display()
+        );
+    }
     let kernel = check_request(args)?;
     let start = Instant::now();
     let cloud = load(args)?;
@@ -265,7 +293,7 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
 }
 
 /// Reads the oriented point cloud, naming the file, line and field of a non-finite value.
-fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
+pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     let path = &args.points;
     if is_field_file(path) {
         bail!(
@@ -277,26 +305,14 @@ fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     if let Some(format) = &args.format {
         options = options.with_format(format.parse().context("--format")?);
     }
-    let cloud = match read_point_cloud_with(path, &options) {
-        Ok(cloud) => cloud,
-        Err(Error::NonFinite {
-            record,
-            line,
-            field,
-            value,
-            ..
-        }) => {
-            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
-            bail!(
-                "{}: {at}record {record}: non-finite {field} ({value}); zeroset fit needs \
-                 finite coordinates and normals (`zeroset info` counts them all)",
-                path.display()
-            );
-        }
-        Err(e) => {
-            return Err(anyhow::Error::new(e).context(format!("reading {}", path.display())));
-        }
-    };
+    let cloud = read_point_cloud_with(path, &options).map_err(|e| {
+        read_error(
+            path,
+            e,
+            "record",
+            "zeroset fit needs finite coordinates and normals (`zeroset info` counts them all)",
+        )
+    })?;
     if cloud.normals().is_none() {
         bail!(
             "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \
@@ -307,7 +323,28 @@ fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     Ok(cloud)
 }
 
-fn print_input(args: &FitArgs, cloud: &PointCloud3) {
+/// A reading error for the user: a non-finite value named by file, line, `noun` (record,
+/// constraint) and field, followed by `advice`; any other error with the file as context.
+pub(crate) fn read_error(path: &Path, e: Error, noun: &str, advice: &str) -> anyhow::Error {
+    match e {
+        Error::NonFinite {
+            record,
+            line,
+            field,
+            value,
+            ..
+        } => {
+            let at = line.map(|l| format!("line {l}, ")).unwrap_or_default();
+            anyhow::anyhow!(
+                "{}: {at}{noun} {record}: non-finite {field} ({value}); {advice}",
+                path.display()
+            )
+        }
+        e => anyhow::Error::new(e).context(format!("reading {}", path.display())),
+    }
+}
+
+pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
     let n = cloud.len();
     line(
         "points",
@@ -503,7 +540,7 @@ fn print_report(r: &FitReport) {
 
 /// The field at a few input points: the value should be ~0, the gradient ~unit length and
 /// along the normal.
-fn print_check<F: ScalarField<3> + ?Sized>(field: &F, cloud: &PointCloud3) {
+pub(crate) fn print_check<F: ScalarField<3> + ?Sized>(field: &F, cloud: &PointCloud3) {
     let n = cloud.len();
     let normals = cloud.normals().unwrap_or_default();
     let mut picks: Vec<usize> = (0..CHECK_POINTS)
@@ -642,13 +679,13 @@ fn sample<F: ScalarField<3> + ?Sized>(field: &F, grid: &Grid<3>, quiet: bool) ->
 
 const LABEL_WIDTH: usize = 13;
 
-fn line(label: &str, value: &str) {
+pub(crate) fn line(label: &str, value: &str) {
     let label = format!("{label}:");
     println!("{label:<LABEL_WIDTH$} {value}");
 }
 
 /// A continuation line, aligned under the values.
-fn more(value: &str) {
+pub(crate) fn more(value: &str) {
     println!("{:<LABEL_WIDTH$} {value}", "");
 }
 

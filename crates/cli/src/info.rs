@@ -1,5 +1,6 @@
 //! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it; or,
-//! for a `.zsf` field file, its kind (RBF or B-spline), box and metadata; or, for a PLY with
+//! for a `.zsf` field file, its kind (B-spline, RBF or neural; 2-D or 3-D), box and metadata;
+//! or, for a PLY with
 //! a face element, the mesh's counts and `zeroset_mesh::checks` report.
 
 use std::fmt::Write as _;
@@ -8,7 +9,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
-use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, read_metadata};
+use zeroset_bases::field_file::{
+    AnyField, is_field_file, read_any_field, read_dimension, read_metadata,
+};
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::io::gempy::{self, GeoModelData};
 use zeroset_field_core::io::{self, Format, ReadOptions};
@@ -21,7 +24,8 @@ Examples:
   zeroset info scan.ply
   zeroset info points.dat --format csv
   zeroset info geology/greenstone/SandStone_Points.csv
-  zeroset info bunny.zsf        # a field file: kind, box, kernel and centres or B-spline grid
+  zeroset info bunny.zsf        # a field file: kind, box, kernel and centres, B-spline grid
+                                # or network
   zeroset info bunny_mesh.ply   # a PLY with faces: triangles, boundary loops, Euler char., volume
 
 NaN and infinite values do not stop the report: they are counted and the first is named
@@ -131,30 +135,41 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
 
 /// The report of a field file: kind, dimension, box, and the kind's particulars.
 fn field_report(path: &Path) -> anyhow::Result<String> {
-    let field = read_any_field::<3>(path).context("cannot read field file")?;
+    match read_dimension(path).context("cannot read field file")? {
+        2 => field_report_d::<2>(path),
+        _ => field_report_d::<3>(path),
+    }
+}
+
+fn field_report_d<const D: usize>(path: &Path) -> anyhow::Result<String> {
+    let field = read_any_field::<D>(path).context("cannot read field file")?;
     let metadata = read_metadata(path).context("cannot read field file")?;
     let mut s = String::new();
     line(&mut s, "file", &path.display().to_string());
     line(&mut s, "format", "zeroset field file (.zsf)");
     line(&mut s, "kind", field.kind());
-    line(&mut s, "dimension", "3");
+    line(&mut s, "dimension", &D.to_string());
     match &field {
         AnyField::BSpline(f) => {
-            let c = f.grid().counts();
+            let c = f.grid().counts().map(|n| n.to_string());
             line(
                 &mut s,
                 "B-spline",
-                &format!("{:?}, grid {}×{}×{}", f.degree(), c[0], c[1], c[2]),
+                &format!("{:?}, grid {}", f.degree(), c.join("×")),
             );
         }
         AnyField::Rbf(f) => {
             line(&mut s, "kernel", f.kernel_tag());
             line(&mut s, "centres", &f.num_centres().to_string());
         }
+        AnyField::Neural(f) => {
+            line(&mut s, "network", &crate::mesh::network(f));
+            line(&mut s, "parameters", &f.parameters().len().to_string());
+        }
     }
     if let Some(b) = field.bounds() {
-        line(&mut s, "bounds", &format!("min {}", point(b.min())));
-        more(&mut s, &format!("max {}", point(b.max())));
+        line(&mut s, "bounds", &format!("min {}", point_n(&b.min())));
+        more(&mut s, &format!("max {}", point_n(&b.max())));
     }
     for (i, (key, value)) in metadata.iter().enumerate() {
         let text = format!("{key} = {value}");
@@ -345,7 +360,13 @@ fn write_formations(s: &mut String, data: &GeoModelData) {
 
 /// `(x, y, z)` with 7 significant digits.
 pub(crate) fn point(p: [f64; 3]) -> String {
-    format!("({}, {}, {})", g(p[0]), g(p[1]), g(p[2]))
+    point_n(&p)
+}
+
+/// A point of any dimension as `(x, y, …)`, 7 significant digits each.
+pub(crate) fn point_n(p: &[f64]) -> String {
+    let parts: Vec<String> = p.iter().map(|&v| g(v)).collect();
+    format!("({})", parts.join(", "))
 }
 
 /// A number with 7 significant digits, like C's `%.7g`.

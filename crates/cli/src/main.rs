@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod demo;
 mod fit;
+mod fit_neural;
 mod info;
 mod machine;
 mod mesh;
@@ -27,7 +28,9 @@ Examples:
   zeroset fit samples/bunny_2k.xyzn --method rbf
                                                fit an RBF field to the sample and report it
   zeroset fit samples/bunny_2k.xyzn --method rbf --hermite -o bunny.zsf
-                                               Hermite fit (r3), saved as a B-spline field
+                                               Hermite fit (r3), saved as a field file
+  zeroset fit samples/curve.xyv --method neural -o curve.zsf
+                                               a neural field through 2-D value constraints
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \
       --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
                                                remove the bunny's ears
@@ -79,8 +82,8 @@ enum Command {
     #[command(after_help = demo::EXAMPLES)]
     Demo(demo::DemoArgs),
     /// Fit an implicit field to an oriented point cloud with radial basis functions
-    /// (off-surface or Hermite constraints) and report the fit; -o saves the RBF field sampled
-    /// into a quadratic B-spline .zsf field file.
+    /// (off-surface or Hermite constraints) or a small neural net (also to 2-D value
+    /// constraints) and report the fit; -o saves the field as a .zsf field file.
     #[command(after_help = fit::EXAMPLES)]
     Fit(fit::FitArgs),
     /// Restore a field inside a box mask: remove a protrusion (least-squares Laplace with a

@@ -1,7 +1,8 @@
 //! `zeroset mesh FIELD -o OUT.ply|OUT.obj`: the level set of a field file as a triangle mesh.
 //!
-//! The field (a `.zsf` file of either kind: the RBF field of `zeroset fit -o`, or a B-spline
-//! field from `zeroset fit -o --sampled` or `zeroset restore`) is sampled on a vertex-centred grid of cubic voxels covering its box and
+//! The field (a `.zsf` file of any kind: the RBF or neural field of `zeroset fit -o`, or a
+//! B-spline field from `zeroset fit -o --sampled` or `zeroset restore`) is sampled on a
+//! vertex-centred grid of cubic voxels covering its box and
 //! its level set extracted by marching cubes (`zeroset_mesh::cubes`). The voxel edge comes from
 //! the bounding box by the signed-marching-cubes paper's rule (`zeroset_mesh::voxel`: `5·l0`
 //! coarse, `l0` general, `0.3·l0` fine), from `--resolution` (voxels along the longest axis) or
@@ -13,6 +14,10 @@
 //! uncertain or changes (`zeroset_bases::rbf::fmm::OrderPair`, `zeroset_mesh::signed`). The
 //! mesh is the one plain marching cubes gives with order `P` everywhere; the output reports the
 //! paper's Table 3 counts.
+//!
+//! A 2-D field (a curve, e.g. from `zeroset fit curve.xyv --method neural`) has no surface: its
+//! level curve is traced by marching squares on square cells (`--resolution` along the longer
+//! axis, default 256, or `--voxel`) and written as an SVG (`-o OUT.svg`).
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -22,12 +27,15 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 
-use zeroset_bases::field_file::{AnyField, RbfAny, read_any_field};
+use zeroset_bases::field_file::{AnyField, RbfAny, read_any_field, read_dimension};
+use zeroset_bases::neural::NeuralField;
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
 use zeroset_field_core::Grid;
 use zeroset_field_core::field::ScalarField;
 use zeroset_mesh::signed::{SmcStage, signed_marching_cubes};
+use zeroset_mesh::squares::contour_field;
+use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
@@ -47,7 +55,10 @@ Examples:
   # an explicit voxel edge, another level, capped where it leaves the grid
   zeroset mesh bunny.zsf -o shell.ply --voxel 0.002 --level 0.01 --close --force
   # two-step signed marching cubes with the fast multipole method (orders 6 and 10)
-  zeroset mesh bunny.zsf -o bunny.ply --method smc --order 6 --high-order 10 --detail fine";
+  zeroset mesh bunny.zsf -o bunny.ply --method smc --order 6 --high-order 10 --detail fine
+  # a 2-D field's zero curve by marching squares, as SVG
+  zeroset fit samples/curve.xyv --method neural -o curve.zsf
+  zeroset mesh curve.zsf -o curve.svg --resolution 400";
 
 /// Surface-extraction method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -84,12 +95,13 @@ impl From<DetailArg> for Detail {
 /// Arguments of `zeroset mesh`.
 #[derive(Debug, Args)]
 pub struct MeshArgs {
-    /// The field file (.zsf): an RBF field (`zeroset fit -o`) or a B-spline field
+    /// The field file (.zsf): an RBF or neural field (`zeroset fit -o`) or a B-spline field
     /// (`zeroset fit -o --sampled`, `zeroset restore`); meshed over the box it records.
     pub field: PathBuf,
 
-    /// The mesh file: .ply (binary little-endian, or --ascii) or .obj, written atomically.
-    #[arg(short, long, value_name = "OUT.ply|OUT.obj")]
+    /// The mesh file: .ply (binary little-endian, or --ascii) or .obj, written atomically;
+    /// .svg for the level curve of a 2-D field.
+    #[arg(short, long, value_name = "OUT.ply|OUT.obj|OUT.svg")]
     pub output: PathBuf,
 
     /// Surface-extraction method.
@@ -179,6 +191,9 @@ macro_rules! say {
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let mut out = Say::default();
+    if let Ok(2) = read_dimension(&args.field) {
+        return curve(args, &mut out);
+    }
     let format = check_output(args)?;
     if !args.level.is_finite() {
         bail!("--level must be finite, got {}", args.level);
@@ -275,10 +290,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             AnyField::Rbf(RbfAny::R3(f)) => smc(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Tps(f)) => smc(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Wendland(f)) => smc(f, &grid, &options, args, &mut out)?,
-            AnyField::BSpline(_) => bail!(
+            AnyField::BSpline(_) | AnyField::Neural(_) => bail!(
                 "--method smc evaluates RBF fields by the fast multipole method; {} holds a \
-                 B-spline field: use --method mc",
-                args.field.display()
+                 {} field: use --method mc",
+                args.field.display(),
+                field.kind()
             ),
         },
     };
@@ -415,8 +431,9 @@ fn smc<K: Kernel + Clone>(
     Ok(mesh)
 }
 
-/// The field's kind in words: `Quadratic B-spline`, `RBF field (kernel r, 600 centres)`.
-pub(crate) fn describe(field: &AnyField<3>) -> String {
+/// The field's kind in words: `Quadratic B-spline`, `RBF field (kernel r, 600 centres)`,
+/// `neural field (MLP 3 → 32 → 32 → 1, tanh)`.
+pub(crate) fn describe<const D: usize>(field: &AnyField<D>) -> String {
     match field {
         AnyField::BSpline(f) => format!("{:?} B-spline", f.degree()),
         AnyField::Rbf(f) => format!(
@@ -424,7 +441,111 @@ pub(crate) fn describe(field: &AnyField<3>) -> String {
             f.kernel_tag(),
             f.num_centres()
         ),
+        AnyField::Neural(f) => format!("neural field ({})", network(f)),
     }
+}
+
+/// A net in words: `MLP 3 → 32 → 32 → 1, tanh`.
+pub(crate) fn network<const D: usize>(f: &NeuralField<D>) -> String {
+    let arch = f.architecture();
+    let widths: Vec<String> = arch.widths().iter().map(|w| w.to_string()).collect();
+    format!(
+        "MLP {D} → {} → 1, {}",
+        widths.join(" → "),
+        arch.activation().name()
+    )
+}
+
+/// Default marching-squares cells along the longer axis of a 2-D field.
+const CURVE_CELLS: usize = 256;
+
+/// `zeroset mesh` of a 2-D field: its level curve by marching squares, as SVG.
+fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
+    crate::output::check_output(&args.output, &[&args.field], args.force, &["svg"])
+        .context("a 2-D field's level curve is written as SVG")?;
+    let refused = [
+        (args.method == Method::Smc, "--method smc"),
+        (args.close, "--close"),
+        (args.ascii, "--ascii"),
+    ];
+    if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
+        bail!(
+            "{flag} applies to 3-D fields; {} holds a 2-D field",
+            args.field.display()
+        );
+    }
+    if !args.level.is_finite() {
+        bail!("--level must be finite, got {}", args.level);
+    }
+    let field = read_any_field::<2>(&args.field)
+        .with_context(|| format!("reading {}", args.field.display()))?;
+    let bounds = field
+        .bounds()
+        .with_context(|| format!("the field in {} has no bounds", args.field.display()))?;
+    let ext = bounds.extent();
+    let longest = ext[0].max(ext[1]);
+    let h = match (args.resolution, args.voxel) {
+        (Some(n), _) if n < 2 => bail!("--resolution must be at least 2 cells, got {n}"),
+        (Some(n), _) => longest / n as f64,
+        (None, Some(h)) if !(h.is_finite() && h > 0.0) => {
+            bail!("--voxel must be a finite positive length, got {h}")
+        }
+        (None, Some(h)) => h,
+        (None, None) => longest / CURVE_CELLS as f64,
+    };
+    if !(h.is_finite() && h > 0.0) {
+        bail!("the field's box is a point: nothing to trace");
+    }
+    let counts = ext.map(|e| ((e / h).ceil() as usize).max(1) + 1);
+    if counts[0].saturating_mul(counts[1]) > 100_000_000 {
+        bail!(
+            "a {}×{} grid is too fine; choose a larger --voxel",
+            counts[0],
+            counts[1]
+        );
+    }
+    let grid = Grid::vertex_centered(bounds, counts).context("building the sampling grid")?;
+    say!(
+        out,
+        "field {}: 2-D {} over min {} max {}",
+        args.field.display(),
+        describe(&field),
+        crate::info::point_n(&bounds.min()),
+        crate::info::point_n(&bounds.max())
+    )?;
+    let start = Instant::now();
+    let contour = contour_field(&field, &grid, args.level).context("tracing the level curve")?;
+    let area: f64 = contour
+        .lines
+        .iter()
+        .filter(|l| l.closed)
+        .map(|l| l.signed_area())
+        .sum();
+    say!(
+        out,
+        "curve: {} closed loop(s), {} open piece(s), {} vertices, length {}, enclosed area {} \
+         (marching squares on {}×{} samples, {})",
+        contour.num_closed(),
+        contour.num_open(),
+        contour.num_points(),
+        g(contour.total_length()),
+        g(area),
+        counts[0],
+        counts[1],
+        seconds(start.elapsed())
+    )?;
+    let mut plot = SvgPlot::new(bounds, 800).context("the SVG canvas")?;
+    plot.title(&format!(
+        "level {} of {}",
+        g(args.level),
+        args.field.display()
+    ))
+    .frame("#999999", 1.0)?
+    .polylines(&contour, "#1f77b4", 2.0)?;
+    plot.write(&args.output)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    say!(out, "wrote {}", args.output.display())?;
+    Ok(())
 }
 
 /// The output's format from its extension; refuses the input, an existing file without

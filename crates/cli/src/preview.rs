@@ -4,8 +4,9 @@
 //! z-buffered, back faces darker and warmer). A field file (`.zsf`, recognised by its magic) is
 //! meshed at its zero set by marching cubes on the general `l0` voxel grid of its box (capped
 //! where it leaves the box) and drawn the same way; with `--slice AXIS[=POS]` the field is drawn
-//! on the plane `AXIS = POS` instead (blue inside, red outside, the zero contour in black). The
-//! image is written atomically.
+//! on the plane `AXIS = POS` instead (blue inside, red outside, the zero contour in black). A
+//! 2-D field file (a curve) is drawn over its box the same way as a slice. The image is
+//! written atomically.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,10 +15,10 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 
 use crate::progress::seconds;
-use zeroset_bases::field_file::{is_field_file, read_any_field};
+use zeroset_bases::field_file::{is_field_file, read_any_field, read_dimension};
 use zeroset_field_core::field::ScalarField;
 use zeroset_mesh::preview::{
-    Image, MAX_IMAGE_SIZE, RenderOptions, View, render_mesh, render_slice,
+    Image, MAX_IMAGE_SIZE, RenderOptions, View, render_field_2d, render_mesh, render_slice,
 };
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, TriMesh, mesh_field, read_ply_mesh};
@@ -33,7 +34,10 @@ Examples:
   zeroset preview bunny.ply -o side.png --azimuth 120 --elevation 10 --width 1200
   # the field on the plane through the box centre normal to z; or at x = 0.01
   zeroset preview bunny.zsf -o slice.png --slice z
-  zeroset preview bunny.zsf -o slice_x.png --slice x=0.01 --force";
+  zeroset preview bunny.zsf -o slice_x.png --slice x=0.01 --force
+  # a 2-D field (a curve): the field over its box with the zero contour
+  zeroset fit samples/curve.xyv --method neural -o curve.zsf
+  zeroset preview curve.zsf -o curve.png";
 
 /// A slice plane: the axis (0, 1, 2) and the position on it (the box centre when `None`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -133,7 +137,27 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
     }
     let total = Instant::now();
     let field_input = is_field_file(&args.input);
-    let image = if field_input {
+    let image = if field_input && matches!(read_dimension(&args.input), Ok(2)) {
+        if args.slice.is_some() {
+            bail!(
+                "--slice cuts a 3-D field; {} holds a 2-D field, drawn whole without it",
+                args.input.display()
+            );
+        }
+        let field = read_any_field::<2>(&args.input)
+            .with_context(|| format!("reading {}", args.input.display()))?;
+        let Some(bounds) = field.bounds() else {
+            bail!("the field in {} has no bounding box", args.input.display());
+        };
+        let image = render_field_2d(&field, bounds, args.width.max(args.height))
+            .context("rendering the field")?;
+        println!(
+            "the 2-D {} field {} over its box, zero contour in black",
+            field.kind(),
+            args.input.display()
+        );
+        image
+    } else if field_input {
         let field = read_any_field::<3>(&args.input)
             .with_context(|| format!("reading {}", args.input.display()))?;
         let Some(bounds) = field.bounds() else {

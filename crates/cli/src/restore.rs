@@ -230,9 +230,9 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
                 println!("field file {}: {described}", args.input.display());
                 Ok((Box::new(field), grid))
             }
-            AnyField::Rbf(field) => {
+            field @ (AnyField::Rbf(_) | AnyField::Neural(_)) => {
                 // Sampled onto a grid over the field's box, like a point cloud's field.
-                let bounds = field.bounds().context("the RBF field has no bounds")?;
+                let bounds = field.bounds().context("the field has no bounds")?;
                 let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;
                 println!(
                     "field file {}: {described}, sampled on the grid",

@@ -1211,3 +1211,199 @@ fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
         assert!(stderr(&o).contains("order"), "{}", stderr(&o));
     }
 }
+
+// ---- zeroset fit --method neural ----
+
+fn curve_sample() -> PathBuf {
+    let path = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../samples/curve.xyv"
+    ));
+    assert!(path.is_file(), "sample {} not found", path.display());
+    path
+}
+
+fn fit_neural(path: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<&OsStr> = vec![
+        OsStr::new("fit"),
+        path.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("neural"),
+        OsStr::new("--quiet"),
+    ];
+    args.extend(extra.iter().map(OsStr::new));
+    zeroset(args)
+}
+
+#[test]
+fn fit_neural_on_a_small_cloud_then_mesh_info_preview_and_restore() {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(150));
+    let field = dir.path().join("sphere_nn.zsf");
+    let o = fit_neural(
+        &path,
+        &[
+            "--steps",
+            "150",
+            "--aux",
+            "100",
+            "-o",
+            field.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    for want in [
+        "network:      MLP 3 → 32 → 32 → 1, tanh",
+        "150 steps",
+        "max residual:",
+        "wrote ",
+    ] {
+        assert!(out.contains(want), "{want:?} missing in:\n{out}");
+    }
+    let o = info(&field, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("kind:        neural") && out.contains("dimension:   3"),
+        "{out}"
+    );
+    let ply = dir.path().join("sphere_nn.ply");
+    let o = mesh(&field, &ply, &["--resolution", "24"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("neural field (MLP 3 → 32 → 32 → 1, tanh)"),
+        "{out}"
+    );
+    let vertices = reported(&out, "mesh:");
+    assert!(vertices > 100.0, "{out}");
+    let png = dir.path().join("sphere_nn.png");
+    let o = preview(&field, &png, &["--slice", "z"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(png_size(&png).0 > 0);
+    // smc needs an RBF field.
+    let o = mesh(&field, &dir.path().join("smc.ply"), &["--method", "smc"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("neural field: use --method mc"),
+        "{}",
+        stderr(&o)
+    );
+    // Restoration samples the neural field on a grid like an RBF field.
+    let restored = dir.path().join("restored.zsf");
+    let (f, r) = (field.to_str().unwrap(), restored.to_str().unwrap());
+    let o = zeroset(
+        [
+            "restore",
+            f,
+            "--mode",
+            "denoise",
+            "--mask",
+            "0.0,-0.3,0.2:0.2,-0.1,0.4",
+        ]
+        .into_iter()
+        .chain(["--coarse", "3,3,3", "--grid", "24,24,24", "-o", r]),
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("neural field"), "{}", stdout(&o));
+}
+
+#[test]
+fn fit_neural_on_the_curve_sample_then_trace_and_draw_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let field = dir.path().join("curve.zsf");
+    let o = fit_neural(
+        &curve_sample(),
+        &[
+            "--steps",
+            "600",
+            "--refit-last-layer",
+            "-o",
+            field.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("60 2-D value constraints (15 negative, 30 zero, 15 positive)"),
+        "{out}"
+    );
+    assert!(out.contains("refit:") && out.contains("dense-qr"), "{out}");
+    let o = info(&field, &[]);
+    assert!(
+        stdout(&o).contains("dimension:   2"),
+        "{}{}",
+        stdout(&o),
+        stderr(&o)
+    );
+    let svg = dir.path().join("curve.svg");
+    let o = mesh(&field, &svg, &[]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("curve: 1 closed loop(s)"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(fs::read_to_string(&svg).unwrap().contains("<svg"));
+    let o = mesh(&field, &dir.path().join("curve.ply"), &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains(".svg"), "{}", stderr(&o));
+    let png = dir.path().join("curve.png");
+    let o = preview(&field, &png, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("2-D neural field"), "{}", stdout(&o));
+    let o = preview(&field, &dir.path().join("s.png"), &["--slice", "z"]);
+    assert_clean_failure(&o);
+}
+
+#[test]
+fn fit_neural_refuses_bad_requests_with_a_message() {
+    let curve = curve_sample();
+    let cases: [(&[&str], &str); 7] = [
+        (&["--lambda", "-1"], "λ (curvature weight) -1"),
+        (
+            &["--widths", "32,0"],
+            "every hidden layer needs at least one neuron",
+        ),
+        (&["--widths", "32,x"], "comma-separated layer widths"),
+        (&["--dropout", "1.5"], "dropout rate"),
+        (&["--learning-rate", "0"], "learning rate"),
+        (&["--kernel", "r3"], "--kernel is an option of --method rbf"),
+        (
+            &["--offset", "0.1"],
+            "--offset and --format apply to point clouds",
+        ),
+    ];
+    for (extra, want) in cases {
+        let o = fit_neural(&curve, extra);
+        if extra[0] == "--widths" && extra[1] == "32,x" {
+            // clap refuses it before the command runs.
+            assert!(
+                !o.status.success() && stderr(&o).contains(want),
+                "{}",
+                stderr(&o)
+            );
+            continue;
+        }
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(want), "{extra:?}: {}", stderr(&o));
+    }
+    let (_d, bad) = temp_file("bad.xyv", "0 0 0\n0.5 0.5 nan\n");
+    let o = fit_neural(&bad, &[]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("bad.xyv") && stderr(&o).contains("line 2"),
+        "{}",
+        stderr(&o)
+    );
+    let o = fit(&curve, &[]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("use --method neural"), "{}", stderr(&o));
+    let o = fit(&sample(), &["--steps", "10"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("--steps is an option of --method neural"),
+        "{}",
+        stderr(&o)
+    );
+}

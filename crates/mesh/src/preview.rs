@@ -7,7 +7,10 @@
 //!   warmer than front faces, so they stand out.
 //! - [`render_slice`] draws a [`ScalarField`] on an axis-aligned plane with a diverging colour
 //!   map — blue where `f < 0` (inside), white at `0`, red where `f > 0` — scaled by a robust
-//!   maximum of `|f|` (the 98th percentile), with the zero contour in black.
+//!   maximum of `|f|` (the 98th percentile), with the zero contour in black;
+//!   [`render_field_2d`] does the same for a 2-D field.
+//! - [`Image`] has simple drawing on top (discs, lines, copying one image into another) for
+//!   figures such as contours over a field.
 //!
 //! Both return an [`Image`] (8-bit RGB), written with [`Image::write_png`] (atomically) or
 //! encoded with [`Image::to_png_bytes`]. Rendering is single-threaded (the field is sampled with
@@ -123,6 +126,59 @@ impl Image {
     fn set(&mut self, x: usize, y: usize, c: [u8; 3]) {
         let i = 3 * (y * self.width + x);
         self.rgb[i..i + 3].copy_from_slice(&c);
+    }
+
+    /// Sets pixel `(x, y)`; a pixel outside the image is ignored (drawing clips).
+    pub fn set_pixel(&mut self, x: i64, y: i64, colour: [u8; 3]) {
+        if let (Ok(x), Ok(y)) = (usize::try_from(x), usize::try_from(y))
+            && x < self.width
+            && y < self.height
+        {
+            self.set(x, y, colour);
+        }
+    }
+
+    /// Fills the pixels whose centres lie within `radius` of `centre`, in pixel coordinates
+    /// (`x` right, `y` down; pixel `(i, j)` has its centre at `(i + ½, j + ½)`). Clips.
+    pub fn fill_disc(&mut self, centre: [f64; 2], radius: f64, colour: [u8; 3]) {
+        if !(centre.iter().all(|c| c.is_finite()) && radius.is_finite() && radius > 0.0) {
+            return;
+        }
+        let lo = |c: f64| (c - radius - 0.5).floor().max(-1.0) as i64;
+        let hi = |c: f64, n: usize| (c + radius).ceil().min(n as f64) as i64;
+        for y in lo(centre[1])..=hi(centre[1], self.height) {
+            for x in lo(centre[0])..=hi(centre[0], self.width) {
+                let (dx, dy) = (x as f64 + 0.5 - centre[0], y as f64 + 0.5 - centre[1]);
+                if dx * dx + dy * dy <= radius * radius {
+                    self.set_pixel(x, y, colour);
+                }
+            }
+        }
+    }
+
+    /// Draws the segment `a`–`b` (pixel coordinates, as [`Image::fill_disc`]) `width` pixels
+    /// wide, with round ends. Clips.
+    pub fn draw_line(&mut self, a: [f64; 2], b: [f64; 2], width: f64, colour: [u8; 3]) {
+        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+        if !length.is_finite() {
+            return;
+        }
+        let steps = (length * 2.0).ceil().max(1.0) as usize;
+        for k in 0..=steps {
+            let t = k as f64 / steps as f64;
+            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            self.fill_disc(p, width / 2.0, colour);
+        }
+    }
+
+    /// Copies `other` into this image with its top-left corner at `(x, y)`. Clips.
+    pub fn blit(&mut self, other: &Image, x: usize, y: usize) {
+        for j in 0..other.height.min(self.height.saturating_sub(y)) {
+            let w = other.width.min(self.width.saturating_sub(x));
+            let src = 3 * j * other.width;
+            let dst = 3 * ((y + j) * self.width + x);
+            self.rgb[dst..dst + 3 * w].copy_from_slice(&other.rgb[src..src + 3 * w]);
+        }
     }
 
     /// The image encoded as a PNG file (8-bit RGB, not interlaced).
@@ -478,13 +534,7 @@ pub fn render_slice<F: ScalarField<3>>(
             )));
         }
     }
-    let (width, height) = if ext[ha] >= ext[va] {
-        let h = (pixels as f64 * ext[va] / ext[ha]).round().max(1.0) as usize;
-        (pixels, h.min(pixels))
-    } else {
-        let w = (pixels as f64 * ext[ha] / ext[va]).round().max(1.0) as usize;
-        (w.min(pixels), pixels)
-    };
+    let (width, height) = fit_aspect(pixels, ext[ha], ext[va]);
 
     let mut points = Vec::with_capacity(width * height);
     for j in 0..height {
@@ -498,6 +548,93 @@ pub fn render_slice<F: ScalarField<3>>(
     }
     let mut values = vec![0.0; points.len()];
     field.values(&points, &mut values);
+    shade(&values, &points, width, height)
+}
+
+/// Renders the 2-D `field` across `bounds`, `x` to the right and `y` up, exactly as
+/// [`render_slice`] renders a plane of a 3-D field: the same colour map and zero contour,
+/// aspect ratio kept, `pixels` the longer side.
+///
+/// ```
+/// use zeroset_field_core::{Aabb, field::FnField};
+/// use zeroset_mesh::preview::render_field_2d;
+///
+/// let circle = FnField::new(|p: &[f64; 2]| p[0].hypot(p[1]) - 0.5, None);
+/// let image = render_field_2d(&circle, Aabb::new([-1.0, -1.0], [1.0, 0.0])?, 200)?;
+/// assert_eq!((image.width(), image.height()), (200, 100));
+/// let [r, _, b] = image.pixel(100, 25); // (0, −0.25): inside, blue
+/// assert!(b > r);
+/// let [r, _, b] = image.pixel(0, 0); // near the corner (−1, 0): outside, red
+/// assert!(r > b);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// [`MeshError::ImageSize`] if `pixels` is 0 or above [`MAX_IMAGE_SIZE`];
+/// [`MeshError::InvalidSlice`] (axis 2, position 0) if `bounds` has zero extent on an axis;
+/// [`MeshError::NonFiniteSample`] naming the first pixel where the field is NaN or infinite.
+pub fn render_field_2d<F: ScalarField<2> + ?Sized>(
+    field: &F,
+    bounds: Aabb<2>,
+    pixels: usize,
+) -> Result<Image> {
+    check_size("image resolution", pixels)?;
+    let (lo, hi, ext) = (bounds.min(), bounds.max(), bounds.extent());
+    for a in 0..2 {
+        if ext[a] <= 0.0 {
+            return Err(MeshError::InvalidSlice {
+                axis: 2,
+                position: 0.0,
+                detail: format!(
+                    "the box has zero extent on axis {a} ([{}, {}])",
+                    lo[a], hi[a]
+                ),
+            });
+        }
+    }
+    let (width, height) = fit_aspect(pixels, ext[0], ext[1]);
+    let mut points = Vec::with_capacity(width * height);
+    for j in 0..height {
+        for i in 0..width {
+            points.push([
+                lo[0] + (i as f64 + 0.5) / width as f64 * ext[0],
+                hi[1] - (j as f64 + 0.5) / height as f64 * ext[1],
+            ]);
+        }
+    }
+    let mut values = vec![0.0; points.len()];
+    field.values(&points, &mut values);
+    shade(&values, &points, width, height)
+}
+
+/// The pixel coordinates (as [`Image::fill_disc`]) of the point `p` in an image of
+/// `width × height` pixels showing `bounds` as [`render_field_2d`] does (`x` right, `y` up).
+pub fn pixel_of(bounds: &Aabb<2>, width: usize, height: usize, p: &Point<2>) -> [f64; 2] {
+    let (lo, hi, ext) = (bounds.min(), bounds.max(), bounds.extent());
+    [
+        (p[0] - lo[0]) / ext[0] * width as f64,
+        (hi[1] - p[1]) / ext[1] * height as f64,
+    ]
+}
+
+/// `(width, height)` with the longer side `pixels` and the aspect ratio `horizontal : vertical`.
+fn fit_aspect(pixels: usize, horizontal: f64, vertical: f64) -> (usize, usize) {
+    if horizontal >= vertical {
+        let h = (pixels as f64 * vertical / horizontal).round().max(1.0) as usize;
+        (pixels, h.min(pixels))
+    } else {
+        let w = (pixels as f64 * horizontal / vertical).round().max(1.0) as usize;
+        (w.min(pixels), pixels)
+    }
+}
+
+/// The colour map and the zero contour of row-major samples (rows top to bottom).
+fn shade<const D: usize>(
+    values: &[f64],
+    points: &[Point<D>],
+    width: usize,
+    height: usize,
+) -> Result<Image> {
     if let Some(k) = values.iter().position(|v| !v.is_finite()) {
         return Err(MeshError::NonFiniteSample {
             index: k,
@@ -881,5 +1018,44 @@ mod tests {
         let (w, h, _) = decode(&bytes);
         assert_eq!((w, h), (512, 512));
         assert!(image.write_png(dir.path().join("missing/x.png")).is_err());
+    }
+
+    #[test]
+    fn two_d_fields_render_like_slices() {
+        let circle = FnField::new(|p: &[f64; 2]| p[0].hypot(p[1]) - 0.5, None);
+        let sphere = FnField::new(|p: &[f64; 3]| p[0].hypot(p[1]) - 0.5, None);
+        let b2 = Aabb::new([-1.0, -1.0], [1.0, 1.0]).unwrap();
+        let b3 = Aabb::new([-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]).unwrap();
+        let a = render_field_2d(&circle, b2, 64).unwrap();
+        let b = render_slice(&sphere, b3, 2, 0.0, 64).unwrap();
+        assert_eq!(a, b);
+        let flat = Aabb::new([0.0, 0.0], [1.0, 0.0]).unwrap();
+        assert!(matches!(
+            render_field_2d(&circle, flat, 10),
+            Err(MeshError::InvalidSlice { .. })
+        ));
+        assert!(render_field_2d(&circle, b2, 0).is_err());
+        assert_eq!(pixel_of(&b2, 64, 64, &[-1.0, 1.0]), [0.0, 0.0]);
+        assert_eq!(pixel_of(&b2, 64, 32, &[0.0, -1.0]), [32.0, 32.0]);
+    }
+
+    #[test]
+    fn drawing_clips_and_copies() {
+        let mut image = Image::filled(10, 8, [255, 255, 255]).unwrap();
+        image.fill_disc([2.0, 2.0], 1.0, [1, 2, 3]);
+        assert_eq!(image.pixel(1, 1), [1, 2, 3]);
+        assert_eq!(image.pixel(3, 3), [255, 255, 255]);
+        image.draw_line([0.5, 6.5], [9.5, 6.5], 1.0, [9, 9, 9]);
+        assert!((0..10).all(|x| image.pixel(x, 6) == [9, 9, 9]));
+        // Off the image: nothing happens, nothing panics.
+        image.fill_disc([-50.0, 3.0], 2.0, [0, 0, 0]);
+        image.draw_line([-5.0, -5.0], [100.0, -3.0], 3.0, [0, 0, 0]);
+        image.set_pixel(-1, 0, [0, 0, 0]);
+        image.set_pixel(10, 0, [0, 0, 0]);
+        image.fill_disc([f64::NAN, 1.0], 1.0, [0, 0, 0]);
+        let small = Image::filled(4, 4, [7, 7, 7]).unwrap();
+        image.blit(&small, 8, 6);
+        assert_eq!(image.pixel(9, 7), [7, 7, 7]);
+        assert_eq!(image.pixel(7, 7), [255, 255, 255]);
     }
 }

@@ -1,5 +1,5 @@
 //! Point-cloud files: readers for PLY, XYZ text, CSV and GemPy geology tables, and an atomic
-//! PLY writer.
+//! PLY writer; value constraints (`x y value`, `x y z value`) in [`values`].
 //!
 //! | [`Format`] | Extensions | What is read | Normals |
 //! |---|---|---|---|
@@ -46,9 +46,11 @@ use crate::geometry::Point3;
 pub mod gempy;
 mod ply;
 mod table;
+pub mod values;
 mod xyz;
 
 pub use ply::write_ply;
+pub use values::{ValuePoints, read_value_points, value_file_dimension};
 
 /// A point-cloud file format; see the [module docs](self) for what each one reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

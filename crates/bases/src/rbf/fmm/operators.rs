@@ -41,7 +41,8 @@ use super::chebyshev::Chebyshev;
 use super::tree::offset_of;
 use crate::rbf::kernel::{self, Kernel};
 
-/// How the M2L operators are compressed and applied (see the [module docs](self)).
+/// How the M2L operators are compressed and applied: each of the 16 canonical operators by its
+/// own truncated SVD, or all 316 offsets in one shared basis of dimension `r < p³`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum M2lCompression {
     /// Each canonical operator compressed on its own, pairs applied in the `p³`-dimensional

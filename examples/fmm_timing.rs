@@ -5,7 +5,7 @@
 //! ```text
 //! cargo run --release --example fmm_timing -- [--kernel r|r3] [--sources N] [--targets M,…]
 //!     [--order P] [--leaf L] [--tolerance T] [--repeat K] [--cloud FILE] [--data DIR] [--dump DIR] [--no-direct]
-//!     [--unknown-targets]
+//!     [--unknown-targets] [--compression shared|per-operator]
 //! ```
 //!
 //! Targets are drawn uniformly (seeded) in the field's bounds, and each field is built for
@@ -29,7 +29,7 @@ mod timing;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use zeroset::bases::rbf::fmm::{FmmField, FmmOptions};
+use zeroset::bases::rbf::fmm::{FmmField, FmmOptions, M2lCompression};
 use zeroset::bases::rbf::{Kernel, RbfField};
 use zeroset::core::ScalarField;
 
@@ -42,6 +42,7 @@ struct Args {
     order: usize,
     leaf: Option<usize>,
     tolerance: Option<f64>,
+    compression: Option<M2lCompression>,
     repeat: usize,
     cloud: String,
     data: PathBuf,
@@ -58,6 +59,7 @@ fn parse() -> Res<Args> {
         order: 6,
         leaf: None,
         tolerance: None,
+        compression: None,
         repeat: 3,
         cloud: "bunny_points.ply".into(),
         data: fmm_data::data_dir(),
@@ -83,6 +85,15 @@ fn parse() -> Res<Args> {
             "--order" => a.order = value.parse()?,
             "--leaf" => a.leaf = Some(value.parse()?),
             "--tolerance" => a.tolerance = Some(value.parse()?),
+            "--compression" => {
+                a.compression = Some(match value.as_str() {
+                    "shared" => M2lCompression::SharedBasis,
+                    "per-operator" => M2lCompression::PerOperator,
+                    _ => {
+                        return Err(format!("--compression {value}: shared or per-operator").into());
+                    }
+                })
+            }
             "--repeat" => a.repeat = value.parse::<usize>()?.max(1),
             "--cloud" => a.cloud = value,
             "--data" => a.data = value.into(),
@@ -116,6 +127,9 @@ fn run<K: Kernel + Clone>(args: &Args, field: &RbfField<K, 3>) -> Res<()> {
     }
     if let Some(t) = args.tolerance {
         options = options.with_tolerance(t);
+    }
+    if let Some(c) = args.compression {
+        options = options.with_compression(c);
     }
     println!(
         "fmm_timing: {} ({}), {} centres, order {}, {} threads, medians of {}",

@@ -371,7 +371,9 @@ fn smc<K: Kernel + Clone>(
     let start = Instant::now();
     let pair = OrderPair::new(
         field,
-        &FmmOptions::new(p),
+        // Step 1 evaluates the low order at every grid vertex: its tree is shaped for that many
+        // points; step 2 evaluates the high order at a few percent of them.
+        &FmmOptions::new(p).with_expected_points(grid.len()),
         &FmmOptions::new(high),
         DEFAULT_ERROR_SAMPLES,
         DEFAULT_SAFETY,

@@ -157,8 +157,12 @@ pub struct FmmOptions {
     /// Chebyshev nodes per axis, `p` (paper 002: 5…8 for the first step of the signed marching
     /// cubes, 9…12 for the second).
     pub order: usize,
-    /// The most sources a leaf holds (default: by order, `max(64, p³/2)`: a leaf's direct sums
-    /// then cost about as much as its expansions).
+    /// The most sources a leaf holds. Default: by order, `max(64, p³/2)` (a leaf's direct sums
+    /// then cost about as much as its expansions); with [`expected_points`](Self::expected_points)
+    /// `E` set, at most `max(8, √(28 N p⁵ / E))` for `N` sources, which minimises the cost model
+    /// `E · 27 s` (each point's near field, 27 leaves of `s` sources) `+ (N / s) · 189 · 4 p³ r`
+    /// (each leaf's M2L, rank `r ≈ p²`): many points per source want small leaves (at 10⁴
+    /// centres and a 256³ grid, 12 at `p = 6`; 10⁵ points keep the default).
     pub leaf_size: Option<usize>,
     /// The deepest level (default 16).
     pub max_depth: u32,
@@ -171,6 +175,7 @@ pub struct FmmOptions {
     /// unknown, many). A small cell next to a large leaf takes that leaf's sources into its
     /// local expansion (P2L: `|S| p³` kernel evaluations, once); where fewer than `p³` points
     /// are expected in the cell, they sum those sources directly instead (`|S|` per point).
+    /// Many points per source also make the default leaves smaller ([`FmmOptions::leaf_size`]).
     /// Only the cost changes: every point is evaluated to the same accuracy either way.
     pub expected_points: Option<usize>,
     /// How the M2L operators are compressed (default: [`M2lCompression::for_order`]).
@@ -248,9 +253,20 @@ impl FmmOptions {
         Ok(())
     }
 
-    fn leaf_size(&self) -> usize {
-        self.leaf_size
-            .unwrap_or_else(|| (self.order.pow(3) / 2).max(64))
+    /// The leaf size for `sources` centres (see [`FmmOptions::leaf_size`]).
+    fn leaf_size_for(&self, sources: usize) -> usize {
+        if let Some(size) = self.leaf_size {
+            return size;
+        }
+        let by_order = (self.order.pow(3) / 2).max(64);
+        match self.expected_points {
+            Some(e) if e > 0 => {
+                let p5 = (self.order as f64).powi(5);
+                let balanced = (28.0 * sources as f64 * p5 / e as f64).sqrt().round();
+                by_order.min((balanced as usize).max(8))
+            }
+            _ => by_order,
+        }
     }
 
     fn tolerance(&self) -> f64 {
@@ -406,7 +422,7 @@ impl<K: Kernel + Clone> FmmField<K> {
             TreeShape {
                 centre,
                 half,
-                leaf_size: options.leaf_size(),
+                leaf_size: options.leaf_size_for(points.len()),
                 max_depth: options.max_depth,
                 nodes: p * p * p,
                 expected: options.expected_points.map(|count| ExpectedPoints {

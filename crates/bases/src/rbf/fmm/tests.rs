@@ -153,6 +153,21 @@ fn points_outside_the_root_cube_are_exact_too() {
     }
 }
 
+/// The default leaf size balances the near field against M2L once many points per source are
+/// expected (`√(28 N p⁵ / E)`), keeps the order's default for few, and yields to an explicit one.
+#[test]
+fn many_expected_points_make_the_default_leaves_smaller() {
+    let grid = FmmOptions::new(6).with_expected_points(13_577_824);
+    assert_eq!(grid.leaf_size_for(10_002), 13);
+    let bar = FmmOptions::new(8).with_expected_points(100_000);
+    assert_eq!(bar.leaf_size_for(10_002), 256, "10⁵ points keep p³/2");
+    assert_eq!(FmmOptions::new(10).leaf_size_for(10_002), 500);
+    assert_eq!(FmmOptions::new(4).leaf_size_for(10), 64);
+    let tiny = FmmOptions::new(4).with_expected_points(1 << 40);
+    assert_eq!(tiny.leaf_size_for(100), 8, "never below 8");
+    assert_eq!(grid.with_leaf_size(40).leaf_size_for(10_002), 40);
+}
+
 /// Expected points move far sources from cells' expansions (P2L) to the points' direct sums:
 /// fewer P2L evaluations, the same accuracy (and gradients).
 #[test]

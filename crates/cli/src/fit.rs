@@ -16,7 +16,6 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
@@ -32,7 +31,7 @@ use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
 use crate::machine::available_memory;
-use crate::progress::{seconds, spinner};
+use crate::progress::{counter, seconds, spinner};
 use crate::restore::{cubic_counts, parse_counts};
 
 /// Shown after `zeroset fit --help`.
@@ -652,18 +651,7 @@ fn save_sampled<F: ScalarField<3> + ?Sized>(
 /// `values`, with a progress bar.
 fn sample<F: ScalarField<3> + ?Sized>(field: &F, grid: &Grid<3>, quiet: bool) -> Vec<f64> {
     const CHUNK: usize = 1 << 14;
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        let b = ProgressBar::new(grid.len() as u64);
-        b.set_style(
-            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta} left)")
-                .expect("valid template")
-                .progress_chars("=> "),
-        );
-        b.set_message("sampling the RBF field");
-        b
-    };
+    let bar = counter(quiet, grid.len(), "sampling the RBF field");
     let mut out = vec![0.0; grid.len()];
     let mut points = Vec::with_capacity(CHUNK.min(grid.len()));
     for (c, chunk) in out.chunks_mut(CHUNK).enumerate() {

@@ -28,7 +28,6 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use zeroset_bases::field_file::write_neural_field;
 use zeroset_bases::neural::{
@@ -44,6 +43,7 @@ use crate::fit::{
     read_error,
 };
 use crate::info::g;
+use crate::progress::counter;
 
 const HEADING: &str = "Neural (--method neural)";
 
@@ -373,7 +373,7 @@ fn train<const D: usize>(
         }
     ));
     let fit = NeuralFit::new(params.clone());
-    let bar = progress_bar(args.quiet, params.steps);
+    let bar = counter(args.quiet, params.steps, "training");
     let started = Instant::now();
     let trained = fit.fit_with(u, z, None, &mut |p| {
         if p.step % 10 == 0 || p.step == p.steps {
@@ -438,20 +438,6 @@ fn print_refit(r: &RefitReport, unit: f64) {
             r.elapsed.as_secs_f64()
         ),
     );
-}
-
-fn progress_bar(quiet: bool, steps: usize) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(steps as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} ({eta} left)")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_message("training");
-    bar
 }
 
 fn save<const D: usize>(field: &NeuralField<D>, output: &Path) -> anyhow::Result<()> {

@@ -15,6 +15,22 @@ pub(crate) fn spinner(quiet: bool) -> ProgressBar {
     s
 }
 
+/// A bar counting `len` steps under `message`, with the estimated time left, or a hidden one
+/// when `quiet`.
+pub(crate) fn counter(quiet: bool, len: usize, message: &'static str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta} left)")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(message);
+    bar
+}
+
 /// `d` in seconds, two decimals.
 pub(crate) fn seconds(d: Duration) -> String {
     format!("{:.2} s", d.as_secs_f64())

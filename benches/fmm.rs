@@ -22,7 +22,7 @@ use zeroset::bases::rbf::fmm::{FmmField, FmmOptions, OrderPair};
 use zeroset::bases::rbf::{Biharmonic, RbfFit};
 use zeroset::core::field::ScalarField;
 use zeroset::core::{Aabb, Centering, Grid};
-use zeroset::mesh::signed::signed_marching_cubes;
+use zeroset::mesh::signed::{SmcOptions, signed_marching_cubes};
 use zeroset::mesh::{McOptions, mesh_field};
 
 use rbf_sphere::sphere_setup;
@@ -95,7 +95,7 @@ fn smc_bench(c: &mut Criterion) {
                 &grid,
                 0.0,
                 pair.margin,
-                &options,
+                &SmcOptions::from(options),
                 None,
             )
             .map(|(m, _)| m.num_triangles())

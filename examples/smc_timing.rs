@@ -4,22 +4,27 @@
 //!
 //! ```text
 //! cargo run --release --example smc_timing -- [--kernel r|r3] [--sources N] [--low p]
-//!     [--high P] [--grids 256,coarse,general,fine] [--cloud FILE] [--data DIR] [--no-plain]
+//!     [--high P] [--grids 256,coarse,general,fine] [--step blocks|every] [--cloud FILE]
+//!     [--data DIR] [--no-plain]
 //! ```
 //!
 //! A grid is `N` (voxels along the longest axis of the field's box) or `coarse` / `general` /
 //! `fine` (the l0 rule of `zeroset_mesh::voxel`: 5·l0, l0, 0.3·l0). The operators of both
-//! orders and the order-`P` field (default options: step 2 evaluates few points) are built
-//! once; per grid, the order-`p` field is built for one evaluation per grid vertex
-//! (`FmmOptions::with_expected_points`, as `zeroset mesh --method smc` does), its build timed
-//! as SMC's cost (`low_s`), and the errors of both orders, sampled against the direct sum as
-//! `OrderPair` does, give the margin (10 × their sum). Per grid: `N_MC` (plain MC's
-//! evaluations, one per vertex), `N_SMC,P` (`N_SMC,p = N_MC`), `γ = N_SMC,P / N_SMC,p`, the
-//! margin, `low_s`, the signed marching cubes' time, plain marching cubes with the same order-`P`
-//! field at every vertex (`plain_s`: the mesh must be identical, same vertices bit for bit and
+//! orders are built once (they depend on the kernel and order only). Per grid, everything SMC
+//! needs is timed as `zeroset mesh --method smc` does it: the order-`p` and order-`P` fields,
+//! each shaped for the evaluations it will see (`zeroset_mesh::expected_evaluations`;
+//! `low_s`, `high_s`), the errors of both orders sampled against the direct sum as `OrderPair`
+//! does, which give the margin (10 × their sum; `margin_s`), and the signed marching cubes
+//! (`smc_s`); `total_s` is their sum. Step 1 settles blocks by enclosures (`--step blocks`, the
+//! default) or evaluates every vertex (`--step every`, the paper's step 1).
+//!
+//! Per grid it prints `N_MC` (plain MC's evaluations, one per vertex), `N_SMC,p` (order-`p`
+//! evaluations: `N_MC` with `--step every`), `N_SMC,P`, `γ = N_SMC,P / N_MC` (the paper's
+//! `N_SMC,P / N_SMC,p`, whose step 1 evaluates every vertex), the margin, the times, and plain
+//! marching cubes twice: with the same order-`P` field at every vertex (`plain_s`, the field's
+//! build not counted on either side; the mesh must be identical, same vertices bit for bit and
 //! same triangles) and with an order-`P` field built for every vertex (`tuned_s`, its build
-//! included: plain MC at its fastest), and the ratios `plain_s` and `tuned_s` over
-//! `low_s + smc_s`.
+//! included: plain MC at its fastest, against `total_s`).
 
 #[path = "common/fmm_data.rs"]
 mod fmm_data;
@@ -29,7 +34,9 @@ use std::time::Instant;
 use zeroset::bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmField, FmmOptions};
 use zeroset::bases::rbf::{Kernel, RbfField};
 use zeroset::core::ScalarField;
-use zeroset::mesh::signed::signed_marching_cubes;
+use zeroset::mesh::signed::{
+    CoarseStep, SmcOptions, expected_evaluations, settled_fraction, signed_marching_cubes,
+};
 use zeroset::mesh::voxel::{self, Detail};
 use zeroset::mesh::{McOptions, mesh_field};
 
@@ -44,6 +51,7 @@ fn main() -> Res<()> {
     let mut cloud = "bunny_points.ply".to_string();
     let mut data = fmm_data::data_dir();
     let mut plain = true;
+    let mut step = CoarseStep::Blocks;
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         if flag == "--no-plain" {
@@ -59,13 +67,20 @@ fn main() -> Res<()> {
             "--grids" => grids = v.split(',').map(String::from).collect(),
             "--cloud" => cloud = v,
             "--data" => data = v.into(),
+            "--step" => {
+                step = match v.as_str() {
+                    "blocks" => CoarseStep::Blocks,
+                    "every" => CoarseStep::EveryVertex,
+                    other => return Err(format!("--step blocks|every, not {other}").into()),
+                }
+            }
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
     let run = |f: &dyn Fn() -> Res<()>| f();
     match fmm_data::load(&data, &cloud, &kernel, sources)? {
-        fmm_data::Field::R(f) => run(&|| table(&f, low, high, &grids, plain)),
-        fmm_data::Field::R3(f) => run(&|| table(&f, low, high, &grids, plain)),
+        fmm_data::Field::R(f) => run(&|| table(&f, low, high, &grids, plain, step)),
+        fmm_data::Field::R3(f) => run(&|| table(&f, low, high, &grids, plain, step)),
     }
 }
 
@@ -75,41 +90,53 @@ fn table<K: Kernel + Clone>(
     high: usize,
     grids: &[String],
     plain: bool,
+    step: CoarseStep,
 ) -> Res<()> {
     let t = Instant::now();
     let (low_options, high_options) = (FmmOptions::new(low), FmmOptions::new(high));
     let low_ops = FmmField::operators(field.kernel(), &low_options)?;
     let high_ops = FmmField::operators(field.kernel(), &high_options)?;
-    let high_field = FmmField::with_operators(field, &high_options, high_ops.clone())?;
-    let (high_error, _) = high_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 2);
+    // The compressed M2L operators are computed on first use: build a field of each order.
+    FmmField::with_operators(field, &low_options, low_ops.clone())?;
+    FmmField::with_operators(field, &high_options, high_ops.clone())?;
     println!(
-        "smc_timing: {} centres ({}), orders {low}/{high}, order {high} sampled error {:.2e}, \
-         operators and order-{high} field built in {:.2} s, {} threads",
+        "smc_timing: {} centres ({}), orders {low}/{high}, step 1 {step:?}, operators built in \
+         {:.2} s (once per kernel and order, not counted below), {} threads",
         field.num_centres(),
         field.kernel().name(),
-        high_error,
         t.elapsed().as_secs_f64(),
         rayon::current_num_threads()
     );
     println!(
-        "{:>8} {:>14} {:>10} {:>10} {:>10} {:>7} {:>9} {:>7} {:>7} {:>8} {:>8} {:>6} {:>6} {:>9}",
+        "{:>8} {:>14} {:>10} {:>10} {:>10} {:>10} {:>7} {:>9} {:>6} {:>6} {:>8} {:>6} {:>7} \
+         {:>7} {:>7} {:>6} {:>6} {:>9}",
         "grid",
         "shape",
         "voxel",
         "N_MC",
+        "N_SMC,p",
         "N_SMC,P",
         "gamma",
         "margin",
         "low_s",
+        "high_s",
+        "margin_s",
         "smc_s",
+        "total_s",
         "plain_s",
         "tuned_s",
-        "ratio",
+        "same",
         "tuned",
         "identical"
     );
     let bounds = field.bounds().ok_or("no bounds")?;
     let options = McOptions::default().with_normals(false);
+    let smc_options = SmcOptions::from(options).with_coarse_step(step);
+    let timed = |f: &mut dyn FnMut() -> Res<()>| -> Res<f64> {
+        let t = Instant::now();
+        f()?;
+        Ok(t.elapsed().as_secs_f64())
+    };
     for spec in grids {
         let h = match spec.as_str() {
             "coarse" => voxel::voxel_size(&bounds, Detail::Coarse),
@@ -122,24 +149,51 @@ fn table<K: Kernel + Clone>(
         };
         let grid = voxel::grid_for(&bounds, h, 0.0)?;
         let c = grid.counts();
-        // Step 1's field, shaped for one evaluation per grid vertex (its build is SMC's cost).
-        let t = Instant::now();
-        let low_field = FmmField::with_operators(
-            field,
-            &low_options.with_expected_points(grid.len()),
-            low_ops.clone(),
-        )?;
-        let low_s = t.elapsed().as_secs_f64();
-        let (low_error, _) = low_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 1);
-        let margin = DEFAULT_SAFETY * (low_error + high_error);
-        let t = Instant::now();
-        let (mesh, r) =
-            signed_marching_cubes(&low_field, &high_field, &grid, 0.0, margin, &options, None)?;
-        let smc = t.elapsed().as_secs_f64();
+        let [e_low, e_high] = expected_evaluations(&grid, step);
+        let mut low_field = None;
+        let low_s = timed(&mut || {
+            let o = low_options.with_expected_points(e_low);
+            low_field = Some(FmmField::with_operators(field, &o, low_ops.clone())?);
+            Ok(())
+        })?;
+        let low_field = low_field.ok_or("no low field")?;
+        let mut high_field = None;
+        let high_s = timed(&mut || {
+            let o = high_options.with_expected_points(e_high);
+            high_field = Some(FmmField::with_operators(field, &o, high_ops.clone())?);
+            Ok(())
+        })?;
+        let high_field = high_field.ok_or("no high field")?;
+        let mut margin = 0.0;
+        let margin_s = timed(&mut || {
+            let (low_error, _) = low_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 1);
+            let (high_error, _) = high_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 2);
+            margin = DEFAULT_SAFETY * (low_error + high_error);
+            Ok(())
+        })?;
+        let probe = settled_fraction(&low_field, &grid, 0.0, margin, 512);
+        let mut result = None;
+        let smc_s = timed(&mut || {
+            result = Some(signed_marching_cubes(
+                &low_field,
+                &high_field,
+                &grid,
+                0.0,
+                margin,
+                &smc_options,
+                None,
+            )?);
+            Ok(())
+        })?;
+        let (mesh, r) = result.ok_or("no mesh")?;
+        let total_s = low_s + high_s + margin_s + smc_s;
         let (plain_s, tuned_s, same) = if plain {
-            let t = Instant::now();
-            let reference = mesh_field(&high_field, &grid, 0.0, &options)?;
-            let plain_s = t.elapsed().as_secs_f64();
+            let mut reference = None;
+            let plain_s = timed(&mut || {
+                reference = Some(mesh_field(&high_field, &grid, 0.0, &options)?);
+                Ok(())
+            })?;
+            let reference = reference.ok_or("no mesh")?;
             let same = reference.triangles() == mesh.triangles()
                 && reference.vertices().len() == mesh.vertices().len()
                 && reference
@@ -148,32 +202,46 @@ fn table<K: Kernel + Clone>(
                     .zip(mesh.vertices())
                     .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits));
             // Plain MC at its best: the order-P field shaped for every vertex, build included.
-            let t = Instant::now();
-            let dense = FmmField::with_operators(
-                field,
-                &high_options.with_expected_points(grid.len()),
-                high_ops.clone(),
-            )?;
-            mesh_field(&dense, &grid, 0.0, &options)?;
-            let tuned_s = t.elapsed().as_secs_f64();
+            let tuned_s = timed(&mut || {
+                let o = high_options.with_expected_points(grid.len());
+                let dense = FmmField::with_operators(field, &o, high_ops.clone())?;
+                mesh_field(&dense, &grid, 0.0, &options)?;
+                Ok(())
+            })?;
             (plain_s, tuned_s, if same { "yes" } else { "NO" })
         } else {
             (f64::NAN, f64::NAN, "-")
         };
         println!(
-            "{spec:>8} {:>14} {h:>10.3e} {:>10} {:>10} {:>6.2}% {margin:>9.2e} {low_s:>7.2} \
-             {smc:>7.2} {plain_s:>8.2} {tuned_s:>8.2} {:>6.1} {:>6.1} {same:>9}",
+            "{spec:>8} {:>14} {h:>10.3e} {:>10} {:>10} {:>10} {:>6.2}% {margin:>9.2e} \
+             {low_s:>6.2} {high_s:>6.2} {margin_s:>8.2} {smc_s:>6.2} {total_s:>7.2} \
+             {plain_s:>7.2} {tuned_s:>7.2} {:>6.1} {:>6.1} {same:>9}",
             format!("{}x{}x{}", c[0], c[1], c[2]),
             r.n_mc,
+            r.n_smc_low,
             r.n_smc_high,
             100.0 * r.gamma,
-            plain_s / (low_s + smc),
-            tuned_s / (low_s + smc),
+            plain_s / (total_s - high_s),
+            tuned_s / total_s,
         );
+        let lr = low_field.report();
         println!(
-            "{:>8} signed MC stages: step 1 (order {low} everywhere, certainty) {:.2} s, step 2 \
-             {:.2} s, extraction {:.2} s",
-            "", r.coarse_seconds, r.fine_seconds, r.extract_seconds
+            "{:>8} order-{low} field for {e_low} points: {} leaves, {} M2L pairs; order-{high} \
+             for {e_high}: {} leaves; probe: {:.0}% of 512 blocks settle; {} enclosures \
+             settled {} blocks ({} vertices, {:.1}%); step 1 {:.2} s, step 2 {:.2} s, \
+             extraction {:.2} s",
+            "",
+            lr.leaves,
+            lr.m2l_pairs,
+            high_field.report().leaves,
+            100.0 * probe,
+            r.enclosures,
+            r.settled_blocks,
+            r.settled_vertices,
+            100.0 * r.settled_vertices as f64 / r.n_mc as f64,
+            r.coarse_seconds,
+            r.fine_seconds,
+            r.extract_seconds
         );
     }
     Ok(())

@@ -9,9 +9,12 @@
 //! from `--voxel`. The mesh is checked, reported and written atomically as PLY or OBJ.
 //!
 //! `--method smc` (RBF fields only) is the two-step signed marching cubes of paper 002: the
-//! field is evaluated by the fast multipole method at a low order `p` (`--order`) at every grid
-//! vertex, and at a high order `P` (`--high-order`) only at the vertices of voxels whose sign is
-//! uncertain or changes (`zeroset_bases::rbf::fmm::OrderPair`, `zeroset_mesh::signed`). The
+//! signs of the grid vertices are settled by the fast multipole method at a low order `p`
+//! (`--order`), and the field is evaluated at a high order `P` (`--high-order`) only at the
+//! vertices of voxels whose sign is uncertain or changes (`zeroset_bases::rbf::fmm::OrderPair`,
+//! `zeroset_mesh::signed`). Step 1 settles whole blocks of vertices at once where the low-order
+//! field's enclosure clears the level (`--step blocks`), evaluates every vertex as the paper
+//! does (`--step every`), or picks one by probing 512 blocks (`--step auto`, the default). The
 //! mesh is the one plain marching cubes gives with order `P` everywhere; the output reports the
 //! paper's Table 3 counts.
 //!
@@ -33,7 +36,9 @@ use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions,
 use zeroset_bases::rbf::{Kernel, RbfField};
 use zeroset_field_core::Grid;
 use zeroset_field_core::field::ScalarField;
-use zeroset_mesh::signed::{SmcStage, signed_marching_cubes};
+use zeroset_mesh::signed::{
+    CoarseStep, SmcOptions, SmcStage, expected_evaluations, settled_fraction, signed_marching_cubes,
+};
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::voxel::{self, Detail};
@@ -69,6 +74,19 @@ pub enum Method {
     /// everywhere, at --high-order only where the sign is uncertain; the same mesh as `mc` at
     /// --high-order.
     Smc,
+}
+
+/// How step 1 of --method smc settles the grid vertices.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum StepArg {
+    /// Blocks where a probe of 512 blocks finds that at least half settle, every vertex
+    /// otherwise (biharmonic `r` fields settle most blocks, triharmonic `r3` ones few).
+    Auto,
+    /// Settle whole blocks of vertices by enclosures of the low-order field; evaluate it only
+    /// in the blocks near the surface.
+    Blocks,
+    /// The paper's step 1: the low order at every grid vertex.
+    Every,
 }
 
 /// Accuracy class of the voxel-size rule.
@@ -115,6 +133,11 @@ pub struct MeshArgs {
     /// High expansion order P of --method smc (at least --order).
     #[arg(long, default_value_t = 10, value_name = "P")]
     pub high_order: usize,
+
+    /// Step 1 of --method smc: settle blocks of vertices by enclosures, evaluate every vertex,
+    /// or choose by a probe.
+    #[arg(long, value_enum, default_value_t = StepArg::Auto)]
+    pub step: StepArg,
 
     /// The level to extract (the zero set by default; fields are negative inside).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -369,33 +392,59 @@ fn smc<K: Kernel + Clone>(
         "building the multipole expansions of orders {p} and {high} and sampling their errors"
     ));
     let start = Instant::now();
-    let pair = OrderPair::new(
+    let blocks_first = args.step != StepArg::Every;
+    let first = if blocks_first {
+        CoarseStep::Blocks
+    } else {
+        CoarseStep::EveryVertex
+    };
+    // Each field's tree is shaped for the evaluations it will see.
+    let [low_points, high_points] = expected_evaluations(grid, first);
+    let mut pair = OrderPair::new(
         field,
-        // Step 1 evaluates the low order at every grid vertex: its tree is shaped for that many
-        // points; step 2 evaluates the high order at a few percent of them.
-        &FmmOptions::new(p).with_expected_points(grid.len()),
-        &FmmOptions::new(high),
+        &FmmOptions::new(p).with_expected_points(low_points),
+        &FmmOptions::new(high).with_expected_points(high_points),
         DEFAULT_ERROR_SAMPLES,
         DEFAULT_SAFETY,
     )
     .context("--method smc")?;
+    let mut step = first;
+    let mut probe_note = String::new();
+    if args.step == StepArg::Auto {
+        let settled = settled_fraction(&pair.low, grid, args.level, pair.margin, 512);
+        probe_note = format!("; probe: {:.0}% of 512 blocks settle", 100.0 * settled);
+        if settled < 0.5 {
+            step = CoarseStep::EveryVertex;
+            bar.set_message(format!(
+                "few blocks settle: rebuilding order {p} for every grid vertex"
+            ));
+            let every = expected_evaluations(grid, step)[0];
+            pair = pair
+                .with_low(field, &FmmOptions::new(p).with_expected_points(every))
+                .context("--method smc")?;
+        }
+    }
     let built = start.elapsed();
     bar.suspend(|| {
         say!(
             out,
             "fmm: order {p} (sampled max error {}), order {high} ({}), margin {} = {} × their \
-             sum; built in {}",
+             sum; built in {}; step 1: {}{probe_note}",
             g(pair.low_error),
             g(pair.high_error),
             g(pair.margin),
             g(DEFAULT_SAFETY),
-            seconds(built)
+            seconds(built),
+            match step {
+                CoarseStep::Blocks => "blocks settled by enclosures",
+                _ => "every vertex",
+            }
         )
     })?;
     let progress = |stage: SmcStage| {
         bar.set_message(match stage {
             SmcStage::Coarse { vertices } => {
-                format!("step 1: order {p} at {vertices} grid vertices")
+                format!("step 1: settling {vertices} grid vertices with order {p}")
             }
             SmcStage::Fine { vertices } => {
                 format!("step 2: order {high} at {vertices} vertices of uncertain voxels")
@@ -409,18 +458,22 @@ fn smc<K: Kernel + Clone>(
         grid,
         args.level,
         pair.margin,
-        options,
+        &SmcOptions::from(*options).with_coarse_step(step),
         Some(&progress),
     );
     bar.finish_and_clear();
     let (mesh, r) = result.context("extracting the level set")?;
     say!(
         out,
-        "signed marching cubes: N_MC {} (plain MC's evaluations), N_SMC,p {}, N_SMC,P {}, \
-         gamma = N_SMC,P / N_SMC,p = {:.2}%; {} uncertain vertices, {} candidate and {} \
-         surface voxels; step 1 {}, step 2 {}, triangulation {}",
+        "signed marching cubes: N_MC {} (plain MC's evaluations), N_SMC,p {} ({} vertices in {} \
+         blocks settled by {} enclosures), N_SMC,P {}, gamma = N_SMC,P / N_MC = {:.2}%; {} \
+         uncertain vertices, {} candidate and {} surface voxels; step 1 {}, step 2 {}, \
+         triangulation {}",
         r.n_mc,
         r.n_smc_low,
+        r.settled_vertices,
+        r.settled_blocks,
+        r.enclosures,
         r.n_smc_high,
         100.0 * r.gamma,
         r.uncertain_vertices,

@@ -1179,6 +1179,40 @@ fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
     ] {
         assert!(out.contains(text), "{text:?}:\n{out}");
     }
+    assert!(out.contains("step 1: ") && out.contains("probe: "), "{out}");
+    // Step 1 by blocks or at every vertex: the same mesh, byte for byte.
+    let steps: Vec<Vec<u8>> = ["blocks", "every"]
+        .iter()
+        .map(|step| {
+            let path = dir.path().join(format!("smc-{step}.ply"));
+            let args = [
+                "--method",
+                "smc",
+                "--order",
+                "5",
+                "--high-order",
+                "9",
+                "--resolution",
+                "32",
+                "--step",
+                step,
+            ];
+            let o = mesh(&field, &path, &args);
+            assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+            let out = stdout(&o);
+            let expect = if *step == "blocks" {
+                "step 1: blocks settled by enclosures"
+            } else {
+                "step 1: every vertex"
+            };
+            assert!(out.contains(expect), "{out}");
+            fs::read(&path).expect("mesh file")
+        })
+        .collect();
+    assert_eq!(
+        steps[0], steps[1],
+        "blocks and every vertex give the same mesh"
+    );
     // The exact field meshed by plain marching cubes: the same surface up to the expansion's
     // error (the meshes are not bitwise equal: order 9 is not the direct sum).
     let mc = dir.path().join("mc.ply");

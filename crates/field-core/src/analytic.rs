@@ -10,7 +10,8 @@
 //!
 //! All are negative inside and have `‖∇f‖ = 1` wherever the gradient exists. Where it does not
 //! (the centre of a ball, the axis circle of a torus, the medial axis of a box) a unit vector is
-//! returned so that normals stay finite. Bounds are the shape's box grown by 10 % of its largest
+//! returned so that normals stay finite. Being 1-Lipschitz, each encloses itself over a box by
+//! `value(centre) ± half-diagonal` ([`ScalarField::value_range`]). Bounds are the shape's box grown by 10 % of its largest
 //! extent, so a grid over them brackets the zero set.
 //!
 //! ```
@@ -22,7 +23,7 @@
 //! assert_eq!(t.gradient(&[1.5, 0.0, 0.0]), [1.0, 0.0, 0.0]);
 //! ```
 
-use crate::field::ScalarField;
+use crate::field::{ScalarField, lipschitz_range};
 use crate::geometry::{Aabb, Point, norm, sub};
 
 fn padded<const D: usize>(min: Point<D>, max: Point<D>) -> Option<Aabb<D>> {
@@ -73,6 +74,10 @@ impl<const D: usize> ScalarField<D> for Ball<D> {
             self.center.map(|c| c - self.radius),
             self.center.map(|c| c + self.radius),
         )
+    }
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        // A signed distance is 1-Lipschitz.
+        lipschitz_range(self, region, 1.0)
     }
 }
 
@@ -131,6 +136,10 @@ impl ScalarField<3> for Torus {
             [c[0] + a, c[1] + a, c[2] + r],
         )
     }
+    fn value_range(&self, region: &Aabb<3>) -> Option<[f64; 2]> {
+        // A signed distance is 1-Lipschitz.
+        lipschitz_range(self, region, 1.0)
+    }
 }
 
 /// A ring in the plane: the points within `half_width` of the circle of radius `radius`
@@ -169,6 +178,10 @@ impl ScalarField<2> for Annulus {
     fn bounds(&self) -> Option<Aabb<2>> {
         let a = self.radius + self.half_width;
         padded(self.center.map(|c| c - a), self.center.map(|c| c + a))
+    }
+    fn value_range(&self, region: &Aabb<2>) -> Option<[f64; 2]> {
+        // A signed distance is 1-Lipschitz.
+        lipschitz_range(self, region, 1.0)
     }
 }
 
@@ -226,6 +239,10 @@ impl<const D: usize> ScalarField<D> for BoxSdf<D> {
             std::array::from_fn(|i| self.center[i] - self.half_extent[i]),
             std::array::from_fn(|i| self.center[i] + self.half_extent[i]),
         )
+    }
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        // A signed distance is 1-Lipschitz.
+        lipschitz_range(self, region, 1.0)
     }
 }
 
@@ -314,5 +331,26 @@ mod tests {
         assert!((c.value(&[2.0, 3.0, 4.0]) - 3.0_f64.sqrt()).abs() < 1e-15);
         assert_eq!(c.value(&[0.0, 0.0, 0.0]), -1.0);
         assert_eq!(c.gradient(&[0.5, 0.0, 0.0]), [1.0, 0.0, 0.0]);
+    }
+
+    /// The enclosures hold at the corners and inside, for every shape.
+    #[test]
+    fn enclosures_hold() {
+        fn check<const D: usize>(f: &impl ScalarField<D>) {
+            let b = f.bounds().expect("bounds");
+            for (k, c) in probe_points(&b, 200).iter().enumerate() {
+                let half = [0.01, 0.1, 0.4][k % 3];
+                let region = Aabb::new(c.map(|v| v - half), c.map(|v| v + half)).expect("box");
+                let [lo, hi] = f.value_range(&region).expect("enclosure");
+                for x in probe_points(&region, 30) {
+                    let v = f.value(&x);
+                    assert!(lo <= v && v <= hi, "{v} outside [{lo}, {hi}]");
+                }
+            }
+        }
+        check(&Ball::new([0.1, -0.2, 0.3], 0.7));
+        check(&Torus::new([0.0; 3], 1.0, 0.3));
+        check(&Annulus::new([0.2, 0.1], 1.0, 0.2));
+        check(&BoxSdf::new([0.0; 3], [0.5, 0.3, 0.8]));
     }
 }

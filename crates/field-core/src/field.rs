@@ -28,7 +28,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{Aabb, Point};
+use crate::geometry::{Aabb, Point, norm};
 
 /// Points per rayon task in [`ScalarField::values`]: large enough to amortise scheduling,
 /// small enough to balance two to sixty-four cores.
@@ -76,6 +76,48 @@ pub trait ScalarField<const D: usize>: Send + Sync {
     /// Meshing samples this box unless told otherwise. `None` for fields defined everywhere with
     /// no natural extent.
     fn bounds(&self) -> Option<Aabb<D>>;
+
+    /// An **enclosure** of the field over the closed box `region`: `[lo, hi]` with
+    /// `lo ≤ value(x) ≤ hi` for every `x` in it (the values as computed, rounding included), or
+    /// `None` where the field cannot bound itself there. The default is `None`.
+    ///
+    /// A field that can enclose itself cheaply lets consumers settle whole regions at once:
+    /// the signed marching cubes skip every block of grid vertices whose enclosure stays clear
+    /// of the level. An enclosure need not be tight, only true and cheaper than evaluating the
+    /// points it covers; a 1-Lipschitz field (a signed distance) encloses itself by
+    /// `value(centre) ± half-diagonal` ([`lipschitz_range`]).
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        let _ = region;
+        None
+    }
+}
+
+/// The enclosure `value(centre) ± lipschitz · half-diagonal` of a field with Lipschitz constant
+/// `lipschitz` over `region` (widened by a few units of rounding of the centre's value), as
+/// [`ScalarField::value_range`] returns it; `None` if the centre's value is not finite.
+///
+/// ```
+/// use zeroset_field_core::analytic::Sphere;
+/// use zeroset_field_core::field::ScalarField;
+/// use zeroset_field_core::Aabb;
+///
+/// let s = Sphere::new([0.0; 3], 1.0);
+/// let [lo, hi] = s.value_range(&Aabb::new([2.0; 3], [2.5; 3])?).unwrap();
+/// assert!(lo > 0.0 && lo <= s.value(&[2.0; 3]) && s.value(&[2.5; 3]) <= hi);
+/// # Ok::<(), zeroset_field_core::Error>(())
+/// ```
+pub fn lipschitz_range<const D: usize, F: ScalarField<D> + ?Sized>(
+    field: &F,
+    region: &Aabb<D>,
+    lipschitz: f64,
+) -> Option<[f64; 2]> {
+    let centre = region.center();
+    let half_diagonal = 0.5 * norm(&region.extent());
+    let v = field.value(&centre);
+    // Each value is a handful of roundings away from the exact distance.
+    let slack = 16.0 * f64::EPSILON * (v.abs() + lipschitz * half_diagonal + 1.0);
+    let spread = lipschitz * half_diagonal + slack;
+    v.is_finite().then_some([v - spread, v + spread])
 }
 
 /// A 2-D field (curves).
@@ -120,6 +162,9 @@ macro_rules! forward_scalar_field {
             fn bounds(&self) -> Option<Aabb<D>> {
                 (**self).bounds()
             }
+            fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+                (**self).value_range(region)
+            }
         }
     )*};
 }
@@ -144,6 +189,9 @@ impl<const D: usize, F: ScalarField<D>> ScalarField<D> for Negated<F> {
     }
     fn bounds(&self) -> Option<Aabb<D>> {
         self.0.bounds()
+    }
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        self.0.value_range(region).map(|[lo, hi]| [-hi, -lo])
     }
 }
 

@@ -95,7 +95,10 @@ pub use checks::{MeshReport, boundary_loops, check};
 pub use cubes::{McOptions, marching_cubes, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};
-pub use signed::{SmcReport, SmcStage, VgReport, signed_marching_cubes, voxel_growing};
+pub use signed::{
+    CoarseStep, SmcOptions, SmcReport, SmcStage, VgReport, expected_evaluations, settled_fraction,
+    signed_marching_cubes, voxel_growing,
+};
 pub use squares::{Contour, Polyline, contour_field, marching_squares};
 pub use svg::SvgPlot;
 pub use trimesh::TriMesh;

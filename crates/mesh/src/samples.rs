@@ -52,3 +52,18 @@ pub(crate) fn non_finite<const D: usize>(
         value: values[index],
     }
 }
+
+/// The index of the first NaN or infinite value, scanning fixed chunks in parallel (cheaper
+/// than a per-element parallel search on large grids).
+pub(crate) fn first_non_finite(values: &[f64]) -> Option<usize> {
+    use rayon::prelude::*;
+    const CHUNK: usize = 1 << 16;
+    let chunk = values
+        .par_chunks(CHUNK)
+        .position_first(|c| c.iter().fold(false, |bad, v| bad | !v.is_finite()))?;
+    let start = chunk * CHUNK;
+    values[start..]
+        .iter()
+        .position(|v| !v.is_finite())
+        .map(|k| start + k)
+}

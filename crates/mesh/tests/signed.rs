@@ -8,17 +8,23 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use zeroset_field_core::{Aabb, Grid, Point3, ScalarField};
 use zeroset_mesh::cubes::{McOptions, marching_cubes, mesh_field};
-use zeroset_mesh::signed::{BATCH, SmcReport, SmcStage, signed_marching_cubes, voxel_growing};
+use zeroset_mesh::signed::{
+    BATCH, CoarseStep, SmcOptions, SmcReport, SmcStage, expected_evaluations, settled_fraction,
+    signed_marching_cubes, voxel_growing,
+};
 use zeroset_mesh::{MeshError, TriMesh};
 
 /// An analytic field `f`, optionally perturbed by `δ·sin(37x + 11y + 5z)`, counting its batched
-/// calls, the points they held, and its single-point calls.
+/// calls, the points they held, and its single-point calls; with `lipschitz`, it encloses
+/// itself over boxes by `value(centre) ± L · half-diagonal` (without counting an evaluation).
 struct Field {
     f: fn(&Point3) -> f64,
     delta: f64,
     batches: AtomicUsize,
     points: AtomicUsize,
     singles: AtomicUsize,
+    lipschitz: Option<f64>,
+    enclosures: AtomicUsize,
 }
 
 impl Field {
@@ -29,6 +35,18 @@ impl Field {
             batches: AtomicUsize::new(0),
             points: AtomicUsize::new(0),
             singles: AtomicUsize::new(0),
+            lipschitz: None,
+            enclosures: AtomicUsize::new(0),
+        }
+    }
+
+    /// The field with enclosures: `f` is 1-Lipschitz (a signed distance), the perturbation
+    /// `δ √(37² + 11² + 5²)`-Lipschitz.
+    fn enclosing(f: fn(&Point3) -> f64, delta: f64) -> Self {
+        let lipschitz = 1.0 + delta * (37.0f64 * 37.0 + 11.0 * 11.0 + 5.0 * 5.0).sqrt();
+        Self {
+            lipschitz: Some(lipschitz),
+            ..Self::new(f, delta)
         }
     }
 
@@ -53,6 +71,16 @@ impl ScalarField<3> for Field {
 
     fn bounds(&self) -> Option<Aabb<3>> {
         None
+    }
+
+    fn value_range(&self, region: &Aabb<3>) -> Option<[f64; 2]> {
+        let lipschitz = self.lipschitz?;
+        self.enclosures.fetch_add(1, Ordering::Relaxed);
+        let e = region.extent();
+        let half_diagonal = 0.5 * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+        let v = self.eval(&region.center());
+        let spread = lipschitz * half_diagonal * (1.0 + 1e-12) + 1e-14;
+        Some([v - spread, v + spread])
     }
 }
 
@@ -146,8 +174,16 @@ fn check_smc(f: fn(&Point3) -> f64, grid: &Grid<3>, options: McOptions, what: &s
     let delta = 0.01;
     let coarse = Field::new(f, delta);
     let fine = Field::new(f, 0.0);
-    let (mesh, report) =
-        signed_marching_cubes(&coarse, &fine, grid, 0.0, 2.0 * delta, &options, None).unwrap();
+    let (mesh, report) = signed_marching_cubes(
+        &coarse,
+        &fine,
+        grid,
+        0.0,
+        2.0 * delta,
+        &SmcOptions::from(options),
+        None,
+    )
+    .unwrap();
     let exact = Field::new(f, 0.0);
     let reference = mesh_field(&exact, grid, 0.0, &options).unwrap();
     assert!(
@@ -169,7 +205,7 @@ fn check_smc(f: fn(&Point3) -> f64, grid: &Grid<3>, options: McOptions, what: &s
         grid,
         0.0,
         2.0 * delta,
-        &options.with_normals(false),
+        &SmcOptions::from(options.with_normals(false)),
         None,
     )
     .unwrap()
@@ -270,8 +306,16 @@ fn gamma_falls_as_the_grid_refines() {
 fn exact_coarse_field_with_zero_margin_is_plain_marching_cubes() {
     let grid = cube_grid(40);
     let f = Field::new(torus, 0.0);
-    let (mesh, report) =
-        signed_marching_cubes(&f, &f, &grid, 0.0, 0.0, &McOptions::default(), None).unwrap();
+    let (mesh, report) = signed_marching_cubes(
+        &f,
+        &f,
+        &grid,
+        0.0,
+        0.0,
+        &SmcOptions::from(McOptions::default()),
+        None,
+    )
+    .unwrap();
     assert_identical(
         &mesh,
         &mesh_field(&f, &grid, 0.0, &McOptions::default()).unwrap(),
@@ -289,8 +333,16 @@ fn too_small_margin_may_differ_but_does_not_panic() {
     let fine = Field::new(sphere, 0.0);
     for close in [false, true] {
         let options = McOptions::default().with_close_boundary(close);
-        let (mesh, report) =
-            signed_marching_cubes(&coarse, &fine, &grid, 0.0, 0.0, &options, None).unwrap();
+        let (mesh, report) = signed_marching_cubes(
+            &coarse,
+            &fine,
+            &grid,
+            0.0,
+            0.0,
+            &SmcOptions::from(options),
+            None,
+        )
+        .unwrap();
         let reference = mesh_field(&fine, &grid, 0.0, &options).unwrap();
         println!(
             "margin 0 with δ = 0.05, close {close}: {} triangles (plain MC {}), γ = {:.2}%, \
@@ -316,7 +368,7 @@ fn progress_reports_the_stages_in_order() {
         &grid,
         0.0,
         0.02,
-        &McOptions::default(),
+        &SmcOptions::from(McOptions::default()),
         Some(&progress),
     )
     .unwrap();
@@ -344,8 +396,16 @@ fn voxel_growing_misses_unseeded_components_and_smc_does_not() {
 
     // SMC finds both.
     let coarse = Field::new(two_spheres, 0.01);
-    let (smc, _) =
-        signed_marching_cubes(&coarse, &field, &grid, 0.0, 0.02, &options, None).unwrap();
+    let (smc, _) = signed_marching_cubes(
+        &coarse,
+        &field,
+        &grid,
+        0.0,
+        0.02,
+        &SmcOptions::from(options),
+        None,
+    )
+    .unwrap();
     assert_identical(&smc, &full, "two spheres, SMC");
 
     // VG from a point of sphere A: sphere A only.
@@ -434,7 +494,7 @@ fn bad_input_is_an_error_or_skipped_never_a_panic() {
     let options = McOptions::default();
     let f = Field::new(sphere, 0.0);
     for margin in [f64::NAN, -0.1, f64::INFINITY, f64::NEG_INFINITY] {
-        let r = signed_marching_cubes(&f, &f, &grid, 0.0, margin, &options, None);
+        let r = signed_marching_cubes(&f, &f, &grid, 0.0, margin, &SmcOptions::from(options), None);
         assert!(
             matches!(r, Err(MeshError::InvalidMargin { .. })),
             "margin {margin}: {r:?}"
@@ -446,7 +506,15 @@ fn bad_input_is_an_error_or_skipped_never_a_panic() {
         "checked before evaluating"
     );
     assert!(matches!(
-        signed_marching_cubes(&f, &f, &grid, f64::NAN, 0.1, &options, None),
+        signed_marching_cubes(
+            &f,
+            &f,
+            &grid,
+            f64::NAN,
+            0.1,
+            &SmcOptions::from(options),
+            None
+        ),
         Err(MeshError::NonFiniteLevel { .. })
     ));
     assert!(matches!(
@@ -493,13 +561,34 @@ fn bad_input_is_an_error_or_skipped_never_a_panic() {
     }
     // In the fine field where it is evaluated, in the coarse field anywhere.
     assert!(nan_sample(signed_marching_cubes(
-        &good, &bad, &grid, 0.0, 0.01, &options, None
+        &good,
+        &bad,
+        &grid,
+        0.0,
+        0.01,
+        &SmcOptions::from(options),
+        None
     )));
     assert!(nan_sample(signed_marching_cubes(
-        &far, &good, &grid, 0.0, 0.01, &options, None
+        &far,
+        &good,
+        &grid,
+        0.0,
+        0.01,
+        &SmcOptions::from(options),
+        None
     )));
     // A NaN of the fine field away from the surface is never evaluated.
-    let (mesh, _) = signed_marching_cubes(&good, &far, &grid, 0.0, 0.01, &options, None).unwrap();
+    let (mesh, _) = signed_marching_cubes(
+        &good,
+        &far,
+        &grid,
+        0.0,
+        0.01,
+        &SmcOptions::from(options),
+        None,
+    )
+    .unwrap();
     assert!(!mesh.is_empty());
     assert!(nan_sample(voxel_growing(
         &bad,
@@ -582,7 +671,7 @@ mod random {
             let options = McOptions::default().with_close_boundary(close).with_normals(false);
             let plain = marching_cubes(&grid, &values, 0.0, &options).unwrap();
             let (smc, report) =
-                signed_marching_cubes(&coarse, &fine, &grid, 0.0, 0.5, &options, None).unwrap();
+                signed_marching_cubes(&coarse, &fine, &grid, 0.0, 0.5, &SmcOptions::from(options), None).unwrap();
             prop_assert_eq!(smc.triangles(), plain.triangles());
             prop_assert_eq!(smc.vertices(), plain.vertices());
             prop_assert!(report.n_smc_high <= report.n_mc);
@@ -599,4 +688,141 @@ mod random {
             prop_assert!(triangle_set(&vg).is_subset(&all));
         }
     }
+}
+
+/// Step 1 by blocks settles most vertices through enclosures and yields the statuses, the
+/// counts and the mesh (bit for bit) of step 1 at every vertex, which are plain marching
+/// cubes on the fine field; closed boundaries and odd grids too.
+#[test]
+fn block_step_settles_most_vertices_and_gives_the_same_mesh() {
+    let delta = 0.004;
+    type Shape = fn(&Point3) -> f64;
+    let cases: [(Shape, Grid<3>, bool, &str); 4] = [
+        (sphere, cube_grid(64), false, "sphere 64"),
+        (torus, cube_grid(61), false, "torus 61"),
+        (two_spheres, cube_grid(48), false, "two spheres 48"),
+        (big_sphere, cube_grid(40), true, "big sphere 40, closed"),
+    ];
+    for (f, grid, close, what) in cases {
+        let options = McOptions::default().with_close_boundary(close);
+        let fine = Field::new(f, 0.0);
+        let run = |step| {
+            let coarse = Field::enclosing(f, delta);
+            let o = SmcOptions::from(options).with_coarse_step(step);
+            let (mesh, report) =
+                signed_marching_cubes(&coarse, &fine, &grid, 0.0, 2.0 * delta, &o, None).unwrap();
+            let evaluated = coarse.points.load(Ordering::Relaxed) as u64;
+            let enclosed = coarse.enclosures.load(Ordering::Relaxed) as u64;
+            (mesh, report, evaluated, enclosed)
+        };
+        let (blocks, rb, evaluated, enclosed) = run(CoarseStep::Blocks);
+        let (every, re, _, none) = run(CoarseStep::EveryVertex);
+        let reference = mesh_field(&fine, &grid, 0.0, &options).unwrap();
+        assert_identical(&blocks, &reference, what);
+        assert_identical(&every, &reference, what);
+        assert!(blocks.num_triangles() > 100, "{what}");
+        // The same statuses, hence the same fine work.
+        assert_eq!(rb.n_smc_high, re.n_smc_high, "{what}");
+        assert_eq!(rb.uncertain_vertices, re.uncertain_vertices, "{what}");
+        assert_eq!(rb.candidate_cells, re.candidate_cells, "{what}");
+        assert_eq!(rb.surface_cells, re.surface_cells, "{what}");
+        assert_eq!(rb.gamma, re.gamma, "{what}");
+        // Far fewer coarse evaluations, all accounted for.
+        let n = grid.len() as u64;
+        assert_eq!(re.n_smc_low, n);
+        assert_eq!((none, re.enclosures, re.settled_vertices), (0, 0, 0));
+        assert_eq!(rb.n_smc_low + rb.settled_vertices, n, "{what}");
+        assert_eq!(evaluated, rb.n_smc_low, "{what}");
+        assert_eq!(enclosed, rb.enclosures, "{what}");
+        assert!(rb.settled_blocks > 0 && rb.settled_blocks <= rb.enclosures);
+        assert!(
+            rb.settled_vertices > n / 2,
+            "{what}: {} of {n} settled",
+            rb.settled_vertices
+        );
+    }
+}
+
+/// Without enclosures the block step evaluates every vertex, as the paper's step 1.
+#[test]
+fn block_step_without_enclosures_evaluates_every_vertex() {
+    let grid = cube_grid(24);
+    let coarse = Field::new(torus, 0.01);
+    let fine = Field::new(torus, 0.0);
+    let o = SmcOptions::default();
+    assert_eq!(o.coarse_step, CoarseStep::Blocks);
+    let (mesh, r) = signed_marching_cubes(&coarse, &fine, &grid, 0.0, 0.02, &o, None).unwrap();
+    assert_eq!(r.n_smc_low, grid.len() as u64);
+    assert_eq!((r.settled_blocks, r.settled_vertices), (0, 0));
+    assert!(r.enclosures > 0, "blocks were tried");
+    let reference = mesh_field(&fine, &grid, 0.0, &McOptions::default()).unwrap();
+    assert_identical(&mesh, &reference, "torus without enclosures");
+}
+
+/// The block step gives the same mesh and counts on 1 and 3 threads.
+#[test]
+fn block_step_is_the_same_on_any_thread_count() {
+    let grid = cube_grid(50);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let coarse = Field::enclosing(two_spheres, 0.003);
+            let fine = Field::new(two_spheres, 0.0);
+            signed_marching_cubes(
+                &coarse,
+                &fine,
+                &grid,
+                0.0,
+                0.006,
+                &SmcOptions::default(),
+                None,
+            )
+            .unwrap()
+        })
+    };
+    let (a, ra) = run(1);
+    let (b, rb) = run(3);
+    assert_identical(&a, &b, "1 vs 3 threads");
+    assert_eq!(
+        (
+            ra.n_smc_low,
+            ra.n_smc_high,
+            ra.enclosures,
+            ra.settled_blocks
+        ),
+        (
+            rb.n_smc_low,
+            rb.n_smc_high,
+            rb.enclosures,
+            rb.settled_blocks
+        )
+    );
+}
+
+/// The probe finds that most blocks settle where the field encloses itself and none where it
+/// cannot; the expected evaluations are at most one per vertex and smaller for blocks.
+#[test]
+fn probe_and_expected_evaluations() {
+    let grid = cube_grid(64);
+    let settled = settled_fraction(&Field::enclosing(torus, 0.002), &grid, 0.0, 0.004, 512);
+    assert!(settled > 0.5, "{settled}");
+    assert_eq!(
+        settled_fraction(&Field::new(torus, 0.0), &grid, 0.0, 0.0, 512),
+        0.0
+    );
+    // A level far outside the field's range: every block settles.
+    let all = settled_fraction(&Field::enclosing(torus, 0.0), &grid, -5.0, 0.0, 64);
+    assert_eq!(all, 1.0);
+    let [every, fine] = expected_evaluations(&grid, CoarseStep::EveryVertex);
+    assert_eq!(every, grid.len());
+    let [blocks, fine_b] = expected_evaluations(&grid, CoarseStep::Blocks);
+    assert!(
+        blocks < every && fine == fine_b && fine < blocks,
+        "{blocks} {fine}"
+    );
+    let tiny = cube_grid(4);
+    assert_eq!(expected_evaluations(&tiny, CoarseStep::Blocks), [64, 64]);
 }

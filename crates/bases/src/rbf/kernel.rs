@@ -28,7 +28,9 @@
 //!
 //! ## Adding a kernel
 //! Implement [`Kernel`]: the radial derivatives for `r > 0`, the definiteness, and the Hessian
-//! at 0 (or `None`). Then `RbfFit::new(MyKernel)` fits with it. [`Wendland`] is the worked
+//! at 0 (or `None`). Then `RbfFit::new(MyKernel)` fits with it. Optionally give
+//! [`Kernel::slope_bound`] and [`Kernel::curvature_bound`], which let multipole fields of the
+//! kernel enclose their values over boxes (the block step of the signed marching cubes). [`Wendland`] is the worked
 //! example of a compactly supported kernel.
 
 use std::fmt::Debug;
@@ -72,6 +74,26 @@ pub trait Kernel: Send + Sync + Debug {
             self.radial(r2.sqrt())[0]
         }
     }
+
+    /// An upper bound of `|φ′(r)|` over `0 ≤ r ≤ r_max`: how fast one centre's term can change
+    /// (its Lipschitz constant on the ball of radius `r_max`). Together with
+    /// [`Kernel::curvature_bound`] it lets a field enclose its values over a box
+    /// (`ScalarField::value_range`), which the signed marching cubes use to settle whole blocks
+    /// of grid vertices. Default `None`: the kernel cannot bound itself, and fields built on it
+    /// give no enclosures (everything still works, vertex by vertex).
+    fn slope_bound(&self, r_max: f64) -> Option<f64> {
+        let _ = r_max;
+        None
+    }
+
+    /// An upper bound of the spectral norm of the Hessian of `φ(|d|)` over
+    /// `r_min ≤ |d| ≤ r_max`, i.e. of `max(|φ″(r)|, |φ′(r)/r|)` there (the radial and the
+    /// tangential curvature, `D₂r² + D₁` and `D₁`); `+∞` where it is unbounded. Default `None`
+    /// (see [`Kernel::slope_bound`]).
+    fn curvature_bound(&self, r_min: f64, r_max: f64) -> Option<f64> {
+        let _ = (r_min, r_max);
+        None
+    }
 }
 
 /// `φ(r) = r`, the biharmonic spline in 3-D (Carr et al.): `−φ` is conditionally positive
@@ -107,6 +129,17 @@ impl Kernel for Biharmonic {
     fn homogeneity(&self) -> Option<i32> {
         Some(1)
     }
+    fn slope_bound(&self, _r_max: f64) -> Option<f64> {
+        Some(1.0)
+    }
+    fn curvature_bound(&self, r_min: f64, _r_max: f64) -> Option<f64> {
+        // φ″ = 0, φ′/r = 1/r.
+        Some(if r_min > 0.0 {
+            1.0 / r_min
+        } else {
+            f64::INFINITY
+        })
+    }
 }
 
 /// `φ(r) = r³`, the triharmonic spline in 3-D: conditionally positive definite of order 2 and
@@ -139,6 +172,13 @@ impl Kernel for Triharmonic {
     }
     fn homogeneity(&self) -> Option<i32> {
         Some(3)
+    }
+    fn slope_bound(&self, r_max: f64) -> Option<f64> {
+        Some(3.0 * r_max * r_max)
+    }
+    fn curvature_bound(&self, _r_min: f64, r_max: f64) -> Option<f64> {
+        // φ″ = 6r, φ′/r = 3r.
+        Some(6.0 * r_max)
     }
 }
 
@@ -176,6 +216,27 @@ impl Kernel for ThinPlate {
     }
     fn order(&self) -> usize {
         2
+    }
+    fn slope_bound(&self, r_max: f64) -> Option<f64> {
+        // φ′ = r (2 ln r + 1): 0 at 0, least (−2e^{−3/2}) at r = e^{−3/2}, increasing beyond.
+        let at_max = if r_max > 0.0 {
+            (r_max * (2.0 * r_max.ln() + 1.0)).abs()
+        } else {
+            0.0
+        };
+        Some(at_max.max(2.0 * (-1.5f64).exp()))
+    }
+    fn curvature_bound(&self, r_min: f64, r_max: f64) -> Option<f64> {
+        // φ″ = 2 ln r + 3 and φ′/r = 2 ln r + 1 are monotone: their extremes are at the ends.
+        if r_min <= 0.0 {
+            return Some(f64::INFINITY);
+        }
+        let ends = [r_min.ln(), r_max.ln()];
+        Some(
+            ends.iter()
+                .flat_map(|&l| [(2.0 * l + 3.0).abs(), (2.0 * l + 1.0).abs()])
+                .fold(0.0, f64::max),
+        )
     }
 }
 
@@ -230,6 +291,14 @@ impl Kernel for Wendland {
     }
     fn order(&self) -> usize {
         0
+    }
+    fn slope_bound(&self, _r_max: f64) -> Option<f64> {
+        // |φ′| = 20 s (1 − s)³ / ρ, largest at s = 1/4: 20 · 27/256 / ρ.
+        Some(20.0 * 27.0 / 256.0 / self.radius)
+    }
+    fn curvature_bound(&self, _r_min: f64, _r_max: f64) -> Option<f64> {
+        // φ″ = 20 (1 − s)² (4s − 1) / ρ² and φ′/r = −20 (1 − s)³ / ρ², both at most 20/ρ².
+        Some(20.0 / (self.radius * self.radius))
     }
 }
 
@@ -326,6 +395,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The slope and curvature bounds hold on a fine sampling of their ranges, for every kernel.
+    fn check_bounds<K: Kernel>(kernel: &K, intervals: &[(f64, f64)]) {
+        for &(lo, hi) in intervals {
+            let slope = kernel.slope_bound(hi).unwrap();
+            let curvature = kernel.curvature_bound(lo, hi).unwrap();
+            for k in 0..=2000 {
+                let r = lo + (hi - lo) * k as f64 / 2000.0;
+                let [_, d1, d2, _] = kernel.radial(r);
+                let tol = 1e-12 * (1.0 + slope + curvature);
+                assert!(
+                    (d1 * r).abs() <= slope + tol,
+                    "{} slope at {r}",
+                    kernel.name()
+                );
+                let radial = d2 * r * r + d1;
+                assert!(
+                    radial.abs().max(d1.abs()) <= curvature + tol,
+                    "{} curvature at {r} in [{lo}, {hi}]",
+                    kernel.name()
+                );
+            }
+            // The slope bound covers [0, hi], not only [lo, hi].
+            for k in 1..=2000 {
+                let r = hi * k as f64 / 2000.0;
+                let d1 = kernel.radial(r)[1];
+                assert!(
+                    (d1 * r).abs() <= slope * (1.0 + 1e-12),
+                    "{} slope at {r}",
+                    kernel.name()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn slope_and_curvature_bounds_hold() {
+        let intervals = [(0.05, 0.3), (0.2, 0.25), (0.7, 2.5), (1e-3, 5.0)];
+        check_bounds(&Biharmonic, &intervals);
+        check_bounds(&Triharmonic, &intervals);
+        check_bounds(&ThinPlate, &intervals);
+        check_bounds(&Wendland::new(2.0).unwrap(), &intervals);
+        assert_eq!(Biharmonic.curvature_bound(0.0, 1.0), Some(f64::INFINITY));
+        assert_eq!(ThinPlate.curvature_bound(0.0, 1.0), Some(f64::INFINITY));
     }
 
     #[test]

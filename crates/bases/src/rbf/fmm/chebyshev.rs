@@ -103,6 +103,16 @@ impl Chebyshev {
         }
     }
 
+    /// The map from values at the nodes to Chebyshev coefficients, row-major `p × p`: the
+    /// interpolant of values `gₘ` is `Σ_k c_k T_k` with `c_k = Σₘ C[k][m] gₘ`
+    /// (`C[0][m] = 1/p`, `C[k][m] = 2 T_k(x̄ₘ)/p`).
+    pub fn coefficient_map(&self) -> Vec<f64> {
+        let p = self.p;
+        let mut c = self.t.clone();
+        c[..p].fill(1.0 / p as f64);
+        c
+    }
+
     /// The transfer matrix to the lower (`half = 0`) or upper (`half = 1`) half, row-major
     /// `p × p`: entry `(m, n)` is the weight of parent node `m` at child node `n`.
     pub fn transfer(&self, half: usize) -> &[f64] {
@@ -168,6 +178,84 @@ fn contract_fixed<const P: usize>(s: &[[f64; MAX_ORDER]; 3], e: &[f64]) -> f64 {
     v
 }
 
+/// [`contract`] and its gradient in one pass: `[value, ∂₀, ∂₁, ∂₂]` with the 1-D weights `s`
+/// and their derivatives `ds`.
+#[inline(always)]
+pub(crate) fn contract_with_gradient(
+    p: usize,
+    s: &[[f64; MAX_ORDER]; 3],
+    ds: &[[f64; MAX_ORDER]; 3],
+    e: &[f64],
+) -> [f64; 4] {
+    macro_rules! orders {
+        ($($p:literal)*) => {
+            match p {
+                $($p => contract_gradient_fixed::<$p>(s, ds, e),)*
+                _ => contract_gradient_any(p, s, ds, e),
+            }
+        };
+    }
+    orders!(2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+}
+
+fn contract_gradient_any(
+    p: usize,
+    s: &[[f64; MAX_ORDER]; 3],
+    ds: &[[f64; MAX_ORDER]; 3],
+    e: &[f64],
+) -> [f64; 4] {
+    let mut out = [0.0; 4];
+    let p = p.min(MAX_ORDER);
+    for a in 0..p {
+        for b in 0..p {
+            for c in 0..p {
+                let v = e[(a * p + b) * p + c];
+                out[0] += v * s[0][a] * s[1][b] * s[2][c];
+                out[1] += v * ds[0][a] * s[1][b] * s[2][c];
+                out[2] += v * s[0][a] * ds[1][b] * s[2][c];
+                out[3] += v * s[0][a] * s[1][b] * ds[2][c];
+            }
+        }
+    }
+    out
+}
+
+#[inline(always)]
+fn contract_gradient_fixed<const P: usize>(
+    s: &[[f64; MAX_ORDER]; 3],
+    ds: &[[f64; MAX_ORDER]; 3],
+    e: &[f64],
+) -> [f64; 4] {
+    let e = &e[..P * P * P];
+    // row: Σ_a s0 Σ_b s1 e; dx: Σ_a ds0 Σ_b s1 e; dy: Σ_a s0 Σ_b ds1 e (each along z).
+    let (mut row, mut dx, mut dy) = ([0.0; P], [0.0; P], [0.0; P]);
+    for a in 0..P {
+        let (mut inner, mut dinner) = ([0.0; P], [0.0; P]);
+        for b in 0..P {
+            let (w, dw) = (s[1][b], ds[1][b]);
+            let line = &e[(a * P + b) * P..][..P];
+            for c in 0..P {
+                inner[c] += w * line[c];
+                dinner[c] += dw * line[c];
+            }
+        }
+        let (w, dw) = (s[0][a], ds[0][a]);
+        for c in 0..P {
+            row[c] += w * inner[c];
+            dx[c] += dw * inner[c];
+            dy[c] += w * dinner[c];
+        }
+    }
+    let mut out = [0.0; 4];
+    for c in 0..P {
+        out[0] += row[c] * s[2][c];
+        out[1] += dx[c] * s[2][c];
+        out[2] += dy[c] * s[2][c];
+        out[3] += row[c] * ds[2][c];
+    }
+    out
+}
+
 /// `t[k] = T_k(x)` for `k < t.len()`, by the three-term recurrence (valid for every `x`).
 #[inline(always)]
 fn chebyshev_t(x: f64, t: &mut [f64]) {
@@ -224,6 +312,49 @@ mod tests {
                 assert!((v - g(x)).abs() <= 1e-12 * g(1.0).abs(), "p={p} x={x}");
                 assert!((d - dg(x)).abs() <= 1e-10 * dg(1.0).abs(), "p={p} x={x}");
             }
+        }
+    }
+
+    /// The fused value-and-gradient contraction equals the plain sums, for compile-time and
+    /// other orders.
+    #[test]
+    fn contraction_with_gradient_matches_the_plain_sums() {
+        for p in [2, 5, 9, 16] {
+            let c = Chebyshev::new(p);
+            let e: Vec<f64> = (0..p * p * p)
+                .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.5)
+                .collect();
+            let mut s = [[0.0; MAX_ORDER]; 3];
+            let mut ds = [[0.0; MAX_ORDER]; 3];
+            for (a, x) in [0.3, -0.71, 0.94].into_iter().enumerate() {
+                c.weights_with_derivative(x, &mut s[a][..p], &mut ds[a][..p]);
+            }
+            let fused = contract_with_gradient(p, &s, &ds, &e);
+            let plain = contract_gradient_any(p, &s, &ds, &e);
+            assert!((fused[0] - contract(p, &s, &e)).abs() < 1e-13, "p={p}");
+            for k in 0..4 {
+                assert!((fused[k] - plain[k]).abs() < 1e-12, "p={p} k={k}");
+            }
+        }
+    }
+
+    /// The coefficient map gives the interpolant in the Chebyshev basis.
+    #[test]
+    fn coefficient_map_expands_the_interpolant() {
+        let p = 7;
+        let c = Chebyshev::new(p);
+        let g: Vec<f64> = c.nodes().iter().map(|x| (1.3 * x).sin() + x * x).collect();
+        let map = c.coefficient_map();
+        let coeffs: Vec<f64> = (0..p)
+            .map(|k| (0..p).map(|m| map[k * p + m] * g[m]).sum())
+            .collect();
+        let (mut s, mut t) = (vec![0.0; p], vec![0.0; p]);
+        for &x in &[-1.0, -0.2, 0.45, 1.0] {
+            c.weights(x, &mut s);
+            chebyshev_t(x, &mut t);
+            let lagrange: f64 = (0..p).map(|m| g[m] * s[m]).sum();
+            let chebyshev: f64 = (0..p).map(|k| coeffs[k] * t[k]).sum();
+            assert!((lagrange - chebyshev).abs() < 1e-14, "x={x}");
         }
     }
 

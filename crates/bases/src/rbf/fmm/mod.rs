@@ -44,6 +44,16 @@
 //! exact to the same accuracy: they walk the tree from the root, using a cell's multipole
 //! expansion when they are at least its width away from it and its sources otherwise.
 //!
+//! ## Enclosures
+//!
+//! [`ScalarField::value_range`] bounds the field over a box with about two evaluations' work:
+//! in each leaf the box meets, the local expansion, every near and M2P kernel term and the
+//! polynomial are linearised at the box's centre, with remainders from the expansion's Chebyshev
+//! coefficients (Markov's inequality) and the kernel's [slope](Kernel::slope_bound) and
+//! [curvature](Kernel::curvature_bound) bounds. The signed marching cubes settle whole blocks of
+//! grid vertices this way. `None` for boxes outside the root or over more than eight leaves, for
+//! fields with gradient constraints, and for kernels without the bounds.
+//!
 //! ## Accuracy
 //!
 //! The error falls steadily with `p` (paper 002, Tables 1–2; zeroset's own table:
@@ -52,11 +62,12 @@
 //! [`FmmField::sampled_error`] measures the error of a built field against the exact sum.
 
 mod chebyshev;
+mod enclosure;
 mod m2l;
 mod operators;
 mod tree;
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -346,6 +357,9 @@ pub struct FmmField<K> {
     poly_coefficients: Vec<f64>,
     bounds: Aabb<3>,
     report: FmmReport,
+    /// Per leaf, bounds on the local expansion's second derivatives (computed on the first
+    /// enclosure asked for).
+    leaf_curvature: OnceLock<Vec<enclosure::LeafCurvature>>,
 }
 
 impl<K: Kernel + Clone> FmmField<K> {
@@ -466,6 +480,7 @@ impl<K: Kernel + Clone> FmmField<K> {
                 downward_seconds: 0.0,
             },
             tree,
+            leaf_curvature: OnceLock::new(),
         };
         this.upward();
         this.m2l();
@@ -995,6 +1010,18 @@ impl<K: Kernel> FmmField<K> {
         chebyshev::contract(p, &s, &self.locals[c as usize * p * p * p..][..p * p * p])
     }
 
+    /// [`Self::l2p`] and [`Self::l2p_gradient`] in one pass: `[value, ∂x, ∂y, ∂z]`.
+    #[inline(always)]
+    fn l2p_with_gradient(&self, c: u32, x: &Point<3>) -> [f64; 4] {
+        let p = self.ops.order();
+        let cell = self.cell(c);
+        let mut s = [[0.0; MAX_ORDER]; 3];
+        let mut ds = [[0.0; MAX_ORDER]; 3];
+        self.axis_weights(cell, x, &mut s, Some(&mut ds));
+        let l = &self.locals[c as usize * p * p * p..][..p * p * p];
+        chebyshev::contract_with_gradient(p, &s, &ds, l)
+    }
+
     /// The gradient of [`Self::l2p`].
     fn l2p_gradient(&self, c: u32, x: &Point<3>) -> [f64; 3] {
         let p = self.ops.order();
@@ -1125,6 +1152,12 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
     fn bounds(&self) -> Option<Aabb<3>> {
         Some(self.bounds)
     }
+
+    /// An enclosure of the field over `region` from the local expansion's curvature and the
+    /// kernel terms' Taylor remainders (see the module docs, "Enclosures").
+    fn value_range(&self, region: &Aabb<3>) -> Option<[f64; 2]> {
+        self.enclosure(region)
+    }
 }
 
 /// Points per evaluation task.
@@ -1203,6 +1236,10 @@ pub struct OrderPair<K> {
     pub high_error: f64,
     /// `safety · (low_error + high_error)`.
     pub margin: f64,
+    /// The safety factor.
+    pub safety: f64,
+    /// The error samples per order.
+    pub samples: usize,
 }
 
 /// The default safety factor of [`OrderPair::new`].
@@ -1244,7 +1281,23 @@ impl<K: Kernel + Clone> OrderPair<K> {
             low_error,
             high_error,
             margin: safety * (low_error + high_error),
+            safety,
+            samples,
         })
+    }
+
+    /// The pair with its low-order field rebuilt for `low` (same order and operators, e.g.
+    /// shaped for another number of evaluations), its error measured again and the margin
+    /// updated.
+    ///
+    /// # Errors
+    /// The errors of [`FmmField::with_operators`]; [`FmmError::Operators`] if `low` asks for
+    /// another order or compression than the pair's low field has.
+    pub fn with_low(mut self, field: &RbfField<K, 3>, low: &FmmOptions) -> Result<Self, FmmError> {
+        self.low = FmmField::with_operators(field, low, self.low.shared_operators())?;
+        self.low_error = self.low.sampled_error(field, self.samples, 1).0;
+        self.margin = self.safety * (self.low_error + self.high_error);
+        Ok(self)
     }
 }
 

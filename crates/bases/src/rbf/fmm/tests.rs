@@ -387,3 +387,130 @@ fn bad_options_are_specific_errors() {
     let fast = FmmField::new(&field, &FmmOptions::new(4)).expect("fmm");
     fast.values(&[], &mut []);
 }
+
+/// The values at the corners, centre and scattered points of a box lie in its enclosure.
+fn check_enclosure<K: Kernel>(f: &FmmField<K>, b: &Aabb<3>) -> Option<[f64; 2]> {
+    let [lo, hi] = f.value_range(b)?;
+    assert!(lo <= hi, "{lo} > {hi}");
+    let mut points: Vec<Point<3>> = (0..8)
+        .map(|k| {
+            std::array::from_fn(|a| {
+                if (k >> a) & 1 == 0 {
+                    b.min()[a]
+                } else {
+                    b.max()[a]
+                }
+            })
+        })
+        .collect();
+    points.extend(probes(b, 40, 0.0));
+    for x in &points {
+        let v = f.value(x);
+        assert!(
+            lo <= v && v <= hi,
+            "{x:?}: {v} outside [{lo}, {hi}] of {b:?}"
+        );
+    }
+    Some([lo, hi])
+}
+
+/// Enclosures hold for r, r³ and the thin plate at several orders and box sizes; away from the
+/// surface most boxes a few grid cells wide clear the level (the signed marching cubes' block
+/// step), and they are not much wider than the values they enclose.
+#[test]
+fn enclosures_hold_and_settle_boxes_away_from_the_surface() {
+    let c = blob(700);
+    fn run<K: Kernel + Clone>(field: &RbfField<K, 3>, p: usize) -> (usize, usize, usize) {
+        let f = FmmField::new(field, &FmmOptions::new(p).with_leaf_size(24)).expect("fmm");
+        let bounds = field.bounds().expect("bounds");
+        let (mut some, mut clear, mut total) = (0, 0, 0);
+        for (k, centre) in probes(&bounds, 400, 0.0).iter().enumerate() {
+            let half = [0.002, 0.01, 0.03][k % 3];
+            let b = Aabb::new(centre.map(|v| v - half), centre.map(|v| v + half)).expect("box");
+            total += 1;
+            if let Some([lo, hi]) = check_enclosure(&f, &b) {
+                some += 1;
+                if lo > 0.0 || hi < 0.0 {
+                    clear += 1;
+                }
+            }
+        }
+        (some, clear, total)
+    }
+    for p in [4, 6] {
+        for (name, (some, clear, total)) in [
+            ("r", run(&fit(Biharmonic, &c), p)),
+            ("r3", run(&fit(Triharmonic, &c), p)),
+            ("tps", run(&fit(ThinPlate, &c), p)),
+        ] {
+            eprintln!("{name} p={p}: {some} enclosures of {total} boxes, {clear} clear of 0");
+            assert!(some * 10 >= total * 9, "{name} p={p}: {some} of {total}");
+            assert!(clear * 2 >= total, "{name} p={p}: {clear} of {total} clear");
+        }
+    }
+}
+
+/// No enclosure outside the root, for Hermite fields, or over too many leaves; a box over two
+/// leaves is the union of its pieces.
+#[test]
+fn enclosures_are_refused_where_they_cannot_hold() {
+    let c = blob(400);
+    let field = fit(Biharmonic, &c);
+    let f = FmmField::new(&field, &FmmOptions::new(5).with_leaf_size(8)).expect("fmm");
+    let b = field.bounds().expect("bounds");
+    let outside = Aabb::new(b.max().map(|v| v + 0.1), b.max().map(|v| v + 0.2)).expect("box");
+    assert_eq!(f.value_range(&outside), None);
+    assert_eq!(f.value_range(&b), None, "the whole box meets every leaf");
+    // A box straddling the root's centre plane meets at least two leaves.
+    let root = f.tree.cells[0];
+    let mut lo = root.centre.map(|v| v - 0.004);
+    lo[1] += 0.3;
+    let straddle = Aabb::new(lo, lo.map(|v| v + 0.008)).expect("box");
+    assert!(check_enclosure(&f, &straddle).is_some());
+
+    let mut h = Constraints::new();
+    for k in 0..100 {
+        let z = -1.0 + (2 * k + 1) as f64 / 100.0;
+        let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+        let u = [s * t.cos(), s * t.sin(), z];
+        h.push_value(u, 0.0);
+        h.push_gradient(u, u);
+    }
+    let hermite = FmmField::new(&fit(Triharmonic, &h), &FmmOptions::new(5)).expect("fmm");
+    let small = Aabb::new([0.01; 3], [0.02; 3]).expect("box");
+    assert_eq!(hermite.value_range(&small), None);
+}
+
+/// An order pair measures both errors and sets the margin from them; rebuilding the low field
+/// for another number of points keeps its order and operators and updates the margin.
+#[test]
+fn order_pairs_measure_their_margin_and_rebuild_the_low_field() {
+    let c = blob(500);
+    let field = fit(Biharmonic, &c);
+    let pair =
+        OrderPair::new(&field, &FmmOptions::new(4), &FmmOptions::new(8), 512, 10.0).expect("pair");
+    assert!(pair.low_error > pair.high_error && pair.high_error > 0.0);
+    assert_eq!(pair.margin, 10.0 * (pair.low_error + pair.high_error));
+    let ops = pair.low.shared_operators();
+    let rebuilt = pair
+        .clone()
+        .with_low(&field, &FmmOptions::new(4).with_expected_points(1 << 22))
+        .expect("rebuilt");
+    assert!(Arc::ptr_eq(&ops, &rebuilt.low.shared_operators()));
+    assert!(rebuilt.low.report().leaves != pair.low.report().leaves);
+    assert_eq!(
+        rebuilt.margin,
+        10.0 * (rebuilt.low_error + rebuilt.high_error)
+    );
+    assert_eq!(rebuilt.high_error, pair.high_error);
+    let other_order = pair.with_low(&field, &FmmOptions::new(5));
+    assert!(matches!(other_order, Err(FmmError::Operators { .. })));
+    assert!(matches!(
+        OrderPair::new(&field, &FmmOptions::new(8), &FmmOptions::new(4), 16, 10.0),
+        Err(FmmError::Orders { low: 8, high: 4 })
+    ));
+    assert!(matches!(
+        OrderPair::new(&field, &FmmOptions::new(4), &FmmOptions::new(8), 16, 0.5),
+        Err(FmmError::Safety { .. })
+    ));
+}

@@ -41,8 +41,23 @@ pub(crate) struct CodedPair {
     pub source: u32,
 }
 
+/// How many of `columns` leading singular vectors with singular values `sigma` (decreasing)
+/// have `σ ≥ cut · σ₁` (at least one); all of them for an uncompressed operator (no `sigma`).
+pub(crate) fn rank_for(sigma: &[f64], columns: usize, cut: f64) -> usize {
+    match sigma.first() {
+        None => columns,
+        Some(&first) => sigma
+            .iter()
+            .take(columns)
+            .take_while(|&&s| s >= cut * first)
+            .count()
+            .max(1),
+    }
+}
+
 /// Per operator: `L_T += scale · K_t M_S` for every pair of one level whose offset maps to the
-/// canonical operator `class`. `pairs` must be sorted (by target, then offset code).
+/// canonical operator `class`, keeping the singular values of at least `cut` relative to the
+/// largest ([`rank_for`]). `pairs` must be sorted (by target, then offset code).
 ///
 /// The pairs are cut into blocks of about [`BLOCK`] that never split one target's pairs; a
 /// block gathers its permuted expansions into one matrix, applies `U_cΣ_c (V_cᵀ X)` as two
@@ -55,13 +70,15 @@ pub(crate) fn per_operator(
     class: usize,
     pairs: &[CodedPair],
     scale: f64,
+    cut: f64,
     multipoles: &[f64],
     locals: Shared,
     n: usize,
 ) {
     debug_assert!(pairs.is_sorted());
     let op = &canonical[class];
-    let rank = op.us.ncols();
+    let rank = rank_for(&op.sigma, op.us.ncols(), cut);
+    let (us, v) = (op.us.subcols(0, rank), op.v.subcols(0, rank));
     let mut bounds = vec![0];
     let mut end = 0;
     while end < pairs.len() {
@@ -92,9 +109,9 @@ pub(crate) fn per_operator(
             }
             let x = MatRef::from_column_major_slice(xs, n, m);
             let mut y = MatMut::from_column_major_slice_mut(ys, rank, m);
-            product(y.rb_mut(), op.v.transpose(), x, 1.0);
+            product(y.rb_mut(), v.transpose(), x, 1.0);
             let mut z = MatMut::from_column_major_slice_mut(zs, n, m);
-            product(z.rb_mut(), op.us.as_ref(), y.rb(), scale);
+            product(z.rb_mut(), us, y.rb(), scale);
             for (pair, col) in block.iter().zip(zs.chunks_exact(n)) {
                 let perm = &symmetry.perm[pair.code as usize][..n];
                 // SAFETY: all pairs of a target are in one block, and the blocks of one call
@@ -110,15 +127,16 @@ pub(crate) fn per_operator(
 }
 
 /// Shared basis: `L_T += K_t (s_S M_S)` for every pair of `pairs` (all served by `basis` and
-/// `offsets`; `scale(S)` the
-/// factor of the source's level; cells numbered below `cells`), in three steps:
+/// `offsets`; `scale(S)` the factor of the source's level, `cut(S)` the relative singular
+/// value its level keeps ([`rank_for`]), `level(S)` its level; cells numbered below
+/// `cells`), in three steps:
 ///
 /// 1. every source's expansion is compressed, `M̃_S = s_S Uᵀ M_S`, in blocks of [`CELLS`];
-/// 2. the pairs, sorted by offset, are cut into blocks of at most [`BLOCK`] that share one
-///    offset; a block gathers its sources' `M̃` into one matrix and applies `A_t (B_tᵀ X)` as
-///    two dense products. Blocks run in groups of about [`GROUP`] pairs (a work array that
-///    stays in cache); after each group, every target adds its pairs' columns, in offset
-///    order, to its compressed local expansion `L̃_T`;
+/// 2. the pairs, sorted by offset and level, are cut into blocks of at most [`BLOCK`] that
+///    share one offset and level; a block gathers its sources' `M̃` into one matrix and applies
+///    `A_t (B_tᵀ X)` as two dense products. Blocks run in groups of about [`GROUP`] pairs (a
+///    work array that stays in cache); after each group, every target adds its pairs'
+///    columns, in offset order, to its compressed local expansion `L̃_T`;
 /// 3. every target adds `U L̃_T` to its local expansion, in blocks of [`CELLS`].
 ///
 /// Every block, group and order of summation depends on the pairs alone, so the sums do not
@@ -129,6 +147,8 @@ pub(crate) fn shared(
     offsets: &[Option<OffsetOperator>],
     mut pairs: Vec<CodedPair>,
     scale: &(dyn Fn(u32) -> f64 + Sync),
+    cut: &(dyn Fn(u32) -> f64 + Sync),
+    level: &(dyn Fn(u32) -> u32 + Sync),
     multipoles: &[f64],
     locals: Shared,
     n: usize,
@@ -138,7 +158,7 @@ pub(crate) fn shared(
         return;
     }
     let r = basis.ncols();
-    pairs.sort_unstable_by_key(|q| (q.code, q.target, q.source));
+    pairs.sort_unstable_by_key(|q| (q.code, level(q.source), q.target, q.source));
     // Dense numbering of the sources and targets.
     let number = |of: &dyn Fn(&CodedPair) -> u32| {
         let mut list: Vec<u32> = pairs.iter().map(of).collect();
@@ -175,9 +195,9 @@ pub(crate) fn shared(
     let mut bounds = vec![0];
     let mut end = 0;
     while end < pairs.len() {
-        let code = pairs[end].code;
+        let key = (pairs[end].code, level(pairs[end].source));
         let limit = (end + BLOCK).min(pairs.len());
-        while end < limit && pairs[end].code == code {
+        while end < limit && (pairs[end].code, level(pairs[end].source)) == key {
             end += 1;
         }
         bounds.push(end);
@@ -206,7 +226,9 @@ pub(crate) fn shared(
                 let Some(op) = &offsets[block[0].code as usize] else {
                     return;
                 };
-                let (m, rc) = (block.len(), op.b.ncols());
+                let rc = rank_for(&op.sigma, op.a.ncols(), cut(block[0].source));
+                let (a, b) = (op.a.subcols(0, rc), op.b.subcols(0, rc));
+                let m = block.len();
                 with_scratch((r + rc) * m, |buf| {
                     let (x, y) = buf.split_at_mut(r * m);
                     for (col, q) in x.chunks_exact_mut(r).zip(block) {
@@ -215,9 +237,9 @@ pub(crate) fn shared(
                     }
                     let x = MatRef::from_column_major_slice(x, r, m);
                     let mut y = MatMut::from_column_major_slice_mut(y, rc, m);
-                    product(y.rb_mut(), op.b.transpose(), x, 1.0);
+                    product(y.rb_mut(), b.transpose(), x, 1.0);
                     let z = MatMut::from_column_major_slice_mut(out, r, m);
-                    product(z, op.a.as_ref(), y.rb(), 1.0);
+                    product(z, a, y.rb(), 1.0);
                 });
             });
         // Each target's columns of this group, in offset order (the group's order).

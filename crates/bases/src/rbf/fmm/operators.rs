@@ -29,7 +29,10 @@
 //!
 //! A kernel with [`homogeneity`](crate::rbf::Kernel::homogeneity) `k` (`r`, `r³`) has
 //! `K_t(w) = wᵏ K_t(1)`: one set of operators at unit width serves every level. Any other
-//! kernel gets its operators per level (per cell width), cached.
+//! kernel gets its operators per level (per cell width), cached. The singular values are kept
+//! with the factors, in decreasing order, so a finer level of a homogeneous kernel applies only
+//! the leading columns that its smaller scale needs for the coarsest level's absolute error
+//! ([`super::m2l::rank_for`]; `FmmOptions::tolerance`).
 
 use std::sync::{Arc, Mutex};
 
@@ -74,6 +77,8 @@ pub(crate) struct Compressed {
     pub us: Mat<f64>,
     /// `V`, `p³ × r`.
     pub v: Mat<f64>,
+    /// The singular values `Σ`, decreasing (empty for an uncompressed operator).
+    pub sigma: Vec<f64>,
 }
 
 /// The operator of one offset in the shared basis, `C_t = Uᵀ K_t U ≈ A Bᵀ`.
@@ -83,6 +88,8 @@ pub(crate) struct OffsetOperator {
     pub a: Mat<f64>,
     /// `B_t`, `r × r_c`.
     pub b: Mat<f64>,
+    /// The canonical operator's singular values (the columns' weights), decreasing.
+    pub sigma: Vec<f64>,
 }
 
 /// The compressed M2L operators of one cell width.
@@ -311,6 +318,7 @@ impl FmmOperators {
                 let op = OffsetOperator {
                     a: project(&c.us, code),
                     b: project(&c.v, code),
+                    sigma: c.sigma.clone(),
                 };
                 (code, op)
             })
@@ -382,6 +390,7 @@ fn compress(k: MatRef<'_, f64>, tolerance: f64) -> Compressed {
             return Compressed {
                 us: k.to_owned(),
                 v: Mat::identity(n, n),
+                sigma: Vec::new(),
             };
         }
         l = (2 * l).min(n);
@@ -428,6 +437,7 @@ fn sampled_svd(k: MatRef<'_, f64>, l: usize, tolerance: f64) -> Option<Compresse
     Some(Compressed {
         us,
         v: v.subcols(0, rank).to_owned(),
+        sigma: sv[..rank].to_vec(),
     })
 }
 

@@ -514,3 +514,16 @@ fn order_pairs_measure_their_margin_and_rebuild_the_low_field() {
         Err(FmmError::Safety { .. })
     ));
 }
+
+/// A finer level keeps the singular values down to the coarsest level's absolute cut-off:
+/// fewer of them, never none; an uncompressed operator keeps all.
+#[test]
+fn finer_levels_keep_fewer_singular_values() {
+    let sigma = [1.0, 0.5, 0.1, 0.01, 1e-4];
+    assert_eq!(m2l::rank_for(&sigma, 5, 1e-5), 5);
+    assert_eq!(m2l::rank_for(&sigma, 5, 0.05), 3);
+    assert_eq!(m2l::rank_for(&sigma, 5, 0.5), 2);
+    assert_eq!(m2l::rank_for(&sigma, 5, 2.0), 1, "at least one");
+    assert_eq!(m2l::rank_for(&sigma, 3, 1e-5), 3, "at most the columns");
+    assert_eq!(m2l::rank_for(&[], 7, 0.5), 7, "uncompressed");
+}

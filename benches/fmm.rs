@@ -22,7 +22,7 @@ use zeroset::bases::rbf::fmm::{FmmField, FmmOptions, OrderPair};
 use zeroset::bases::rbf::{Biharmonic, RbfFit};
 use zeroset::core::field::ScalarField;
 use zeroset::core::{Aabb, Centering, Grid};
-use zeroset::mesh::signed::{SmcOptions, signed_marching_cubes};
+use zeroset::mesh::signed::{CoarseStep, SmcOptions, signed_marching_cubes};
 use zeroset::mesh::{McOptions, mesh_field};
 
 use rbf_sphere::sphere_setup;
@@ -87,20 +87,21 @@ fn smc_bench(c: &mut Criterion) {
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(8));
-    group.bench_function("signed MC 64^3 (p 5, P 9)", |b| {
-        b.iter(|| {
-            signed_marching_cubes(
-                &pair.low,
-                &pair.high,
-                &grid,
-                0.0,
-                pair.margin,
-                &SmcOptions::from(options),
-                None,
-            )
-            .map(|(m, _)| m.num_triangles())
-        })
-    });
+    for (name, step) in [
+        ("signed MC 64^3 (p 5, P 9), blocks", CoarseStep::Blocks),
+        (
+            "signed MC 64^3 (p 5, P 9), every vertex",
+            CoarseStep::EveryVertex,
+        ),
+    ] {
+        let smc = SmcOptions::from(options).with_coarse_step(step);
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                signed_marching_cubes(&pair.low, &pair.high, &grid, 0.0, pair.margin, &smc, None)
+                    .map(|(m, _)| m.num_triangles())
+            })
+        });
+    }
     group.bench_function("plain MC 64^3 (P 9)", |b| {
         b.iter(|| mesh_field(&pair.high, &grid, 0.0, &options).map(|m| m.num_triangles()))
     });

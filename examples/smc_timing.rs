@@ -44,7 +44,7 @@ type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
 fn main() -> Res<()> {
     let mut kernel = "r".to_string();
-    let (mut sources, mut low, mut high) = (10_000usize, 6usize, 10usize);
+    let (mut sources, mut low, mut high) = (10_000usize, 5usize, 10usize);
     let mut grids: Vec<String> = ["256", "coarse", "general", "fine"]
         .map(String::from)
         .to_vec();

@@ -59,8 +59,8 @@ Examples:
   zeroset mesh bunny.zsf -o bunny.obj --resolution 128
   # an explicit voxel edge, another level, capped where it leaves the grid
   zeroset mesh bunny.zsf -o shell.ply --voxel 0.002 --level 0.01 --close --force
-  # two-step signed marching cubes with the fast multipole method (orders 6 and 10)
-  zeroset mesh bunny.zsf -o bunny.ply --method smc --order 6 --high-order 10 --detail fine
+  # two-step signed marching cubes with the fast multipole method (orders 5 and 10)
+  zeroset mesh bunny.zsf -o bunny.ply --method smc --order 5 --high-order 10 --detail fine
   # a 2-D field's zero curve by marching squares, as SVG
   zeroset fit samples/curve.xyv --method neural -o curve.zsf
   zeroset mesh curve.zsf -o curve.svg --resolution 400";
@@ -126,8 +126,9 @@ pub struct MeshArgs {
     #[arg(long, value_enum, default_value_t = Method::Mc)]
     pub method: Method,
 
-    /// Low expansion order p of --method smc (Chebyshev nodes per axis, 2 to 16).
-    #[arg(long, default_value_t = 6, value_name = "p")]
+    /// Low expansion order p of --method smc (Chebyshev nodes per axis, 2 to 16). 5 suits
+    /// biharmonic (r) fields; triharmonic (r3) ones need about 8 (their errors are larger).
+    #[arg(long, default_value_t = 5, value_name = "p")]
     pub order: usize,
 
     /// High expansion order P of --method smc (at least --order).

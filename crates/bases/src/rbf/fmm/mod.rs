@@ -1034,7 +1034,7 @@ impl<K: Kernel> FmmField<K> {
         chebyshev::contract(p, &s, &self.locals[c as usize * p * p * p..][..p * p * p])
     }
 
-    /// [`Self::l2p`] and [`Self::l2p_gradient`] in one pass: `[value, ∂x, ∂y, ∂z]`.
+    /// [`Self::l2p`] and its gradient in one pass: `[value, ∂x, ∂y, ∂z]`.
     #[inline(always)]
     fn l2p_with_gradient(&self, c: u32, x: &Point<3>) -> [f64; 4] {
         let p = self.ops.order();
@@ -1044,28 +1044,6 @@ impl<K: Kernel> FmmField<K> {
         self.axis_weights(cell, x, &mut s, Some(&mut ds));
         let l = &self.locals[c as usize * p * p * p..][..p * p * p];
         chebyshev::contract_with_gradient(p, &s, &ds, l)
-    }
-
-    /// The gradient of [`Self::l2p`].
-    fn l2p_gradient(&self, c: u32, x: &Point<3>) -> [f64; 3] {
-        let p = self.ops.order();
-        let cell = self.cell(c);
-        let mut s = [[0.0; MAX_ORDER]; 3];
-        let mut ds = [[0.0; MAX_ORDER]; 3];
-        self.axis_weights(cell, x, &mut s, Some(&mut ds));
-        let l = &self.locals[c as usize * p * p * p..][..p * p * p];
-        let mut g = [0.0; 3];
-        for a in 0..p {
-            for b in 0..p {
-                for cc in 0..p {
-                    let lv = l[(a * p + b) * p + cc];
-                    g[0] += lv * ds[0][a] * s[1][b] * s[2][cc];
-                    g[1] += lv * s[0][a] * ds[1][b] * s[2][cc];
-                    g[2] += lv * s[0][a] * s[1][b] * ds[2][cc];
-                }
-            }
-        }
-        g
     }
 
     /// The kernel part of the field at `x`, which lies in `leaf` (`None`: outside the root).
@@ -1136,7 +1114,8 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
         };
         match self.tree.leaf_of(x) {
             Some(leaf) => {
-                add(self.l2p_gradient(leaf, x));
+                let [_, gx, gy, gz] = self.l2p_with_gradient(leaf, x);
+                add([gx, gy, gz]);
                 for &run in &self.tree.near_runs[leaf as usize] {
                     add(self.direct_gradient(run, x));
                 }

@@ -29,9 +29,12 @@
 #[path = "common/fmm_data.rs"]
 mod fmm_data;
 
+use std::sync::Arc;
 use std::time::Instant;
 
-use zeroset::bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmField, FmmOptions};
+use zeroset::bases::rbf::fmm::{
+    DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmField, FmmOperators, FmmOptions,
+};
 use zeroset::bases::rbf::{Kernel, RbfField};
 use zeroset::core::ScalarField;
 use zeroset::mesh::signed::{
@@ -132,11 +135,6 @@ fn table<K: Kernel + Clone>(
     let bounds = field.bounds().ok_or("no bounds")?;
     let options = McOptions::default().with_normals(false);
     let smc_options = SmcOptions::from(options).with_coarse_step(step);
-    let timed = |f: &mut dyn FnMut() -> Res<()>| -> Res<f64> {
-        let t = Instant::now();
-        f()?;
-        Ok(t.elapsed().as_secs_f64())
-    };
     for spec in grids {
         let h = match spec.as_str() {
             "coarse" => voxel::voxel_size(&bounds, Detail::Coarse),
@@ -150,31 +148,25 @@ fn table<K: Kernel + Clone>(
         let grid = voxel::grid_for(&bounds, h, 0.0)?;
         let c = grid.counts();
         let [e_low, e_high] = expected_evaluations(&grid, step);
-        let mut low_field = None;
-        let low_s = timed(&mut || {
-            let o = low_options.with_expected_points(e_low);
-            low_field = Some(FmmField::with_operators(field, &o, low_ops.clone())?);
-            Ok(())
-        })?;
-        let low_field = low_field.ok_or("no low field")?;
-        let mut high_field = None;
-        let high_s = timed(&mut || {
-            let o = high_options.with_expected_points(e_high);
-            high_field = Some(FmmField::with_operators(field, &o, high_ops.clone())?);
-            Ok(())
-        })?;
-        let high_field = high_field.ok_or("no high field")?;
-        let mut margin = 0.0;
-        let margin_s = timed(&mut || {
+        let build = |options: FmmOptions, ops: &Arc<FmmOperators>, points: usize| {
+            timed(|| {
+                Ok(FmmField::with_operators(
+                    field,
+                    &options.with_expected_points(points),
+                    ops.clone(),
+                )?)
+            })
+        };
+        let (low_field, low_s) = build(low_options, &low_ops, e_low)?;
+        let (high_field, high_s) = build(high_options, &high_ops, e_high)?;
+        let (margin, margin_s) = timed(|| {
             let (low_error, _) = low_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 1);
             let (high_error, _) = high_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 2);
-            margin = DEFAULT_SAFETY * (low_error + high_error);
-            Ok(())
+            Ok(DEFAULT_SAFETY * (low_error + high_error))
         })?;
         let probe = settled_fraction(&low_field, &grid, 0.0, margin, 512);
-        let mut result = None;
-        let smc_s = timed(&mut || {
-            result = Some(signed_marching_cubes(
+        let ((mesh, r), smc_s) = timed(|| {
+            Ok(signed_marching_cubes(
                 &low_field,
                 &high_field,
                 &grid,
@@ -182,18 +174,12 @@ fn table<K: Kernel + Clone>(
                 margin,
                 &smc_options,
                 None,
-            )?);
-            Ok(())
+            )?)
         })?;
-        let (mesh, r) = result.ok_or("no mesh")?;
         let total_s = low_s + high_s + margin_s + smc_s;
         let (plain_s, tuned_s, same) = if plain {
-            let mut reference = None;
-            let plain_s = timed(&mut || {
-                reference = Some(mesh_field(&high_field, &grid, 0.0, &options)?);
-                Ok(())
-            })?;
-            let reference = reference.ok_or("no mesh")?;
+            let (reference, plain_s) =
+                timed(|| Ok(mesh_field(&high_field, &grid, 0.0, &options)?))?;
             let same = reference.triangles() == mesh.triangles()
                 && reference.vertices().len() == mesh.vertices().len()
                 && reference
@@ -202,9 +188,8 @@ fn table<K: Kernel + Clone>(
                     .zip(mesh.vertices())
                     .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits));
             // Plain MC at its best: the order-P field shaped for every vertex, build included.
-            let tuned_s = timed(&mut || {
-                let o = high_options.with_expected_points(grid.len());
-                let dense = FmmField::with_operators(field, &o, high_ops.clone())?;
+            let ((), tuned_s) = timed(|| {
+                let (dense, _) = build(high_options, &high_ops, grid.len())?;
                 mesh_field(&dense, &grid, 0.0, &options)?;
                 Ok(())
             })?;
@@ -245,4 +230,11 @@ fn table<K: Kernel + Clone>(
         );
     }
     Ok(())
+}
+
+/// `f()` and the seconds it took.
+fn timed<T>(f: impl FnOnce() -> Res<T>) -> Res<(T, f64)> {
+    let t = Instant::now();
+    let out = f()?;
+    Ok((out, t.elapsed().as_secs_f64()))
 }

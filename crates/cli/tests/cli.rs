@@ -1152,20 +1152,17 @@ fn fit_and_restore_refuse_an_existing_output_without_force() {
 fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
     let (dir, field) = sphere_field();
     let smc = dir.path().join("smc.ply");
-    let o = mesh(
-        &field,
-        &smc,
-        &[
-            "--method",
-            "smc",
-            "--order",
-            "5",
-            "--high-order",
-            "9",
-            "--resolution",
-            "32",
-        ],
-    );
+    let args = [
+        "--method",
+        "smc",
+        "--order",
+        "5",
+        "--high-order",
+        "9",
+        "--resolution",
+        "32",
+    ];
+    let o = mesh(&field, &smc, &args);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let out = stdout(&o);
     for text in [
@@ -1185,19 +1182,7 @@ fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
         .iter()
         .map(|step| {
             let path = dir.path().join(format!("smc-{step}.ply"));
-            let args = [
-                "--method",
-                "smc",
-                "--order",
-                "5",
-                "--high-order",
-                "9",
-                "--resolution",
-                "32",
-                "--step",
-                step,
-            ];
-            let o = mesh(&field, &path, &args);
+            let o = mesh(&field, &path, &[&args[..], &["--step", step]].concat());
             assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
             let out = stdout(&o);
             let expect = if *step == "blocks" {

@@ -114,8 +114,10 @@ pub fn lipschitz_range<const D: usize, F: ScalarField<D> + ?Sized>(
     let centre = region.center();
     let half_diagonal = 0.5 * norm(&region.extent());
     let v = field.value(&centre);
-    // Each value is a handful of roundings away from the exact distance.
-    let slack = 16.0 * f64::EPSILON * (v.abs() + lipschitz * half_diagonal + 1.0);
+    // Each value is a handful of roundings away from the exact one, in the value and in the
+    // coordinates it is computed from (times the slope).
+    let size = centre.iter().fold(half_diagonal, |m, c| m.max(c.abs()));
+    let slack = 16.0 * f64::EPSILON * (v.abs() + lipschitz * (half_diagonal + size) + 1.0);
     let spread = lipschitz * half_diagonal + slack;
     v.is_finite().then_some([v - spread, v + spread])
 }

@@ -97,7 +97,8 @@
 //! `n³` grid while the cell size `h` dominates the band, and tends to the fixed volume fraction
 //! of the `margin` band when the margin does (a coarser field costs more fine evaluations).
 //! Memory is that of plain marching cubes (one `f64` per vertex) plus a byte per vertex and per
-//! cell.
+//! cell; the block step adds an index and a value per evaluated coarse vertex (16 bytes, for the
+//! few near the surface) and a record per settled block.
 
 use std::time::Instant;
 
@@ -135,8 +136,9 @@ pub enum CoarseStep {
     EveryVertex,
     /// Blocks of vertices whose coarse enclosure ([`ScalarField::value_range`]) clears the
     /// margin are settled without evaluating them; the others are split in eight, down to
-    /// [`SMALLEST_BLOCK`] vertices, which are evaluated (see the module docs). Falls back to
-    /// [`CoarseStep::EveryVertex`] wherever the coarse field gives no enclosure. The default.
+    /// [`SMALLEST_BLOCK`] vertices, which are evaluated (see the module docs). A coarse field
+    /// that gives no enclosure for the probe boxes (a few 2 × 2 × 2 blocks along the grid's
+    /// diagonal) is evaluated at every vertex as [`CoarseStep::EveryVertex`] does. The default.
     #[default]
     Blocks,
 }
@@ -150,8 +152,9 @@ pub enum CoarseStep {
 /// the surface fail to settle (enclosures counted as a few evaluations each). A surface of
 /// moderate complexity crosses the box a few times, so both bands scale with the box's mean
 /// cross-section `S = (n₀n₁ + n₀n₂ + n₁n₂) / 3` in vertices: `8 S` fine and `32 S` coarse
-/// evaluations, at most one per vertex. Only the cost depends on these estimates, never the
-/// mesh.
+/// evaluations, at most one per vertex. Only the cost depends on these estimates: a field
+/// shaped for another count (a multipole field's tree) differs only within its accuracy, and
+/// the mesh is always plain marching cubes on the fine field as built.
 pub fn expected_evaluations(grid: &Grid<3>, step: CoarseStep) -> [usize; 2] {
     let [n0, n1, n2] = grid.counts();
     let section = (n0 * n1 + n0 * n2 + n1 * n2) / 3;
@@ -246,7 +249,8 @@ pub struct SmcReport {
     /// `n_smc_high / n_mc`: the paper's `γ = N_SMC,P / N_SMC,p`, whose step 1 evaluates every
     /// vertex (`N_SMC,p = N_MC`).
     pub gamma: f64,
-    /// Coarse enclosures computed by the block step (each about two evaluations' work).
+    /// Coarse enclosures the block step asked for, the probe's and those the field could not
+    /// give (`None`) included (each about four evaluations' work for a multipole field).
     pub enclosures: u64,
     /// Blocks the enclosures settled, and the grid vertices in them (never evaluated).
     pub settled_blocks: u64,
@@ -364,7 +368,18 @@ where
             report.n_smc_low = len as u64;
             values
         }
-        CoarseStep::Blocks => settle_blocks(coarse, grid, level, margin, &mut report),
+        CoarseStep::Blocks => {
+            let (encloses, probes) = encloses(coarse, grid);
+            report.enclosures = probes;
+            if encloses {
+                settle_blocks(coarse, grid, level, margin, &mut report)
+            } else {
+                let mut values = vec![0.0; len];
+                evaluate(coarse, grid, &mut values, |chunk_start, k| chunk_start + k);
+                report.n_smc_low = len as u64;
+                values
+            }
+        }
     };
     if let Some(index) = samples::first_non_finite(&values) {
         return Err(samples::non_finite(grid, &values, index));
@@ -429,6 +444,24 @@ where
     let mesh = with_gradient_normals(mesh, fine, &options.mesh)?;
     report.extract_seconds = start.elapsed().as_secs_f64();
     Ok((mesh, report))
+}
+
+/// Whether `coarse` encloses itself over any of a few 2 × 2 × 2 blocks of vertices along the
+/// grid's diagonal (a field without enclosures is then evaluated vertex by vertex, sparing the
+/// block step's bookkeeping), and how many enclosures that asked for.
+fn encloses<C: ScalarField<3> + ?Sized>(coarse: &C, grid: &Grid<3>) -> (bool, u64) {
+    let n = grid.counts();
+    let mut asked = 0;
+    let found = (1..8).any(|k| {
+        asked += 1;
+        let lo: [usize; 3] = std::array::from_fn(|a| (k * (n[a] - 2)) / 8);
+        let hi = lo.map(|i| i + 1);
+        Aabb::new(grid.point(lo), grid.point(hi))
+            .ok()
+            .and_then(|r| coarse.value_range(&r))
+            .is_some()
+    });
+    (found, asked)
 }
 
 /// A box of grid vertices: indices `lo[a]..hi[a]` per axis.
@@ -543,7 +576,7 @@ fn settle_blocks<C: ScalarField<3> + ?Sized>(
         values[l] = v;
     }
     report.n_smc_low = vertices.len() as u64;
-    report.enclosures = work.iter().map(|w| w.enclosures).sum();
+    report.enclosures += work.iter().map(|w| w.enclosures).sum::<u64>();
     report.settled_blocks = work.iter().map(|w| w.settled.len() as u64).sum();
     report.settled_vertices = (grid.len() - vertices.len()) as u64;
     values

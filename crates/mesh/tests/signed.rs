@@ -743,7 +743,7 @@ fn block_step_settles_most_vertices_and_gives_the_same_mesh() {
     }
 }
 
-/// Without enclosures the block step evaluates every vertex, as the paper's step 1.
+/// Without enclosures the block step evaluates every vertex, as the paper's step 1, in grid order.
 #[test]
 fn block_step_without_enclosures_evaluates_every_vertex() {
     let grid = cube_grid(24);
@@ -754,7 +754,11 @@ fn block_step_without_enclosures_evaluates_every_vertex() {
     let (mesh, r) = signed_marching_cubes(&coarse, &fine, &grid, 0.0, 0.02, &o, None).unwrap();
     assert_eq!(r.n_smc_low, grid.len() as u64);
     assert_eq!((r.settled_blocks, r.settled_vertices), (0, 0));
-    assert!(r.enclosures > 0, "blocks were tried");
+    assert_eq!(r.enclosures, 7, "the probe's seven boxes, then no blocks");
+    assert_eq!(
+        coarse.batches.load(Ordering::Relaxed),
+        grid.len().div_ceil(BATCH)
+    );
     let reference = mesh_field(&fine, &grid, 0.0, &McOptions::default()).unwrap();
     assert_identical(&mesh, &reference, "torus without enclosures");
 }

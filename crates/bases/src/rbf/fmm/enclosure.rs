@@ -28,11 +28,14 @@
 //! - **The polynomial** is linear: exact.
 //!
 //! The linear part ranges over exactly `±Σ_a |g_a| h_a`. Rounding (of the field's own
-//! evaluation at the box's points and of the enclosure) is covered by `4 (n + p³ + 8) ε` times
-//! the sum of the magnitudes of the `n` terms. A box meeting several leaves is the union of its
-//! pieces, one per leaf. No enclosure (`None`) for a box outside the root cube or meeting more
-//! than [`MAX_LEAVES`] leaves, for a field with gradient (Hermite) constraints, or for a kernel
-//! without slope and curvature bounds.
+//! evaluation at the box's points and of the enclosure) is covered by `4 (n + 2p³ + 8) ε` times
+//! the sum of the magnitudes of the `n` terms, of the expansion's node values and of the
+//! polynomial's terms, plus `Σ |w| σ` times the coordinates' size (a distance computed from
+//! rounded coordinates). A box meeting several leaves is the union of its pieces, one per leaf
+//! (each cube grown by `10⁻¹²` of the coordinates' size, so that no leaf a point of the box may
+//! be assigned to is missed). No enclosure (`None`) for a box not wholly inside the root cube
+//! or meeting more than [`MAX_LEAVES`] leaves, for a field with gradient (Hermite) constraints,
+//! or for a kernel without slope and curvature bounds.
 //!
 //! The bound is cheap (about two evaluations' work) and tight where the field is smooth at the
 //! box's scale: far from the centres a box of many grid cells clears the level, and only the
@@ -43,12 +46,14 @@ use zeroset_field_core::Aabb;
 use super::FmmField;
 use super::chebyshev::MAX_ORDER;
 use crate::rbf::Kernel;
+use crate::rbf::system::Functional;
 
 /// A box meeting more leaves than this gets no enclosure (the caller splits it).
 pub(crate) const MAX_LEAVES: usize = 8;
 
-/// Relative growth of a leaf's cube in the overlap test, so that a point that rounding places
-/// in a leaf is never missed by it.
+/// Growth of a leaf's cube in the overlap test, relative to the coordinates' size (the root's
+/// half-width plus its centre's largest coordinate), so that a point that rounding places in a
+/// leaf is never missed by it: far above the `depth · ε` of the cells' computed faces.
 const CUBE_SLACK: f64 = 1e-12;
 
 /// A leaf's bounds on the second derivatives of its local expansion, in the field's units:
@@ -67,6 +72,8 @@ struct Parts {
     gradient: [f64; 3],
     remainder: f64,
     magnitude: f64,
+    /// `Σ |w| σ(r + ρ)` over the kernel terms (the sensitivity to rounded coordinates).
+    slope: f64,
     terms: usize,
 }
 
@@ -104,12 +111,19 @@ impl<K: Kernel> FmmField<K> {
         }
         let (lo, hi) = (region.min(), region.max());
         let root = &self.tree.cells[0];
-        let inside_root = (0..3)
-            .all(|a| lo[a] >= root.centre[a] - root.half && hi[a] <= root.centre[a] + root.half);
+        // Cell faces are computed one rounding per level from the root's centre: grow each
+        // cube by a margin that covers that, relative to the coordinates' size, so that the
+        // leaf `leaf_of` picks for a point of the box is always among those found; and keep
+        // the box that far inside the root, whose points all take the leaf path.
+        let scale = self.coordinate_scale();
+        let slack = CUBE_SLACK * scale;
+        let inside_root = (0..3).all(|a| {
+            lo[a] >= root.centre[a] - root.half + slack
+                && hi[a] <= root.centre[a] + root.half - slack
+        });
         if !inside_root {
             return None;
         }
-        let slack = CUBE_SLACK * root.half;
         let mut leaves = [0u32; MAX_LEAVES];
         let mut found = 0;
         // Depth-first, eight children at a time: at most 7 per level wait on the stack.
@@ -211,7 +225,13 @@ impl<K: Kernel> FmmField<K> {
         let poly = self.poly.value(&self.poly_coefficients, &centre);
         let poly_gradient = self.poly.gradient(&self.poly_coefficients);
         parts.value += poly;
-        parts.magnitude += poly.abs();
+        let row = self.poly.row(&centre, Functional::Value);
+        parts.magnitude += (0..4)
+            .map(|k| (self.poly_coefficients[k] * row[k]).abs())
+            .sum::<f64>();
+        // A distance computed from coordinates of size `scale` is off by about `ε scale`, which
+        // moves a term by its slope times that: `Σ |w| σ` of the terms, times `scale`.
+        parts.magnitude += parts.slope * self.coordinate_scale();
         let mut linear = 0.0;
         for a in 0..3 {
             linear += (parts.gradient[a] + poly_gradient[a]).abs() * h[a];
@@ -236,6 +256,7 @@ impl<K: Kernel> FmmField<K> {
         for a in 0..3 {
             parts.gradient[a] += t[2 + a];
         }
+        parts.slope += t[5];
         parts.terms += 1;
     }
 
@@ -254,6 +275,7 @@ impl<K: Kernel> FmmField<K> {
         const LANES: usize = 4;
         let n = weights.len();
         let (mut value, mut magnitude, mut remainder) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let mut sensitivity = [0.0; LANES];
         let mut gradient = [[0.0; LANES]; 3];
         let half_rho2 = 0.5 * rho * rho;
         let (w_chunks, _) = weights.as_chunks::<LANES>();
@@ -278,7 +300,9 @@ impl<K: Kernel> FmmField<K> {
             for l in 0..LANES {
                 let w_abs = w[l].abs();
                 let far = r[l] + rho;
-                let constant = w_abs * self.kernel.slope_bound(far).unwrap_or(f64::INFINITY) * rho;
+                let slope = w_abs * self.kernel.slope_bound(far).unwrap_or(f64::INFINITY);
+                sensitivity[l] += slope;
+                let constant = slope * rho;
                 let curvature = self
                     .kernel
                     .curvature_bound((r[l] - rho).max(0.0), far)
@@ -300,6 +324,7 @@ impl<K: Kernel> FmmField<K> {
         parts.value += sum(&value);
         parts.magnitude += sum(&magnitude);
         parts.remainder += sum(&remainder);
+        parts.slope += sum(&sensitivity);
         for (g, lanes) in parts.gradient.iter_mut().zip(&gradient) {
             *g += sum(lanes);
         }
@@ -315,13 +340,14 @@ impl<K: Kernel> FmmField<K> {
     /// radius `rho` about `centre`, branch-free: linearised (the gradient non-zero) where that
     /// remainder is the smaller.
     #[inline(always)]
-    fn term(&self, w: f64, y: &[f64; 3], centre: &[f64; 3], rho: f64) -> [f64; 5] {
+    fn term(&self, w: f64, y: &[f64; 3], centre: &[f64; 3], rho: f64) -> [f64; 6] {
         let d = [centre[0] - y[0], centre[1] - y[1], centre[2] - y[2]];
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         let r = r2.sqrt();
         let v = w * self.kernel.value_of_squared(r2);
         let w_abs = w.abs();
-        let constant = w_abs * self.kernel.slope_bound(r + rho).unwrap_or(f64::INFINITY) * rho;
+        let slope = w_abs * self.kernel.slope_bound(r + rho).unwrap_or(f64::INFINITY);
+        let constant = slope * rho;
         let curvature = self
             .kernel
             .curvature_bound((r - rho).max(0.0), r + rho)
@@ -335,12 +361,21 @@ impl<K: Kernel> FmmField<K> {
             0.0
         };
         let remainder = if linear { linearised } else { constant };
-        [v, remainder, d1 * d[0], d1 * d[1], d1 * d[2]]
+        [v, remainder, d1 * d[0], d1 * d[1], d1 * d[2], slope]
+    }
+
+    /// The size of the coordinates: the root's half-width plus its centre's largest coordinate.
+    fn coordinate_scale(&self) -> f64 {
+        let root = &self.tree.cells[0];
+        root.half + root.centre.iter().fold(0.0f64, |m, c| m.max(c.abs()))
     }
 
     /// [`LeafCurvature`] of every leaf (zeros for the other cells).
+    ///
+    /// Sequential: it runs inside a `OnceLock` initialiser reached from rayon tasks, where a
+    /// parallel loop could let the initialising thread steal another enclosure task and
+    /// re-enter the lock. A few `p⁴` products per leaf, milliseconds in all.
     fn leaf_curvatures(&self) -> Vec<LeafCurvature> {
-        use rayon::prelude::*;
         let p = self.ops.order();
         let n = p * p * p;
         let map = self.ops.cheb.coefficient_map();
@@ -350,7 +385,6 @@ impl<K: Kernel> FmmField<K> {
             .map(|i| (i * i) as f64 * ((i * i) as f64 - 1.0).max(0.0) / 3.0)
             .collect();
         (0..self.tree.cells.len())
-            .into_par_iter()
             .map(|c| {
                 let cell = &self.tree.cells[c];
                 if !cell.is_leaf() {

@@ -105,17 +105,22 @@ fn gradients_match_the_direct_sum() {
     }
 }
 
-#[test]
-fn hermite_fields_match_the_direct_sum() {
+/// `n` points on the unit sphere with value 0 and gradient the outward normal.
+fn hermite_sphere(n: usize) -> Constraints<3> {
     let mut c = Constraints::new();
-    for k in 0..300 {
-        let z = -1.0 + (2 * k + 1) as f64 / 300.0;
+    for k in 0..n {
+        let z = -1.0 + (2 * k + 1) as f64 / n as f64;
         let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
         let u = [s * t.cos(), s * t.sin(), z];
         c.push_value(u, 0.0);
         c.push_gradient(u, u);
     }
-    let exact = fit(Triharmonic, &c);
+    c
+}
+
+#[test]
+fn hermite_fields_match_the_direct_sum() {
+    let exact = fit(Triharmonic, &hermite_sphere(300));
     let fast = FmmField::new(&exact, &FmmOptions::new(9).with_leaf_size(12)).expect("fmm");
     assert!(fast.dipoles.is_some());
     let points = probes(&exact.bounds().expect("bounds"), 2000, 0.2);
@@ -468,15 +473,8 @@ fn enclosures_are_refused_where_they_cannot_hold() {
     let straddle = Aabb::new(lo, lo.map(|v| v + 0.008)).expect("box");
     assert!(check_enclosure(&f, &straddle).is_some());
 
-    let mut h = Constraints::new();
-    for k in 0..100 {
-        let z = -1.0 + (2 * k + 1) as f64 / 100.0;
-        let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
-        let u = [s * t.cos(), s * t.sin(), z];
-        h.push_value(u, 0.0);
-        h.push_gradient(u, u);
-    }
-    let hermite = FmmField::new(&fit(Triharmonic, &h), &FmmOptions::new(5)).expect("fmm");
+    let hermite =
+        FmmField::new(&fit(Triharmonic, &hermite_sphere(100)), &FmmOptions::new(5)).expect("fmm");
     let small = Aabb::new([0.01; 3], [0.02; 3]).expect("box");
     assert_eq!(hermite.value_range(&small), None);
 }

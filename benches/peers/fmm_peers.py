@@ -120,6 +120,10 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--numpy-repeat", type=int, default=3, help="NumPy sum: timed runs after one warm-up")
     p.add_argument("--tolerance", type=float, default=None,
                    help="zeroset: the M2L compression tolerance (the example's --tolerance; default 10^-(p+1))")
+    p.add_argument("--leaf", type=int, default=None,
+                   help="zeroset: the most sources per leaf (the example's --leaf; default by order and targets)")
+    p.add_argument("--compression", choices=["shared", "per-operator"], default=None,
+                   help="zeroset: the M2L compression (the example's --compression; default by order)")
     p.add_argument(
         "--numpy-max-targets",
         type=int,
@@ -185,6 +189,8 @@ def run_zeroset(binary: Path, dump: Path, kernel: str, order: int, m: int, args)
         [str(binary), "--kernel", kernel, "--sources", str(args.sources), "--targets", str(m),
          "--order", str(order), "--dump", str(dump), "--repeat", str(args.repeat)]
         + ([] if args.tolerance is None else ["--tolerance", repr(args.tolerance)])
+        + ([] if args.leaf is None else ["--leaf", str(args.leaf)])
+        + ([] if args.compression is None else ["--compression", args.compression])
     )  # fmt: skip
 
 

@@ -52,8 +52,8 @@
 //! The statuses are exactly those of evaluating every vertex: a settled vertex's coarse value
 //! lies in the enclosure, so it would have been certain on the same side. Hence the candidates,
 //! the fine evaluations and the mesh are identical; only `N_SMC,p` falls (on a 256³ grid of a
-//! 10,000-centre biharmonic RBF field of the bunny, 98% of the vertices are settled by about
-//! 130,000 enclosures). The enclosures of a triharmonic (`r³`) field are loose, because its
+//! 10,000-centre biharmonic RBF field of the bunny, 96% of the vertices are settled by about
+//! 125,000 enclosures at order 5). The enclosures of a triharmonic (`r³`) field are loose, because its
 //! large weights cancel: [`settled_fraction`] probes whether blocks pay, and
 //! [`expected_evaluations`] tells a multipole field how many points to shape its tree for.
 //!
@@ -196,9 +196,7 @@ pub fn settled_fraction<C: ScalarField<3> + ?Sized>(
                 ((u * (span[a] + 1) as f64) as usize).min(span[a])
             });
             let hi: [usize; 3] = std::array::from_fn(|a| (lo[a] + 3).min(n[a] - 1));
-            Aabb::new(grid.point(lo), grid.point(hi))
-                .ok()
-                .and_then(|r| coarse.value_range(&r))
+            enclose(coarse, grid, lo, hi)
                 .is_some_and(|[lo, hi]| lo - level > margin || level - hi > margin)
         })
         .count();
@@ -361,25 +359,18 @@ where
         vertices: len as u64,
     });
     let start = Instant::now();
-    let mut values = match options.coarse_step {
-        CoarseStep::EveryVertex => {
-            let mut values = vec![0.0; len];
-            evaluate(coarse, grid, &mut values, |chunk_start, k| chunk_start + k);
-            report.n_smc_low = len as u64;
-            values
-        }
-        CoarseStep::Blocks => {
-            let (encloses, probes) = encloses(coarse, grid);
-            report.enclosures = probes;
-            if encloses {
-                settle_blocks(coarse, grid, level, margin, &mut report)
-            } else {
-                let mut values = vec![0.0; len];
-                evaluate(coarse, grid, &mut values, |chunk_start, k| chunk_start + k);
-                report.n_smc_low = len as u64;
-                values
-            }
-        }
+    let blocks = options.coarse_step == CoarseStep::Blocks && {
+        let (encloses, probes) = encloses(coarse, grid);
+        report.enclosures = probes;
+        encloses
+    };
+    let mut values = if blocks {
+        settle_blocks(coarse, grid, level, margin, &mut report)
+    } else {
+        let mut values = vec![0.0; len];
+        evaluate(coarse, grid, &mut values, |chunk_start, k| chunk_start + k);
+        report.n_smc_low = len as u64;
+        values
     };
     if let Some(index) = samples::first_non_finite(&values) {
         return Err(samples::non_finite(grid, &values, index));
@@ -446,6 +437,17 @@ where
     Ok((mesh, report))
 }
 
+/// `coarse`'s enclosure over the box of the grid vertices `lo..=hi`.
+fn enclose<C: ScalarField<3> + ?Sized>(
+    coarse: &C,
+    grid: &Grid<3>,
+    lo: [usize; 3],
+    hi: [usize; 3],
+) -> Option<[f64; 2]> {
+    let region = Aabb::new(grid.point(lo), grid.point(hi)).ok()?;
+    coarse.value_range(&region)
+}
+
 /// Whether `coarse` encloses itself over any of a few 2 × 2 × 2 blocks of vertices along the
 /// grid's diagonal (a field without enclosures is then evaluated vertex by vertex, sparing the
 /// block step's bookkeeping), and how many enclosures that asked for.
@@ -455,11 +457,7 @@ fn encloses<C: ScalarField<3> + ?Sized>(coarse: &C, grid: &Grid<3>) -> (bool, u6
     let found = (1..8).any(|k| {
         asked += 1;
         let lo: [usize; 3] = std::array::from_fn(|a| (k * (n[a] - 2)) / 8);
-        let hi = lo.map(|i| i + 1);
-        Aabb::new(grid.point(lo), grid.point(hi))
-            .ok()
-            .and_then(|r| coarse.value_range(&r))
-            .is_some()
+        enclose(coarse, grid, lo, lo.map(|i| i + 1)).is_some()
     });
     (found, asked)
 }
@@ -523,9 +521,7 @@ fn settle_blocks<C: ScalarField<3> + ?Sized>(
             while let Some(b) = stack.pop() {
                 if b.vertices() > SMALLEST_BLOCK {
                     work.enclosures += 1;
-                    let corner = |i: [usize; 3]| grid.point(i);
-                    let region = Aabb::new(corner(b.lo), corner(b.hi.map(|i| i - 1))).ok();
-                    match region.and_then(|r| coarse.value_range(&r)) {
+                    match enclose(coarse, grid, b.lo, b.hi.map(|i| i - 1)) {
                         Some([lo, _]) if lo - level > margin => work.settled.push((b, lo)),
                         Some([_, hi]) if level - hi > margin => work.settled.push((b, hi)),
                         // Halves have at least a quarter of the spread (the remainders are
@@ -534,13 +530,13 @@ fn settle_blocks<C: ScalarField<3> + ?Sized>(
                         Some([lo, hi])
                             if (0.5 * (lo + hi) - level).abs() - margin <= HOPELESS * (hi - lo) =>
                         {
-                            evaluate_all(&b, grid, &mut work.vertices)
+                            push_vertices(&b, grid, &mut work.vertices)
                         }
                         _ => stack.extend(split(&b)),
                     }
                     continue;
                 }
-                evaluate_all(&b, grid, &mut work.vertices);
+                push_vertices(&b, grid, &mut work.vertices);
             }
             work
         })
@@ -583,7 +579,7 @@ fn settle_blocks<C: ScalarField<3> + ?Sized>(
 }
 
 /// Appends the linear indices of the vertices of `b`.
-fn evaluate_all(b: &Block, grid: &Grid<3>, vertices: &mut Vec<usize>) {
+fn push_vertices(b: &Block, grid: &Grid<3>, vertices: &mut Vec<usize>) {
     for i in b.lo[0]..b.hi[0] {
         for j in b.lo[1]..b.hi[1] {
             let row = grid.linear_index([i, j, 0]);

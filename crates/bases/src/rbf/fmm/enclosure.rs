@@ -37,7 +37,7 @@
 //! or meeting more than [`MAX_LEAVES`] leaves, for a field with gradient (Hermite) constraints,
 //! or for a kernel without slope and curvature bounds.
 //!
-//! The bound is cheap (about two evaluations' work) and tight where the field is smooth at the
+//! The bound is cheap (about four evaluations' work) and tight where the field is smooth at the
 //! box's scale: far from the centres a box of many grid cells clears the level, and only the
 //! blocks near the surface need their vertices evaluated.
 
@@ -75,6 +75,44 @@ struct Parts {
     /// `Σ |w| σ(r + ρ)` over the kernel terms (the sensitivity to rounded coordinates).
     slope: f64,
     terms: usize,
+}
+
+/// [`Parts`] of the kernel terms, per lane.
+struct Lanes<const L: usize> {
+    value: [f64; L],
+    gradient: [[f64; L]; 3],
+    remainder: [f64; L],
+    magnitude: [f64; L],
+    slope: [f64; L],
+    terms: usize,
+}
+
+impl<const L: usize> Default for Lanes<L> {
+    fn default() -> Self {
+        Self {
+            value: [0.0; L],
+            gradient: [[0.0; L]; 3],
+            remainder: [0.0; L],
+            magnitude: [0.0; L],
+            slope: [0.0; L],
+            terms: 0,
+        }
+    }
+}
+
+impl<const L: usize> Lanes<L> {
+    /// Adds the lanes' sums (in lane order) to `parts`.
+    fn add_to(&self, parts: &mut Parts) {
+        let sum = |a: &[f64; L]| a.iter().sum::<f64>();
+        parts.value += sum(&self.value);
+        parts.magnitude += sum(&self.magnitude);
+        parts.remainder += sum(&self.remainder);
+        parts.slope += sum(&self.slope);
+        for (g, lanes) in parts.gradient.iter_mut().zip(&self.gradient) {
+            *g += sum(lanes);
+        }
+        parts.terms += self.terms;
+    }
 }
 
 /// [`FmmField::enclosure`] compiled per instruction set (its kernel loops vectorise).
@@ -163,8 +201,8 @@ impl<K: Kernel> FmmField<K> {
                 std::array::from_fn(|a| lo[a].max(cell.centre[a] - cell.half - slack));
             let piece_hi: [f64; 3] =
                 std::array::from_fn(|a| hi[a].min(cell.centre[a] + cell.half + slack));
-            let [l, h] =
-                self.enclosure_in_leaf(leaf, &piece_lo, &piece_hi, &curvature[leaf as usize])?;
+            let curvature = &curvature[leaf as usize];
+            let [l, h] = self.enclosure_in_leaf(leaf, &piece_lo, &piece_hi, scale, curvature)?;
             out = [out[0].min(l), out[1].max(h)];
         }
         (found > 0).then_some(out)
@@ -177,6 +215,7 @@ impl<K: Kernel> FmmField<K> {
         leaf: u32,
         lo: &[f64; 3],
         hi: &[f64; 3],
+        coordinate_scale: f64,
         curvature: &LeafCurvature,
     ) -> Option<[f64; 2]> {
         let centre: [f64; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
@@ -231,7 +270,7 @@ impl<K: Kernel> FmmField<K> {
             .sum::<f64>();
         // A distance computed from coordinates of size `scale` is off by about `ε scale`, which
         // moves a term by its slope times that: `Σ |w| σ` of the terms, times `scale`.
-        parts.magnitude += parts.slope * self.coordinate_scale();
+        parts.magnitude += parts.slope * coordinate_scale;
         let mut linear = 0.0;
         for a in 0..3 {
             linear += (parts.gradient[a] + poly_gradient[a]).abs() * h[a];
@@ -246,23 +285,8 @@ impl<K: Kernel> FmmField<K> {
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
-    /// One kernel term `w φ(|x − y|)` over the ball of radius `rho` about `centre`.
-    #[inline(always)]
-    fn add_term(&self, w: f64, y: &[f64; 3], centre: &[f64; 3], rho: f64, parts: &mut Parts) {
-        let t = self.term(w, y, centre, rho);
-        parts.value += t[0];
-        parts.magnitude += t[0].abs();
-        parts.remainder += t[1];
-        for a in 0..3 {
-            parts.gradient[a] += t[2 + a];
-        }
-        parts.slope += t[5];
-        parts.terms += 1;
-    }
-
-    /// The terms of the sources `coords`, `weights`, four lanes at a time (a fixed order, so
-    /// the same bits on every call), each step a simple loop over the lanes so that it
-    /// vectorises.
+    /// The terms of the sources `coords`, `weights`: four lanes at a time, then the rest one
+    /// by one (a fixed order, so the same bits on every call).
     #[inline(always)]
     fn add_terms(
         &self,
@@ -272,96 +296,82 @@ impl<K: Kernel> FmmField<K> {
         rho: f64,
         parts: &mut Parts,
     ) {
-        const LANES: usize = 4;
         let n = weights.len();
-        let (mut value, mut magnitude, mut remainder) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        let mut sensitivity = [0.0; LANES];
-        let mut gradient = [[0.0; LANES]; 3];
-        let half_rho2 = 0.5 * rho * rho;
-        let (w_chunks, _) = weights.as_chunks::<LANES>();
-        let chunks: [&[[f64; LANES]]; 3] = std::array::from_fn(|a| coords[a][..n].as_chunks().0);
+        let (w_chunks, tail) = weights.as_chunks::<4>();
+        let chunks: [&[[f64; 4]]; 3] = std::array::from_fn(|a| coords[a][..n].as_chunks().0);
+        let mut lanes = Lanes::<4>::default();
         for (k, w) in w_chunks.iter().enumerate() {
-            let mut d = [[0.0; LANES]; 3];
-            let mut r2 = [0.0; LANES];
-            for a in 0..3 {
-                for l in 0..LANES {
-                    d[a][l] = centre[a] - chunks[a][k][l];
-                    r2[l] += d[a][l] * d[a][l];
-                }
-            }
-            let mut r = [0.0; LANES];
-            for l in 0..LANES {
-                r[l] = r2[l].sqrt();
-                let v = w[l] * self.kernel.value_of_squared(r2[l]);
-                value[l] += v;
-                magnitude[l] += v.abs();
-            }
-            let mut d1 = [0.0; LANES];
-            for l in 0..LANES {
-                let w_abs = w[l].abs();
-                let far = r[l] + rho;
-                let slope = w_abs * self.kernel.slope_bound(far).unwrap_or(f64::INFINITY);
-                sensitivity[l] += slope;
-                let constant = slope * rho;
-                let curvature = self
-                    .kernel
-                    .curvature_bound((r[l] - rho).max(0.0), far)
-                    .unwrap_or(f64::INFINITY);
-                let linearised = w_abs * curvature * half_rho2;
-                // False where the linearised bound is infinite or NaN (a centre in the ball).
-                let linear = linearised < constant;
-                let slope = w[l] * self.kernel.radial(r[l])[1];
-                d1[l] = if linear { slope } else { 0.0 };
-                remainder[l] += if linear { linearised } else { constant };
-            }
-            for a in 0..3 {
-                for l in 0..LANES {
-                    gradient[a][l] += d1[l] * d[a][l];
-                }
-            }
+            let y = [&chunks[0][k], &chunks[1][k], &chunks[2][k]];
+            self.accumulate(w, y, centre, rho, &mut lanes);
         }
-        let sum = |a: &[f64; LANES]| (a[0] + a[1]) + (a[2] + a[3]);
-        parts.value += sum(&value);
-        parts.magnitude += sum(&magnitude);
-        parts.remainder += sum(&remainder);
-        parts.slope += sum(&sensitivity);
-        for (g, lanes) in parts.gradient.iter_mut().zip(&gradient) {
-            *g += sum(lanes);
-        }
-        let full = w_chunks.len() * LANES;
-        parts.terms += full;
-        for j in full..n {
+        lanes.add_to(parts);
+        let full = n - tail.len();
+        for (j, &w) in (full..n).zip(tail) {
             let y = [coords[0][j], coords[1][j], coords[2][j]];
-            self.add_term(weights[j], &y, centre, rho, parts);
+            self.add_term(w, &y, centre, rho, parts);
         }
     }
 
-    /// `[value, remainder, gradient]` of one kernel term `w φ(|x − y|)` over the ball of
-    /// radius `rho` about `centre`, branch-free: linearised (the gradient non-zero) where that
-    /// remainder is the smaller.
+    /// One kernel term `w φ(|x − y|)`.
     #[inline(always)]
-    fn term(&self, w: f64, y: &[f64; 3], centre: &[f64; 3], rho: f64) -> [f64; 6] {
-        let d = [centre[0] - y[0], centre[1] - y[1], centre[2] - y[2]];
-        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let r = r2.sqrt();
-        let v = w * self.kernel.value_of_squared(r2);
-        let w_abs = w.abs();
-        let slope = w_abs * self.kernel.slope_bound(r + rho).unwrap_or(f64::INFINITY);
-        let constant = slope * rho;
-        let curvature = self
-            .kernel
-            .curvature_bound((r - rho).max(0.0), r + rho)
-            .unwrap_or(f64::INFINITY);
-        let linearised = 0.5 * w_abs * curvature * rho * rho;
-        // False where the linearised bound is infinite or NaN (a centre in the ball).
-        let linear = linearised < constant;
-        let d1 = if linear {
-            w * self.kernel.radial(r)[1]
-        } else {
-            0.0
-        };
-        let remainder = if linear { linearised } else { constant };
-        [v, remainder, d1 * d[0], d1 * d[1], d1 * d[2], slope]
+    fn add_term(&self, w: f64, y: &[f64; 3], centre: &[f64; 3], rho: f64, parts: &mut Parts) {
+        let mut lane = Lanes::<1>::default();
+        self.accumulate(&[w], [&[y[0]], &[y[1]], &[y[2]]], centre, rho, &mut lane);
+        lane.add_to(parts);
+    }
+
+    /// `L` kernel terms `w φ(|x − y|)` over the ball of radius `rho` about `centre`, lane by
+    /// lane and branch-free (each step a simple loop over the lanes, so that it vectorises):
+    /// linearised (a gradient) where that remainder is the smaller, constant otherwise.
+    #[inline(always)]
+    fn accumulate<const L: usize>(
+        &self,
+        w: &[f64; L],
+        y: [&[f64; L]; 3],
+        centre: &[f64; 3],
+        rho: f64,
+        acc: &mut Lanes<L>,
+    ) {
+        let mut d = [[0.0; L]; 3];
+        let mut r2 = [0.0; L];
+        for a in 0..3 {
+            for l in 0..L {
+                d[a][l] = centre[a] - y[a][l];
+                r2[l] += d[a][l] * d[a][l];
+            }
+        }
+        let mut r = [0.0; L];
+        for l in 0..L {
+            r[l] = r2[l].sqrt();
+            let v = w[l] * self.kernel.value_of_squared(r2[l]);
+            acc.value[l] += v;
+            acc.magnitude[l] += v.abs();
+        }
+        let half_rho2 = 0.5 * rho * rho;
+        let mut d1 = [0.0; L];
+        for l in 0..L {
+            let w_abs = w[l].abs();
+            let far = r[l] + rho;
+            let slope = w_abs * self.kernel.slope_bound(far).unwrap_or(f64::INFINITY);
+            acc.slope[l] += slope;
+            let constant = slope * rho;
+            let curvature = self
+                .kernel
+                .curvature_bound((r[l] - rho).max(0.0), far)
+                .unwrap_or(f64::INFINITY);
+            let linearised = w_abs * curvature * half_rho2;
+            // False where the linearised bound is infinite or NaN (a centre in the ball).
+            let linear = linearised < constant;
+            let radial = w[l] * self.kernel.radial(r[l])[1];
+            d1[l] = if linear { radial } else { 0.0 };
+            acc.remainder[l] += if linear { linearised } else { constant };
+        }
+        for (g, da) in acc.gradient.iter_mut().zip(&d) {
+            for l in 0..L {
+                g[l] += d1[l] * da[l];
+            }
+        }
+        acc.terms += L;
     }
 
     /// The size of the coordinates: the root's half-width plus its centre's largest coordinate.

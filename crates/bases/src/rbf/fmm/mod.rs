@@ -46,13 +46,13 @@
 //!
 //! ## Enclosures
 //!
-//! [`ScalarField::value_range`] bounds the field over a box with about two evaluations' work:
+//! [`ScalarField::value_range`] bounds the field over a box with about four evaluations' work:
 //! in each leaf the box meets, the local expansion, every near and M2P kernel term and the
 //! polynomial are linearised at the box's centre, with remainders from the expansion's Chebyshev
 //! coefficients (Markov's inequality) and the kernel's [slope](Kernel::slope_bound) and
 //! [curvature](Kernel::curvature_bound) bounds. The signed marching cubes settle whole blocks of
-//! grid vertices this way. `None` for boxes outside the root or over more than eight leaves, for
-//! fields with gradient constraints, and for kernels without the bounds.
+//! grid vertices this way. `None` for boxes not wholly inside the root or over more than eight
+//! leaves, for fields with gradient constraints, and for kernels without the bounds.
 //!
 //! ## Accuracy
 //!

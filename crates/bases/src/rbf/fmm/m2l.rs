@@ -126,24 +126,28 @@ pub(crate) fn per_operator(
     });
 }
 
-/// Shared basis: `L_T += K_t (s_S M_S)` for every pair of `pairs` (all served by `basis` and
-/// `offsets`; `scale(S)` the factor of the source's level, `cut(S)` the relative singular
-/// value its level keeps ([`rank_for`]), `level(S)` its level; cells numbered below
-/// `cells`), in three steps:
+/// Shared basis: `L_T += K_t (s_S M_S)` for every pair of `pairs` (all served by `basis`,
+/// whose columns have the singular values `basis_sigma`, and `offsets`; `scale(S)` the factor
+/// of the source's level, `cut(S)` the singular value its level keeps, relative to the largest
+/// of each operator ([`rank_for`]) and absolute for the basis, `level(S)` its level; cells
+/// numbered below `cells`), in three steps, each level using the leading `r_ℓ` columns of the
+/// basis that its cut keeps:
 ///
-/// 1. every source's expansion is compressed, `M̃_S = s_S Uᵀ M_S`, in blocks of [`CELLS`];
+/// 1. every source's expansion is compressed, `M̃_S = s_S U_ℓᵀ M_S`, in blocks of at most
+///    [`CELLS`] of one level;
 /// 2. the pairs, sorted by offset and level, are cut into blocks of at most [`BLOCK`] that
 ///    share one offset and level; a block gathers its sources' `M̃` into one matrix and applies
-///    `A_t (B_tᵀ X)` as two dense products. Blocks run in groups of about [`GROUP`] pairs (a
-///    work array that stays in cache); after each group, every target adds its pairs'
-///    columns, in offset order, to its compressed local expansion `L̃_T`;
-/// 3. every target adds `U L̃_T` to its local expansion, in blocks of [`CELLS`].
+///    `A_t (B_tᵀ X)` (their first `r_ℓ` rows) as two dense products. Blocks run in groups of
+///    about [`GROUP`] pairs (a work array that stays in cache); after each group, every target
+///    adds its pairs' columns, in offset order, to its compressed local expansion `L̃_T`;
+/// 3. every target adds `U_ℓ L̃_T` to its local expansion, in blocks as in step 1.
 ///
 /// Every block, group and order of summation depends on the pairs alone, so the sums do not
 /// depend on the thread count.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn shared(
     basis: &Mat<f64>,
+    basis_sigma: &[f64],
     offsets: &[Option<OffsetOperator>],
     mut pairs: Vec<CodedPair>,
     scale: &(dyn Fn(u32) -> f64 + Sync),
@@ -158,27 +162,46 @@ pub(crate) fn shared(
         return;
     }
     let r = basis.ncols();
+    // The basis columns a cell's level keeps (all of them for an uncompressed basis).
+    let basis_rank = |c: u32| match basis_sigma {
+        [] => r,
+        sigma => sigma
+            .iter()
+            .take_while(|&&s| s > cut(c))
+            .count()
+            .clamp(1, r),
+    };
     pairs.sort_unstable_by_key(|q| (q.code, level(q.source), q.target, q.source));
-    // Dense numbering of the sources and targets.
+    // Dense numbering of the sources and targets, level by level, and blocks of at most
+    // `CELLS` of one level.
     let number = |of: &dyn Fn(&CodedPair) -> u32| {
         let mut list: Vec<u32> = pairs.iter().map(of).collect();
-        list.sort_unstable();
+        list.sort_unstable_by_key(|&c| (level(c), c));
         list.dedup();
         let mut index = vec![u32::MAX; cells];
         for (i, &c) in list.iter().enumerate() {
             index[c as usize] = i as u32;
         }
-        (list, index)
+        let mut blocks = vec![0];
+        for i in 1..=list.len() {
+            let start = *blocks.last().unwrap_or(&0);
+            if i == list.len() || i - start == CELLS || level(list[i]) != level(list[start]) {
+                blocks.push(i);
+            }
+        }
+        (list, index, blocks)
     };
-    let (sources, source_index) = number(&|q| q.source);
-    let (targets, target_index) = number(&|q| q.target);
+    let (sources, source_index, source_blocks) = number(&|q| q.source);
+    let (targets, target_index, target_blocks) = number(&|q| q.target);
+    let target_rank: Vec<usize> = targets.iter().map(|&c| basis_rank(c)).collect();
     // 1. Compressed expansions of the sources.
     let mut compressed = vec![0.0; r * sources.len()];
-    compressed
-        .par_chunks_mut(r * CELLS)
-        .zip(sources.par_chunks(CELLS))
-        .for_each(|(out, chunk)| {
-            let m = chunk.len();
+    split_blocks(&mut compressed, r, &source_blocks)
+        .into_par_iter()
+        .zip(source_blocks.par_windows(2))
+        .for_each(|(out, w)| {
+            let chunk = &sources[w[0]..w[1]];
+            let (m, rl) = (chunk.len(), basis_rank(chunk[0]));
             with_scratch(n * m, |x| {
                 for (col, &c) in x.chunks_exact_mut(n).zip(chunk) {
                     let s = scale(c);
@@ -188,7 +211,12 @@ pub(crate) fn shared(
                 }
                 let x = MatRef::from_column_major_slice(x, n, m);
                 let y = MatMut::from_column_major_slice_mut(out, r, m);
-                product(y, basis.transpose(), x, 1.0);
+                product(
+                    y.subrows_mut(0, rl),
+                    basis.subcols(0, rl).transpose(),
+                    x,
+                    1.0,
+                );
             });
         });
     // 2. Blocks of one offset each, in groups.
@@ -226,23 +254,25 @@ pub(crate) fn shared(
                 let Some(op) = &offsets[block[0].code as usize] else {
                     return;
                 };
+                let rl = basis_rank(block[0].source);
                 let rc = rank_for(&op.sigma, op.a.ncols(), cut(block[0].source));
-                let (a, b) = (op.a.subcols(0, rc), op.b.subcols(0, rc));
+                let (a, b) = (op.a.submatrix(0, 0, rl, rc), op.b.submatrix(0, 0, rl, rc));
                 let m = block.len();
-                with_scratch((r + rc) * m, |buf| {
-                    let (x, y) = buf.split_at_mut(r * m);
-                    for (col, q) in x.chunks_exact_mut(r).zip(block) {
+                with_scratch((rl + rc) * m, |buf| {
+                    let (x, y) = buf.split_at_mut(rl * m);
+                    for (col, q) in x.chunks_exact_mut(rl).zip(block) {
                         let i = source_index[q.source as usize] as usize;
-                        col.copy_from_slice(&compressed[i * r..][..r]);
+                        col.copy_from_slice(&compressed[i * r..][..rl]);
                     }
-                    let x = MatRef::from_column_major_slice(x, r, m);
+                    let x = MatRef::from_column_major_slice(x, rl, m);
                     let mut y = MatMut::from_column_major_slice_mut(y, rc, m);
                     product(y.rb_mut(), b.transpose(), x, 1.0);
                     let z = MatMut::from_column_major_slice_mut(out, r, m);
-                    product(z, a, y.rb(), 1.0);
+                    product(z.subrows_mut(0, rl), a, y.rb(), 1.0);
                 });
             });
-        // Each target's columns of this group, in offset order (the group's order).
+        // Each target's columns of this group, in offset order (the group's order); a
+        // column's rows past its level's basis rank are not written and not read.
         let mut entries: Vec<(u32, u32)> = group
             .iter()
             .enumerate()
@@ -258,8 +288,9 @@ pub(crate) fn shared(
                 let from = entries.partition_point(|e| e.0 < lo);
                 let to = entries.partition_point(|e| e.0 < hi);
                 for &(t, i) in &entries[from..to] {
-                    let dst = &mut out[(t - lo) as usize * r..][..r];
-                    for (d, &v) in dst.iter_mut().zip(&results[i as usize * r..][..r]) {
+                    let rl = target_rank[t as usize];
+                    let dst = &mut out[(t - lo) as usize * r..][..rl];
+                    for (d, &v) in dst.iter_mut().zip(&results[i as usize * r..][..rl]) {
                         *d += v;
                     }
                 }
@@ -267,15 +298,16 @@ pub(crate) fn shared(
         first = last;
     }
     // 3. Expanded into the local expansions.
-    compressed_locals
-        .par_chunks(r * CELLS)
-        .zip(targets.par_chunks(CELLS))
-        .for_each(|(lt, chunk)| {
-            let m = chunk.len();
+    split_blocks(&mut compressed_locals, r, &target_blocks)
+        .into_par_iter()
+        .zip(target_blocks.par_windows(2))
+        .for_each(|(lt, w)| {
+            let chunk = &targets[w[0]..w[1]];
+            let (m, rl) = (chunk.len(), basis_rank(chunk[0]));
             with_scratch(n * m, |full| {
                 let lt = MatRef::from_column_major_slice(lt, r, m);
                 let z = MatMut::from_column_major_slice_mut(full, n, m);
-                product(z, basis.as_ref(), lt, 1.0);
+                product(z, basis.subcols(0, rl), lt.subrows(0, rl), 1.0);
                 for (col, &t) in full.chunks_exact(n).zip(chunk) {
                     // SAFETY: every target appears once in `targets`, so only this task
                     // writes this target's range now.
@@ -286,6 +318,18 @@ pub(crate) fn shared(
                 }
             });
         });
+}
+
+/// `data` (columns of `rows` numbers) cut at the column `bounds` (increasing, from 0 to the
+/// column count) into one slice per block.
+fn split_blocks<'a>(mut data: &'a mut [f64], rows: usize, bounds: &[usize]) -> Vec<&'a mut [f64]> {
+    let mut out = Vec::with_capacity(bounds.len().saturating_sub(1));
+    for w in bounds.windows(2) {
+        let (head, tail) = std::mem::take(&mut data).split_at_mut(rows * (w[1] - w[0]));
+        out.push(head);
+        data = tail;
+    }
+    out
 }
 
 /// Expansions compressed or expanded per dense product (shared basis): fixed, as [`BLOCK`].

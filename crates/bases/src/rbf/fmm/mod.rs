@@ -687,8 +687,13 @@ impl<K: Kernel> FmmField<K> {
                         );
                     }
                 }
-                LevelOperators::Shared { basis, offsets } => m2l::shared(
+                LevelOperators::Shared {
                     basis,
+                    basis_sigma,
+                    offsets,
+                } => m2l::shared(
+                    basis,
+                    basis_sigma,
                     offsets,
                     pairs,
                     &scale,

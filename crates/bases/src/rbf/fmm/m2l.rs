@@ -127,19 +127,23 @@ pub(crate) fn per_operator(
 }
 
 /// Shared basis: `L_T += K_t (s_S M_S)` for every pair of `pairs` (all served by `basis`,
-/// whose columns have the singular values `basis_sigma`, and `offsets`; `scale(S)` the factor
-/// of the source's level, `cut(S)` the singular value its level keeps, relative to the largest
-/// of each operator ([`rank_for`]) and absolute for the basis, `level(S)` its level; cells
-/// numbered below `cells`), in three steps, each level using the leading `r_ℓ` columns of the
-/// basis that its cut keeps:
+/// whose columns have the singular values `basis_sigma` and take the reflection signs
+/// `signs[σ]`, and by `offsets`, the operators of the offsets `t ≥ 0`; `mirror` maps an offset
+/// code to that of `|t|` and its reflection; `scale(S)` the factor of the source's level,
+/// `cut(S)` the singular value its level keeps, relative to the largest of each operator
+/// ([`rank_for`]) and absolute for the basis, `level(S)` its level; cells numbered below
+/// `cells`), in three steps, each level using the leading `r_ℓ` columns of the basis that its
+/// cut keeps:
 ///
 /// 1. every source's expansion is compressed, `M̃_S = s_S U_ℓᵀ M_S`, in blocks of at most
 ///    [`CELLS`] of one level;
-/// 2. the pairs, sorted by offset and level, are cut into blocks of at most [`BLOCK`] that
-///    share one offset and level; a block gathers its sources' `M̃` into one matrix and applies
-///    `A_t (B_tᵀ X)` (their first `r_ℓ` rows) as two dense products. Blocks run in groups of
-///    about [`GROUP`] pairs (a work array that stays in cache); after each group, every target
-///    adds its pairs' columns, in offset order, to its compressed local expansion `L̃_T`;
+/// 2. the pairs, sorted by `|t|` and level, are cut into blocks of at most [`SHARED_BLOCK`]
+///    that share them; a block gathers its sources' `D_σ M̃` into one matrix, applies
+///    `A_{|t|} (B_{|t|}ᵀ X)` (their first `r_ℓ` rows) as two dense products, and signs each
+///    column by its `D_σ` (`C_{σt} = D_σ C_t D_σ`: the 8 reflections of an offset share one
+///    pair of factors and one product). Blocks run in groups of about [`GROUP`] pairs (a work
+///    array that stays in cache); after each group, every target adds its pairs' columns, in
+///    the group's order, to its compressed local expansion `L̃_T`;
 /// 3. every target adds `U_ℓ L̃_T` to its local expansion, in blocks as in step 1.
 ///
 /// Every block, group and order of summation depends on the pairs alone, so the sums do not
@@ -148,7 +152,9 @@ pub(crate) fn per_operator(
 pub(crate) fn shared(
     basis: &Mat<f64>,
     basis_sigma: &[f64],
+    signs: &[Vec<f64>],
     offsets: &[Option<OffsetOperator>],
+    mirror: &[(u16, u8)],
     mut pairs: Vec<CodedPair>,
     scale: &(dyn Fn(u32) -> f64 + Sync),
     cut: &(dyn Fn(u32) -> f64 + Sync),
@@ -171,7 +177,8 @@ pub(crate) fn shared(
             .count()
             .clamp(1, r),
     };
-    pairs.sort_unstable_by_key(|q| (q.code, level(q.source), q.target, q.source));
+    let key = |q: &CodedPair| (mirror[q.code as usize].0, level(q.source));
+    pairs.sort_unstable_by_key(|q| (key(q), q.target, q.source));
     // Dense numbering of the sources and targets, level by level, and blocks of at most
     // `CELLS` of one level.
     let number = |of: &dyn Fn(&CodedPair) -> u32| {
@@ -223,15 +230,15 @@ pub(crate) fn shared(
     let mut bounds = vec![0];
     let mut end = 0;
     while end < pairs.len() {
-        let key = (pairs[end].code, level(pairs[end].source));
-        let limit = (end + BLOCK).min(pairs.len());
-        while end < limit && (pairs[end].code, level(pairs[end].source)) == key {
+        let first = key(&pairs[end]);
+        let limit = (end + SHARED_BLOCK).min(pairs.len());
+        while end < limit && key(&pairs[end]) == first {
             end += 1;
         }
         bounds.push(end);
     }
     let mut compressed_locals = vec![0.0; r * targets.len()];
-    let mut results = vec![0.0; r * GROUP.min(pairs.len()).max(BLOCK.min(pairs.len()))];
+    let mut results = vec![0.0; r * GROUP.max(SHARED_BLOCK).min(pairs.len())];
     let mut first = 0;
     while first + 1 < bounds.len() {
         let mut last = first + 1;
@@ -251,9 +258,10 @@ pub(crate) fn shared(
             .zip(bounds[first..=last].par_windows(2))
             .for_each(|(out, w)| {
                 let block = &pairs[w[0]..w[1]];
-                let Some(op) = &offsets[block[0].code as usize] else {
+                let Some(op) = &offsets[mirror[block[0].code as usize].0 as usize] else {
                     return;
                 };
+                let sign = |q: &CodedPair| &signs[mirror[q.code as usize].1 as usize][..];
                 let rl = basis_rank(block[0].source);
                 let rc = rank_for(&op.sigma, op.a.ncols(), cut(block[0].source));
                 let (a, b) = (op.a.submatrix(0, 0, rl, rc), op.b.submatrix(0, 0, rl, rc));
@@ -262,7 +270,10 @@ pub(crate) fn shared(
                     let (x, y) = buf.split_at_mut(rl * m);
                     for (col, q) in x.chunks_exact_mut(rl).zip(block) {
                         let i = source_index[q.source as usize] as usize;
-                        col.copy_from_slice(&compressed[i * r..][..rl]);
+                        let src = &compressed[i * r..][..rl];
+                        for ((d, &v), &s) in col.iter_mut().zip(src).zip(sign(q)) {
+                            *d = s * v;
+                        }
                     }
                     let x = MatRef::from_column_major_slice(x, rl, m);
                     let mut y = MatMut::from_column_major_slice_mut(y, rc, m);
@@ -270,6 +281,11 @@ pub(crate) fn shared(
                     let z = MatMut::from_column_major_slice_mut(out, r, m);
                     product(z.subrows_mut(0, rl), a, y.rb(), 1.0);
                 });
+                for (col, q) in out.chunks_exact_mut(r).zip(block) {
+                    for (d, &s) in col[..rl].iter_mut().zip(sign(q)) {
+                        *d *= s;
+                    }
+                }
             });
         // Each target's columns of this group, in offset order (the group's order); a
         // column's rows past its level's basis rank are not written and not read.
@@ -334,6 +350,10 @@ fn split_blocks<'a>(mut data: &'a mut [f64], rows: usize, bounds: &[usize]) -> V
 
 /// Expansions compressed or expanded per dense product (shared basis): fixed, as [`BLOCK`].
 const CELLS: usize = 64;
+
+/// Pairs per block of one offset `|t|` and level in the shared basis (its 8 reflections
+/// together): fixed, as [`BLOCK`].
+const SHARED_BLOCK: usize = 512;
 
 /// Pairs per group of blocks (about 2 MB of results at rank 128).
 const GROUP: usize = 2048;

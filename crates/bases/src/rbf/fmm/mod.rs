@@ -690,11 +690,14 @@ impl<K: Kernel> FmmField<K> {
                 LevelOperators::Shared {
                     basis,
                     basis_sigma,
+                    signs,
                     offsets,
                 } => m2l::shared(
                     basis,
                     basis_sigma,
+                    signs,
                     offsets,
+                    &self.ops.symmetry.mirror,
                     pairs,
                     &scale,
                     &|c| tolerance * cut(c),

@@ -165,6 +165,13 @@ impl<K: Kernel, const D: usize> ScalarField<D> for RbfField<K, D> {
 
     fn gradient(&self, x: &Point<D>) -> Point<D> {
         let mut g = self.poly.gradient(&self.poly_coefficients);
+        if self.functionals.values_only() {
+            let k = system::kernel_gradient_sum(&self.kernel, &self.functionals, &self.weights, x);
+            for a in 0..D {
+                g[a] += k[a];
+            }
+            return g;
+        }
         for j in 0..self.functionals.len() {
             let (_, gj) = self.basis_function(j, x);
             for a in 0..D {

@@ -409,6 +409,87 @@ pub(crate) fn kernel_sum_slices<K: Kernel + ?Sized, const D: usize>(
     acc.iter().sum::<f64>() + tail
 }
 
+/// `Σⱼ wⱼ ∇φ(|x − yⱼ|) = Σⱼ wⱼ D₁(|x − yⱼ|²) (x − yⱼ)` over centres given as coordinate slices,
+/// vectorised as [`kernel_sum_slices`] ([`Kernel::slope_factor_of_squared`]).
+#[inline(always)]
+pub(crate) fn kernel_gradient_sum_slices<K: Kernel + ?Sized, const D: usize>(
+    kernel: &K,
+    coords: [&[f64]; D],
+    weights: &[f64],
+    x: &Point<D>,
+) -> [f64; D] {
+    let n = weights.len();
+    let (w_chunks, w_tail) = weights.as_chunks::<LANES>();
+    let chunks: [(&[[f64; LANES]], &[f64]); D] =
+        std::array::from_fn(|a| coords[a][..n].as_chunks::<LANES>());
+    let mut acc = [[0.0; LANES]; D];
+    for (k, wk) in w_chunks.iter().enumerate() {
+        let mut d = [[0.0; LANES]; D];
+        let mut r2 = [0.0; LANES];
+        for (a, (c, _)) in chunks.iter().enumerate() {
+            let ca = &c[k];
+            for l in 0..LANES {
+                d[a][l] = x[a] - ca[l];
+                r2[l] += d[a][l] * d[a][l];
+            }
+        }
+        let mut s = [0.0; LANES];
+        for l in 0..LANES {
+            s[l] = wk[l] * kernel.slope_factor_of_squared(r2[l]);
+        }
+        for a in 0..D {
+            for l in 0..LANES {
+                acc[a][l] += s[l] * d[a][l];
+            }
+        }
+    }
+    let full = n - w_tail.len();
+    let mut g: [f64; D] = std::array::from_fn(|a| acc[a].iter().sum::<f64>());
+    for (t, &w) in w_tail.iter().enumerate() {
+        let d: [f64; D] = std::array::from_fn(|a| x[a] - coords[a][full + t]);
+        let r2: f64 = d.iter().map(|v| v * v).sum();
+        let s = w * kernel.slope_factor_of_squared(r2);
+        for a in 0..D {
+            g[a] += s * d[a];
+        }
+    }
+    g
+}
+
+/// [`kernel_gradient_sum_slices`] over a fit's centres, compiled for the machine's vector
+/// instructions.
+pub(crate) fn kernel_gradient_sum<K: Kernel + ?Sized, const D: usize>(
+    kernel: &K,
+    f: &Functionals<D>,
+    weights: &[f64],
+    x: &Point<D>,
+) -> [f64; D] {
+    let n = f.len();
+    pulp::Arch::new().dispatch(GradientAt {
+        kernel,
+        coords: std::array::from_fn(|a| &f.soa[a][..n]),
+        weights: &weights[..n],
+        x,
+    })
+}
+
+/// [`kernel_gradient_sum_slices`] as a [`pulp::WithSimd`] operation.
+pub(crate) struct GradientAt<'a, K: ?Sized, const D: usize> {
+    pub kernel: &'a K,
+    pub coords: [&'a [f64]; D],
+    pub weights: &'a [f64],
+    pub x: &'a Point<D>,
+}
+
+impl<K: Kernel + ?Sized, const D: usize> pulp::WithSimd for GradientAt<'_, K, D> {
+    type Output = [f64; D];
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> [f64; D] {
+        kernel_gradient_sum_slices(self.kernel, self.coords, self.weights, self.x)
+    }
+}
+
 /// [`kernel_sum`] as a [`pulp::WithSimd`] operation (a closure would not be compiled for AVX2).
 struct SumAt<'a, K: ?Sized, const D: usize> {
     kernel: &'a K,

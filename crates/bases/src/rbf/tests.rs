@@ -2,6 +2,7 @@ use faer::Mat;
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use proptest::prelude::*;
 use zeroset_field_core::basis::design_matrix;
+use zeroset_field_core::Point;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::lsq::{LinearOperator, LsqMatrix};
 
@@ -430,4 +431,48 @@ fn a_user_kernel_fits_too_wendland() {
     let want = lu_reference(&kernel, &c);
     assert!(max_rel_diff(&solution(&fit.field), &want) < 1e-8);
     assert!(fit.field.value(&[0.5; 3]) < 0.0);
+}
+
+/// The vectorised gradient of a value-only field is the sum of the centres' kernel gradients
+/// (plus the polynomial's), including at a centre, where the kernel term's gradient is 0.
+#[test]
+fn vectorised_gradients_equal_the_termwise_sum() {
+    let c = sphere_setup(301);
+    let check = |field: &dyn ScalarField<3>, terms: &dyn Fn(&Point<3>) -> [f64; 3]| {
+        let mut probes: Vec<Point<3>> = sphere(50, [0.5; 3], 0.31)
+            .into_iter()
+            .map(|(p, _)| p)
+            .collect();
+        probes.push(c.as_slice()[7].point);
+        for x in &probes {
+            let (g, want) = (field.gradient(x), terms(x));
+            let scale = want.iter().map(|v| v.abs()).fold(1.0, f64::max);
+            for a in 0..3 {
+                assert!((g[a] - want[a]).abs() < 1e-12 * scale, "{g:?} vs {want:?}");
+            }
+        }
+    };
+    macro_rules! case {
+        ($kernel:expr) => {{
+            let f = RbfFit::new($kernel).fit(&c).unwrap().field;
+            // Not a whole number of vector lanes: the tail is summed too.
+            assert_ne!(f.centres().len() % 4, 0);
+            let (_, b) = f.linear_part();
+            let termwise = |x: &Point<3>| {
+                let mut g = b;
+                for (y, w) in f.centres().iter().zip(f.weights()) {
+                    let d: [f64; 3] = std::array::from_fn(|a| x[a] - y[a]);
+                    let k = kernel::gradient(f.kernel(), &d);
+                    for a in 0..3 {
+                        g[a] += w * k[a];
+                    }
+                }
+                g
+            };
+            check(&f, &termwise);
+        }};
+    }
+    case!(Biharmonic);
+    case!(Triharmonic);
+    case!(ThinPlate);
 }

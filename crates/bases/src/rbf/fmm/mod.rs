@@ -968,7 +968,21 @@ impl<K: Kernel> FmmField<K> {
     }
 
     /// The gradient of the direct sum over the sources `begin..end` at `x`.
+    #[inline(always)]
     fn direct_gradient(&self, (begin, end): (u32, u32), x: &Point<3>) -> [f64; 3] {
+        if self.dipoles.is_none() {
+            let r = begin as usize..end as usize;
+            return system::kernel_gradient_sum_slices(
+                &self.kernel,
+                [
+                    &self.pos[0][r.clone()],
+                    &self.pos[1][r.clone()],
+                    &self.pos[2][r.clone()],
+                ],
+                &self.weights[r],
+                x,
+            );
+        }
         let mut g = [0.0; 3];
         for j in begin as usize..end as usize {
             let d = [
@@ -1092,32 +1106,9 @@ impl<K: Kernel> FmmField<K> {
         self.kernel_part(leaf, x) + self.poly.value(&self.poly_coefficients, x)
     }
 
-    /// Visits, for a point outside the root, the cells it is far from (`true`: use the
-    /// multipole expansion) and the leaves it is near (`false`: sum directly), in a fixed order.
-    fn walk(&self, x: &Point<3>, mut visit: impl FnMut(u32, bool)) {
-        let mut stack = vec![0u32];
-        while let Some(c) = stack.pop() {
-            let cell = self.cell(c);
-            if cell.count() == 0 {
-                continue;
-            }
-            if tree::point_separated(x, cell) {
-                visit(c, true);
-            } else if cell.is_leaf() {
-                visit(c, false);
-            } else {
-                stack.extend(cell.children().rev());
-            }
-        }
-    }
-}
-
-impl<K: Kernel> ScalarField<3> for FmmField<K> {
-    fn value(&self, x: &Point<3>) -> f64 {
-        self.value_inline(self.tree.leaf_of(x), x)
-    }
-
-    fn gradient(&self, x: &Point<3>) -> Point<3> {
+    /// [`ScalarField::gradient`], inlined into [`GradientTask`]'s instruction set.
+    #[inline(always)]
+    fn gradient_inline(&self, x: &Point<3>) -> Point<3> {
         let mut g = self.poly.gradient(&self.poly_coefficients);
         let mut add = |h: [f64; 3]| {
             for a in 0..3 {
@@ -1144,6 +1135,35 @@ impl<K: Kernel> ScalarField<3> for FmmField<K> {
             }),
         }
         g
+    }
+
+    /// Visits, for a point outside the root, the cells it is far from (`true`: use the
+    /// multipole expansion) and the leaves it is near (`false`: sum directly), in a fixed order.
+    fn walk(&self, x: &Point<3>, mut visit: impl FnMut(u32, bool)) {
+        let mut stack = vec![0u32];
+        while let Some(c) = stack.pop() {
+            let cell = self.cell(c);
+            if cell.count() == 0 {
+                continue;
+            }
+            if tree::point_separated(x, cell) {
+                visit(c, true);
+            } else if cell.is_leaf() {
+                visit(c, false);
+            } else {
+                stack.extend(cell.children().rev());
+            }
+        }
+    }
+}
+
+impl<K: Kernel> ScalarField<3> for FmmField<K> {
+    fn value(&self, x: &Point<3>) -> f64 {
+        self.value_inline(self.tree.leaf_of(x), x)
+    }
+
+    fn gradient(&self, x: &Point<3>) -> Point<3> {
+        pulp::Arch::new().dispatch(GradientTask { field: self, x })
     }
 
     fn values(&self, points: &[Point<3>], out: &mut [f64]) {
@@ -1205,6 +1225,21 @@ impl<K: Kernel> pulp::WithSimd for Batch<'_, K> {
                 .field
                 .value_inline((leaf != u32::MAX).then_some(leaf), x);
         }
+    }
+}
+
+/// One gradient, compiled per instruction set.
+struct GradientTask<'a, K> {
+    field: &'a FmmField<K>,
+    x: &'a Point<3>,
+}
+
+impl<K: Kernel> pulp::WithSimd for GradientTask<'_, K> {
+    type Output = Point<3>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Point<3> {
+        self.field.gradient_inline(self.x)
     }
 }
 

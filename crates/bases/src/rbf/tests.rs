@@ -1,8 +1,8 @@
 use faer::Mat;
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use proptest::prelude::*;
-use zeroset_field_core::basis::design_matrix;
 use zeroset_field_core::Point;
+use zeroset_field_core::basis::design_matrix;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::lsq::{LinearOperator, LsqMatrix};
 

@@ -168,14 +168,13 @@ pub(crate) fn shared(
         return;
     }
     let r = basis.ncols();
-    // The basis columns a cell's level keeps (all of them for an uncompressed basis).
-    let basis_rank = |c: u32| match basis_sigma {
-        [] => r,
-        sigma => sigma
+    // The basis columns a cell's level keeps (columns kept uncompressed have σ = ∞).
+    let basis_rank = |c: u32| {
+        basis_sigma
             .iter()
             .take_while(|&&s| s > cut(c))
             .count()
-            .clamp(1, r),
+            .clamp(1, r)
     };
     let key = |q: &CodedPair| (mirror[q.code as usize].0, level(q.source));
     pairs.sort_unstable_by_key(|q| (key(q), q.target, q.source));
@@ -226,7 +225,7 @@ pub(crate) fn shared(
                 );
             });
         });
-    // 2. Blocks of one offset each, in groups.
+    // 2. Blocks of one offset |t| (all its reflections) and level each, in groups.
     let mut bounds = vec![0];
     let mut end = 0;
     while end < pairs.len() {
@@ -259,6 +258,9 @@ pub(crate) fn shared(
             .for_each(|(out, w)| {
                 let block = &pairs[w[0]..w[1]];
                 let Some(op) = &offsets[mirror[block[0].code as usize].0 as usize] else {
+                    // Not reached (every M2L offset has factors); if it were, the slot must
+                    // not carry an earlier group's columns into the targets.
+                    out.fill(0.0);
                     return;
                 };
                 let sign = |q: &CodedPair| &signs[mirror[q.code as usize].1 as usize][..];
@@ -355,7 +357,7 @@ const CELLS: usize = 64;
 /// together): fixed, as [`BLOCK`].
 const SHARED_BLOCK: usize = 512;
 
-/// Pairs per group of blocks (about 2 MB of results at rank 128).
+/// Pairs per group of blocks (their results: about 6 MB at a basis of rank 370).
 const GROUP: usize = 2048;
 
 thread_local! {

@@ -62,9 +62,10 @@
 //! `tolerance · σ₁` (default `10^−(p+1)`, below the interpolation error of order `p`) at the
 //! coarsest level, and the same absolute cut-off at the finer levels of a homogeneous kernel
 //! ([`FmmOptions::tolerance`](FmmOptions#structfield.tolerance)). A kernel whose weights cancel
-//! needs a smaller tolerance: `r³` on 10,000 bunny centres reaches a maximum error of 1e-5
-//! relative to the field's largest value at `p = 10` with `3·10⁻¹¹` (7.8e-6; `5·10⁻¹¹` gives
-//! 1.3e-5), the compression then being the larger part of the error.
+//! needs a small one: `r³` on 10,000 bunny centres reaches a maximum error of 1e-5 relative to
+//! the field's largest value at `p = 10` with at most `3·10⁻¹¹` (7.8e-6; `5·10⁻¹¹` gives
+//! 1.3e-5, the compression then being the larger part of the error; the default `10⁻¹¹`
+//! gives 3.7e-6 and costs more).
 //! [`FmmField::sampled_error`] measures the error of a built field against the exact sum.
 
 mod chebyshev;

@@ -245,14 +245,7 @@ pub(crate) fn shared(
             last += 1;
         }
         let group = &pairs[bounds[first]..bounds[last]];
-        let mut slots: Vec<&mut [f64]> = Vec::with_capacity(last - first);
-        let mut rest = &mut results[..r * group.len()];
-        for w in bounds[first..=last].windows(2) {
-            let (head, tail) = rest.split_at_mut(r * (w[1] - w[0]));
-            slots.push(head);
-            rest = tail;
-        }
-        slots
+        split_blocks(&mut results[..r * group.len()], r, &bounds[first..=last])
             .into_par_iter()
             .zip(bounds[first..=last].par_windows(2))
             .for_each(|(out, w)| {
@@ -338,8 +331,9 @@ pub(crate) fn shared(
         });
 }
 
-/// `data` (columns of `rows` numbers) cut at the column `bounds` (increasing, from 0 to the
-/// column count) into one slice per block.
+/// `data` (columns of `rows` numbers) cut into one slice per block of columns, block `k`
+/// holding `bounds[k + 1] − bounds[k]` columns (`bounds` increasing; only the differences
+/// count).
 fn split_blocks<'a>(mut data: &'a mut [f64], rows: usize, bounds: &[usize]) -> Vec<&'a mut [f64]> {
     let mut out = Vec::with_capacity(bounds.len().saturating_sub(1));
     for w in bounds.windows(2) {

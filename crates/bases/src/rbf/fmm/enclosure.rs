@@ -235,19 +235,9 @@ impl<K: Kernel> FmmField<K> {
             + hs[3] * h[0] * h[1]
             + hs[4] * h[0] * h[2]
             + hs[5] * h[1] * h[2];
-        for &(begin, end) in &self.tree.near_runs[leaf as usize] {
-            let r = begin as usize..end as usize;
-            self.add_terms(
-                [
-                    &self.pos[0][r.clone()],
-                    &self.pos[1][r.clone()],
-                    &self.pos[2][r.clone()],
-                ],
-                &self.weights[r],
-                &centre,
-                rho,
-                &mut parts,
-            );
+        for &run in &self.tree.near_runs[leaf as usize] {
+            let (coords, weights) = self.run(run);
+            self.add_terms(coords, weights, &centre, rho, &mut parts);
         }
         for &s in &self.tree.m2p[leaf as usize] {
             let ys = self.node_coordinates(self.cell(s));

@@ -938,22 +938,25 @@ impl<K: Kernel> FmmField<K> {
         }
     }
 
+    /// The coordinates (per axis) and weights of the sources `begin..end` (tree order).
+    #[inline(always)]
+    fn run(&self, (begin, end): (u32, u32)) -> ([&[f64]; 3], &[f64]) {
+        let r = begin as usize..end as usize;
+        (
+            std::array::from_fn(|a| &self.pos[a][r.clone()]),
+            &self.weights[r],
+        )
+    }
+
     /// The direct sum over the sources `begin..end` (tree order) at `x`.
     #[inline(always)]
-    fn direct(&self, (begin, end): (u32, u32), x: &Point<3>) -> f64 {
-        let r = begin as usize..end as usize;
+    fn direct(&self, run: (u32, u32), x: &Point<3>) -> f64 {
         match &self.dipoles {
-            None => system::kernel_sum_slices(
-                &self.kernel,
-                [
-                    &self.pos[0][r.clone()],
-                    &self.pos[1][r.clone()],
-                    &self.pos[2][r.clone()],
-                ],
-                &self.weights[r],
-                x,
-            ),
-            Some(dip) => r
+            None => {
+                let (coords, weights) = self.run(run);
+                system::kernel_sum_slices(&self.kernel, coords, weights, x)
+            }
+            Some(dip) => (run.0 as usize..run.1 as usize)
                 .map(|j| {
                     let d = [
                         x[0] - self.pos[0][j],
@@ -970,22 +973,15 @@ impl<K: Kernel> FmmField<K> {
 
     /// The gradient of the direct sum over the sources `begin..end` at `x`.
     #[inline(always)]
-    fn direct_gradient(&self, (begin, end): (u32, u32), x: &Point<3>) -> [f64; 3] {
-        if self.dipoles.is_none() {
-            let r = begin as usize..end as usize;
-            return system::kernel_gradient_sum_slices(
-                &self.kernel,
-                [
-                    &self.pos[0][r.clone()],
-                    &self.pos[1][r.clone()],
-                    &self.pos[2][r.clone()],
-                ],
-                &self.weights[r],
-                x,
-            );
-        }
+    fn direct_gradient(&self, run: (u32, u32), x: &Point<3>) -> [f64; 3] {
+        let Some(dip) = &self.dipoles else {
+            let (coords, weights) = self.run(run);
+            return system::kernel_gradient_sum_slices(&self.kernel, coords, weights, x);
+        };
         let mut g = [0.0; 3];
-        for j in begin as usize..end as usize {
+        // Seven arrays indexed by source.
+        #[allow(clippy::needless_range_loop)]
+        for j in run.0 as usize..run.1 as usize {
             let d = [
                 x[0] - self.pos[0][j],
                 x[1] - self.pos[1][j],
@@ -995,11 +991,9 @@ impl<K: Kernel> FmmField<K> {
             for a in 0..3 {
                 g[a] += self.weights[j] * gk[a];
             }
-            if let Some(dip) = &self.dipoles {
-                let h = kernel::hessian(&self.kernel, &d);
-                for a in 0..3 {
-                    g[a] -= h[a][0] * dip[0][j] + h[a][1] * dip[1][j] + h[a][2] * dip[2][j];
-                }
+            let h = kernel::hessian(&self.kernel, &d);
+            for a in 0..3 {
+                g[a] -= h[a][0] * dip[0][j] + h[a][1] * dip[1][j] + h[a][2] * dip[2][j];
             }
         }
         g

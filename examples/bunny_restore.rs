@@ -1,5 +1,5 @@
-//! Restoration on real data: the Stanford bunny's oriented points (`../shared/data/
-//! bunny_points.ply`, 34,834 points), as a tangent-plane field on a grid, with
+//! Restoration on real data: the Stanford bunny's oriented points (`data/bunny_points.ply`,
+//! 34,834 points, or the file given), as a tangent-plane field on a grid, with
 //!
 //! 1. its ears removed (a mask above the head, Neumann face −y where they join it), for a few α;
 //! 2. its base cut flat (a mask over the bottom slab that touches the grid's border, so the
@@ -16,6 +16,9 @@
 
 use std::path::PathBuf;
 use std::time::Instant;
+
+#[path = "common/data.rs"]
+mod data;
 
 use zeroset::bases::bspline::{BSplineField, Degree};
 use zeroset::bases::field_file::write_field;
@@ -53,7 +56,7 @@ fn extreme_y(field: &BSplineField<3>, lo: Point<3>, hi: Point<3>, h: f64, top: b
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut path = PathBuf::from("../shared/data/bunny_points.ply");
+    let mut path = data::data_dir().join("bunny_points.ply");
     let mut cells = 128usize;
     let mut write: Option<PathBuf> = None;
     let mut it = std::env::args().skip(1);

@@ -12,6 +12,8 @@
 //! `max |s|` over the targets, `rms_rel` the RMS error over the RMS value, the compression's
 //! largest kept rank, and the build and evaluation times.
 
+#[path = "common/data.rs"]
+mod data;
 #[path = "common/fmm_data.rs"]
 mod fmm_data;
 
@@ -28,7 +30,7 @@ fn main() -> Res<()> {
     let (mut targets, mut sources) = (100_000usize, 10_000usize);
     let mut clouds: Vec<String> = vec!["bunny_points.ply".into(), "kitten.xyz".into()];
     let mut kernels: Vec<String> = vec!["r".into(), "r3".into()];
-    let mut data = fmm_data::data_dir();
+    let mut data = data::data_dir();
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let v = it.next().ok_or(format!("{flag} needs a value"))?;

@@ -19,6 +19,8 @@
 //! `weights.npy`, `poly.npy` (constant, x, y, z), `targets.npy`, `fmm_values.npy`,
 //! `direct_values.npy` and `timing.json` for `benches/peers/fmm_peers.py`.
 
+#[path = "common/data.rs"]
+mod data;
 #[path = "common/fmm_data.rs"]
 mod fmm_data;
 #[path = "common/npy.rs"]
@@ -62,7 +64,7 @@ fn parse() -> Res<Args> {
         compression: None,
         repeat: 3,
         cloud: "bunny_points.ply".into(),
-        data: fmm_data::data_dir(),
+        data: data::data_dir(),
         dump: None,
         direct: true,
         expected: true,

@@ -5,8 +5,8 @@
 //! cargo run --release --example rbf_real_data [-- --data DIR --csv FILE]
 //! ```
 //!
-//! `--data DIR` is the data folder described by its `README.md` (default `../shared/data`,
-//! relative to the current directory, else next to the workspace root); `--csv FILE` also
+//! `--data DIR` is the data folder described by its `README.md` (default `$ZEROSET_DATA`, else
+//! the repository's `data/`); `--csv FILE` also
 //! writes every reported number as `section,dataset,method,quantity,value` rows. A missing
 //! folder or file, or a fit that fails, prints the error and exits with status 1.
 //!
@@ -84,12 +84,12 @@ use zeroset::core::geometry::{dot, norm};
 use zeroset::core::io::{gempy, read_point_cloud};
 use zeroset::core::{Aabb, Point3, PointCloud3};
 
+#[path = "common/data.rs"]
+mod data;
+
 type Res<T> = Result<T, Box<dyn Error>>;
 
 const USAGE: &str = "usage: rbf_real_data [--data DIR] [--csv FILE]";
-
-/// The data README's default location, relative to the current directory.
-const DEFAULT_DATA: &str = "../shared/data";
 
 struct Args {
     data: PathBuf,
@@ -109,18 +109,7 @@ fn parse_args() -> Res<Args> {
             other => return Err(format!("unknown argument {other}\n{USAGE}").into()),
         }
     }
-    let data = match data {
-        Some(d) => d,
-        None => {
-            let here = PathBuf::from(DEFAULT_DATA);
-            let beside_workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_DATA);
-            if !here.is_dir() && beside_workspace.is_dir() {
-                beside_workspace
-            } else {
-                here
-            }
-        }
-    };
+    let data = data.unwrap_or_else(data::data_dir);
     if !data.is_dir() {
         return Err(format!(
             "data folder {} not found: pass --data DIR (the folder with bunny_2k.xyzn, \

@@ -26,6 +26,8 @@
 //! same triangles) and with an order-`P` field built for every vertex (`tuned_s`, its build
 //! included: plain MC at its fastest, against `total_s`).
 
+#[path = "common/data.rs"]
+mod data;
 #[path = "common/fmm_data.rs"]
 mod fmm_data;
 
@@ -52,7 +54,7 @@ fn main() -> Res<()> {
         .map(String::from)
         .to_vec();
     let mut cloud = "bunny_points.ply".to_string();
-    let mut data = fmm_data::data_dir();
+    let mut data = data::data_dir();
     let mut plain = true;
     let mut step = CoarseStep::Blocks;
     let mut it = std::env::args().skip(1);

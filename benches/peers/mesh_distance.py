@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """How close `zeroset fit` + `zeroset mesh` on bunny_2k.xyzn come to the scanned bunny.
 
-Runs `zeroset fit ../shared/data/bunny_2k.xyzn --method rbf -o OUT/bunny.zsf` and
+Runs `zeroset fit data/bunny_2k.xyzn --method rbf -o OUT/bunny.zsf` and
 `zeroset mesh OUT/bunny.zsf -o OUT/bunny_{detail}.ply --detail {detail}` for each `--detail`,
 reads the meshes back, and measures each vertex's distance to the surface of the original scan
 `bun_zipper.ply` (Stanford; 69,451 triangles, open at the bottom: 5 holes).
@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 
 def parse_args() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--data", default=str(common.REPO.parent / "shared" / "data"), help="the shared data folder")
+    p.add_argument("--data", default=str(common.REPO / "data"), help="the data folder (default: the repository's data/)")
     p.add_argument("--detail", default="general,fine", help="comma-separated --detail values for zeroset mesh")
     p.add_argument("--samples", type=int, default=6_000_000, help="area-weighted samples of the scan's surface")
     p.add_argument("--out", default=str(common.HERE / "out"), help="directory for the field, meshes and report")

@@ -15,16 +15,6 @@ use zeroset::core::io::read_point_cloud;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
-/// The data folder: `../shared/data` from the current directory, else next to the workspace.
-pub fn data_dir() -> PathBuf {
-    let here = PathBuf::from("../shared/data");
-    if here.is_dir() {
-        here
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
-    }
-}
-
 /// A field of `kernel` (`"r"` or `"r3"`) with about `sources` centres from `cloud_file`.
 pub enum Field {
     R(RbfField<Biharmonic, 3>),

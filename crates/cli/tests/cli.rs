@@ -1028,14 +1028,13 @@ fn mesh_is_identical_for_any_thread_count() {
 
 #[test]
 fn info_reports_a_ply_mesh() {
-    let path = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/bun_zipper.ply"
-    ));
-    if !path.is_file() {
-        eprintln!("skipped: {} not found", path.display());
-        return;
-    }
+    let path = std::env::var_os("ZEROSET_DATA")
+        .map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
+            PathBuf::from,
+        )
+        .join("bun_zipper.ply");
+    assert!(path.is_file(), "test data {} not found", path.display());
     let o = info(&path, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);

@@ -1,8 +1,8 @@
-//! Point-cloud readers and the atomic PLY writer, on the real files in `../shared/data` (see
-//! its README for provenance and the counts checked here) and on small broken files.
+//! Point-cloud readers and the atomic PLY writer, on the real files in the repository's `data/`
+//! folder (see its README for provenance and the counts checked here) and on small broken files.
 //!
-//! The data directory is `$ZEROSET_DATA`, or `../shared/data` next to the workspace. If it is
-//! missing the data tests fail: they never pass silently.
+//! The data directory is `$ZEROSET_DATA` if set, else `data/` at the workspace root, which ships
+//! with the repository. If a file is missing the data tests fail: they never pass silently.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -23,7 +23,7 @@ use zeroset_field_core::{CloudStats, Error, PointCloud3};
 fn data_dir() -> PathBuf {
     let dir = match std::env::var_os("ZEROSET_DATA") {
         Some(d) => PathBuf::from(d),
-        None => PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
     };
     assert!(
         dir.is_dir(),
@@ -99,7 +99,34 @@ fn counts(data: &GeoModelData) -> Vec<(String, usize, usize)> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// real data: exact counts (see ../shared/data/README.md)
+// real data: exact counts (see data/README.md)
+
+/// The files are the ones the data README describes, byte for byte in size (a line-ending
+/// conversion or a truncated checkout would change them), and the bundled sample is the same
+/// file as the data folder's copy.
+#[test]
+fn data_files_have_the_sizes_their_readme_gives() {
+    for (name, bytes) in [
+        ("bun_zipper.ply", 3_033_195),
+        ("bunny_points.ply", 836_383),
+        ("bunny_2k.xyzn", 124_441),
+        ("kitten.xyz", 302_220),
+        ("geology/perth_basin/Paper_GU2F_sc_faults_topo_Points.csv", 5_345),
+        ("geology/perth_basin/Paper_GU2F_sc_faults_topo_Foliations.csv", 2_072),
+        ("geology/greenstone/SandStone_Points.csv", 3_212),
+        ("geology/greenstone/SandStone_Foliations.csv", 2_602),
+        ("geology/greenstone/Greenstone_surface_points.csv", 9_559),
+        ("geology/greenstone/Greenstone_orientations.csv", 9_132),
+    ] {
+        let len = fs::metadata(data(name)).unwrap().len();
+        assert_eq!(len, bytes, "{name}");
+    }
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../samples/bunny_2k.xyzn");
+    assert!(
+        fs::read(sample).unwrap() == fs::read(data("bunny_2k.xyzn")).unwrap(),
+        "samples/bunny_2k.xyzn and data/bunny_2k.xyzn differ"
+    );
+}
 
 #[test]
 fn bun_zipper_ascii_ply_reads_every_vertex_and_skips_faces() {

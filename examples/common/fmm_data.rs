@@ -6,7 +6,7 @@
 
 #![allow(dead_code)] // each example uses what it needs
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use zeroset::bases::field_file::{AnyField, RbfAny, read_any_field, write_rbf_field};
 use zeroset::bases::rbf::{Biharmonic, Constraints, Offset, RbfField, RbfFit, Solver, Triharmonic};
@@ -35,15 +35,7 @@ pub fn load(data: &Path, cloud_file: &str, kernel: &str, sources: usize) -> Res<
             _ => {}
         }
     }
-    let cloud = read_point_cloud(data.join(cloud_file))?;
-    let (positions, normals) = cloud.into_parts();
-    let normals = normals.ok_or(format!("{cloud_file} has no normals"))?;
-    let want = sources.div_ceil(3).min(positions.len());
-    let picked: Vec<usize> = (0..want).map(|i| i * positions.len() / want).collect();
-    let sub = PointCloud::with_normals(
-        picked.iter().map(|&i| positions[i]).collect(),
-        picked.iter().map(|&i| normals[i]).collect(),
-    )?;
+    let sub = picked_cloud(data, cloud_file, sources)?;
     let (c, _) = Constraints::off_surface(&sub, Offset::Auto { fraction: 0.01 })?;
     let field = match kernel {
         "r" => Field::R(fit(Biharmonic, &c)?),
@@ -55,6 +47,61 @@ pub fn load(data: &Path, cloud_file: &str, kernel: &str, sources: usize) -> Res<
         Field::R3(f) => write_rbf_field(&path, f)?,
     }
     Ok(field)
+}
+
+/// The `⌈sources / 3⌉` points of `cloud_file` the field of [`load`] is fitted to (evenly
+/// strided in file order), with their normals: its on-surface centres, where it is 0.
+pub fn picked_cloud(data: &Path, cloud_file: &str, sources: usize) -> Res<PointCloud<3>> {
+    let cloud = read_point_cloud(data.join(cloud_file))?;
+    let (positions, normals) = cloud.into_parts();
+    let normals = normals.ok_or(format!("{cloud_file} has no normals"))?;
+    let want = sources.div_ceil(3).min(positions.len());
+    let picked: Vec<usize> = (0..want).map(|i| i * positions.len() / want).collect();
+    Ok(PointCloud::with_normals(
+        picked.iter().map(|&i| positions[i]).collect(),
+        picked.iter().map(|&i| normals[i]).collect(),
+    )?)
+}
+
+/// `count` points within one voxel of the zero set: on-surface points (cycled in order) moved
+/// by a uniform (seeded) offset in `[−h, h]³`.
+pub fn near_surface_targets(
+    surface: &[[f64; 3]],
+    h: f64,
+    count: usize,
+    seed: u64,
+) -> Vec<[f64; 3]> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..count)
+        .map(|i| {
+            let p = surface[i % surface.len()];
+            std::array::from_fn(|a| p[a] + h * (2.0 * next() - 1.0))
+        })
+        .collect()
+}
+
+/// The FMM's error as a distance near the zero set: per point `|s_fmm − s| / ‖∇s‖` (the
+/// distance the zero set moves to first order), `(max, rms)` over the points.
+pub fn distance_errors<F: zeroset::core::ScalarField<3> + ?Sized>(
+    fast: &[f64],
+    exact: &[f64],
+    field: &F,
+    points: &[[f64; 3]],
+) -> (f64, f64) {
+    let (mut max, mut sum) = (0.0f64, 0.0);
+    for ((x, y), p) in fast.iter().zip(exact).zip(points) {
+        let g = field.gradient(p);
+        let d = (x - y).abs() / (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        max = max.max(d);
+        sum += d * d;
+    }
+    (max, (sum / points.len().max(1) as f64).sqrt())
 }
 
 fn fit<K: zeroset::bases::rbf::Kernel + Clone>(

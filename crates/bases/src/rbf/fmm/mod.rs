@@ -68,6 +68,7 @@
 //! gives 3.7e-6 and costs more).
 //! [`FmmField::sampled_error`] measures the error of a built field against the exact sum.
 
+pub mod cache;
 mod chebyshev;
 mod enclosure;
 mod m2l;
@@ -374,7 +375,9 @@ pub struct FmmField<K> {
 }
 
 impl<K: Kernel + Clone> FmmField<K> {
-    /// The multipole form of `field` at `options.order`, with operators of its own.
+    /// The multipole form of `field` at `options.order`, with the operators of the process-wide
+    /// [`cache`] (built on first use, then shared by every field of the same kernel, order,
+    /// tolerance and compression).
     ///
     /// # Errors
     /// [`FmmError`] for an order, leaf size or tolerance out of range, a field without
@@ -385,19 +388,21 @@ impl<K: Kernel + Clone> FmmField<K> {
     }
 
     /// The M2L operators for `kernel` at `options.order`, to share between fields of one kernel
-    /// ([`FmmField::with_operators`]): building them is the one step whose cost does not grow
-    /// with the data (for `r` and `r³` on two cores, about 0.2 s at `p = 8` and 3 s at `p = 12`).
+    /// ([`FmmField::with_operators`]), from the process-wide [`cache`]: building them is the one
+    /// step whose cost does not grow with the data (for `r` and `r³` on two cores, about 0.2 s
+    /// at `p = 8` and 0.5–0.7 s at `p = 10`), so it is paid once per process (or once per
+    /// machine with [`cache::set_disk_dir`]). They are computed when a field first needs them.
     ///
     /// # Errors
     /// [`FmmError`] for an order or tolerance out of range.
     pub fn operators(kernel: &K, options: &FmmOptions) -> Result<Arc<FmmOperators>, FmmError> {
         options.check()?;
-        Ok(Arc::new(FmmOperators::new(
+        Ok(cache::operators(
             kernel,
             options.order,
             options.tolerance(),
             options.compression(),
-        )))
+        ))
     }
 
     /// [`FmmField::new`] with operators built before (for the same kernel and order).

@@ -48,12 +48,14 @@
 //! ([`super::m2l::rank_for`]; `FmmOptions::tolerance`): at `p = 10`, `ε = 3·10⁻¹¹`, the `r³`
 //! basis keeps 370 columns at the coarsest level, 280 one level down and 214 two down.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+use super::cache::{self, OperatorKey};
 use super::chebyshev::Chebyshev;
 use super::tree::{offset_code, offset_of};
 use crate::rbf::kernel::{self, Kernel};
@@ -129,6 +131,33 @@ pub(crate) enum LevelOperators {
 }
 
 impl LevelOperators {
+    /// The bytes of the matrices and singular values.
+    pub fn bytes(&self) -> usize {
+        let mat = |m: &Mat<f64>| m.nrows() * m.ncols();
+        let words = match self {
+            Self::PerOperator(c) => c
+                .iter()
+                .map(|c| mat(&c.us) + mat(&c.v) + c.sigma.len())
+                .sum(),
+            Self::Shared {
+                basis,
+                basis_sigma,
+                signs,
+                offsets,
+            } => {
+                mat(basis)
+                    + basis_sigma.len()
+                    + signs.iter().map(Vec::len).sum::<usize>()
+                    + offsets
+                        .iter()
+                        .flatten()
+                        .map(|o| mat(&o.a) + mat(&o.b) + o.sigma.len())
+                        .sum::<usize>()
+            }
+        };
+        8 * words
+    }
+
     /// The largest rank kept: of the canonical operators, or of the shared basis.
     pub fn rank(&self) -> usize {
         match self {
@@ -200,7 +229,9 @@ impl Symmetry {
 }
 
 /// Everything the M2L step needs for one kernel and order: the symmetries and the compressed
-/// operators, built on first use per cell width and shared (an `Arc`) between fields.
+/// operators, built on first use per cell width and shared (an `Arc`) between fields — and,
+/// through [`super::cache`], between every field of the same kernel, order, tolerance and
+/// compression in the process (and across processes on disk, where enabled).
 #[derive(Debug)]
 pub struct FmmOperators {
     pub(crate) cheb: Chebyshev,
@@ -209,8 +240,11 @@ pub struct FmmOperators {
     pub(crate) compression: M2lCompression,
     kernel_name: String,
     homogeneity: Option<i32>,
+    key: OperatorKey,
     /// `(width, operators)`; for homogeneous kernels only width 1.
     cache: Mutex<Vec<(f64, Arc<LevelOperators>)>>,
+    /// Bytes of the built operators in `cache` (read without its lock).
+    bytes: AtomicUsize,
 }
 
 impl FmmOperators {
@@ -230,7 +264,9 @@ impl FmmOperators {
             compression,
             kernel_name: kernel.name().to_owned(),
             homogeneity: kernel.homogeneity(),
+            key: OperatorKey::new(kernel, p, tolerance, compression),
             cache: Mutex::new(Vec::new()),
+            bytes: AtomicUsize::new(0),
         }
     }
 
@@ -254,12 +290,25 @@ impl FmmOperators {
         self.compression
     }
 
-    /// Whether `kernel` is the one these operators were built for (same name and homogeneity).
-    pub(crate) fn fits<K: Kernel + ?Sized>(&self, kernel: &K) -> bool {
-        kernel.name() == self.kernel_name && kernel.homogeneity() == self.homogeneity
+    /// The bytes the operators built so far take (their matrices and singular values).
+    pub fn bytes(&self) -> usize {
+        self.bytes.load(Ordering::Relaxed)
     }
 
-    /// The operators for cells of width `width`, and the factor their products are scaled by.
+    /// What identifies these operators in the caches.
+    pub(crate) fn key(&self) -> &OperatorKey {
+        &self.key
+    }
+
+    /// Whether `kernel` is the one these operators were built for (same key, so the same
+    /// name, parameters and values).
+    pub(crate) fn fits<K: Kernel + ?Sized>(&self, kernel: &K) -> bool {
+        OperatorKey::new(kernel, self.order(), self.tolerance, self.compression) == self.key
+    }
+
+    /// The operators for cells of width `width`, and the factor their products are scaled by:
+    /// from this set's own list, else from the disk cache, else computed (and then written to
+    /// the disk cache, where there is one).
     pub(crate) fn level<K: Kernel + ?Sized>(
         &self,
         kernel: &K,
@@ -269,14 +318,31 @@ impl FmmOperators {
             Some(k) => (1.0, width.powi(k)),
             None => (width, 1.0),
         };
-        // A poisoned lock only means another thread panicked while building; the cache is a
-        // list of complete entries, so it is still valid.
-        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, ops)) = cache.iter().find(|(w, _)| *w == key) {
-            return (ops.clone(), scale);
-        }
-        let ops = Arc::new(self.build(kernel, key));
-        cache.push((key, ops.clone()));
+        let (ops, from_disk, written) = {
+            // A poisoned lock only means another thread panicked while building; the cache is
+            // a list of complete entries, so it is still valid.
+            let mut list = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((_, ops)) = list.iter().find(|(w, _)| *w == key) {
+                return (ops.clone(), scale);
+            }
+            let file = cache::disk_dir().map(|dir| cache::file_for(&dir, &self.key, key));
+            let n = self.order().pow(3);
+            let loaded = file
+                .as_deref()
+                .and_then(|f| cache::load(f, &self.key, key, n));
+            let from_disk = loaded.is_some();
+            let ops = Arc::new(loaded.unwrap_or_else(|| self.build(kernel, key)));
+            // A cache that cannot be written (a read-only folder, a full disk) only costs the
+            // next process a rebuild.
+            let written = !from_disk
+                && file
+                    .as_deref()
+                    .is_some_and(|f| cache::save(f, &self.key, key, &ops).is_ok());
+            self.bytes.fetch_add(ops.bytes(), Ordering::Relaxed);
+            list.push((key, ops.clone()));
+            (ops, from_disk, written)
+        };
+        cache::record(from_disk, written);
         (ops, scale)
     }
 

@@ -552,3 +552,97 @@ fn a_compactly_supported_kernel_works_with_either_compression() {
     assert!(errors[0] < 3e-3, "{errors:?}");
     assert!(errors[1] < 1.5 * errors[0], "{errors:?}");
 }
+
+/// Fields of one kernel, order, tolerance and compression share one set of operators from the
+/// process-wide cache; another tolerance or compression gets its own.
+#[test]
+fn fields_of_the_same_key_share_the_cached_operators() {
+    let field = fit(Biharmonic, &blob(300));
+    // A tolerance no other test uses, so that the keys are this test's own.
+    let options = FmmOptions::new(4).with_tolerance(3.1e-6);
+    let a = FmmField::new(&field, &options).expect("fmm");
+    let b = FmmField::new(&field, &options.with_expected_points(1 << 20)).expect("fmm");
+    assert!(Arc::ptr_eq(&a.shared_operators(), &b.shared_operators()));
+    assert!(a.shared_operators().bytes() > 0);
+    let c = FmmField::new(&field, &options.with_tolerance(3.2e-6)).expect("fmm");
+    assert!(!Arc::ptr_eq(&a.shared_operators(), &c.shared_operators()));
+    let d = FmmField::new(
+        &field,
+        &options.with_compression(M2lCompression::SharedBasis),
+    )
+    .expect("fmm");
+    assert!(!Arc::ptr_eq(&a.shared_operators(), &d.shared_operators()));
+    // Another kernel at the same settings never gets them.
+    let r3 = fit(Triharmonic, &blob(300));
+    let e = FmmField::new(&r3, &options).expect("fmm");
+    assert!(!Arc::ptr_eq(&a.shared_operators(), &e.shared_operators()));
+    assert!(matches!(
+        FmmField::with_operators(&r3, &options, a.shared_operators()),
+        Err(FmmError::Operators { .. })
+    ));
+}
+
+/// Operators written to the disk cache read back exactly (both compressions), and a file that
+/// is truncated, corrupt or for another key or width is ignored.
+#[test]
+fn operators_read_back_from_disk_exactly_and_bad_files_are_ignored() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    for compression in [M2lCompression::PerOperator, M2lCompression::SharedBasis] {
+        let ops = operators::FmmOperators::new(&Triharmonic, 4, 2.7e-6, compression);
+        let (level, _) = ops.level(&Triharmonic, 1.0);
+        let key = ops.key();
+        let path = cache::file_for(dir.path(), key, 1.0);
+        cache::save(&path, key, 1.0, &level).expect("saved");
+        let back = cache::load(&path, key, 1.0, 64).expect("read back");
+        // The same bytes when written again: every matrix, singular value and sign.
+        let again = dir.path().join("again.zso");
+        cache::save(&again, key, 1.0, &back).expect("saved");
+        let bytes = std::fs::read(&path).expect("read");
+        assert_eq!(bytes, std::fs::read(&again).expect("read"));
+        assert_eq!(back.bytes(), level.bytes());
+        // Another width or order, a truncated or flipped file: ignored.
+        assert!(cache::load(&path, key, 0.5, 64).is_none());
+        assert!(cache::load(&path, key, 1.0, 125).is_none());
+        let other = operators::FmmOperators::new(&Biharmonic, 4, 2.7e-6, compression);
+        assert!(cache::load(&path, other.key(), 1.0, 64).is_none());
+        let bad = dir.path().join("bad.zso");
+        std::fs::write(&bad, &bytes[..bytes.len() / 2]).expect("written");
+        assert!(cache::load(&bad, key, 1.0, 64).is_none());
+        let mut flipped = bytes.clone();
+        flipped[bytes.len() / 3] ^= 0x10;
+        std::fs::write(&bad, &flipped).expect("written");
+        assert!(cache::load(&bad, key, 1.0, 64).is_none());
+        assert!(cache::load(&dir.path().join("missing.zso"), key, 1.0, 64).is_none());
+    }
+}
+
+/// With a disk cache, a field whose operators were dropped from memory reads them back from
+/// disk and gives the same bits as the field that built them.
+#[test]
+fn a_field_from_disk_cached_operators_has_the_same_bits() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let field = fit(Triharmonic, &blob(400));
+    let options = FmmOptions::new(5).with_tolerance(4.3e-7);
+    cache::set_disk_dir(Some(dir.path().to_owned()));
+    let built = FmmField::new(&field, &options).expect("fmm");
+    // Drop the operators from memory (the field keeps its own; the counters restart), then
+    // build again.
+    cache::clear();
+    let again = FmmField::new(&field, &options).expect("fmm");
+    cache::set_disk_dir(None);
+    assert!(cache::stats().disk_reads >= 1, "{:?}", cache::stats());
+    assert!(!Arc::ptr_eq(
+        &built.shared_operators(),
+        &again.shared_operators()
+    ));
+    let points = probes(&field.bounds().expect("bounds"), 700, 0.05);
+    let (mut a, mut b) = (vec![0.0; points.len()], vec![0.0; points.len()]);
+    built.values(&points, &mut a);
+    again.values(&points, &mut b);
+    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert!(
+        std::fs::read_dir(dir.path())
+            .expect("listed")
+            .any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().starts_with("m2l-v")))
+    );
+}

@@ -4,19 +4,26 @@
 //!
 //! ```text
 //! cargo run --release --example mc_timing -- [--n 128,256] [--shape torus|sphere] [--repeat 5]
-//!     [--write-dir DIR] [--csv FILE]
+//!     [--threads N] [--write-dir DIR] [--csv FILE]
 //! ```
 //!
 //! The samples are the signed distance of a torus (`R = 0.3`, `r = 0.1`) or a sphere
 //! (`r = 0.35`), centred at `(0.5, 0.5, 0.5)`, at the coordinates `numpy.linspace(0, 1, n)` on
 //! each axis, in C order with the last axis fastest: `values[(i·n + j)·n + k]` is the sample at
-//! `(x_i, y_j, z_k)`. Only the extraction (`marching_cubes` on the samples, normals included) is
-//! timed: the median of `--repeat` runs after one warm-up.
+//! `(x_i, y_j, z_k)`. Only the extraction is timed: one call of `marching_cubes` on the ready
+//! samples — the samples' check, the cell walk, welding the vertices into an indexed mesh and the
+//! normals (central differences of the samples), i.e. what scikit-image's `marching_cubes`
+//! returns — the median of `--repeat` runs after one warm-up. Building the `Grid` (a few
+//! numbers) is outside; sampling the field is outside (the peer reads the samples from a file).
+//!
+//! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU), or `--threads N` (a global
+//! rayon pool of `N` threads); the count in effect is printed and written to the CSV.
 //!
 //! Prints one line per size and, with `--csv FILE`, writes the table
-//! `n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs` (`euler` is
-//! `V − E + F`, `watertight` whether every edge is used by exactly two triangles, once each way,
-//! `max_abs_sdf_over_h` the largest `|sdf|` at a vertex over the spacing `h`). With
+//! `n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs,threads,warmup,times_ms`
+//! (`euler` is `V − E + F`, `watertight` whether every edge is used by exactly two triangles,
+//! once each way, `max_abs_sdf_over_h` the largest `|sdf|` at a vertex over the spacing `h`,
+//! `warmup` 1 when a warm-up run preceded the timed ones, `times_ms` every timed run). With
 //! `--write-dir DIR` it writes the samples as raw little-endian f64,
 //! `DIR/mc_{shape}_{n}.f64` (read them with `numpy.fromfile(path).reshape(n, n, n)`).
 
@@ -27,7 +34,6 @@ mod timing;
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 use zeroset::core::analytic::{Sphere, Torus};
 use zeroset::core::field::ScalarField;
@@ -42,18 +48,20 @@ struct Args {
     sizes: Vec<usize>,
     shape: String,
     repeat: usize,
+    threads: Option<usize>,
     write_dir: Option<PathBuf>,
     csv: Option<PathBuf>,
 }
 
 const USAGE: &str = "usage: mc_timing [--n 128,256] [--shape torus|sphere] [--repeat 5] \
-[--write-dir DIR] [--csv FILE]";
+[--threads N] [--write-dir DIR] [--csv FILE]";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         sizes: vec![128, 256],
         shape: "torus".into(),
         repeat: 5,
+        threads: None,
         write_dir: None,
         csv: None,
     };
@@ -69,6 +77,9 @@ fn parse_args() -> Result<Args, String> {
                 }
             }
             "--repeat" => args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
+            "--threads" => {
+                args.threads = Some(value()?.parse().map_err(|e| format!("--threads: {e}"))?)
+            }
             "--write-dir" => args.write_dir = Some(value()?.into()),
             "--csv" => args.csv = Some(value()?.into()),
             "--help" | "-h" => return Err(USAGE.into()),
@@ -96,9 +107,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "sphere" => Box::new(Sphere::new([0.5; 3], 0.35)),
         _ => Box::new(Torus::new([0.5; 3], 0.3, 0.1)),
     };
-    let threads = rayon::current_num_threads();
+    let threads = timing::set_threads(args.threads)?;
     let mut csv = String::from(
-        "n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs\n",
+        "n,shape,extract_ms,vertices,triangles,euler,watertight,max_abs_sdf_over_h,runs,threads,\
+         warmup,times_ms\n",
     );
     for &n in &args.sizes {
         let x = linspace(n);
@@ -109,16 +121,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let grid = Grid::vertex_centered(Aabb::new([0.0; 3], [1.0; 3])?, [n, n, n])?;
         let options = McOptions::default();
-        let mut mesh = marching_cubes(&grid, &values, 0.0, &options)?;
-        let mut times = Vec::with_capacity(args.repeat);
-        for _ in 0..args.repeat {
-            let start = Instant::now();
-            mesh = marching_cubes(&grid, &values, 0.0, &options)?;
-            times.push(start.elapsed());
-        }
-        let ms = timing::median(times).as_secs_f64() * 1e3;
+        let timed = timing::measure(args.repeat, None, || {
+            marching_cubes(&grid, &values, 0.0, &options)
+        })?;
+        let ms = timed.ms();
+        let mesh = &timed.last;
         // Watertight: every edge in exactly two triangles, traversed once each way.
-        let report = check(&mesh);
+        let report = check(mesh);
         let (euler, watertight) = (
             report.euler_characteristic,
             report.closed && report.inconsistent_edges == 0,
@@ -130,21 +139,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|p| field.value(p).abs())
             .fold(0.0, f64::max);
         println!(
-            "n={n} shape={} threads={threads} extract_ms={ms:.3} vertices={} triangles={} \
+            "n={n} shape={} threads={threads} extract_ms={ms:.3} ({}) vertices={} triangles={} \
              euler={euler} watertight={watertight} max_abs_sdf_over_h={:.3e}",
             args.shape,
+            timed.how(),
             mesh.num_vertices(),
             mesh.num_triangles(),
             max_sdf / h,
         );
         writeln!(
             csv,
-            "{n},{},{ms:.3},{},{},{euler},{watertight},{:.6e},{}",
+            "{n},{},{ms:.3},{},{},{euler},{watertight},{:.6e},{},{threads},{},{}",
             args.shape,
             mesh.num_vertices(),
             mesh.num_triangles(),
             max_sdf / h,
-            args.repeat
+            timed.runs(),
+            u8::from(timed.warmup),
+            timing::times_cell(&timed.times),
         )?;
         if let Some(dir) = &args.write_dir {
             std::fs::create_dir_all(dir)?;

@@ -4,22 +4,39 @@
 //!
 //! ```text
 //! cargo run --release --example rbf_timing -- [--n 1000,3000,6000] [--kernels r,r3]
-//!     [--eval 100000] [--repeat 5] [--solvers auto,dense,mixed,iterative] [--write-dir DIR] [--csv FILE]
+//!     [--eval 100000] [--repeat 5] [--threads N] [--solvers auto,dense,mixed,iterative]
+//!     [--write-dir DIR] [--csv FILE]
 //! ```
 //!
 //! Set-up: sphere centre (0.5, 0.5, 0.5), radius 0.35; `N − 2⌊N/3⌋` Fibonacci points on it
 //! (value 0) and, for the first `⌊N/3⌋` of them, points at `±0.05` along the outward normal
 //! (values `±0.05`). Evaluation: `--eval` points uniform in `[0, 1]³` (SplitMix64, seed 7).
-//! Figures: fit and evaluation times (medians of `--repeat` after one warm-up; one run without
-//! warm-up when a fit takes over 2 s), the largest error against the sphere's signed distance
-//! over the evaluation points with `|sd| < 0.05`, and the largest constraint residual.
+//!
+//! What is timed (the rule of `benches/peers`: one warm-up, then the median of `--repeat` runs;
+//! a single run without warm-up when the first run alone takes over 2 s, reported as such):
+//!
+//! - **fit**: from the plain arrays of points and values (what scipy's `RBFInterpolator`
+//!   constructor is given) to a field ready to evaluate: building the `Constraints`, then
+//!   `RbfFit::fit` — validation, duplicate check, the polynomial's scaling, the kernel matrix's
+//!   assembly, the factorisation and solve (or GMRES), the refinement step when it is taken, the
+//!   residual by direct sums, and the field's construction. Nothing is cached between runs.
+//! - **eval**: `ScalarField::values` at the `--eval` points into a freshly allocated output
+//!   (scipy's `__call__` returns a new array).
+//!
+//! Figures: fit and evaluation times, the largest error against the sphere's signed distance over
+//! the evaluation points with `|sd| < 0.05`, and the largest constraint residual.
+//!
+//! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU) or `--threads N`; the count
+//! in effect (it also sets faer's dense products) is printed and written to the CSV.
 //!
 //! `--solvers iterative` reads `ZEROSET_RBF_NEIGHBOURS`, `ZEROSET_RBF_FAR` and
 //! `ZEROSET_RBF_MAX_ITER` (default 120) from the environment, for tuning experiments.
 //!
 //! `--write-dir DIR` writes `DIR/rbf_sphere_n{N}.csv` (`x,y,z,value`) and `DIR/rbf_eval_{M}.csv`
 //! (`x,y,z`), numbers with 17 significant digits (exact round trip); `--csv FILE` writes
-//! `n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs`.
+//! `n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs,threads,fit_warmup,`
+//! `eval_runs,eval_warmup,fit_times_ms,eval_times_ms` (`runs` = timed fit runs; `*_warmup` 1
+//! when a warm-up preceded the timed runs).
 
 #[path = "common/output.rs"]
 mod output;
@@ -32,7 +49,7 @@ mod timing;
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use zeroset::bases::rbf::{
     Biharmonic, Constraints, Fitted, IterativeParams, Kernel, Prescribed, RbfFit, Solver,
@@ -49,13 +66,18 @@ struct Args {
     kernels: Vec<String>,
     eval: usize,
     repeat: usize,
+    threads: Option<usize>,
     write_dir: Option<PathBuf>,
     csv: Option<PathBuf>,
     solvers: Vec<String>,
 }
 
 const USAGE: &str = "usage: rbf_timing [--n 1000,3000,6000] [--kernels r,r3] [--eval 100000] \
-    [--repeat 5] [--solvers auto,dense,mixed,iterative] [--write-dir DIR] [--csv FILE]";
+    [--repeat 5] [--threads N] [--solvers auto,dense,mixed,iterative] [--write-dir DIR] \
+    [--csv FILE]";
+
+/// A run slower than this is timed once, without warm-up.
+const ONCE_ABOVE: Duration = Duration::from_secs(2);
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -63,6 +85,7 @@ fn parse_args() -> Result<Args, String> {
         kernels: vec!["r".into(), "r3".into()],
         eval: 100_000,
         repeat: 5,
+        threads: None,
         write_dir: None,
         csv: None,
         solvers: vec!["auto".into()],
@@ -77,6 +100,9 @@ fn parse_args() -> Result<Args, String> {
             "--repeat" => {
                 args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?;
                 args.repeat = args.repeat.max(1);
+            }
+            "--threads" => {
+                args.threads = Some(value()?.parse().map_err(|e| format!("--threads: {e}"))?)
             }
             "--write-dir" => args.write_dir = Some(value()?.into()),
             "--csv" => args.csv = Some(value()?.into()),
@@ -130,26 +156,29 @@ fn write_csv(
     Ok(write_text(path, &text)?)
 }
 
-/// Median fit time (one run when a fit is slow) and the last fit.
-fn time_fit<K: Kernel + Clone>(
-    fit: RbfFit<K>,
-    c: &Constraints<3>,
-    repeat: usize,
-) -> Result<(Duration, usize, Fitted<K, 3>), Box<dyn std::error::Error>> {
-    let start = Instant::now();
-    let first = fit.fit(c)?;
-    let once = start.elapsed();
-    if once > Duration::from_secs(2) {
-        return Ok((once, 1, first));
+/// The constraints as plain arrays: the points and the prescribed values (what scipy's
+/// `RBFInterpolator` is given).
+fn plain_arrays(c: &Constraints<3>) -> (Vec<[f64; 3]>, Vec<f64>) {
+    c.as_slice()
+        .iter()
+        .map(|con| match con.prescribed {
+            Prescribed::Value(v) => (con.point, v),
+            Prescribed::Gradient(_) => (con.point, f64::NAN),
+        })
+        .unzip()
+}
+
+/// The timed fit: from plain arrays to a fitted field (see the module docs).
+fn fit_from_arrays<K: Kernel + Clone>(
+    fit: &RbfFit<K>,
+    points: &[[f64; 3]],
+    values: &[f64],
+) -> Result<Fitted<K, 3>, zeroset::bases::rbf::RbfError> {
+    let mut c = Constraints::new();
+    for (p, &v) in points.iter().zip(values) {
+        c.push_value(*p, v);
     }
-    let mut times = Vec::with_capacity(repeat);
-    let mut last = first;
-    for _ in 0..repeat {
-        let start = Instant::now();
-        last = fit.fit(c)?;
-        times.push(start.elapsed());
-    }
-    Ok((timing::median(times), repeat, last))
+    fit.fit(&c)
 }
 
 fn run<K: Kernel + Clone>(
@@ -182,19 +211,21 @@ fn run<K: Kernel + Clone>(
         }),
         _ => Solver::Auto,
     };
-    let (fit_time, runs, fitted) = time_fit(RbfFit::new(kernel).with_solver(solver), c, repeat)?;
-    let mut values = vec![0.0; eval.len()];
-    let mut times = Vec::new();
-    for _ in 0..=runs.min(repeat) {
-        let start = Instant::now();
+    let fit = RbfFit::new(kernel).with_solver(solver);
+    let (points, targets) = plain_arrays(c);
+    let fit_timed = timing::measure(repeat, Some(ONCE_ABOVE), || {
+        fit_from_arrays(&fit, &points, &targets)
+    })?;
+    let fitted = &fit_timed.last;
+    let eval_timed = timing::measure(repeat, Some(ONCE_ABOVE), || {
+        let mut values = vec![0.0; eval.len()];
         fitted.field.values(eval, &mut values);
-        times.push(start.elapsed());
-    }
-    times.remove(0);
-    let eval_time = timing::median(times);
+        Ok::<_, std::convert::Infallible>(values)
+    })?;
+    let values = &eval_timed.last;
     let max_err = eval
         .iter()
-        .zip(&values)
+        .zip(values)
         .filter(|(p, _)| signed_distance(p).abs() < OFFSET)
         .map(|(p, v)| (v - signed_distance(p)).abs())
         .fold(0.0, f64::max);
@@ -206,18 +237,29 @@ fn run<K: Kernel + Clone>(
             Prescribed::Gradient(_) => 0.0,
         })
         .fold(0.0, f64::max);
-    let (fit_ms, eval_ms) = (fit_time.as_secs_f64() * 1e3, eval_time.as_secs_f64() * 1e3);
+    let (fit_ms, eval_ms) = (fit_timed.ms(), eval_timed.ms());
     println!(
-        "{n:<6} {name:<4} {:<15} {fit_ms:>10.1} {eval_ms:>10.1} {max_err:>12.3e} {residual:>12.2e} {:>9.1e} {:>5}",
-        fitted.report.solver, fitted.report.condition_estimate, fitted.report.iterations
+        "{n:<6} {name:<4} {:<15} {fit_ms:>10.1} {eval_ms:>10.1} {max_err:>12.3e} {residual:>12.2e} {:>9.1e} {:>5}  fit: {}; eval: {}",
+        fitted.report.solver,
+        fitted.report.condition_estimate,
+        fitted.report.iterations,
+        fit_timed.how(),
+        eval_timed.how(),
     );
     for w in &fitted.report.warnings {
         eprintln!("  warning: {w}");
     }
     writeln!(
         csv,
-        "{n},{name},{},{fit_ms:.4},{eval_ms:.4},{max_err:.6e},{residual:.6e},{runs}",
-        fitted.report.solver
+        "{n},{name},{},{fit_ms:.4},{eval_ms:.4},{max_err:.6e},{residual:.6e},{},{},{},{},{},{},{}",
+        fitted.report.solver,
+        fit_timed.runs(),
+        rayon::current_num_threads(),
+        u8::from(fit_timed.warmup),
+        eval_timed.runs(),
+        u8::from(eval_timed.warmup),
+        timing::times_cell(&fit_timed.times),
+        timing::times_cell(&eval_timed.times),
     )?;
     Ok(())
 }
@@ -231,6 +273,7 @@ fn main() {
 
 fn run_all() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
+    let threads = timing::set_threads(args.threads)?;
     let mut rng = SplitMix64(7);
     let eval: Vec<[f64; 3]> = (0..args.eval)
         .map(|_| [rng.unit(), rng.unit(), rng.unit()])
@@ -243,17 +286,15 @@ fn run_all() -> Result<(), Box<dyn std::error::Error>> {
             eval.iter().map(|p| p.to_vec()),
         )?;
     }
-    println!(
-        "threads {}; evaluation at {} points",
-        rayon::current_num_threads(),
-        args.eval
-    );
+    println!("threads {threads}; evaluation at {} points", args.eval);
     println!(
         "{:<6} {:<4} {:<15} {:>10} {:>10} {:>12} {:>12} {:>9} {:>5}",
         "n", "kern", "solver", "fit_ms", "eval_ms", "max_err_band", "residual", "cond_est", "iters"
     );
-    let mut csv =
-        String::from("n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs\n");
+    let mut csv = String::from(
+        "n,kernel,solver,fit_ms,eval_ms,max_err_band,max_constraint_residual,runs,threads,\
+         fit_warmup,eval_runs,eval_warmup,fit_times_ms,eval_times_ms\n",
+    );
     for &n in &args.ns {
         let c = sphere_setup(n);
         if let Some(dir) = &args.write_dir {

@@ -7,9 +7,22 @@
 //! (`+z`), α = 1. Unknowns: `k²(k − 1)` (the top layer is fixed by the Neumann rows).
 //!
 //! ```text
-//! cargo run --release --example restoration_timing -- --k 32,64,128 [--repeat 5]
+//! cargo run --release --example restoration_timing -- --k 32,64,128 [--repeat 5] [--threads N]
 //!     [--solvers separable,lsqr-poisson,sparse-cholesky,cgls] [--write-dir DIR] [--csv FILE]
 //! ```
+//!
+//! Timed (one warm-up, then the median of `--repeat` runs), per k:
+//!
+//! - `solve-only`: `BoxLaplace::solve` of the separable method on the ready right-hand side — the
+//!   forward DSTs, the Givens QR of every line, the back substitution, the inverse DSTs and the
+//!   exact residuals — the like-for-like figure for a NumPy port that solves from a ready `b`;
+//! - each of `--solvers`: `Protrusion::restore_in_place` on a fresh copy of the samples (the copy
+//!   is not timed): the assembly of the system from the samples, the solve and writing the
+//!   solution back into the mask. Sampling the field is outside.
+//!
+//! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU) or `--threads N`; the count
+//! in effect is printed and written to the CSV
+//! (`k,unknowns,rows,solver,median_ms,iterations,rel_residual,max_rel_diff,runs,threads,warmup,times_ms`).
 //!
 //! `--write-dir DIR` writes, for each k, `restoration_bar_k{k}.A.mtx`, `.b.mtx` and the
 //! separable solution `.h.mtx`, plus `.dims.txt` (the box of unknowns).
@@ -32,18 +45,20 @@ use zeroset::solvers::{Cgls, IterativeParams, SparseCholesky};
 struct Args {
     ks: Vec<usize>,
     repeat: usize,
+    threads: Option<usize>,
     solvers: Vec<String>,
     write_dir: Option<std::path::PathBuf>,
     csv: Option<std::path::PathBuf>,
 }
 
-const USAGE: &str = "usage: restoration_timing [--k 32,64,128] [--repeat 5] \
+const USAGE: &str = "usage: restoration_timing [--k 32,64,128] [--repeat 5] [--threads N] \
     [--solvers separable,lsqr-poisson,sparse-cholesky,cgls] [--write-dir DIR] [--csv FILE]";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         ks: vec![32, 64, 128],
         repeat: 5,
+        threads: None,
         solvers: vec!["separable".into(), "lsqr-poisson".into()],
         write_dir: None,
         csv: None,
@@ -56,6 +71,9 @@ fn parse_args() -> Result<Args, String> {
             "--repeat" => {
                 args.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?;
                 args.repeat = args.repeat.max(1);
+            }
+            "--threads" => {
+                args.threads = Some(value()?.parse().map_err(|e| format!("--threads: {e}"))?)
             }
             "--solvers" => args.solvers = value()?.split(',').map(str::to_string).collect(),
             "--write-dir" => args.write_dir = Some(value()?.into()),
@@ -83,8 +101,15 @@ fn solver(name: &str) -> Result<Solver, String> {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
-    let mut csv =
-        String::from("k,unknowns,rows,solver,median_ms,iterations,rel_residual,max_rel_diff\n");
+    let threads = timing::set_threads(args.threads)?;
+    let mut csv = String::from(
+        "k,unknowns,rows,solver,median_ms,iterations,rel_residual,max_rel_diff,runs,threads,\
+         warmup,times_ms\n",
+    );
+    println!(
+        "threads {threads}; one warm-up, then the median of {}",
+        args.repeat
+    );
     println!(
         "{:<5} {:>9} {:<16} {:>10} {:>6} {:>10} {:>10}",
         "k", "unknowns", "solver", "median_ms", "iters", "rel_res", "vs_sep"
@@ -121,19 +146,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // The separable solve alone (right-hand side ready, residual checks included): the
         // like-for-like figure for a NumPy port of the same method.
         {
-            let mut times = Vec::with_capacity(args.repeat);
-            for _ in 0..=args.repeat {
-                let start = Instant::now();
-                std::hint::black_box(system.operator().solve(system.rhs())?);
-                times.push(start.elapsed());
-            }
-            times.remove(0);
-            let ms = timing::median(times).as_secs_f64() * 1e3;
+            let timed = timing::measure(args.repeat, None, || {
+                system
+                    .operator()
+                    .solve(system.rhs())
+                    .map(std::hint::black_box)
+            })?;
+            let ms = timed.ms();
             let n = system.operator().unknowns();
             println!("{k:<5} {n:>9} {:<16} {ms:>10.2}", "solve-only");
             csv.push_str(&format!(
-                "{k},{n},{},solve-only,{ms:.4},0,,0\n",
-                system.rhs().len()
+                "{k},{n},{},solve-only,{ms:.4},0,,0,{},{threads},1,{}\n",
+                system.rhs().len(),
+                timed.runs(),
+                timing::times_cell(&timed.times),
             ));
         }
         for name in &args.solvers {
@@ -156,7 +182,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max)
                 / scale;
-            let ms = timing::median(times).as_secs_f64() * 1e3;
+            let ms = timing::median(times.clone()).as_secs_f64() * 1e3;
             if std::env::var_os("ZEROSET_PHASES").is_some() {
                 eprintln!(
                     "  phases: assembly {:.1} ms, solve {:.1} ms",
@@ -169,8 +195,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 report.unknowns, report.solve.iterations, report.solve.rel_residual
             );
             csv.push_str(&format!(
-                "{k},{},{},{name},{ms:.4},{},{:.3e},{diff:.3e}\n",
-                report.unknowns, report.rows, report.solve.iterations, report.solve.rel_residual
+                "{k},{},{},{name},{ms:.4},{},{:.3e},{diff:.3e},{},{threads},1,{}\n",
+                report.unknowns,
+                report.rows,
+                report.solve.iterations,
+                report.solve.rel_residual,
+                times.len(),
+                timing::times_cell(&times),
             ));
         }
     }

@@ -42,26 +42,114 @@ def add_blas_arg(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="N",
         help="set OMP/OPENBLAS/MKL_NUM_THREADS=N for the scipy side (not for cargo); 0 = leave the "
-        "environment as it is; default: 1 unless those variables are already set",
+        "environment as it is; default: 1 (scripts with --mt-threads: always; the others: unless those "
+        "variables are already set)",
     )
 
 
-def pin_blas_threads() -> str:
+def pin_blas_threads(force: bool = False) -> str:
     """Reads --blas-threads from sys.argv and sets the BLAS thread variables accordingly.
 
-    Must run before numpy is imported. Returns a one-line description for the report."""
+    Must run before numpy is imported. Without --blas-threads the variables are set to 1 unless
+    they are already set — or, with `force`, always (the one-thread configuration of the scripts
+    that also time a multi-thread one, see `add_mt_arg`). Returns a one-line description for the
+    report."""
     p = argparse.ArgumentParser(add_help=False)
     add_blas_arg(p)
     n = p.parse_known_args()[0].blas_threads
     if n == 0:
         return "left as found (--blas-threads 0)"
     if n is None:
-        if any(v in os.environ for v in BLAS_VARS):
+        if not force and any(v in os.environ for v in BLAS_VARS):
             return "left as found (already set in the environment)"
+        if force:
+            for v in BLAS_VARS:
+                os.environ[v] = "1"
+            return "set to 1 for the Python side"
         n = 1
     for v in BLAS_VARS:
         os.environ[v] = str(n)
     return f"set to {n} for the scipy side (--blas-threads)"
+
+
+def cpu_count() -> int:
+    """The CPUs this process may run on (the affinity mask), else `os.cpu_count()`."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def add_mt_arg(p: argparse.ArgumentParser, peer: str | None) -> None:
+    """`--mt-threads N`: the "all threads" configuration of both sides (default: every CPU);
+    `peer` says what it sets on the Python side (None: nothing, the peer has no thread setting)."""
+    side = f" and {peer} (in a child process: OpenBLAS reads its thread count at import)" if peer else ""
+    p.add_argument(
+        "--mt-threads",
+        type=int,
+        default=cpu_count(),
+        metavar="N",
+        help=f"the all-threads configuration: zeroset with RAYON_NUM_THREADS=N{side}; 0 or 1 = one-thread runs only",
+    )
+
+
+def blas_runtime() -> str:
+    """The thread counts the loaded OpenBLAS libraries report now (numpy's and scipy's wheels
+    each bundle one), e.g. "numpy 1, scipy 1"; "?" where it cannot be read. Imports numpy and
+    scipy.linalg: call it after `pin_blas_threads`."""
+    import ctypes
+    import glob
+
+    import numpy
+    import scipy.linalg  # noqa: F401  (loads scipy's OpenBLAS)
+
+    site = Path(numpy.__file__).resolve().parent.parent
+    found = []
+    for pkg in ("numpy", "scipy"):
+        count = "?"
+        for f in sorted(glob.glob(str(site / f"{pkg}.libs" / "*openblas*"))):
+            try:
+                lib = ctypes.CDLL(f)
+            except OSError:
+                continue
+            for sym in ("scipy_openblas_get_num_threads64_", "scipy_openblas_get_num_threads",
+                        "openblas_get_num_threads64_", "openblas_get_num_threads"):  # fmt: skip
+                fn = getattr(lib, sym, None)
+                if fn is not None:
+                    count = str(fn())
+                    break
+        found.append(f"{pkg} {count}")
+    return ", ".join(found)
+
+
+def run_child(script: Path, argv: list[str], blas_threads: int) -> int:
+    """Runs `script argv --blas-threads N` with this interpreter and the original environment
+    (so the child's OpenBLAS starts with N threads); returns its exit status."""
+    cmd = [sys.executable, str(script), *argv, "--blas-threads", str(blas_threads)]
+    print(f"$ {' '.join(cmd)}", flush=True)
+    return subprocess.run(cmd, env=ORIGINAL_ENV).returncode
+
+
+def how_timed(runs: int | None, warmup: bool | None) -> str:
+    """The timing rule a number was measured under, for the note next to it."""
+    if runs is None:
+        return "?"
+    if warmup is False:
+        return "1 run, no warm-up" if runs == 1 else f"median of {runs}, no warm-up"
+    return f"warm-up + median of {runs}"
+
+
+def with_how(ms, runs: int | None, warmup: bool | None, repeat: int | None = None) -> str:
+    """`fmt_ms(ms)`, followed by "(1 run, no warm-up)" or "(median of R)" where the run count
+    differs from the default `repeat` or no warm-up preceded it."""
+    text = fmt_ms(ms)
+    if text == "—" or runs is None:
+        return text
+    if warmup is False:
+        return f"{text} ({how_timed(runs, warmup)})"
+    if repeat is not None and runs != repeat:
+        return f"{text} ({runs} runs)"
+    return text
 
 
 def int_list(p: argparse.ArgumentParser, value: str, flag: str, minimum: int, name: str = "n") -> list[int]:
@@ -119,7 +207,8 @@ def built_example(name: str, skip_build: bool) -> Path:
 
 def timed(fn, repeat: int, warmup: bool = True):
     """Optionally one warm-up, then `repeat` timed runs; returns (last result, upper median ms,
-    all times in ms). The upper median `sorted[n // 2]` is the rule of the Rust examples."""
+    all times in ms). The upper median `sorted[n // 2]` is the rule of the Rust examples
+    (`examples/common/timing.rs`)."""
     out = fn() if warmup else None
     times = []
     for _ in range(repeat):
@@ -127,6 +216,19 @@ def timed(fn, repeat: int, warmup: bool = True):
         out = fn()
         times.append((time.perf_counter() - t) * 1e3)
     return out, sorted(times)[len(times) // 2], times
+
+
+def fastest(runs: dict):
+    """(label, ms) of the smallest ms among `runs` ({label: ms or None}); (None, nan) if none."""
+    ok = [(k, v) for k, v in runs.items() if v is not None and not (isinstance(v, float) and math.isnan(v))]
+    return min(ok, key=lambda kv: kv[1]) if ok else (None, math.nan)
+
+
+def ratio(a, b) -> float:
+    """a / b; NaN where either is missing or b ≤ 0."""
+    if a is None or b is None or (isinstance(a, float) and math.isnan(a)) or (isinstance(b, float) and math.isnan(b)):
+        return math.nan
+    return a / b if b > 0 else math.nan
 
 
 # ---------------------------------------------------------------------------------------------

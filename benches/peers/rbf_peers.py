@@ -12,18 +12,37 @@ Set-up: a sphere, centre (0.5, 0.5, 0.5), radius 0.35; per N, N − 2⌊N/3⌋ o
 'linear' (φ = −r; with the degree-1 polynomial part this is the same interpolant, the RBF
 coefficients just change sign) and zeroset `r3` against scipy 'cubic' (φ = r³), both degree=1.
 
-  1. `cargo run --release --example rbf_timing -- --n 1000,3000,6000 --kernels r,r3 --eval M
-     --repeat R --write-dir OUT --csv OUT/rbf_zeroset.csv` times zeroset's fit and its evaluation
-     at the M points and writes the fit points (OUT/rbf_sphere_n{N}.csv, `x,y,z,value`), the
-     evaluation points (OUT/rbf_eval_{M}.csv, `x,y,z`; 17 significant digits, so both sides see
-     bit-identical input) and its results, one row per (n, kernel, solver). `--skip-zeroset`
-     reuses those files instead of running cargo;
-  2. on the same points (read back, not regenerated), times `RBFInterpolator(points, values,
-     kernel=K, degree=1)` (dense LU, LAPACK dgesv) and its evaluation at the M points, and computes
-     the same accuracy figures as zeroset: max |s(x) − sd(x)| over the evaluation points with
-     |sd(x)| < 0.05, sd(x) = |x − c| − 0.35, and the constraint residual max |s(x_i) − v_i|;
-  3. prints a table with ratios (scipy_ms / zeroset_ms, > 1 means zeroset is faster), PASS/FAIL
-     per bar, and writes OUT/rbf_peers.csv and OUT/rbf_peers.md.
+Threads: both sides are timed at one thread and at all threads (N = --mt-threads, default the
+CPUs available), and the report gives the ratios one thread each and each side at its fastest.
+
+  1. `cargo build --release --example rbf_timing` (CARGO_TARGET_DIR honoured; --skip-build reuses
+     the binary), then `rbf_timing --n … --kernels r,r3 --eval M --repeat R --csv …` twice: with
+     RAYON_NUM_THREADS=1 (this run also writes the points: `--write-dir OUT`) and with
+     RAYON_NUM_THREADS=N. Timed by the example (one warm-up, then the median of R; a single run
+     without warm-up where the first run takes over 2 s, and the CSV says so):
+       fit  = from the plain point and value arrays to a field ready to evaluate (building the
+              constraints, validation, the kernel matrix, the factorisation and solve, the
+              refinement step and the residual check, the field's construction);
+       eval = the field's values at the M points into a new array.
+     Points: OUT/rbf_sphere_n{N}.csv (`x,y,z,value`), OUT/rbf_eval_{M}.csv (`x,y,z`; 17
+     significant digits, so both sides see bit-identical input); results
+     OUT/rbf_zeroset_t1.csv and OUT/rbf_zeroset_tall.csv, one row per (n, kernel, solver).
+     `--skip-zeroset` reuses those files instead of running cargo;
+  2. on the same points (read back, not regenerated), times scipy with BLAS pinned to one thread
+     in this process, and again with BLAS at N threads in a child process (OpenBLAS reads its
+     thread count at import; numpy's and scipy's wheels each bundle one, both are pinned and the
+     counts they report are recorded):
+       fit  = `RBFInterpolator(points, values, kernel=K, degree=1)` — input checks, the
+              polynomial's scaling, the kernel matrix (single-threaded compiled code) and the
+              solve (LAPACK dgesv, LU);
+       eval = its `__call__` at the M points (kernel matrix by compiled code, product by BLAS);
+     each one warm-up + median of --scipy-repeat, a single run without warm-up for
+     N > --scipy-once-above (marked next to the number). Accuracy as zeroset's: max |s(x) − sd(x)|
+     over the evaluation points with |sd(x)| < 0.05, sd(x) = |x − c| − 0.35, and the constraint
+     residual max |s(x_i) − v_i| (untimed);
+  3. prints fit, evaluation and accuracy tables with ratios (scipy_ms / zeroset_ms, > 1 means
+     zeroset is faster) one thread each and each side at its fastest, PASS/FAIL per bar, and
+     writes OUT/rbf_peers.csv and OUT/rbf_peers.md.
 Always exits 0 once it has run; a failed bar is reported, not raised.
 """
 
@@ -31,22 +50,23 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import common
-from common import fmt_e, fmt_ms, fmt_ratio, render_md, render_text
+from common import fmt_e, fmt_ratio, ratio, render_md, render_text
 
-BLAS_NOTE = common.pin_blas_threads()  # before numpy is imported
+BLAS_NOTE = common.pin_blas_threads(force=True)  # before numpy is imported
 
 import numpy as np  # noqa: E402
 from scipy.interpolate import RBFInterpolator  # noqa: E402
 
 EXAMPLE = "rbf_timing"
-ZEROSET_CSV = "rbf_zeroset.csv"
+ZS_CSV = {"1": "rbf_zeroset_t1.csv", "all": "rbf_zeroset_tall.csv"}  # per zeroset configuration
 SCIPY_KERNEL = {"r": "linear", "r3": "cubic"}  # zeroset kernel name -> scipy kernel name
 DEGREE = 1
 CENTRE = np.array([0.5, 0.5, 0.5])
@@ -54,6 +74,7 @@ RADIUS = 0.35
 OFFSET = 0.05  # normal offset of the off-surface points, and half-width of the accuracy band
 BAR_NS = (1000, 3000, 6000)  # N at which the accuracy bars are checked
 SPEED_N = 6000  # N at which the speed bars are checked
+FIT_BAR, EVAL_BAR = 3.0, 5.0  # scipy ms / zeroset ms, each at its fastest
 ACC_SLACK = 1e-3  # "at least as accurate": zeroset ≤ scipy · (1 + ACC_SLACK)
 RESIDUAL_TOL = 1e-10  # zeroset's constraint residual, every row
 
@@ -69,18 +90,22 @@ class ZsRow:
     eval_ms: float | None
     max_err: float | None  # max |s − sd| over the band
     residual: float | None  # max |s(x_i) − v_i|
-    runs: int | None
-    threads: str | None  # optional column; absent in the current example
+    runs: int | None  # timed fit runs
+    threads: str | None
+    fit_warmup: bool | None = None
+    eval_runs: int | None = None
+    eval_warmup: bool | None = None
 
 
 @dataclass
 class SpRow:
-    """scipy's result for one (n, kernel)."""
+    """scipy's result for one (n, kernel) at one BLAS setting."""
 
     n: int
     kernel: str  # zeroset's name
     runs: int
     single: bool  # one run without warm-up (n > --scipy-once-above)
+    blas: str = ""  # the thread counts numpy's and scipy's OpenBLAS report
     fit_ms: float = math.nan
     eval_ms: float = math.nan
     max_err: float = math.nan
@@ -108,8 +133,12 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--skip-zeroset",
         action="store_true",
-        help=f"do not run cargo; reuse the point files and {ZEROSET_CSV} already in --out (only scipy is timed now)",
+        help=f"do not run cargo; reuse the point files and {', '.join(ZS_CSV.values())} already in --out "
+        "(only scipy is timed now)",
     )
+    p.add_argument("--skip-build", action="store_true", help="do not run cargo build; reuse the example binary")
+    p.add_argument("--worker", metavar="JSON", help=argparse.SUPPRESS)  # child: time scipy, write JSON
+    common.add_mt_arg(p, "scipy's BLAS at N threads")
     common.add_blas_arg(p)
     a = p.parse_args()
 
@@ -122,6 +151,9 @@ def parse_args() -> argparse.Namespace:
     for name in ("eval", "repeat", "scipy_repeat"):
         if getattr(a, name) < 1:
             p.error(f"--{name.replace('_', '-')} must be >= 1")
+    if a.mt_threads < 0:
+        p.error("--mt-threads must be >= 0")
+    a.mt = a.mt_threads if a.mt_threads > 1 else 0  # 0: one-thread runs only
     a.out = Path(a.out).resolve()
     return a
 
@@ -130,14 +162,15 @@ def parse_args() -> argparse.Namespace:
 # Step 1: zeroset
 
 
-def run_zeroset(args) -> None:
+def run_zeroset(args, binary: Path, config: str) -> None:
+    """`config` "1": RAYON_NUM_THREADS=1 (and writes the point files); "all": RAYON_NUM_THREADS=N."""
     args.out.mkdir(parents=True, exist_ok=True)
-    common.run_logged(
-        ["cargo", "run", "--release", "--example", EXAMPLE, "--",
-         "--n", ",".join(map(str, args.ns)), "--kernels", ",".join(args.kernel_list),
-         "--eval", str(args.eval), "--repeat", str(args.repeat),
-         "--write-dir", str(args.out), "--csv", str(args.out / ZEROSET_CSV)]
-    )  # fmt: skip
+    cmd = [str(binary), "--n", ",".join(map(str, args.ns)), "--kernels", ",".join(args.kernel_list),
+           "--eval", str(args.eval), "--repeat", str(args.repeat), "--csv", str(args.out / ZS_CSV[config])]  # fmt: skip
+    if config == "1":
+        cmd += ["--write-dir", str(args.out)]
+    threads = "1" if config == "1" else str(args.mt)
+    common.run_logged(cmd, env={"RAYON_NUM_THREADS": threads})
 
 
 def read_zeroset(path: Path) -> list[ZsRow]:
@@ -150,6 +183,7 @@ def read_zeroset(path: Path) -> list[ZsRow]:
         v = (r.get(key) or "").strip()
         return conv(v) if v else None
 
+    flag = lambda v: v not in ("0", "false")  # noqa: E731
     rows = []
     with path.open(newline="") as f:
         rd = csv.DictReader(f)
@@ -168,6 +202,9 @@ def read_zeroset(path: Path) -> list[ZsRow]:
                     residual=cell(r, "max_constraint_residual", float),
                     runs=cell(r, "runs", int),
                     threads=cell(r, "threads", str),
+                    fit_warmup=cell(r, "fit_warmup", flag),
+                    eval_runs=cell(r, "eval_runs", int),
+                    eval_warmup=cell(r, "eval_warmup", flag),
                 )
             )
     return rows
@@ -194,7 +231,7 @@ def signed_distance(x: np.ndarray) -> np.ndarray:
     return np.linalg.norm(x - CENTRE, axis=1) - RADIUS
 
 
-def load_fit_points(out: Path, n: int) -> tuple[np.ndarray, np.ndarray]:
+def load_fit_points(out: Path, n: int, verbose: bool = True) -> tuple[np.ndarray, np.ndarray]:
     data = read_points(out / f"rbf_sphere_n{n}.csv", ["x", "y", "z", "value"])
     if data.shape[0] != n:
         sys.exit(f"rbf_sphere_n{n}.csv: {data.shape[0]} points, expected {n}")
@@ -205,16 +242,25 @@ def load_fit_points(out: Path, n: int) -> tuple[np.ndarray, np.ndarray]:
     if counts != [n - 2 * third, third, third]:
         print(f"  warning: value counts (0, +{OFFSET}, −{OFFSET}) = {counts}, expected "
               f"{[n - 2 * third, third, third]}", flush=True)  # fmt: skip
-    print(f"  {n} fit points; max |sd(x_i) − v_i| = {np.max(np.abs(signed_distance(pts) - vals)):.1e}", flush=True)
+    if verbose:
+        print(f"  {n} fit points; max |sd(x_i) − v_i| = {np.max(np.abs(signed_distance(pts) - vals)):.1e}", flush=True)
     return pts, vals
 
 
-def run_scipy(n: int, kernel: str, pts, vals, xe, band, sd_band, args) -> SpRow:
+def load_eval_points(out: Path, m: int) -> np.ndarray:
+    xe = read_points(out / f"rbf_eval_{m}.csv", ["x", "y", "z"])
+    if xe.shape[0] != m:
+        sys.exit(f"rbf_eval_{m}.csv: {xe.shape[0]} points, expected {m}")
+    return np.ascontiguousarray(xe)
+
+
+def run_scipy(n: int, kernel: str, pts, vals, xe, band, sd_band, args, blas: str) -> SpRow:
     single = n > args.scipy_once_above
-    row = SpRow(n, kernel, 1 if single else args.scipy_repeat, single)
+    row = SpRow(n, kernel, 1 if single else args.scipy_repeat, single, blas)
     how = "1 run, no warm-up" if single else f"warm-up + {row.runs}"
     sk = SCIPY_KERNEL[kernel]
-    print(f"  scipy RBFInterpolator kernel={sk!r}, degree={DEGREE}: fit and eval ({how} each) …", flush=True)
+    print(f"  scipy RBFInterpolator kernel={sk!r}, degree={DEGREE}, BLAS threads {blas}: fit and eval ({how} each) …",
+          flush=True)  # fmt: skip
     interp, row.fit_ms, _ = common.timed(
         lambda: RBFInterpolator(pts, vals, kernel=sk, degree=DEGREE), row.runs, warmup=not single
     )
@@ -226,6 +272,45 @@ def run_scipy(n: int, kernel: str, pts, vals, xe, band, sd_band, args) -> SpRow:
     return row
 
 
+def scipy_all(args) -> list[SpRow]:
+    """Times scipy on every (n, kernel) with the BLAS threads this process started with."""
+    blas = common.blas_runtime()
+    t0 = time.perf_counter()
+    xe = load_eval_points(args.out, args.eval)
+    sd = signed_distance(xe)
+    band = np.abs(sd) < OFFSET
+    print(f"\n{args.eval:,} evaluation points, {int(np.count_nonzero(band)):,} in the band |sd| < {OFFSET} "
+          f"(loaded in {time.perf_counter() - t0:.2f} s); BLAS threads {blas}", flush=True)  # fmt: skip
+    rows = []
+    for n in args.ns:
+        print(f"\n--- n={n} ---", flush=True)
+        pts, vals = load_fit_points(args.out, n)
+        for k in args.kernel_list:
+            rows.append(run_scipy(n, k, pts, vals, xe, band, sd[band], args, blas))
+    return rows
+
+
+def worker_main(args) -> None:
+    """`--worker JSON`: time scipy (BLAS threads as --blas-threads set them) and write the rows."""
+    rows = scipy_all(args)
+    Path(args.worker).write_text(json.dumps([asdict(r) for r in rows]))
+
+
+def scipy_child(args, threads: int) -> tuple[list[SpRow], str]:
+    """scipy_all in a child process whose BLAS starts with `threads` threads."""
+    out = args.out / f"rbf_scipy_blas{threads}.json"
+    out.unlink(missing_ok=True)
+    argv = ["--worker", str(out), "--out", str(args.out), "--n", ",".join(map(str, args.ns)),
+            "--kernels", ",".join(args.kernel_list), "--eval", str(args.eval),
+            "--scipy-repeat", str(args.scipy_repeat), "--scipy-once-above", str(args.scipy_once_above)]  # fmt: skip
+    rc = common.run_child(Path(__file__).resolve(), argv, threads)
+    if rc != 0 or not out.is_file():
+        print(f"warning: the scipy child with BLAS {threads} failed (exit {rc}); its columns are missing", flush=True)
+        return [], f"child failed (exit {rc})"
+    rows = [SpRow(**r) for r in json.loads(out.read_text())]
+    return rows, rows[0].blas if rows else "?"
+
+
 # ---------------------------------------------------------------------------------------------
 # Step 3: tables and bars
 
@@ -234,161 +319,246 @@ def kernel_order(k: str) -> int:
     return list(SCIPY_KERNEL).index(k) if k in SCIPY_KERNEL else len(SCIPY_KERNEL)
 
 
-def ratio(sp: float | None, zs: float | None) -> float:
-    """scipy_ms / zeroset_ms; NaN where either is missing."""
-    if sp is None or zs is None or math.isnan(sp) or math.isnan(zs) or zs <= 0:
-        return math.nan
-    return sp / zs
+@dataclass
+class Case:
+    """One (n, kernel, zeroset solver): zeroset at 1 and all threads, scipy at BLAS 1 and N."""
+
+    n: int
+    kernel: str
+    solver: str
+    zs1: ZsRow | None
+    zsn: ZsRow | None
+    sp1: SpRow | None
+    spn: SpRow | None
+
+    def zs(self) -> dict:
+        return {"zeroset 1 thread": self.zs1, "zeroset all threads": self.zsn}
+
+    def sp(self) -> dict:
+        return {"scipy BLAS 1": self.sp1, "scipy BLAS N": self.spn}
 
 
-def paired(zs_rows: list[ZsRow], sp_rows: list[SpRow]) -> list[tuple[int, str, ZsRow | None, SpRow | None]]:
-    """(n, kernel, zeroset row, scipy row) — one entry per zeroset row (several solvers per (n, kernel)
-    are possible), plus the scipy rows zeroset did not report."""
-    sp = {(r.n, r.kernel): r for r in sp_rows}
-    keys = sorted({(r.n, r.kernel) for r in zs_rows} | set(sp), key=lambda k: (k[0], kernel_order(k[1]), k[1]))
+def cases(zs1: list[ZsRow], zsn: list[ZsRow], sp1: list[SpRow], spn: list[SpRow]) -> list[Case]:
+    """One entry per (n, kernel, zeroset solver) — several solvers per (n, kernel) are possible —
+    plus the (n, kernel) scipy measured and zeroset did not report."""
+    z1 = {(r.n, r.kernel, r.solver): r for r in zs1}
+    zn = {(r.n, r.kernel, r.solver): r for r in zsn}
+    s1 = {(r.n, r.kernel): r for r in sp1}
+    sn = {(r.n, r.kernel): r for r in spn}
+    keys = set(z1) | set(zn)
+    keys |= {(n, k, "—") for n, k in set(s1) | set(sn) if not any(kk[:2] == (n, k) for kk in keys)}
     out = []
-    for n, k in keys:
-        zs = [r for r in zs_rows if r.n == n and r.kernel == k] or [None]
-        out += [(n, k, z, sp.get((n, k))) for z in zs]
+    for n, k, s in sorted(keys, key=lambda t: (t[0], kernel_order(t[1]), t[1], t[2])):
+        out.append(Case(n, k, s, z1.get((n, k, s)), zn.get((n, k, s)), s1.get((n, k)), sn.get((n, k))))
     return out
 
 
-def table(pairs, args):
-    header = ["n", "kernel", "zeroset solver", "zeroset fit ms", "scipy fit ms", "fit ratio",
-              "zeroset eval ms", "scipy eval ms", "eval ratio", "zeroset max err", "scipy max err",
-              "zeroset residual", "scipy residual", "note"]  # fmt: skip
+def zs_ms(z: ZsRow | None, what: str, repeat: int) -> str:
+    if z is None:
+        return "—"
+    if what == "fit":
+        return common.with_how(z.fit_ms, z.runs, z.fit_warmup, repeat)
+    return common.with_how(z.eval_ms, z.eval_runs, z.eval_warmup, repeat)
+
+
+def sp_ms(s: SpRow | None, what: str, repeat: int) -> str:
+    if s is None:
+        return "—"
+    return common.with_how(getattr(s, f"{what}_ms"), s.runs, not s.single, repeat)
+
+
+def ratios(c: Case, what: str) -> tuple[float, float, str]:
+    """(one thread each, each at its fastest, which configurations were fastest)."""
+    attr = f"{what}_ms"
+    get = lambda r: None if r is None else getattr(r, attr)  # noqa: E731
+    one = ratio(get(c.sp1), get(c.zs1))
+    zl, zm = common.fastest({k: get(v) for k, v in c.zs().items()})
+    sl, sm = common.fastest({k: get(v) for k, v in c.sp().items()})
+    fast = ratio(sm, zm)
+    return one, fast, "—" if math.isnan(fast) else f"{sl} ÷ {zl}"
+
+
+def time_table(cs: list[Case], what: str, args, mt: int):
+    header = ["n", "kernel", "zeroset solver", "zeroset 1 thread", f"zeroset {mt or 'all'} threads", "scipy BLAS 1",
+              f"scipy BLAS {mt or 'N'}", "scipy ÷ zeroset, 1 thread each", "scipy ÷ zeroset, each at its fastest",
+              "fastest configurations"]  # fmt: skip
     body = []
-    for n, k, z, s in pairs:
-        g = lambda attr: None if z is None else getattr(z, attr)  # noqa: E731
-        h = lambda attr: None if s is None else getattr(s, attr)  # noqa: E731
-        notes = []
-        if z is None:
-            notes.append("not in zeroset's CSV")
-        elif z.runs is not None and z.runs != args.repeat:
-            notes.append(f"zeroset runs {z.runs}")
-        if s is None:
-            notes.append("zeroset only")
-        elif s.single:
-            notes.append("scipy single run")
-        body.append([str(n), f"{k} / {SCIPY_KERNEL.get(k, '?')}", "—" if z is None else z.solver,
-                     fmt_ms(g("fit_ms")), fmt_ms(h("fit_ms")), fmt_ratio(ratio(h("fit_ms"), g("fit_ms"))),
-                     fmt_ms(g("eval_ms")), fmt_ms(h("eval_ms")), fmt_ratio(ratio(h("eval_ms"), g("eval_ms"))),
-                     fmt_e(g("max_err")), fmt_e(h("max_err")), fmt_e(g("residual")), fmt_e(h("residual")),
-                     "; ".join(notes)])  # fmt: skip
+    for c in cs:
+        one, best, which = ratios(c, what)
+        body.append([str(c.n), f"{c.kernel} / {SCIPY_KERNEL.get(c.kernel, '?')}", c.solver,
+                     zs_ms(c.zs1, what, args.repeat), zs_ms(c.zsn, what, args.repeat),
+                     sp_ms(c.sp1, what, args.scipy_repeat), sp_ms(c.spn, what, args.scipy_repeat),
+                     fmt_ratio(one), fmt_ratio(best), which])  # fmt: skip
     return header, body
 
 
-def check_bars(pairs, args) -> common.Bars:
-    bars = common.Bars()
-    find = lambda n, k: [(z, s) for pn, pk, z, s in pairs if pn == n and pk == k and z is not None]  # noqa: E731
-    sp_of = lambda n, k: next((s for pn, pk, _, s in pairs if pn == n and pk == k and s is not None), None)  # noqa: E731
-    where = lambda z: "" if z is None else f" ({z.solver})"  # noqa: E731
+def worst(*vals) -> float | None:
+    v = [x for x in vals if x is not None and not math.isnan(x)]
+    return max(v) if v else None
 
-    # Accuracy: zeroset at least as accurate as scipy in the band (the same interpolant for `r`).
+
+def best(*vals) -> float | None:
+    v = [x for x in vals if x is not None and not math.isnan(x)]
+    return min(v) if v else None
+
+
+def accuracy_table(cs: list[Case]):
+    header = ["n", "kernel", "zeroset solver", "zeroset max err (1 thread)", "zeroset max err (all)",
+              "scipy max err (BLAS 1)", "scipy max err (BLAS N)", "zeroset residual (worst)", "scipy residual (BLAS 1)"]  # fmt: skip
+    g = lambda r, a: None if r is None else getattr(r, a)  # noqa: E731
+    body = [[str(c.n), f"{c.kernel} / {SCIPY_KERNEL.get(c.kernel, '?')}", c.solver,
+             fmt_e(g(c.zs1, "max_err")), fmt_e(g(c.zsn, "max_err")), fmt_e(g(c.sp1, "max_err")),
+             fmt_e(g(c.spn, "max_err")), fmt_e(worst(g(c.zs1, "residual"), g(c.zsn, "residual"))),
+             fmt_e(g(c.sp1, "residual"))] for c in cs]  # fmt: skip
+    return header, body
+
+
+def check_bars(cs: list[Case], args) -> common.Bars:
+    bars = common.Bars()
+    g = lambda r, a: None if r is None else getattr(r, a)  # noqa: E731
+    where = lambda c: "" if c.solver == "—" else f" ({c.solver})"  # noqa: E731
+
+    # Accuracy: zeroset's worse run at least as accurate as scipy's better one, in the band.
     for k in SCIPY_KERNEL:
         for n in BAR_NS:
-            label = lambda z: f"n={n} {k}{where(z)}: zeroset max err in band ≤ scipy's (× {1 + ACC_SLACK:g})"  # noqa: E731
-            found = [(z, s) for z, s in find(n, k) if s is not None and z.max_err is not None]
+            found = [c for c in cs if c.n == n and c.kernel == k]
+            label = lambda c: f"n={n} {k}{where(c) if c else ''}: zeroset max err in band ≤ scipy's (× {1 + ACC_SLACK:g})"  # noqa: E731
             if not found:
                 bars.check(label(None), None, "not measured")
-            for z, s in found:
-                bars.check(label(z), z.max_err <= s.max_err * (1 + ACC_SLACK),
-                           f"{z.max_err:.3e} vs {s.max_err:.3e} (ratio {z.max_err / s.max_err:.3f})")  # fmt: skip
+            for c in found:
+                zm = worst(g(c.zs1, "max_err"), g(c.zsn, "max_err"))
+                sm = best(g(c.sp1, "max_err"), g(c.spn, "max_err"))
+                if zm is None or sm is None:
+                    bars.check(label(c), None, "not measured")
+                    continue
+                bars.check(label(c), zm <= sm * (1 + ACC_SLACK),
+                           f"{zm:.3e} vs {sm:.3e} (ratio {zm / sm:.3f}; zeroset's worse run, scipy's better)")  # fmt: skip
 
-    # Constraint residual, every zeroset row (also the zeroset-only ones).
-    for z in (z for _, _, z, _ in pairs if z is not None):
-        bars.check(f"n={z.n} {z.kernel}{where(z)}: constraint residual ≤ {RESIDUAL_TOL:g}",
-                   None if z.residual is None else z.residual <= RESIDUAL_TOL,
-                   "not reported" if z.residual is None else f"{z.residual:.2e}")  # fmt: skip
+    # Constraint residual, every zeroset row (also the zeroset-only ones), both thread settings.
+    for c in cs:
+        for label, z in (("1 thread", c.zs1), ("all threads", c.zsn)):
+            if z is None:
+                continue
+            bars.check(f"n={c.n} {c.kernel}{where(c)} ({label}): constraint residual ≤ {RESIDUAL_TOL:g}",
+                       None if z.residual is None else z.residual <= RESIDUAL_TOL,
+                       "not reported" if z.residual is None else f"{z.residual:.2e}")  # fmt: skip
 
-    # Speed at n = SPEED_N, per kernel (and per zeroset solver, if several).
+    # Speed at n = SPEED_N, per kernel (and per zeroset solver, if several): the bar each side at
+    # its fastest; one thread each reported beside it.
     for k in SCIPY_KERNEL:
-        for what, attr, target in (("fit", "fit_ms", 3.0), (f"eval {args.eval:,} pts", "eval_ms", 5.0)):
-            label = lambda z: f"n={SPEED_N} {k}{where(z)}: {what} ≥ {target:g}× faster than scipy"  # noqa: E731
-            s = sp_of(SPEED_N, k)
-            found = [z for z, _ in find(SPEED_N, k) if getattr(z, attr) is not None] if s else []
+        for what, target, label_what in (("fit", FIT_BAR, "fit"), ("eval", EVAL_BAR, f"eval {args.eval:,} pts")):
+            found = [c for c in cs if c.n == SPEED_N and c.kernel == k]
             if not found:
-                bars.check(label(None), None, "not measured")
-            for z in found:
-                zm, sm = getattr(z, attr), getattr(s, attr)
-                r = ratio(sm, zm)
-                bars.check(label(z), r >= target,
-                           f"{fmt_ms(sm)} / {fmt_ms(zm)} ms = {r:.1f}×")  # fmt: skip
+                bars.check(f"n={SPEED_N} {k}: {label_what} ≥ {target:g}× faster than scipy (each at its fastest)",
+                           None, "not measured")  # fmt: skip
+            for c in found:
+                one, fast, which = ratios(c, what)
+                bars.check(f"n={SPEED_N} {k}{where(c)}: {label_what} ≥ {target:g}× faster than scipy, each at its "
+                           "fastest", None if math.isnan(fast) else fast >= target, f"{fmt_ratio(fast)} ({which})")  # fmt: skip
+                bars.check(f"n={SPEED_N} {k}{where(c)}: {label_what} ≥ {target:g}× faster than scipy, one thread "
+                           "each (reported)", None if math.isnan(one) else one >= target,
+                           f"{fmt_ratio(one)} (scipy BLAS 1 ÷ zeroset RAYON_NUM_THREADS=1)")  # fmt: skip
     return bars
+
+
+def write_csv(path: Path, cs: list[Case], args, n_band: int) -> None:
+    cols = ["n", "kernel", "scipy_kernel", "zeroset_solver", "side", "threads", "fit_ms", "fit_runs", "fit_warmup",
+            "eval_ms", "eval_runs", "eval_warmup", "max_err_band", "max_constraint_residual", "eval_points",
+            "band_points", "ratio_fit_one_thread_each", "ratio_fit_each_fastest", "ratio_eval_one_thread_each",
+            "ratio_eval_each_fastest"]  # fmt: skip
+    with path.open("w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(cols)
+        for c in cs:
+            rf = ratios(c, "fit")
+            re_ = ratios(c, "eval")
+            tail = [common.num(v) for v in (rf[0], rf[1], re_[0], re_[1])]
+            head = [c.n, c.kernel, SCIPY_KERNEL.get(c.kernel, ""), c.solver]
+            for label, z in (("rayon 1", c.zs1), ("rayon all", c.zsn)):
+                if z is not None:
+                    wr.writerow(head + ["zeroset", z.threads or label] + [common.num(v) for v in (
+                        z.fit_ms, z.runs, None if z.fit_warmup is None else int(z.fit_warmup), z.eval_ms, z.eval_runs,
+                        None if z.eval_warmup is None else int(z.eval_warmup), z.max_err, z.residual)]
+                        + [args.eval, n_band] + tail)  # fmt: skip
+            for s in (c.sp1, c.spn):
+                if s is not None:
+                    wr.writerow(head + ["scipy", f"BLAS {s.blas}"] + [common.num(v) for v in (
+                        s.fit_ms, s.runs, int(not s.single), s.eval_ms, s.runs, int(not s.single), s.max_err,
+                        s.residual)] + [args.eval, n_band] + tail)  # fmt: skip
 
 
 def main() -> None:
     args = parse_args()
+    if args.worker:
+        worker_main(args)
+        return
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     load_start = common.loadavg()
-    print(f"BLAS threads: {BLAS_NOTE}; load average {load_start}\n", flush=True)
+    print(f"BLAS threads: {BLAS_NOTE} ({common.blas_runtime()}); all-threads configuration: "
+          f"{args.mt or 'not run'}; load average {load_start}\n", flush=True)  # fmt: skip
 
     if args.skip_zeroset:
-        print(f"--skip-zeroset: reusing the point files and {ZEROSET_CSV} in {out}", flush=True)
+        print(f"--skip-zeroset: reusing the point files and {', '.join(ZS_CSV.values())} in {out}", flush=True)
     else:
-        run_zeroset(args)
-    zs_rows = read_zeroset(out / ZEROSET_CSV)
-    for n in args.ns:
-        for k in args.kernel_list:
-            if not any(r.n == n and r.kernel == k for r in zs_rows):
-                print(f"warning: no zeroset row for n={n}, kernel {k} in {ZEROSET_CSV}", flush=True)
+        binary = common.built_example(EXAMPLE, args.skip_build)
+        run_zeroset(args, binary, "1")
+        if args.mt:
+            run_zeroset(args, binary, "all")
+    zs1 = read_zeroset(out / ZS_CSV["1"])
+    zsn = read_zeroset(out / ZS_CSV["all"]) if args.mt and (out / ZS_CSV["all"]).is_file() else []
+    for rows, label in [(zs1, "1 thread")] + ([(zsn, "all threads")] if args.mt else []):
+        for n in args.ns:
+            for k in args.kernel_list:
+                if not any(r.n == n and r.kernel == k for r in rows):
+                    print(f"warning: no zeroset row ({label}) for n={n}, kernel {k}", flush=True)
+    bad = [r for r in zs1 if r.threads not in (None, "1")]
+    if bad:
+        print(f"warning: the RAYON_NUM_THREADS=1 run reports threads={bad[0].threads}", flush=True)
+    zs1 = [r for r in zs1 if r.n in args.ns and r.kernel in args.kernel_list]
+    zsn = [r for r in zsn if r.n in args.ns and r.kernel in args.kernel_list]
     load_after_cargo = common.loadavg()
 
     t0 = time.perf_counter()
-    xe = read_points(out / f"rbf_eval_{args.eval}.csv", ["x", "y", "z"])
-    if xe.shape[0] != args.eval:
-        sys.exit(f"rbf_eval_{args.eval}.csv: {xe.shape[0]} points, expected {args.eval}")
-    xe = np.ascontiguousarray(xe)
-    sd = signed_distance(xe)
-    band = np.abs(sd) < OFFSET
-    n_band = int(np.count_nonzero(band))
-    print(f"\n{args.eval:,} evaluation points, {n_band:,} in the band |sd| < {OFFSET} "
-          f"(loaded in {time.perf_counter() - t0:.2f} s)", flush=True)  # fmt: skip
-
-    sp_rows = []
-    for n in args.ns:
-        print(f"\n--- n={n} ---", flush=True)
-        pts, vals = load_fit_points(out, n)
-        for k in args.kernel_list:
-            sp_rows.append(run_scipy(n, k, pts, vals, xe, band, sd[band], args))
+    sp1 = scipy_all(args)
+    blas1 = sp1[0].blas if sp1 else common.blas_runtime()
+    spn, blasn = scipy_child(args, args.mt) if args.mt else ([], "not run")
+    scipy_s = time.perf_counter() - t0
     load_after_scipy = common.loadavg()
 
-    pairs = paired(zs_rows, sp_rows)
-    header, body = table(pairs, args)
-    bars = check_bars(pairs, args)
-    threads = ", ".join(sorted({z.threads for z in zs_rows if z.threads})) or "not reported by the example"
-    print(f"\n=== RBF fit + eval of {args.eval:,} points: ratio = scipy_ms / zeroset_ms (> 1 means zeroset is "
-          f"faster); max err = max |s − sd| over the {n_band:,} points with |sd| < {OFFSET} ===\n"
-          f"{render_text(header, body, left=3, left_last=True)}")  # fmt: skip
+    n_band = int(np.count_nonzero(np.abs(signed_distance(load_eval_points(out, args.eval))) < OFFSET))
+    cs = cases(zs1, zsn, sp1, spn)
+    fh, fb = time_table(cs, "fit", args, args.mt)
+    eh, eb = time_table(cs, "eval", args, args.mt)
+    ah, ab = accuracy_table(cs)
+    bars = check_bars(cs, args)
+    zs_threads = ", ".join(sorted({z.threads for z in zs1 + zsn if z.threads})) or "not reported by the example"
+    legend = ("ratio = scipy ms ÷ zeroset ms (> 1: zeroset is faster); one thread each = scipy BLAS 1 ÷ zeroset "
+              "RAYON_NUM_THREADS=1; each at its fastest = scipy's faster BLAS setting ÷ zeroset's faster thread "
+              "setting")  # fmt: skip
+    print(f"\n=== fit (ms; {legend}) ===\n{render_text(fh, fb, left=3, left_last=True)}")
+    print(f"\n=== evaluation at {args.eval:,} points (ms) ===\n{render_text(eh, eb, left=3, left_last=True)}")
+    print(f"\n=== accuracy: max err = max |s − sd| over the {n_band:,} points with |sd| < {OFFSET}; residual = "
+          f"max |s(x_i) − v_i| ===\n{render_text(ah, ab, left=3)}")  # fmt: skip
     print(f"\n=== bars ===\n{bars.text()}")
 
     facts = common.machine_facts(
         [("load average 1/5/15 min, at start", load_start),
          ("load average 1/5/15 min, after cargo", load_after_cargo),
          ("load average 1/5/15 min, after scipy", load_after_scipy)],
-        [("BLAS threads (scipy side)", BLAS_NOTE), ("zeroset threads (from the example)", threads)],
+        [("BLAS threads (scipy, one-thread run)", f"{BLAS_NOTE}; OpenBLAS reports {blas1}"),
+         ("BLAS threads (scipy, all-threads run, child process)", blasn if args.mt else "not run"),
+         ("zeroset threads (from the example's CSV)", zs_threads),
+         ("scipy side wall time", f"{scipy_s:.1f} s")],
     )  # fmt: skip
-
-    with (out / "rbf_peers.csv").open("w", newline="") as f:
-        wr = csv.writer(f)
-        wr.writerow(["n", "kernel", "scipy_kernel", "zeroset_solver", "zeroset_runs", "scipy_runs", "eval_points",
-                     "band_points", "zeroset_fit_ms", "scipy_fit_ms", "ratio_fit", "zeroset_eval_ms",
-                     "scipy_eval_ms", "ratio_eval", "zeroset_max_err_band", "scipy_max_err_band",
-                     "zeroset_max_constraint_residual", "scipy_max_constraint_residual"])  # fmt: skip
-        for n, k, z, s in pairs:
-            g = lambda attr: None if z is None else getattr(z, attr)  # noqa: E731
-            h = lambda attr: None if s is None else getattr(s, attr)  # noqa: E731
-            wr.writerow([n, k, SCIPY_KERNEL.get(k, ""), g("solver") or "", common.num(g("runs")),
-                         common.num(h("runs")), args.eval, n_band] + [common.num(v) for v in (
-                g("fit_ms"), h("fit_ms"), ratio(h("fit_ms"), g("fit_ms")),
-                g("eval_ms"), h("eval_ms"), ratio(h("eval_ms"), g("eval_ms")),
-                g("max_err"), h("max_err"), g("residual"), h("residual"))])  # fmt: skip
+    write_csv(out / "rbf_peers.csv", cs, args, n_band)
 
     zs_source = (
-        f"timings and errors read from an earlier run's `{ZEROSET_CSV}` (`--skip-zeroset`; only scipy was timed now)"
+        f"timings and errors read from an earlier run's {' and '.join(f'`{v}`' for v in ZS_CSV.values())} "
+        "(`--skip-zeroset`; only scipy was timed now)"
         if args.skip_zeroset
-        else f"median of {args.repeat} runs after one warm-up"
+        else f"one warm-up, then the median of {args.repeat} runs (a single run without warm-up where the first "
+        "took over 2 s: marked next to the number)"
     )
     report = [
         "## Peer comparison: RBF implicit-surface fit and evaluation (zeroset vs scipy RBFInterpolator)",
@@ -396,16 +566,37 @@ def main() -> None:
         f"`benches/peers/rbf_peers.py {' '.join(sys.argv[1:])}`: same points in the same run. Sphere centre "
         f"(0.5, 0.5, 0.5), radius {RADIUS}; N − 2⌊N/3⌋ on-surface points (value 0) and ⌊N/3⌋ each at ±{OFFSET} "
         f"along the normal (value ±{OFFSET}); {args.eval:,} evaluation points uniform in [0, 1]³, {n_band:,} of "
-        f"them in the band |sd| < {OFFSET}. zeroset: `examples/rbf_timing.rs` ({zs_source}); zeroset threads: "
-        f"{threads}. scipy: `RBFInterpolator(points, values, kernel=K, degree={DEGREE})` (dense LU, LAPACK "
-        "dgesv) and its `__call__` at the evaluation points (kernel matrix built by single-threaded compiled "
-        f"code, products by BLAS), median of {args.scipy_repeat} runs after one warm-up, a single run without "
-        f"warm-up for N > {args.scipy_once_above}. Kernels: zeroset `r` (φ = r) vs scipy `linear` (φ = −r; with "
-        "the degree-1 polynomial part the same interpolant) and `r3` vs `cubic` (φ = r³). Ratio = scipy_ms / "
-        "zeroset_ms (> 1: zeroset faster). `max err` = max |s(x) − sd(x)| over the band, sd(x) = |x − c| − "
-        f"{RADIUS}; `residual` = max |s(x_i) − v_i| over the fit points. scipy BLAS threads: {BLAS_NOTE}.",
+        f"them in the band |sd| < {OFFSET}. Kernels: zeroset `r` (φ = r) vs scipy `linear` (φ = −r; with the "
+        "degree-1 polynomial part the same interpolant) and `r3` vs `cubic` (φ = r³).",
         "",
-        render_md(header, body, left=3),
+        "**Timed.** zeroset (`examples/rbf_timing.rs`, run with RAYON_NUM_THREADS=1 and with "
+        f"RAYON_NUM_THREADS={args.mt or '—'}; threads reported: {zs_threads}; {zs_source}): *fit* = from the plain "
+        "point and value arrays to a field ready to evaluate — building the constraints, validation and duplicate "
+        "check, the polynomial's scaling, the kernel matrix, the factorisation and solve (or GMRES), the "
+        "refinement step and the residual check, the field; *eval* = the field's values at the evaluation points "
+        f"into a new array. scipy {__import__('scipy').__version__}: *fit* = `RBFInterpolator(points, values, "
+        f"kernel=K, degree={DEGREE})` (input checks, scaling, the kernel matrix by single-threaded compiled code, "
+        "LAPACK dgesv); *eval* = its `__call__` at the evaluation points (compiled kernel matrix, BLAS product); "
+        f"median of {args.scipy_repeat} runs after one warm-up, a single run without warm-up for N > "
+        f"{args.scipy_once_above} (marked next to the number); with BLAS at one thread ({blas1}) and, in a child "
+        f"process, at {args.mt or '—'} threads ({blasn}). Loading the points is outside both.",
+        "",
+        f"**Ratios** = scipy ms ÷ zeroset ms (> 1: zeroset is faster): one thread each (scipy BLAS 1 ÷ zeroset "
+        "RAYON_NUM_THREADS=1), and each at its fastest (the faster of scipy's two BLAS settings ÷ the faster of "
+        "zeroset's two thread settings; the configurations are named). `max err` = max |s(x) − sd(x)| over the "
+        f"band, sd(x) = |x − c| − {RADIUS}; `residual` = max |s(x_i) − v_i| over the fit points.",
+        "",
+        "### Fit (ms)",
+        "",
+        render_md(fh, fb, left=3),
+        "",
+        f"### Evaluation at {args.eval:,} points (ms)",
+        "",
+        render_md(eh, eb, left=3),
+        "",
+        "### Accuracy",
+        "",
+        render_md(ah, ab, left=3),
         "",
         "### Bars",
         "",

@@ -11,11 +11,11 @@
 //! A grid is `N` (voxels along the longest axis of the field's box) or `coarse` / `general` /
 //! `fine` (the l0 rule of `zeroset_mesh::voxel`: 5·l0, l0, 0.3·l0). The M2L operators of both
 //! orders are timed once, from an empty cache (they depend on the kernel and order only). Per
-//! grid, everything SMC needs is timed as `zeroset mesh --method smc` does it: the order-`p`
-//! and order-`P` fields, each shaped for the evaluations it will see
-//! (`zeroset_mesh::expected_evaluations`; `low_s`, `high_s`), the errors of both orders
-//! sampled against the direct sum as `OrderPair` does, which give the margin (10 × their sum;
-//! `margin_s`), and the signed marching cubes (`smc_s`); `total_s` is their sum with the
+//! grid, everything SMC needs is timed as `zeroset mesh --method smc` does it: the `OrderPair`
+//! (`pair_s`: the order-`p` and order-`P` fields, each shaped for the evaluations it will see
+//! by `zeroset_mesh::expected_evaluations`, and both orders' errors sampled against the direct
+//! sum at the same 4,096 points, which give the margin, 10 × their sum), and the signed
+//! marching cubes (`smc_s`); `total_s` is their sum with the
 //! operators reused, `first_s` with both orders' operators built (a one-shot program). Step 1
 //! settles blocks by enclosures (`--step blocks`, the default) or evaluates every vertex
 //! (`--step every`, the paper's step 1).
@@ -44,7 +44,7 @@ mod fmm_data;
 use std::time::Instant;
 
 use zeroset::bases::rbf::fmm::{
-    DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmField, FmmOptions, cache,
+    DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmField, FmmOptions, OrderPair, cache,
 };
 use zeroset::bases::rbf::{Kernel, RbfField};
 use zeroset::core::ScalarField;
@@ -126,8 +126,8 @@ fn table<K: Kernel + Clone>(
         rayon::current_num_threads()
     );
     println!(
-        "{:>8} {:>14} {:>10} {:>10} {:>10} {:>10} {:>7} {:>9} {:>6} {:>6} {:>8} {:>6} {:>7} \
-         {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>9}",
+        "{:>8} {:>14} {:>10} {:>10} {:>10} {:>10} {:>7} {:>9} {:>6} {:>6} {:>7} {:>7} {:>7} \
+         {:>8} {:>8} {:>8} {:>8} {:>9}",
         "grid",
         "shape",
         "voxel",
@@ -136,9 +136,7 @@ fn table<K: Kernel + Clone>(
         "N_SMC,P",
         "gamma",
         "margin",
-        "low_s",
-        "high_s",
-        "margin_s",
+        "pair_s",
         "smc_s",
         "total_s",
         "first_s",
@@ -168,28 +166,31 @@ fn table<K: Kernel + Clone>(
         let build = |options: FmmOptions, points: usize| {
             timed(|| Ok(FmmField::new(field, &options.with_expected_points(points))?))
         };
-        // Everything `zeroset mesh --method smc` does once the operators exist.
+        // Everything `zeroset mesh --method smc` does once the operators exist: both fields,
+        // each shaped for the evaluations it will see, their errors sampled against the direct
+        // sum (the margin), then the signed marching cubes.
         let smc_run = || -> Res<_> {
-            let (low_field, low_s) = build(low_options, e_low)?;
-            let (high_field, high_s) = build(high_options, e_high)?;
-            let (margin, margin_s) = timed(|| {
-                let (low_error, _) = low_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 1);
-                let (high_error, _) = high_field.sampled_error(field, DEFAULT_ERROR_SAMPLES, 2);
-                Ok(DEFAULT_SAFETY * (low_error + high_error))
+            let (pair, pair_s) = timed(|| {
+                Ok(OrderPair::new(
+                    field,
+                    &low_options.with_expected_points(e_low),
+                    &high_options.with_expected_points(e_high),
+                    DEFAULT_ERROR_SAMPLES,
+                    DEFAULT_SAFETY,
+                )?)
             })?;
             let ((mesh, r), smc_s) = timed(|| {
                 Ok(signed_marching_cubes(
-                    &low_field,
-                    &high_field,
+                    &pair.low,
+                    &pair.high,
                     &grid,
                     0.0,
-                    margin,
+                    pair.margin,
                     &smc_options,
                     None,
                 )?)
             })?;
-            let times = [low_s, high_s, margin_s, smc_s];
-            Ok((mesh, r, margin, times, low_field, high_field))
+            Ok((mesh, r, pair, [pair_s, smc_s]))
         };
         // Plain MC at its fastest: an order-P field shaped for every vertex, build included.
         let tuned_run = || -> Res<f64> {
@@ -212,18 +213,19 @@ fn table<K: Kernel + Clone>(
             }
             last = Some(out);
         }
-        let (mesh, r, margin, _, low_field, high_field) = last.ok_or("no run")?;
+        let (mesh, r, pair, _) = last.ok_or("no run")?;
+        let (margin, low_field, high_field) = (pair.margin, &pair.low, &pair.high);
         // The median run by total time, and its stages.
         runs.sort_by(|a, b| a.iter().sum::<f64>().total_cmp(&b.iter().sum::<f64>()));
-        let [low_s, high_s, margin_s, smc_s] = runs[runs.len() / 2];
-        let total_s = low_s + high_s + margin_s + smc_s;
+        let [pair_s, smc_s] = runs[runs.len() / 2];
+        let total_s = pair_s + smc_s;
         let first_s = total_s + low_ops_s + high_ops_s;
         tuned.sort_by(f64::total_cmp);
         let tuned_s = tuned[tuned.len() / 2];
         let tuned_first_s = tuned_s + high_ops_s;
         // The mesh is plain MC's on the order-P field, bit for bit, whenever the margin holds
         // the errors of both orders (checked here on every grid; timed once, not a ratio).
-        let reference = mesh_field(&high_field, &grid, 0.0, &options)?;
+        let reference = mesh_field(high_field, &grid, 0.0, &options)?;
         let same = reference.triangles() == mesh.triangles()
             && reference.vertices().len() == mesh.vertices().len()
             && reference
@@ -241,7 +243,7 @@ fn table<K: Kernel + Clone>(
         };
         println!(
             "{spec:>8} {:>14} {h:>10.3e} {:>10} {:>10} {:>10} {:>6.2}% {margin:>9.2e} \
-             {low_s:>6.2} {high_s:>6.2} {margin_s:>8.2} {smc_s:>6.2} {total_s:>7.2} \
+             {pair_s:>6.2} {smc_s:>6.2} {total_s:>7.2} \
              {first_s:>7.2} {tuned_s:>7.2} {tuned_first_s:>7.2} {:>8.2} {:>8.2} {direct_s:>8.2} \
              {:>9}",
             format!("{}x{}x{}", c[0], c[1], c[2]),
@@ -254,7 +256,7 @@ fn table<K: Kernel + Clone>(
             if same { "yes" } else { "NO" },
         );
         let lr = low_field.report();
-        let probe = settled_fraction(&low_field, &grid, 0.0, margin, 512);
+        let probe = settled_fraction(low_field, &grid, 0.0, margin, 512);
         println!(
             "{:>8} order-{low} field for {e_low} points: {} leaves, {} M2L pairs; order-{high} \
              for {e_high}: {} leaves; probe: {:.0}% of 512 blocks settle; {} enclosures \

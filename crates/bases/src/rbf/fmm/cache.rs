@@ -147,6 +147,41 @@ pub(crate) fn operators<K: Kernel + ?Sized>(
     ops
 }
 
+/// Where the operators a field of `kernel` with `options` would use are already, without
+/// building or fetching anything.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cached {
+    /// Built, in this process's cache: a new field pays nothing for them.
+    InMemory,
+    /// In the disk cache: a new field reads them (milliseconds).
+    OnDisk,
+    /// Not built yet (a kernel that is not homogeneous needs operators per cell width, which
+    /// depend on the data: always `NotYet`).
+    NotYet,
+}
+
+/// Where the operators for `kernel` at `options` are (see [`Cached`]); `NotYet` for options
+/// out of range.
+pub fn cached<K: Kernel + ?Sized>(kernel: &K, options: &super::FmmOptions) -> Cached {
+    if options.check().is_err() || kernel.homogeneity().is_none() {
+        return Cached::NotYet;
+    }
+    let key = OperatorKey::new(
+        kernel,
+        options.order,
+        options.tolerance(),
+        options.compression(),
+    );
+    let in_memory = registry().entries.iter().find(|o| *o.key() == key).cloned();
+    if in_memory.is_some_and(|o| o.has_level(1.0)) {
+        return Cached::InMemory;
+    }
+    match disk_dir() {
+        Some(dir) if file_for(&dir, &key, 1.0).is_file() => Cached::OnDisk,
+        _ => Cached::NotYet,
+    }
+}
+
 /// Drops the least recently used sets until the rest fit the limit (the newest always stays).
 fn trim(reg: &mut Registry) {
     let mut total: usize = reg.entries.iter().map(|o| o.bytes()).sum();

@@ -531,6 +531,15 @@ impl<K: Kernel> FmmField<K> {
         count: usize,
         seed: u64,
     ) -> (f64, f64) {
+        let points = self.error_samples(count, seed);
+        let mut slow = vec![0.0; points.len()];
+        exact.values(&points, &mut slow);
+        self.error_at(&points, &slow)
+    }
+
+    /// The points [`FmmField::sampled_error`] measures at: `count` of them, half uniform in the
+    /// field's bounds, half at the centres moved by up to a leaf's width (seeded).
+    fn error_samples(&self, count: usize, seed: u64) -> Vec<Point<3>> {
         let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
         let mut uniform = move || {
             // SplitMix64.
@@ -549,7 +558,7 @@ impl<K: Kernel> FmmField<K> {
             .map(|c| c.half)
             .fold(0.0, f64::max);
         let n = self.weights.len();
-        let points: Vec<Point<3>> = (0..count)
+        (0..count)
             .map(|i| {
                 if i % 2 == 0 {
                     std::array::from_fn(|a| b.min()[a] + uniform() * (b.max()[a] - b.min()[a]))
@@ -558,16 +567,20 @@ impl<K: Kernel> FmmField<K> {
                     std::array::from_fn(|a| self.pos[a][j] + (2.0 * uniform() - 1.0) * leaf)
                 }
             })
-            .collect();
-        let (mut fast, mut slow) = (vec![0.0; count], vec![0.0; count]);
-        self.values(&points, &mut fast);
-        exact.values(&points, &mut slow);
+            .collect()
+    }
+
+    /// The largest and the root-mean-square difference from `exact` (the exact values at
+    /// `points`).
+    fn error_at(&self, points: &[Point<3>], exact: &[f64]) -> (f64, f64) {
+        let mut fast = vec![0.0; points.len()];
+        self.values(points, &mut fast);
         let (max, sum) = fast
             .iter()
-            .zip(&slow)
+            .zip(exact)
             .map(|(a, b)| (a - b).abs())
             .fold((0.0, 0.0), |(m, s), e| (f64::max(m, e), s + e * e));
-        (max, (sum / count.max(1) as f64).sqrt())
+        (max, (sum / points.len().max(1) as f64).sqrt())
     }
 
     fn n(&self) -> usize {
@@ -1269,7 +1282,8 @@ impl<K: Kernel> pulp::WithSimd for P2lTask<'_, K> {
 /// The paper takes the error `ε_p` of order `p` as known from its Tables 1–2, measured against
 /// direct sums. Here it is measured the same way when the pair is built:
 /// [`FmmField::sampled_error`] at `samples` points (half uniform in the field's box, half next
-/// to the centres, where the sign changes), for both orders. The margin is
+/// to the centres, where the sign changes), the same points for both orders (the direct sum is
+/// evaluated there once). The margin is
 /// `safety · (ε_p + ε_P)`: a vertex whose low-order value is farther than that from the level
 /// has the same sign at order `P` (`|s_p − s_P| ≤ ε_p + ε_P`), so only the other vertices need
 /// order `P`. The sampled maximum is an estimate, not a bound; the safety factor (default 10)
@@ -1288,8 +1302,11 @@ pub struct OrderPair<K> {
     pub margin: f64,
     /// The safety factor.
     pub safety: f64,
-    /// The error samples per order.
+    /// The error samples (the same points for both orders).
     pub samples: usize,
+    /// The sample points and the exact values there.
+    sample_points: Vec<Point<3>>,
+    sample_values: Vec<f64>,
 }
 
 /// The default safety factor of [`OrderPair::new`].
@@ -1323,8 +1340,12 @@ impl<K: Kernel + Clone> OrderPair<K> {
         }
         let low_field = FmmField::new(field, low)?;
         let high_field = FmmField::new(field, high)?;
-        let (low_error, _) = low_field.sampled_error(field, samples, 1);
-        let (high_error, _) = high_field.sampled_error(field, samples, 2);
+        // Both orders at the same points, so that the direct sum is evaluated once.
+        let sample_points = low_field.error_samples(samples, 1);
+        let mut sample_values = vec![0.0; samples];
+        field.values(&sample_points, &mut sample_values);
+        let (low_error, _) = low_field.error_at(&sample_points, &sample_values);
+        let (high_error, _) = high_field.error_at(&sample_points, &sample_values);
         Ok(Self {
             low: low_field,
             high: high_field,
@@ -1333,6 +1354,8 @@ impl<K: Kernel + Clone> OrderPair<K> {
             margin: safety * (low_error + high_error),
             safety,
             samples,
+            sample_points,
+            sample_values,
         })
     }
 
@@ -1345,7 +1368,10 @@ impl<K: Kernel + Clone> OrderPair<K> {
     /// another order or compression than the pair's low field has.
     pub fn with_low(mut self, field: &RbfField<K, 3>, low: &FmmOptions) -> Result<Self, FmmError> {
         self.low = FmmField::with_operators(field, low, self.low.shared_operators())?;
-        self.low_error = self.low.sampled_error(field, self.samples, 1).0;
+        self.low_error = self
+            .low
+            .error_at(&self.sample_points, &self.sample_values)
+            .0;
         self.margin = self.safety * (self.low_error + self.high_error);
         Ok(self)
     }

@@ -1,7 +1,10 @@
 //! `zeroset demo`: the main job on built-in sample data. It describes the bundled point cloud,
 //! solves a restoration-shaped least-squares problem with every solver (how long each took,
 //! iterations, residuals, and how far each answer is from the sparse-QR reference — the
-//! solvers must agree), removes the bunny's ears by protrusion removal, and finally runs the
+//! solvers must agree: the demo fails, with exit status 1, if any answer is farther from the
+//! reference than `κ² (τ + u) max|x_qr|`, `κ` the condition number of the mask's Laplacian,
+//! `τ = 1e-12` the iterative solvers' tolerance and `u = 2⁻⁵³`; see [`agreement_tolerance`]),
+//! removes the bunny's ears by protrusion removal, and finally runs the
 //! whole pipeline on the sample: an RBF fit, sampled on a grid, its ears removed, the restored
 //! zero set meshed by marching cubes, written as a binary PLY with a shaded PNG preview (and
 //! the unrestored fit's for comparison) and a text report (in `./zeroset-demo/` or `--out`).
@@ -92,8 +95,11 @@ impl SampleFile {
         let dir = std::env::temp_dir().join(format!("zeroset-demo-{}", std::process::id()));
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let path = dir.join("bunny_2k.xyzn");
-        std::fs::write(&path, SAMPLE).with_context(|| format!("writing {}", path.display()))?;
-        Ok(Self { dir, path })
+        // Owned before writing, so that a failed write still removes the directory.
+        let sample = Self { dir, path };
+        zeroset_field_core::io::write_atomic(&sample.path, |w| w.write_all(SAMPLE.as_bytes()))
+            .with_context(|| format!("writing {}", sample.path.display()))?;
+        Ok(sample)
     }
 }
 
@@ -191,7 +197,7 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
         "   {m} equations (Laplace + Neumann rows), {n} unknowns, {} non-zeros",
         p.a.val().len()
     );
-    let tight = IterativeParams::default().with_tolerance(1e-12);
+    let tight = IterativeParams::default().with_tolerance(ITERATIVE_TOLERANCE);
     let poisson = Arc::new(DirichletLaplacian::new([k, k, k], 1.0 / 6.0)?);
     let mut solvers: Vec<(&str, Box<dyn LeastSquaresSolver>)> = vec![
         ("sparse-qr", Box::new(SparseQr::default())),
@@ -205,7 +211,7 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
         (
             "pcg-normal",
             Box::new(Pcg::new(PcgParams {
-                tol: 1e-12,
+                tol: ITERATIVE_TOLERANCE,
                 ..Default::default()
             })),
         ),
@@ -221,6 +227,7 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
     );
     let spinner = crate::progress::spinner(quiet);
     let mut reference: Option<Vec<f64>> = None;
+    let mut worst: Option<(f64, String)> = None;
     for (label, solver) in &solvers {
         spinner.set_message(format!("solving with {label}"));
         let start = Instant::now();
@@ -233,7 +240,21 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
                 reference = Some(s.x.clone());
                 0.0
             }
-            Some(r) => max_abs_diff(r, &s.x),
+            Some(r) => {
+                // A non-finite answer is the worst of all (max_abs_diff would skip a NaN).
+                let diff = if s.x.iter().all(|v| v.is_finite()) {
+                    max_abs_diff(r, &s.x)
+                } else {
+                    f64::NAN
+                };
+                if worst
+                    .as_ref()
+                    .is_none_or(|(w, _)| diff.is_nan() || diff > *w)
+                {
+                    worst = Some((diff, (*label).to_owned()));
+                }
+                diff
+            }
         };
         spinner.suspend(|| {
             println!(
@@ -245,6 +266,60 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
     spinner.finish_and_clear();
     if n > DENSE_LIMIT {
         println!("(dense-qr and normal-lu skipped above {DENSE_LIMIT} unknowns; try --k 11)");
+    }
+    let scale = reference
+        .as_deref()
+        .map_or(0.0, |x| x.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+    check_agreement(k, scale, &worst)
+}
+
+/// The relative normal-equation residual the iterative solvers are asked to reach.
+const ITERATIVE_TOLERANCE: f64 = 1e-12;
+
+/// The tolerance on `max|x − x_qr|` of the demo's restoration problem at mask size `k`, for a
+/// solution of magnitude `scale = max|x_qr|`: `κ² (τ + u) · scale`, with `τ` =
+/// [`ITERATIVE_TOLERANCE`] and `u = 2⁻⁵³`; returns `(κ, tolerance)`.
+///
+/// `κ = cot²(π / (2(k + 1)))` is the condition number of the `k³` Dirichlet Laplacian (its
+/// eigenvalues `Σₐ 4 sin²(jₐπ / (2(k + 1)))`, `1 ≤ jₐ ≤ k`, range from `12 sin²(π/(2(k+1)))`
+/// to `12 cos²(π/(2(k+1)))`), the square block of the least-squares matrix `A` (the Neumann
+/// rows only add to `AᵀA`). An answer whose normal equations `AᵀA x = Aᵀb` hold to a relative
+/// residual `ε` is off by up to `κ(AᵀA) ε = κ² ε` relative to `x*`: the normal equations square
+/// the condition number. The direct solvers are exact to rounding (`ε ≈ u`: sparse QR better,
+/// sparse Cholesky and LU on `AᵀA` at that bound), the iterative ones stop at `ε ≈ τ`, which
+/// dominates. At the default `k = 16`: `κ = 117`, tolerance `1.4e-8 · scale`; the farthest
+/// answer (CGLS, `3.6e-11 · scale`) is 380 times closer than that, and from `k = 11` to `32`
+/// 150 to 1700 times; a wrong answer is off by orders of magnitude more.
+fn agreement_tolerance(k: usize, scale: f64) -> (f64, f64) {
+    let kappa = (std::f64::consts::PI / (2.0 * (k as f64 + 1.0)))
+        .tan()
+        .powi(-2);
+    let u = f64::EPSILON / 2.0;
+    (
+        kappa,
+        kappa * kappa * (ITERATIVE_TOLERANCE + u) * scale.max(f64::MIN_POSITIVE),
+    )
+}
+
+/// Prints the tolerance and fails unless every solver's answer is within it of the
+/// reference; `worst` is the largest `max|x − x_qr|` and the solver that had it.
+fn check_agreement(k: usize, scale: f64, worst: &Option<(f64, String)>) -> anyhow::Result<()> {
+    let (kappa, tolerance) = agreement_tolerance(k, scale);
+    let Some((diff, label)) = worst else {
+        return Ok(());
+    };
+    println!(
+        "agreement: largest max|x - x_qr| {diff:.2e} ({label}); tolerance {tolerance:.2e} = \
+         κ² (τ + u) max|x_qr|, κ = {kappa:.1} (the Laplacian's condition number; the normal \
+         equations square it), τ = {ITERATIVE_TOLERANCE:.0e} (the iterative solvers' \
+         tolerance), u = 2^-53, max|x_qr| = {scale:.3}"
+    );
+    // A NaN difference fails too.
+    if diff.is_nan() || *diff > tolerance {
+        anyhow::bail!(
+            "the solvers disagree: {label} is {diff:.2e} from the sparse-QR solution, more than \
+             the tolerance {tolerance:.2e} (κ = {kappa:.1}); a solver is wrong on this problem"
+        );
     }
     Ok(())
 }
@@ -472,4 +547,39 @@ fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
     println!("   wrote {}", txt.display());
     println!("   pipeline total {}", secs(total.elapsed()));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tolerance_follows_the_laplacians_condition_number() {
+        // κ(k) = cot²(π/(2(k+1))) is λ_max/λ_min of the k³ Dirichlet Laplacian.
+        for k in [2usize, 16, 64] {
+            let t = std::f64::consts::PI / (2.0 * (k as f64 + 1.0));
+            let (lo, hi) = (12.0 * t.sin().powi(2), 12.0 * t.cos().powi(2));
+            let (kappa, tolerance) = agreement_tolerance(k, 2.0);
+            assert!((kappa - hi / lo).abs() < 1e-9 * kappa, "k = {k}: {kappa}");
+            let want = kappa * kappa * (ITERATIVE_TOLERANCE + f64::EPSILON / 2.0) * 2.0;
+            assert!((tolerance - want).abs() <= 1e-12 * want, "k = {k}");
+        }
+        let (kappa, tolerance) = agreement_tolerance(16, 1.0);
+        assert!((kappa - 116.5).abs() < 0.1, "{kappa}");
+        assert!((1.3e-8..1.4e-8).contains(&tolerance), "{tolerance}");
+    }
+
+    #[test]
+    fn disagreement_fails_the_demo() {
+        assert!(check_agreement(16, 0.3, &None).is_ok());
+        assert!(check_agreement(16, 0.3, &Some((1e-11, "cgls".into()))).is_ok());
+        let e = check_agreement(16, 0.3, &Some((1e-3, "lsqr".into()))).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("the solvers disagree: lsqr is 1.00e-3"),
+            "{e}"
+        );
+        // A non-finite answer is a disagreement.
+        assert!(check_agreement(16, 0.3, &Some((f64::NAN, "pcg".into()))).is_err());
+    }
 }

@@ -1,15 +1,30 @@
 //! `zeroset fit POINTS --method rbf|neural`: fit an implicit field to an oriented point cloud
-//! (or, for `neural`, to a file of value constraints) and report how well it fits.
+//! or to a file of value constraints, and report how well it fits.
 //!
 //! `--method neural` lives in [`crate::fit_neural`]; the rest of this module is the RBF fit.
 //!
-//! The radial-basis-function fit (`zeroset_bases::rbf`) interpolates either Carr et al.'s
-//! off-surface constraints (value 0 at each point, `±ε` at `p ± ε n`) or Hermite constraints
-//! (value 0 and gradient `n` at each point, kernel `r³`). Until meshing exists the command
+//! The radial-basis-function fit (`zeroset_bases::rbf`) of a point cloud interpolates either
+//! Carr et al.'s off-surface constraints (value 0 at each point, `±ε` at `p ± ε n`) or Hermite
+//! constraints (value 0 and gradient `n` at each point, kernel `r³` or Wendland). The command
 //! prints the fit's report and a sanity check at a few input points; with `-o` it saves the RBF
 //! field itself as a `.zsf` field file (exact, and fast to write), which `zeroset mesh`,
 //! `zeroset restore` and `zeroset info` read. `--sampled` keeps the older output: the RBF field
 //! sampled on a grid over the cloud and interpolated by a quadratic B-spline.
+//!
+//! A value-constraint file (`.xyv`: `x y value`, a 2-D curve; `.xyzv`: `x y z value`) is
+//! interpolated as it is (Jiang–Turk, paper 003 §2: on-curve points 0, inside points negative,
+//! outside points positive), by default with the thin-plate spline `r² ln r` in 2-D (as
+//! `examples/rbf_curve_2d.rs`) and `r` in 3-D; `zeroset mesh FIELD.zsf -o CURVE.svg` traces a
+//! 2-D field's zero curve.
+//!
+//! `--kernel wendland` is Wendland's compactly supported `ψ₃,₁` (the user kernel the field file
+//! stores), with the support radius `--radius ρ`, by default [`WENDLAND_FRACTION`] = 1/2 of
+//! the diagonal of the data's box. Too small a support leaves gaps between the constraints
+//! where the field falls back to its linear polynomial and the zero set breaks up: on
+//! `samples/curve.xyv` `ρ` = 1/16 and 1/8 of the diagonal give 8 and 11 loops, 1/4 and more
+//! the one true loop (enclosed area within 0.1% of the true curve's from 1/4 to 2). Half the
+//! diagonal keeps a factor of two from that edge; the solve is dense either way, so a larger
+//! support costs nothing but conditioning (condition estimate 16 there, 5 at 1/4).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -21,16 +36,18 @@ use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
 use zeroset_bases::rbf::{
     AUTO_DENSE_LIMIT, Biharmonic, Constraints, FitReport, IterativeParams, Offset, OffsetReport,
-    RbfField, RbfFit, Solver, Triharmonic,
+    RbfField, RbfFit, Solver, ThinPlate, Triharmonic, Wendland,
 };
 use zeroset_field_core::field::ScalarField;
-use zeroset_field_core::geometry::{Point, dot, norm};
+use zeroset_field_core::geometry::{Aabb, Point, dot, norm};
 use zeroset_field_core::grid::Grid;
-use zeroset_field_core::io::{ReadOptions, read_point_cloud_with, value_file_dimension};
+use zeroset_field_core::io::{
+    ReadOptions, ValuePoints, read_point_cloud_with, read_value_points, value_file_dimension,
+};
 use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
-use crate::machine::available_memory;
+use crate::machine::{counts_text, ensure_memory, sample_count};
 use crate::progress::{counter, seconds, spinner};
 use crate::restore::{cubic_counts, parse_counts};
 
@@ -47,15 +64,21 @@ Examples:
   # a neural field (MLP 3 → 32 → 32 → 1 with the thin-plate curvature loss), then meshed
   zeroset fit samples/bunny_2k.xyzn --method neural --steps 1500 -o bunny_nn.zsf
   zeroset mesh bunny_nn.zsf -o bunny_nn.ply
-  # a 2-D curve from value constraints (x y value per line: -1 inside, 0 on, +1 outside)
-  zeroset fit samples/curve.xyv --method neural -o curve.zsf
-  zeroset preview curve.zsf -o curve.png
+  # a 2-D curve from value constraints (x y value per line: -1 inside, 0 on, +1 outside):
+  # the thin-plate spline through them (Jiang–Turk), its zero curve drawn as SVG
+  zeroset fit samples/curve.xyv --method rbf -o curve.zsf
+  zeroset mesh curve.zsf -o curve.svg
+  # the same with Wendland's compact kernel (support radius 0.5), or a neural field
+  zeroset fit samples/curve.xyv --method rbf --kernel wendland --radius 0.5 -o curve_w.zsf
+  zeroset fit samples/curve.xyv --method neural -o curve_nn.zsf
+  zeroset preview curve_nn.zsf -o curve.png
   # the field sampled on a 96-cell grid as a quadratic B-spline, for `zeroset restore`
   zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny_bs.zsf --sampled --grid 96,96,75
   zeroset restore bunny_bs.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
       --coarse 6,6,4 -o smooth.zsf
 
-The input needs normals that point out of the solid (the field is negative inside).
+A point cloud needs normals that point out of the solid (the field is negative inside); a
+value file (.xyv, .xyzv) is interpolated as it is, values negative inside.
 -o FIELD saves the RBF field itself (kernel, centres, weights, polynomial): exact, and quick
 to write. With --sampled it saves the RBF field sampled on a grid and interpolated by a
 quadratic B-spline instead: an approximation, on the grid `zeroset restore` works on.";
@@ -73,12 +96,15 @@ pub enum Method {
 /// The `--kernel` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum KernelArg {
-    /// φ(r) = r, the biharmonic spline of 3-D (Carr et al.); off-surface constraints only.
+    /// φ(r) = r, the biharmonic spline of 3-D (Carr et al.); not for --hermite.
     R,
     /// φ(r) = r³, the triharmonic spline of 3-D; smooth at 0, so it also takes --hermite.
     R3,
-    /// φ(r) = r² ln r, the thin-plate spline of 2-D curves (not for 3-D point clouds).
+    /// φ(r) = r² ln r, the thin-plate spline of 2-D curves (.xyv files only).
     Tps,
+    /// Wendland's compactly supported ψ₃,₁ = (1 − r/ρ)⁴₊ (4r/ρ + 1), radius ρ from --radius;
+    /// smooth at 0, so it also takes --hermite.
+    Wendland,
 }
 
 impl KernelArg {
@@ -87,15 +113,21 @@ impl KernelArg {
             KernelArg::R => "r",
             KernelArg::R3 => "r3",
             KernelArg::Tps => "tps",
+            KernelArg::Wendland => "wendland",
         }
+    }
+
+    /// Whether Hermite (gradient) constraints can use the kernel: twice differentiable at 0.
+    fn takes_gradients(self) -> bool {
+        matches!(self, KernelArg::R3 | KernelArg::Wendland)
     }
 }
 
 /// The `--solver` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SolverArg {
-    /// Dense up to 2,000 functionals; above, iterative for kernel r with off-surface
-    /// constraints, mixed otherwise (each falls back to dense if it fails).
+    /// Dense up to 2,000 functionals; above, iterative for kernels r and wendland with value
+    /// constraints only, mixed otherwise (each falls back to dense if it fails).
     Auto,
     /// The exact dense solve (projected Cholesky): O(n³) time, O(n²) memory.
     Dense,
@@ -127,22 +159,35 @@ const GRID_MARGIN: f64 = 0.05;
 /// Input points shown in the sanity check.
 const CHECK_POINTS: usize = 5;
 
+/// The default support radius of `--kernel wendland`, as a fraction of the diagonal of the
+/// data's box (see the module docs).
+pub(crate) const WENDLAND_FRACTION: f64 = 0.5;
+
+/// Bytes per grid sample of `--sampled`: the samples and the spline's coefficients (with one
+/// working copy), 8 bytes each.
+const SAMPLED_BYTES_PER_SAMPLE: u64 = 24;
+
 /// Arguments of `zeroset fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
     /// An oriented point cloud: .ply (with nx ny nz), .xyzn/.xyz/.txt/.pts (x y z nx ny nz
-    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid. With
-    /// --method neural also a value-constraint file: .xyv (x y value per line, a 2-D curve) or
-    /// .xyzv (x y z value); values negative inside, 0 on the curve, positive outside.
+    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid. Or a
+    /// value-constraint file: .xyv (x y value per line, a 2-D curve) or .xyzv (x y z value);
+    /// values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,
 
     /// The fitting method (rbf: radial basis functions; neural: a small MLP).
     #[arg(long, value_enum)]
     pub method: Method,
 
-    /// The radial kernel [default: r, or r3 with --hermite]. tps is for 2-D curves.
+    /// The radial kernel [default: r, or r3 with --hermite; tps for .xyv curves].
     #[arg(long, value_enum)]
     pub kernel: Option<KernelArg>,
+
+    /// With --kernel wendland: the support radius ρ > 0 in the data's units [default: 0.5 ×
+    /// the diagonal of the data's box].
+    #[arg(long, value_name = "RHO", allow_hyphen_values = true)]
+    pub radius: Option<f64>,
 
     /// Off-surface offset: auto (1% of the bounding-box diagonal, halved per point until the
     /// offset point stays nearest its own point), or a fixed distance EPS > 0 in the cloud's
@@ -151,7 +196,8 @@ pub struct FitArgs {
     pub offset: Option<OffsetArg>,
 
     /// Hermite constraints: value 0 and the unit normal as the gradient at every point,
-    /// instead of off-surface points. Needs --kernel r3 (the default with --hermite).
+    /// instead of off-surface points. Needs --kernel r3 (the default with --hermite) or
+    /// wendland.
     #[arg(long)]
     pub hermite: bool,
 
@@ -198,21 +244,28 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     if let Some(flag) = args.neural.given() {
         bail!("{flag} is an option of --method neural, not of --method rbf");
     }
-    if value_file_dimension(&args.points).is_some() {
-        bail!(
-            "{} is a value-constraint file (.xyv / .xyzv); --method rbf fits oriented point \
-             clouds: use --method neural",
-            args.points.display()
-        );
-    }
-    let kernel = check_request(args)?;
     let start = Instant::now();
-    let cloud = load(args)?;
-    print_input(args, &cloud);
-    match kernel {
-        KernelArg::R => fit_with(Biharmonic, args, &cloud)?,
-        KernelArg::R3 => fit_with(Triharmonic, args, &cloud)?,
-        KernelArg::Tps => unreachable!("check_request refuses tps for 3-D point clouds"),
+    if let Some(dim) = value_file_dimension(&args.points) {
+        let kernel = check_value_request(args, dim)?;
+        if dim == 2 {
+            fit_values::<2>(args, kernel)?;
+        } else {
+            fit_values::<3>(args, kernel)?;
+        }
+    } else {
+        let kernel = check_request(args)?;
+        let cloud = load(args)?;
+        print_input(args, &cloud);
+        let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+        with_kernel(
+            kernel,
+            args,
+            diagonal,
+            CloudFit {
+                args,
+                cloud: &cloud,
+            },
+        )?;
     }
     if let Some(output) = &args.output {
         println!(
@@ -229,26 +282,96 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Refuses what cannot work before reading or fitting anything; returns the kernel.
-fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
-    let kernel = args.kernel.unwrap_or(if args.hermite {
-        KernelArg::R3
-    } else {
-        KernelArg::R
-    });
-    if kernel == KernelArg::Tps {
-        // The point-cloud readers read x, y and z: every input is 3-D.
+/// A fit to run with whichever kernel `--kernel` names ([`with_kernel`]).
+trait KernelJob {
+    /// Fits with `kernel`, reports, and writes `-o`.
+    fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()>;
+}
+
+/// Runs `job` with the kernel `kernel` names; Wendland's radius is `--radius` or
+/// [`WENDLAND_FRACTION`] of `diagonal`, the diagonal of the data's box.
+fn with_kernel(
+    kernel: KernelArg,
+    args: &FitArgs,
+    diagonal: f64,
+    job: impl KernelJob,
+) -> anyhow::Result<()> {
+    match kernel {
+        KernelArg::R => job.run(Biharmonic),
+        KernelArg::R3 => job.run(Triharmonic),
+        KernelArg::Tps => job.run(ThinPlate),
+        KernelArg::Wendland => {
+            let (radius, how) = match args.radius {
+                Some(rho) => (rho, "--radius".to_owned()),
+                None => (
+                    WENDLAND_FRACTION * diagonal,
+                    format!(
+                        "{} × the diagonal {} of the data's box; --radius sets it",
+                        g(WENDLAND_FRACTION),
+                        g(diagonal)
+                    ),
+                ),
+            };
+            let Some(wendland) = Wendland::new(radius) else {
+                bail!(
+                    "the data's box is a point, so --kernel wendland has no default support \
+                     radius: give --radius RHO"
+                );
+            };
+            line("radius", &format!("{} ({how})", g(radius)));
+            job.run(wendland)
+        }
+    }
+}
+
+/// Checks `--kernel` and `--radius` for `dim`-dimensional input (`input`: what the file is,
+/// for the message); returns the kernel or `default`.
+fn check_kernel(
+    args: &FitArgs,
+    default: KernelArg,
+    dim: usize,
+    input: &str,
+) -> anyhow::Result<KernelArg> {
+    let kernel = args.kernel.unwrap_or(default);
+    if kernel == KernelArg::Tps && dim != 2 {
         bail!(
             "--kernel tps (r² ln r, the thin-plate spline) is the kernel for 2-D curves, and \
-             {} is read as a 3-D point cloud: use --kernel r or r3",
+             {} {input}: use --kernel r, r3 or wendland",
             args.points.display()
         );
     }
-    if args.hermite {
-        if kernel != KernelArg::R3 {
+    if let Some(rho) = args.radius {
+        if kernel != KernelArg::Wendland {
             bail!(
-                "--hermite needs --kernel r3: the gradient (Hermite) constraints need a kernel \
-                 that is twice differentiable at 0, and {} is not",
+                "--radius is the support radius of --kernel wendland; --kernel {} has none",
+                kernel.name()
+            );
+        }
+        if !(rho.is_finite() && rho > 0.0) {
+            bail!(
+                "--radius must be a finite distance > 0 in the data's units, got {rho} (the \
+                 Wendland kernel vanishes beyond it)"
+            );
+        }
+    }
+    Ok(kernel)
+}
+
+/// Refuses what cannot work on a point cloud before reading or fitting anything; returns the
+/// kernel.
+fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
+    let default = if args.hermite {
+        KernelArg::R3
+    } else {
+        KernelArg::R
+    };
+    // The point-cloud readers read x, y and z: every cloud is 3-D.
+    let kernel = check_kernel(args, default, 3, "is read as a 3-D point cloud")?;
+    if args.hermite {
+        if !kernel.takes_gradients() {
+            bail!(
+                "--hermite needs --kernel r3 (or wendland): the gradient (Hermite) constraints \
+                 need a kernel that is twice differentiable at 0, and {} is not",
                 kernel.name()
             );
         }
@@ -283,12 +406,131 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
              which has no grid"
         );
     }
-    if let Some(counts) = args.grid
-        && counts.iter().any(|&c| c < 3)
-    {
-        bail!("--grid needs at least 3 cells per axis, got {counts:?}");
+    if let Some(counts) = args.grid {
+        if counts.iter().any(|&c| c < 3) {
+            bail!("--grid needs at least 3 cells per axis, got {counts:?}");
+        }
+        check_sampled_memory(&counts)?;
     }
     Ok(kernel)
+}
+
+/// Refuses a `--sampled` grid whose samples and spline cannot fit in memory (or whose sample
+/// count overflows), before the cloud is read.
+fn check_sampled_memory(counts: &[usize; 3]) -> anyhow::Result<()> {
+    let samples = sample_count(counts, "--grid")?;
+    ensure_memory(
+        (samples as u64).saturating_mul(SAMPLED_BYTES_PER_SAMPLE),
+        &format!(
+            "--grid {} ({} cells)",
+            counts_text(counts),
+            g(samples as f64)
+        ),
+        "choose fewer cells per axis with --grid L,M,N",
+    )
+}
+
+/// Refuses what cannot work on a value-constraint file of dimension `dim` before reading or
+/// fitting anything; returns the kernel (by default `tps` in 2-D, `r` in 3-D).
+fn check_value_request(args: &FitArgs, dim: usize) -> anyhow::Result<KernelArg> {
+    let file = args.points.display();
+    let columns = if dim == 2 { "x y value" } else { "x y z value" };
+    let cloud_only = [
+        (args.hermite, "--hermite"),
+        (args.offset.is_some(), "--offset"),
+        (args.sampled, "--sampled"),
+        (args.grid.is_some(), "--grid"),
+        (args.format.is_some(), "--format"),
+    ];
+    if let Some((_, flag)) = cloud_only.iter().find(|(given, _)| *given) {
+        bail!(
+            "{flag} applies to oriented point clouds; {file} holds {dim}-D value constraints \
+             ({columns} per line), which --method rbf interpolates as they are: drop {flag}"
+        );
+    }
+    let default = if dim == 2 {
+        KernelArg::Tps
+    } else {
+        KernelArg::R
+    };
+    let kernel = check_kernel(args, default, dim, "holds 3-D value constraints")?;
+    if let Some(output) = &args.output {
+        crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
+    }
+    Ok(kernel)
+}
+
+/// Reads a `D`-dimensional value-constraint file, naming the file, line and field of a
+/// non-finite value, and reports what it holds.
+pub(crate) fn load_values<const D: usize>(args: &FitArgs) -> anyhow::Result<ValuePoints<D>> {
+    let path = &args.points;
+    let c = read_value_points::<D>(path)
+        .map_err(|e| read_error(path, e, "constraint", "the constraints must be finite"))?;
+    let n = c.points.len();
+    line(
+        "constraints",
+        &format!(
+            "{}: {n} {D}-D value constraint{} ({} negative, {} zero, {} positive)",
+            path.display(),
+            if n == 1 { "" } else { "s" },
+            c.values.iter().filter(|v| **v < 0.0).count(),
+            c.values.iter().filter(|v| **v == 0.0).count(),
+            c.values.iter().filter(|v| **v > 0.0).count()
+        ),
+    );
+    Ok(c)
+}
+
+/// `--method rbf` on a value-constraint file: the RBF interpolant of the values.
+fn fit_values<const D: usize>(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
+    let c = load_values::<D>(args)?;
+    let mut constraints = Constraints::<D>::new();
+    for (p, v) in c.points.iter().zip(&c.values) {
+        constraints.push_value(*p, *v);
+    }
+    let bounds = Aabb::from_points(&c.points);
+    if let Some(b) = &bounds {
+        line("bounds", &format!("min {}", crate::info::point_n(&b.min())));
+        more(&format!("max {}", crate::info::point_n(&b.max())));
+    }
+    let diagonal = bounds.map_or(0.0, |b| b.diagonal());
+    with_kernel(
+        kernel,
+        args,
+        diagonal,
+        ValueFit {
+            args,
+            constraints: &constraints,
+        },
+    )
+}
+
+/// The RBF fit of value constraints ([`fit_values`]).
+struct ValueFit<'a, const D: usize> {
+    args: &'a FitArgs,
+    constraints: &'a Constraints<D>,
+}
+
+impl<const D: usize> KernelJob for ValueFit<'_, D> {
+    fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()> {
+        let field = solve(kernel, self.args, self.constraints, 0)?;
+        if let Some(output) = &self.args.output {
+            save_rbf(&field, output)?;
+        }
+        Ok(())
+    }
+}
+
+/// The RBF fit of an oriented point cloud ([`fit_with`]).
+struct CloudFit<'a> {
+    args: &'a FitArgs,
+    cloud: &'a PointCloud3,
+}
+
+impl KernelJob for CloudFit<'_> {
+    fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()> {
+        fit_with(kernel, self.args, self.cloud)
+    }
 }
 
 /// Reads the oriented point cloud, naming the file, line and field of a non-finite value.
@@ -394,11 +636,34 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
         print_offset(args.offset.is_none(), &report);
         c
     };
+    let gradients = if args.hermite { n } else { 0 };
+    let field = solve(kernel, args, &constraints, gradients)?;
+    print_check(&field, cloud);
+    if let Some(output) = &args.output {
+        if args.sampled {
+            save_sampled(&field, cloud, args, output)?;
+        } else {
+            save_rbf(&field, output)?;
+        }
+    }
+    Ok(())
+}
+
+/// Fits `constraints` (of which `gradients` are gradient constraints) with `kernel` and the
+/// `--solver`, after checking the memory of a dense solve, and prints the report.
+fn solve<K: StoredKernel, const D: usize>(
+    kernel: K,
+    args: &FitArgs,
+    constraints: &Constraints<D>,
+    gradients: usize,
+) -> anyhow::Result<RbfField<K, D>> {
     line(
         "kernel",
         &format!("{} ({})", kernel.name(), kernel_words(kernel.name())),
     );
-    check_memory(args, &constraints)?;
+    // A gradient constraint is D functionals.
+    let functionals = constraints.len() + (D - 1) * gradients;
+    check_memory(args, kernel.order() >= 2, functionals, gradients > 0, D)?;
 
     let solver = match args.solver {
         SolverArg::Auto => Solver::Auto,
@@ -414,7 +679,7 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
             .to_possible_value()
             .map_or("auto".into(), |v| v.get_name().to_owned())
     ));
-    let fitted = RbfFit::new(kernel).with_solver(solver).fit(&constraints);
+    let fitted = RbfFit::new(kernel).with_solver(solver).fit(constraints);
     spinner.finish_and_clear();
     let fitted = fitted.context(if args.solver == SolverArg::Iterative {
         "fitting the RBF field (--solver dense is exact, at O(n³) time)"
@@ -422,21 +687,15 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
         "fitting the RBF field"
     })?;
     print_report(&fitted.report);
-    print_check(&fitted.field, cloud);
-    if let Some(output) = &args.output {
-        if args.sampled {
-            save_sampled(&fitted.field, cloud, args, output)?;
-        } else {
-            save_rbf(&fitted.field, output)?;
-        }
-    }
-    Ok(())
+    Ok(fitted.field)
 }
 
 fn kernel_words(name: &str) -> &'static str {
     match name {
         "r" => "biharmonic",
         "r3" => "triharmonic",
+        "tps" => "thin-plate spline, r² ln r",
+        "wendland" => "Wendland ψ₃,₁, compactly supported",
         _ => "",
     }
 }
@@ -468,39 +727,35 @@ fn print_offset(auto: bool, r: &OffsetReport) {
 }
 
 /// A dense solve that cannot fit in memory is refused here, with a message, rather than
-/// aborting on a failed allocation inside the solver.
-fn check_memory(args: &FitArgs, constraints: &Constraints<3>) -> anyhow::Result<()> {
-    let gradients = if args.hermite {
-        constraints.len() / 2
-    } else {
-        0
-    };
-    // A gradient constraint is D = 3 functionals; the polynomial adds D + 1 unknowns.
-    let functionals = constraints.len() + 2 * gradients;
-    let unknowns = functionals + 4;
+/// aborting on a failed allocation inside the solver. `order_two`: the kernel is
+/// conditionally positive definite of order 2 (which `--solver auto` solves densely at any
+/// size, as it does gradient constraints).
+fn check_memory(
+    args: &FitArgs,
+    order_two: bool,
+    functionals: usize,
+    gradients: bool,
+    dim: usize,
+) -> anyhow::Result<()> {
+    // The polynomial adds D + 1 unknowns.
+    let unknowns = functionals.saturating_add(dim + 1);
     let dense = match args.solver {
         SolverArg::Dense | SolverArg::Mixed => true,
         SolverArg::Iterative => false,
-        SolverArg::Auto => {
-            args.hermite || args.kernel == Some(KernelArg::R3) || functionals <= AUTO_DENSE_LIMIT
-        }
+        SolverArg::Auto => gradients || order_two || functionals <= AUTO_DENSE_LIMIT,
     };
     if !dense {
         return Ok(());
     }
-    let bytes = 8.0 * (unknowns as f64).powi(2);
-    if let Some(available) = available_memory().map(|b| b as f64)
-        && bytes > available
-    {
-        bail!(
-            "the dense RBF solve of {unknowns} unknowns needs at least {:.1} GB of memory, and \
-             about {:.1} GB are available: fit fewer points, or use the default kernel r with \
-             --solver iterative (off-surface constraints)",
-            bytes / 1e9,
-            available / 1e9
-        );
-    }
-    Ok(())
+    let need = (unknowns as u64)
+        .saturating_mul(unknowns as u64)
+        .saturating_mul(8);
+    ensure_memory(
+        need,
+        &format!("the dense RBF solve of {unknowns} unknowns"),
+        "fit fewer points, or use --kernel r (or wendland) with --solver iterative (value \
+         constraints)",
+    )
 }
 
 fn print_report(r: &FitReport) {
@@ -580,10 +835,11 @@ fn angle_degrees(a: &Point<3>, b: &Point<3>) -> f64 {
     c.clamp(-1.0, 1.0).acos().to_degrees()
 }
 
-/// Samples `field` on the `-o` grid, interpolates the samples by a quadratic B-spline and
-/// writes it.
 /// Writes the RBF field itself: kernel, centres, weights and polynomial (exact).
-fn save_rbf<K: StoredKernel>(field: &RbfField<K, 3>, output: &Path) -> anyhow::Result<()> {
+fn save_rbf<K: StoredKernel, const D: usize>(
+    field: &RbfField<K, D>,
+    output: &Path,
+) -> anyhow::Result<()> {
     line(
         "output",
         &format!(

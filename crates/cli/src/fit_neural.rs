@@ -35,12 +35,12 @@ use zeroset_bases::neural::{
 };
 use zeroset_bases::rbf::{Constraints, Offset, Prescribed};
 use zeroset_field_core::geometry::{Aabb, Point};
-use zeroset_field_core::io::{read_value_points, value_file_dimension};
+use zeroset_field_core::io::value_file_dimension;
 use zeroset_solvers::DenseQr;
 
 use crate::fit::{
-    AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, more, print_check, print_input,
-    read_error,
+    AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, load_values, more, print_check,
+    print_input,
 };
 use crate::info::g;
 use crate::progress::counter;
@@ -170,6 +170,7 @@ impl NeuralArgs {
 fn check_request(args: &FitArgs) -> anyhow::Result<()> {
     let rbf_only = [
         (args.kernel.is_some(), "--kernel"),
+        (args.radius.is_some(), "--radius"),
         (args.hermite, "--hermite"),
         (args.solver != SolverArg::Auto, "--solver"),
         (args.sampled, "--sampled"),
@@ -221,21 +222,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 }
 
 fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
-    let path = &args.points;
-    let c = read_value_points::<D>(path)
-        .map_err(|e| read_error(path, e, "constraint", "the constraints must be finite"))?;
-    let n = c.points.len();
-    line(
-        "constraints",
-        &format!(
-            "{}: {n} {D}-D value constraint{} ({} negative, {} zero, {} positive)",
-            path.display(),
-            if n == 1 { "" } else { "s" },
-            c.values.iter().filter(|v| **v < 0.0).count(),
-            c.values.iter().filter(|v| **v == 0.0).count(),
-            c.values.iter().filter(|v| **v > 0.0).count()
-        ),
-    );
+    let c = load_values::<D>(args)?;
     let (centre, scale) = frame(&c.points);
     let u = to_frame(&c.points, centre, scale);
     let field = train(&u, &c.values, params, args, scale, 1.0)?;

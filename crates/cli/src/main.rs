@@ -29,8 +29,11 @@ Examples:
                                                fit an RBF field to the sample and report it
   zeroset fit samples/bunny_2k.xyzn --method rbf --hermite -o bunny.zsf
                                                Hermite fit (r3), saved as a field file
-  zeroset fit samples/curve.xyv --method neural -o curve.zsf
-                                               a neural field through 2-D value constraints
+  zeroset fit samples/curve.xyv --method rbf -o curve.zsf
+                                               the thin-plate spline through 2-D value
+                                               constraints (zeroset mesh curve.zsf -o curve.svg)
+  zeroset fit samples/curve.xyv --method neural -o curve_nn.zsf
+                                               a neural field through the same constraints
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \
       --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
                                                remove the bunny's ears
@@ -77,13 +80,14 @@ enum Command {
     /// non-finite values, and GemPy formations.
     #[command(after_help = info::EXAMPLES)]
     Info(info::InfoArgs),
-    /// Run the main job on built-in sample data: describe the bundled point cloud, then solve a
-    /// restoration least-squares problem with every solver and compare them.
+    /// Run the main job on built-in sample data: describe the bundled point cloud, solve a
+    /// restoration least-squares problem with every solver and check that they agree (to the
+    /// tolerance it prints), remove the bunny's ears, and run fit → restore → mesh → preview.
     #[command(after_help = demo::EXAMPLES)]
     Demo(demo::DemoArgs),
-    /// Fit an implicit field to an oriented point cloud with radial basis functions
-    /// (off-surface or Hermite constraints) or a small neural net (also to 2-D value
-    /// constraints) and report the fit; -o saves the field as a .zsf field file.
+    /// Fit an implicit field with radial basis functions or a small neural net, to an oriented
+    /// point cloud (off-surface or Hermite constraints) or to value constraints (2-D curves
+    /// from x y value files), and report the fit; -o saves the field as a .zsf field file.
     #[command(after_help = fit::EXAMPLES)]
     Fit(fit::FitArgs),
     /// Restore a field inside a box mask: remove a protrusion (least-squares Laplace with a

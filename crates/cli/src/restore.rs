@@ -20,8 +20,12 @@ use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
 use zeroset_field_core::mask::{BoxMask, Face, Side};
+use zeroset_restore::RestoreError;
 use zeroset_restore::denoise::{Denoise, Resampling};
 use zeroset_restore::protrusion::{Convention, Protrusion};
+
+use crate::info::g;
+use crate::machine::{counts_text, ensure_memory, sample_count};
 
 /// Shown after `zeroset restore --help`.
 pub const EXAMPLES: &str = "\
@@ -105,9 +109,25 @@ pub struct RestoreArgs {
     pub force: bool,
 }
 
+/// Bytes per grid sample that a restoration holds at once: the field's samples, the restored
+/// samples and the quadratic spline's coefficients, 8 bytes each.
+const BYTES_PER_SAMPLE: u64 = 24;
+
+/// Bytes per mask cell (and per coarse cell) for the least-squares system or the coarse fit:
+/// an estimate of the local copy of the field, the right-hand side, the solution and the
+/// solver's or spline's work vectors, 8 bytes each.
+const BYTES_PER_MASK_CELL: u64 = 64;
+
 /// Runs `zeroset restore`.
 pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     crate::output::check_output(&args.output, &[&args.input], args.force, &["zsf"])?;
+    // Counts whose product overflows are refused before anything is read.
+    if let Some(counts) = &args.grid {
+        sample_count(counts, "--grid")?;
+    }
+    if let Some(coarse) = &args.coarse {
+        sample_count(coarse, "--coarse")?;
+    }
     let start = Instant::now();
     let (field, default_grid) = load(args)?;
     let grid = match args.grid {
@@ -125,6 +145,7 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
             bb.max()
         )
     })?;
+    check_size(args, &grid, &mask)?;
     let counts = grid.counts();
     println!(
         "grid {}×{}×{} cells over {:?} .. {:?}; mask cells {:?} ..= {:?} ({} cells)",
@@ -215,6 +236,50 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// Refuses a grid (or a coarse grid) that cannot be restored here, before the field is
+/// sampled: `--coarse` finer than the mask on some axis, or more memory than is available
+/// ([`BYTES_PER_SAMPLE`] per grid sample plus [`BYTES_PER_MASK_CELL`] per mask and coarse
+/// cell).
+fn check_size(args: &RestoreArgs, grid: &Grid<3>, mask: &BoxMask<3>) -> anyhow::Result<()> {
+    let counts = grid.counts();
+    let coarse_cells = match (args.mode, args.coarse) {
+        (Mode::Denoise, Some(coarse)) => {
+            let extent = mask.extent();
+            if let Some(axis) = (0..3).find(|&a| coarse[a] > extent[a]) {
+                return Err(anyhow::Error::new(RestoreError::InvalidCoarse {
+                    axis,
+                    coarse: coarse[axis],
+                    extent: extent[axis],
+                })
+                .context(format!("--coarse {}", counts_text(&coarse))));
+            }
+            sample_count(&coarse, "--coarse")?
+        }
+        _ => 0,
+    };
+    let samples = sample_count(&counts, "--grid")?;
+    let need = (samples as u64)
+        .saturating_mul(BYTES_PER_SAMPLE)
+        .saturating_add(
+            (mask.len() as u64)
+                .saturating_add(coarse_cells as u64)
+                .saturating_mul(BYTES_PER_MASK_CELL),
+        );
+    let what = match args.grid {
+        Some(_) => format!(
+            "--grid {} ({} cells)",
+            counts_text(&counts),
+            g(samples as f64)
+        ),
+        None => format!(
+            "the field file's grid {} ({} cells)",
+            counts_text(&counts).replace(',', "×"),
+            g(samples as f64)
+        ),
+    };
+    ensure_memory(need, &what, "choose fewer cells per axis with --grid L,M,N")
 }
 
 /// The input as a field, and the grid to restore it on by default.

@@ -132,6 +132,23 @@ pub enum Error {
         /// Records present (at most; the last may be partial).
         got: usize,
     },
+    /// Columns 4–6 of an xyz file that do not look like unit normals: every value a whole
+    /// number from 0 to 255 (RGB colours, `x y z r g b`), or a normal whose length lies outside
+    /// [`NORMAL_LENGTHS`](crate::io::NORMAL_LENGTHS). Names the first line that shows it.
+    #[error("{}", not_normals_message(path, *line, values, *colours))]
+    NotNormals {
+        /// The file.
+        path: PathBuf,
+        /// The 1-based line of the first record that shows it.
+        line: usize,
+        /// That record (0-based point index).
+        record: usize,
+        /// Its columns 4–6.
+        values: [f64; 3],
+        /// Whether the columns look like RGB colours (whole numbers from 0 to 255) rather than
+        /// merely not unit length.
+        colours: bool,
+    },
     /// A PLY file without a required vertex property.
     #[error("{}: PLY element 'vertex' has no property '{property}'", path.display())]
     MissingProperty {
@@ -150,6 +167,32 @@ pub enum Error {
         /// The header found.
         header: String,
     },
+}
+
+/// The message of [`Error::NotNormals`]: what was found, and what to do.
+fn not_normals_message(
+    path: &std::path::Path,
+    line: usize,
+    values: &[f64; 3],
+    colours: bool,
+) -> String {
+    let [a, b, c] = *values;
+    let length = (a * a + b * b + c * c).sqrt();
+    let (low, high) = crate::io::NORMAL_LENGTHS;
+    let found = if colours {
+        "every value in columns 4–6 is a whole number from 0 to 255, as in RGB colours (x y z r \
+         g b)"
+            .to_owned()
+    } else {
+        format!("the normal's length is {length:.4}, outside {low}–{high}")
+    };
+    format!(
+        "{}:{line}: columns 4–6 ({a} {b} {c}) do not look like unit normals: {found}; zeroset \
+         reads an xyz file's columns 4–6 as the normal nx ny nz, so keep only x y z if they are \
+         colours or another attribute (zeroset fit and restore then need normals estimated \
+         elsewhere), or scale them to unit length if they are normals",
+        path.display()
+    )
 }
 
 /// Shorthand for results with field-core's [`Error`].

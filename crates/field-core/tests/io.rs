@@ -111,8 +111,14 @@ fn data_files_have_the_sizes_their_readme_gives() {
         ("bunny_points.ply", 836_383),
         ("bunny_2k.xyzn", 124_441),
         ("kitten.xyz", 302_220),
-        ("geology/perth_basin/Paper_GU2F_sc_faults_topo_Points.csv", 5_345),
-        ("geology/perth_basin/Paper_GU2F_sc_faults_topo_Foliations.csv", 2_072),
+        (
+            "geology/perth_basin/Paper_GU2F_sc_faults_topo_Points.csv",
+            5_345,
+        ),
+        (
+            "geology/perth_basin/Paper_GU2F_sc_faults_topo_Foliations.csv",
+            2_072,
+        ),
         ("geology/greenstone/SandStone_Points.csv", 3_212),
         ("geology/greenstone/SandStone_Foliations.csv", 2_602),
         ("geology/greenstone/Greenstone_surface_points.csv", 9_559),
@@ -668,6 +674,54 @@ fn truncated_ascii_ply() {
 }
 
 #[test]
+fn a_ply_count_the_file_cannot_hold_is_truncated_not_allocated() {
+    // 10⁹ vertices claimed in a file of about 200 bytes: reading must neither reserve room
+    // for 10⁹ points (24 GB) nor take long, and must report the file as truncated.
+    let header = "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
+                  property float x\nproperty float y\nproperty float z\nend_header\n";
+    let mut bytes = header.as_bytes().to_vec();
+    bytes.extend([0u8; 100]);
+    let e = read_err("huge.ply", &bytes);
+    assert!(
+        matches!(
+            e,
+            Error::Truncated {
+                expected: 1_000_000_000,
+                got: 8,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("truncated"), "{e}");
+    // The same in ASCII (no size pre-check: the reader runs out of lines).
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 1000000000\nproperty float x\n\
+                 property float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n";
+    let e = read_err("huge.ply", ascii);
+    assert!(
+        matches!(
+            e,
+            Error::Truncated {
+                expected: 1_000_000_000,
+                got: 2,
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn records_that_fit_caps_a_header_count_by_the_bytes() {
+    use zeroset_field_core::io::records_that_fit;
+    assert_eq!(records_that_fit(1_000_000_000, 200, 12), 16);
+    assert_eq!(records_that_fit(8, 96, 12), 8);
+    assert_eq!(records_that_fit(8, 95, 12), 7);
+    assert_eq!(records_that_fit(usize::MAX, u64::MAX, 0), usize::MAX);
+    assert_eq!(records_that_fit(3, 0, 6), 0);
+}
+
+#[test]
 fn ply_without_z_is_missing_property() {
     let ply = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
                end_header\n0 0\n";
@@ -832,6 +886,117 @@ fn xyz_separators_comments_extra_columns_and_pts_count() {
     let (_d, path) = temp_file("a.txt", "\u{feff}1e-3 -2 +3.5\n");
     let cloud = read_point_cloud(&path).unwrap();
     assert_eq!(cloud.positions(), &[[1e-3, -2.0, 3.5]]);
+}
+
+/// `n` points of the unit sphere as `x y z a b c` lines, with `extra(k, normal)` as columns
+/// 4–6.
+fn sphere_with_columns(n: usize, extra: impl Fn(usize, [f64; 3]) -> [f64; 3]) -> String {
+    (0..n)
+        .map(|k| {
+            let z = -1.0 + (2 * k + 1) as f64 / n as f64;
+            let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963);
+            let p = [s * t.cos(), s * t.sin(), z];
+            let c = extra(k, p);
+            format!(
+                "{:.6} {:.6} {:.6} {} {} {}\n",
+                p[0], p[1], p[2], c[0], c[1], c[2]
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn xyz_colours_are_not_read_as_normals() {
+    // x y z r g b, colours as whole numbers 0..=255 (black included).
+    let text = sphere_with_columns(50, |k, _| {
+        [(k * 37 % 256) as f64, (k * 91 % 256) as f64, 0.0].map(|v| if k == 0 { 0.0 } else { v })
+    });
+    let e = read_err("colours.xyz", &text);
+    match &e {
+        Error::NotNormals {
+            line,
+            record,
+            values,
+            colours,
+            ..
+        } => {
+            assert!(*colours, "{e}");
+            // The first line with a value of at least 2 (line 1 is black).
+            assert_eq!((*line, *record), (2, 1));
+            assert_eq!(*values, [37.0, 91.0, 0.0]);
+        }
+        other => panic!("{other}"),
+    }
+    let msg = e.to_string();
+    for want in [
+        "colours.xyz:2",
+        "do not look like unit normals",
+        "RGB colours",
+        "keep only x y z",
+    ] {
+        assert!(msg.contains(want), "{want:?} missing: {msg}");
+    }
+    // Also with more columns after the colours, and as .xyzn.
+    let (_d, path) = temp_file("c.xyzn", "0 0 0 255 128 0 7\n1 0 0 0 0 255 7\n");
+    assert!(matches!(
+        read_point_cloud(&path),
+        Err(Error::NotNormals { colours: true, .. })
+    ));
+}
+
+#[test]
+fn xyz_normals_far_from_unit_length_are_refused() {
+    // Normals ten times too long, then a single short one among unit normals.
+    let text = sphere_with_columns(20, |_, n| n.map(|v| 10.0 * v));
+    let e = read_err("long.xyzn", &text);
+    assert!(
+        matches!(
+            &e,
+            Error::NotNormals {
+                line: 1,
+                colours: false,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("length is 10.0000"), "{e}");
+    let text = sphere_with_columns(20, |k, n| if k == 7 { n.map(|v| 0.1 * v) } else { n });
+    let e = read_err("short.xyzn", &text);
+    assert!(
+        matches!(
+            e,
+            Error::NotNormals {
+                line: 8,
+                record: 7,
+                colours: false,
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn xyz_normals_near_unit_length_are_read_as_stored() {
+    // Lengths from 0.5 to 2 are directions: read as they are (the fits normalise them).
+    let scale = |k: usize| [0.5, 0.7, 1.0, 1.5, 2.0][k % 5];
+    let text = sphere_with_columns(25, |k, n| n.map(|v| scale(k) * v));
+    let (_d, path) = temp_file("scaled.xyzn", &text);
+    let cloud = read_point_cloud(&path).unwrap();
+    let (lo, hi) = cloud.stats().normal_length_range.unwrap();
+    assert!(
+        (lo - 0.5).abs() < 1e-5 && (hi - 2.0).abs() < 1e-5,
+        "[{lo}, {hi}]"
+    );
+    // Whole-number normals along the axes, and a zero normal (the fits name it), are read.
+    let (_d, path) = temp_file("axes.xyz", "0 0 0 0 0 1\n1 0 0 -1 0 0\n2 0 0 0 0 0\n");
+    assert_eq!(read_point_cloud(&path).unwrap().len(), 3);
+    // The shipped scans print unit normals to 7 digits (lengths 1 ± 1e-6): read.
+    for name in ["bunny_2k.xyzn", "kitten.xyz"] {
+        let cloud = read_point_cloud(data(name)).unwrap();
+        assert_eq!(cloud.stats().non_unit_normals, 0, "{name}");
+    }
 }
 
 #[test]

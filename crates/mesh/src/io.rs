@@ -20,7 +20,10 @@
 //!
 //! Errors name the file and the place: the header line, or the record with its line (ASCII)
 //! or byte offset (binary); a file that ends early is [`MeshError::PlyTruncated`] naming the
-//! element and record; a face index out of range names the face.
+//! element and record; a face index out of range names the face. The header's element counts
+//! are never trusted for allocations: room is reserved for at most as many records as the
+//! bytes after the header can hold ([`records_that_fit`]), so a header that claims 10⁹
+//! vertices in a 200-byte file is reported as truncated without a large allocation.
 //!
 //! Coordinates are written as 32-bit floats, so a round trip is exact for coordinates that are
 //! `f32` values and otherwise rounds them to the nearest one.
@@ -29,7 +32,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use zeroset_field_core::Point;
-use zeroset_field_core::io::write_atomic;
+use zeroset_field_core::io::{records_that_fit, write_atomic};
 
 use crate::{MeshError, Result, TriMesh};
 
@@ -548,6 +551,26 @@ fn place(element: &Element, record: usize, line: Option<usize>, byte: Option<usi
 }
 
 impl Body<'_> {
+    /// How many records of `element` the bytes left can hold at most (see
+    /// [`records_that_fit`]): a binary record takes at least its scalars and list counts, an
+    /// ASCII record at least two bytes (a digit and a separator) per property.
+    fn records_that_fit(&self, element: &Element) -> usize {
+        let (left, min_record) = match self {
+            Body::Ascii { rest, .. } => (rest.len() + 1, 2 * element.properties.len()),
+            Body::Binary { bytes, pos, .. } => (
+                bytes.len().saturating_sub(*pos),
+                element
+                    .properties
+                    .iter()
+                    .map(|p| match p.kind {
+                        Kind::Scalar(t) | Kind::List { count: t, .. } => t.size(),
+                    })
+                    .sum(),
+            ),
+        };
+        records_that_fit(element.count, left as u64, min_record)
+    }
+
     /// Reads record `index` of `element` into `out`; returns its place for messages.
     fn read(
         &mut self,
@@ -741,10 +764,15 @@ fn parse_ply(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     let mut record = Record::default();
     for (e, element) in header.elements.iter().enumerate() {
         if e == vertex_el {
-            vertices.reserve(element.count.min(1 << 24));
+            // Never from the header's count alone: a file whose count it cannot hold is
+            // reported as truncated by `body.read`, after at most that many records.
+            let capacity = body.records_that_fit(element);
+            vertices.reserve(capacity);
             if normal_slots.is_some() {
-                normals.reserve(element.count.min(1 << 24));
+                normals.reserve(capacity);
             }
+        } else if Some(e) == face_el {
+            triangles.reserve(body.records_that_fit(element));
         }
         for r in 0..element.count {
             let here = body.read(path, element, r, &mut record)?;

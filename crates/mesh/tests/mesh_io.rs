@@ -211,6 +211,67 @@ fn truncated_binary_names_element_and_record() {
 }
 
 #[test]
+fn a_count_the_file_cannot_hold_is_truncated_without_a_large_allocation() {
+    // 10⁹ vertices (and 10⁹ faces) claimed in a file of about 300 bytes: room is reserved for
+    // what the bytes can hold, and the file is reported as truncated where it ends.
+    let header = "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
+                  property float x\nproperty float y\nproperty float z\n\
+                  element face 1000000000\nproperty list uchar int vertex_indices\nend_header\n";
+    let mut bytes = header.as_bytes().to_vec();
+    bytes.extend([0u8; 100]);
+    let err = ply_from_bytes(&bytes, "huge.ply").unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            MeshError::PlyTruncated { element, record: 8, expected: 1_000_000_000, .. }
+                if element == "vertex"
+        ),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("truncated"), "{err}");
+    // Vertices complete, the faces' count too large.
+    let cube = ply_to_bytes(&unit_cube(), PlyFormat::BinaryLittleEndian).unwrap();
+    let at = ply_header_len(&cube);
+    let header = String::from_utf8(cube[..at].to_vec())
+        .unwrap()
+        .replace("element face 12\n", "element face 999999999\n");
+    let bytes = [header.as_bytes(), &cube[at..]].concat();
+    let err = ply_from_bytes(&bytes, "faces.ply").unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            MeshError::PlyTruncated { element, record: 12, expected: 999_999_999, .. }
+                if element == "face"
+        ),
+        "{err:?}"
+    );
+    // ASCII: two vertex lines of the 10⁹ announced.
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 1000000000\nproperty float x\n\
+                 property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n";
+    let err = ply_from_bytes(ascii.as_bytes(), "huge.ply").unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            MeshError::PlyTruncated {
+                record: 2,
+                expected: 1_000_000_000,
+                ..
+            }
+        ),
+        "{err:?}"
+    );
+}
+
+/// The length of a PLY file's header, `end_header\n` included.
+fn ply_header_len(bytes: &[u8]) -> usize {
+    bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .expect("a PLY header")
+        + 11
+}
+
+#[test]
 fn bad_face_index_and_other_errors_are_specific() {
     let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
 property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n\

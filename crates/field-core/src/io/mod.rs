@@ -4,7 +4,7 @@
 //! | [`Format`] | Extensions | What is read | Normals |
 //! |---|---|---|---|
 //! | [`Format::Ply`] | `.ply` | `ascii`, `binary_little_endian` or `binary_big_endian`; element `vertex`, properties `x y z` of any scalar type; other properties and elements (faces) are skipped | `nx ny nz`, all three or none |
-//! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` | one point per line: 3 numbers (`x y z`) or at least 6 (`x y z nx ny nz`, further columns ignored), separated by whitespace or commas; `#` starts a comment; blank lines are skipped; every line has the same count | columns 4–6 |
+//! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` | one point per line: 3 numbers (`x y z`) or at least 6 (`x y z nx ny nz`, further columns ignored), separated by whitespace or commas; `#` starts a comment; blank lines are skipped; every line has the same count | columns 4–6, if they look like normals: not RGB colours (all whole numbers 0–255) and every non-zero length within [`NORMAL_LENGTHS`]; otherwise [`Error::NotNormals`] |
 //! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored | columns `nx`, `ny`, `nz`, all three or none |
 //! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
 //!
@@ -16,7 +16,10 @@
 //!
 //! - Values are returned as stored (converted to `f64`): nothing is rescaled, reordered,
 //!   deduplicated or normalised. [`PointCloud::stats`](crate::cloud::PointCloud::stats) reports
-//!   duplicates and normals that are not unit length.
+//!   duplicates and normals that are not unit length (the fits scale normals to unit length).
+//! - An xyz file's unnamed columns 4–6 are read as normals only if they look like normals; RGB
+//!   colours (`x y z r g b`) or lengths far from 1 are an [`Error::NotNormals`] naming the
+//!   line, never normals. PLY and CSV name their normals (`nx ny nz`) and are read as they are.
 //! - By default a NaN or infinite coordinate or normal component is an [`Error::NonFinite`]
 //!   naming the file, the 0-based record, the 1-based line (text formats) and the field.
 //! - A file with no point is an error ([`Error::Malformed`] naming the file), never an empty
@@ -51,6 +54,7 @@ mod xyz;
 
 pub use ply::write_ply;
 pub use values::{ValuePoints, read_value_points, value_file_dimension};
+pub use xyz::NORMAL_LENGTHS;
 
 /// A point-cloud file format; see the [module docs](self) for what each one reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -233,6 +237,8 @@ pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
 /// - [`Error::MissingColumn`]: a CSV header lacks `x`, `y` or `z` (or a GemPy column).
 /// - [`Error::NonFinite`]: a NaN or infinite value, unless
 ///   [`ReadOptions::allow_non_finite`].
+/// - [`Error::NotNormals`]: an xyz file whose columns 4–6 do not look like unit normals
+///   (RGB colours, or lengths outside [`NORMAL_LENGTHS`]).
 pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<PointCloud3> {
     let path = path.as_ref();
     let format = match options.format {
@@ -330,6 +336,26 @@ fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File)
         }
     }
     Err(last_error.unwrap_or_else(|| io::Error::other("could not create a temporary file")))
+}
+
+/// How many records to reserve room for when a file's header announces `count` records, each
+/// at least `min_record_bytes` long, and `bytes` bytes are left to hold them: `count`, capped
+/// at what the bytes can hold. A header's count may be wrong (a corrupt or truncated file), so
+/// it never sizes an allocation by itself: a header that claims 10⁹ vertices in a 200-byte file
+/// reserves room for at most 200, and the reader then reports the file as truncated.
+///
+/// For PLY, a binary record takes at least the sizes of its scalars and list counts; an ASCII
+/// record at least two bytes per property (a digit and a separator), with one byte added to
+/// `bytes` for a last line without its newline.
+///
+/// ```
+/// use zeroset_field_core::io::records_that_fit;
+/// assert_eq!(records_that_fit(1_000_000_000, 200, 12), 16);
+/// assert_eq!(records_that_fit(8, 96, 12), 8);
+/// ```
+pub fn records_that_fit(count: usize, bytes: u64, min_record_bytes: usize) -> usize {
+    let fit = bytes / min_record_bytes.max(1) as u64;
+    count.min(usize::try_from(fit).unwrap_or(usize::MAX))
 }
 
 /// Positions and, if the file has them, normals, before the cloud is assembled.

@@ -12,7 +12,7 @@ use ply_rs_bw::ply::{
 
 use super::{
     FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, io_error, malformed, open_nonempty,
-    parse_number, write_atomic,
+    parse_number, records_that_fit, write_atomic,
 };
 use crate::cloud::PointCloud3;
 use crate::error::{Error, Result};
@@ -84,6 +84,16 @@ fn record_size(def: &ElementDef) -> Option<usize> {
         .sum()
 }
 
+/// The fewest bytes a binary record of `def` can take: its scalars, and each list's count.
+fn min_binary_record_size(def: &ElementDef) -> usize {
+    def.properties
+        .values()
+        .map(|p| match &p.data_type {
+            PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+        })
+        .sum()
+}
+
 /// Which of the six slots the vertex element defines, after checking that `x y z` are all
 /// there and scalar and that `nx ny nz` are all or none.
 fn vertex_layout(path: &Path, def: &ElementDef) -> Result<bool> {
@@ -148,10 +158,19 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let has_normals = vertex_layout(path, vertex_def)?;
     let header_len = reader.get_mut().stream_position().map_err(io_error(path))?;
     let payload_len = file_len.saturating_sub(header_len);
-    let count = vertex_def.count;
-    // Never trust a header count for an allocation: each property takes at least one byte.
-    let min_record_bytes = vertex_def.properties.len().max(1);
-    let capacity = count.min(usize::try_from(payload_len).unwrap_or(usize::MAX) / min_record_bytes);
+    // Never trust a header count for an allocation (`records_that_fit`).
+    let capacity = match header.encoding {
+        Encoding::Ascii => records_that_fit(
+            vertex_def.count,
+            payload_len.saturating_add(1),
+            2 * vertex_def.properties.len(),
+        ),
+        _ => records_that_fit(
+            vertex_def.count,
+            payload_len,
+            min_binary_record_size(vertex_def),
+        ),
+    };
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = has_normals.then(|| Vec::with_capacity(capacity));
     let mut push = |record: usize, line: Option<usize>, v: &[f64; 6]| -> Result<()> {

@@ -1,7 +1,7 @@
 //! Value constraints in text: `x y value` (2-D) or `x y z value` (3-D), one per line.
 //!
-//! The format of the constraint files that `zeroset fit --method neural` reads for curves (and
-//! for 3-D value constraints without normals):
+//! The format of the constraint files that `zeroset fit --method rbf` and `--method neural`
+//! read for curves (and for 3-D value constraints without normals):
 //!
 //! | extension | per line | dimension |
 //! |---|---|---|

@@ -1,9 +1,26 @@
 //! XYZ text: `x y z` or `x y z nx ny nz [...]` per line.
+//!
+//! Columns 4–6 carry no names, and `x y z r g b` files (colours) are common: they are read as
+//! normals only if they look like normals ([`NormalColumns`]).
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, malformed, open_nonempty};
+use crate::cloud::CloudStats;
+use crate::error::Error;
+use crate::geometry::{Point3, norm};
+
+/// The lengths columns 4–6 of an xyz file may have to be read as normals, `[1/2, 2]` (the ends
+/// to print precision, [`CloudStats::UNIT_TOLERANCE`] relative).
+///
+/// Printed unit normals are unit to within print precision (the bundled samples: 1 ± 1e-6);
+/// normals a factor of two off are still clearly directions, and the fits scale every normal
+/// to unit length (the RBF constraints and the tangent-plane field both normalise), so they
+/// are read as they are. Lengths further from 1 are refused: such columns are seldom normals
+/// (colours, intensities, curvatures), and guessing would fit garbage. A zero normal is left
+/// to the fits, which name it.
+pub const NORMAL_LENGTHS: (f64, f64) = (0.5, 2.0);
 
 /// Reads an XYZ text file; see the module table in [`super`].
 ///
@@ -12,6 +29,7 @@ use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, malformed, o
 pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> crate::Result<RawPoints> {
     let mut positions = Vec::new();
     let mut normals: Option<Vec<_>> = None;
+    let mut normal_columns = NormalColumns::default();
     // Column count and the line that set it.
     let mut columns: Option<(usize, usize)> = None;
     for_each_number_line(path, |line_no, values, content| {
@@ -51,11 +69,79 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> crate::Result<RawPoi
         positions.push([values[0], values[1], values[2]]);
         if let Some(n) = normals.as_mut() {
             check.check(record, Some(line_no), &NORMAL_FIELDS, &values[3..6])?;
-            n.push([values[3], values[4], values[5]]);
+            let normal = [values[3], values[4], values[5]];
+            normal_columns.see(record, line_no, &normal);
+            n.push(normal);
         }
         Ok(())
     })?;
+    normal_columns.check(path)?;
     Ok((positions, normals))
+}
+
+/// What columns 4–6 of an xyz file look like, seen record by record: RGB colours when every
+/// value is a whole number from 0 to 255 and one is at least 2 (unit normals with whole
+/// components lie on the axes: 0 and ±1), otherwise normals if every finite non-zero length
+/// lies in [`NORMAL_LENGTHS`].
+#[derive(Debug, Clone, Copy)]
+struct NormalColumns {
+    /// Every value so far is a whole number from 0 to 255.
+    colour_like: bool,
+    /// The first record with a value of at least 2: `(record, line, values)`.
+    first_large: Option<(usize, usize, Point3)>,
+    /// The first record whose finite, non-zero length lies outside [`NORMAL_LENGTHS`].
+    first_off_length: Option<(usize, usize, Point3)>,
+}
+
+impl Default for NormalColumns {
+    fn default() -> Self {
+        Self {
+            colour_like: true,
+            first_large: None,
+            first_off_length: None,
+        }
+    }
+}
+
+impl NormalColumns {
+    /// Takes record `record` (on line `line`) with columns 4–6 `n`.
+    fn see(&mut self, record: usize, line: usize, n: &Point3) {
+        self.colour_like &= n
+            .iter()
+            .all(|v| v.fract() == 0.0 && (0.0..=255.0).contains(v));
+        if self.first_large.is_none() && n.iter().any(|v| *v >= 2.0) {
+            self.first_large = Some((record, line, *n));
+        }
+        let length = norm(n);
+        // The ends themselves count as inside, to print precision.
+        let (low, high) = NORMAL_LENGTHS;
+        let slack = CloudStats::<3>::UNIT_TOLERANCE;
+        if self.first_off_length.is_none()
+            && length.is_finite()
+            && length > 0.0
+            && !(low * (1.0 - slack)..=high * (1.0 + slack)).contains(&length)
+        {
+            self.first_off_length = Some((record, line, *n));
+        }
+    }
+
+    /// [`Error::NotNormals`] unless the columns seen look like normals.
+    fn check(&self, path: &Path) -> crate::Result<()> {
+        let (found, colours) = match (self.colour_like, self.first_large) {
+            (true, Some(large)) => (Some(large), true),
+            _ => (self.first_off_length, false),
+        };
+        match found {
+            None => Ok(()),
+            Some((record, line, values)) => Err(Error::NotNormals {
+                path: path.to_owned(),
+                line,
+                record,
+                values,
+                colours,
+            }),
+        }
+    }
 }
 
 /// Calls `line` with the 1-based line number, the numbers and the text before any `#` of every

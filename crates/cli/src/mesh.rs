@@ -32,6 +32,7 @@ use clap::{Args, ValueEnum};
 
 use zeroset_bases::field_file::{AnyField, RbfAny, read_any_field, read_dimension};
 use zeroset_bases::neural::NeuralField;
+use zeroset_bases::rbf::fmm::cache::{self, Cached};
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
 use zeroset_field_core::Grid;
@@ -45,8 +46,10 @@ use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
 use crate::info::{g, point};
-use crate::machine::available_memory;
+use crate::machine::{available_memory, bytes};
 use crate::progress::{seconds, spinner};
+
+mod plan;
 
 /// Shown after `zeroset mesh --help`.
 pub const EXAMPLES: &str = "\
@@ -134,6 +137,11 @@ pub struct MeshArgs {
     /// High expansion order P of --method smc (at least --order).
     #[arg(long, default_value_t = 10, value_name = "P")]
     pub high_order: usize,
+
+    /// With --method smc: run the signed marching cubes even where plain marching cubes on the
+    /// exact field is estimated to be faster (by default that one runs then, and says so).
+    #[arg(long)]
+    pub always_smc: bool,
 
     /// Step 1 of --method smc: settle blocks of vertices by enclosures, evaluate every vertex,
     /// or choose by a probe.
@@ -310,10 +318,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         })
         .context("extracting the level set")?,
         Method::Smc => match &field {
-            AnyField::Rbf(RbfAny::R(f)) => smc(f, &grid, &options, args, &mut out)?,
-            AnyField::Rbf(RbfAny::R3(f)) => smc(f, &grid, &options, args, &mut out)?,
-            AnyField::Rbf(RbfAny::Tps(f)) => smc(f, &grid, &options, args, &mut out)?,
-            AnyField::Rbf(RbfAny::Wendland(f)) => smc(f, &grid, &options, args, &mut out)?,
+            AnyField::Rbf(RbfAny::R(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
+            AnyField::Rbf(RbfAny::R3(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
+            AnyField::Rbf(RbfAny::Tps(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
+            AnyField::Rbf(RbfAny::Wendland(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
             AnyField::BSpline(_) | AnyField::Neural(_) => bail!(
                 "--method smc evaluates RBF fields by the fast multipole method; {} holds a \
                  {} field: use --method mc",
@@ -379,6 +387,57 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--method smc`: the signed marching cubes where the cost model says they win (or with
+/// `--always-smc`), else plain marching cubes on the exact field, saying why.
+fn smc_or_plain<K: Kernel + Clone>(
+    field: &RbfField<K, 3>,
+    grid: &Grid<3>,
+    options: &McOptions,
+    args: &MeshArgs,
+    out: &mut Say,
+) -> anyhow::Result<TriMesh> {
+    let disk = plan::cache_dir().map(|dir| dir.join("fmm"));
+    cache::set_disk_dir(disk.clone());
+    let [low, high] = [args.order, args.high_order].map(FmmOptions::new);
+    OrderPair::<K>::check(&low, &high, DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY)
+        .context("--method smc")?;
+    let term = plan::calibrate(field, grid);
+    let verdict = plan::plan(field, grid, &low, &high, term);
+    let describe = |c: Cached| match c {
+        Cached::InMemory => "in memory",
+        Cached::OnDisk => "in the disk cache",
+        Cached::NotYet => "to be built",
+    };
+    say!(
+        out,
+        "plan: plain marching cubes about {}, signed about {} (operators of order {} {}, of \
+         order {} {}{})",
+        seconds(Duration::from_secs_f64(verdict.plain_seconds)),
+        seconds(Duration::from_secs_f64(verdict.signed_seconds)),
+        args.order,
+        describe(verdict.operators[0]),
+        args.high_order,
+        describe(verdict.operators[1]),
+        disk.as_ref()
+            .map(|d| format!("; cache {}", d.display()))
+            .unwrap_or_default()
+    )?;
+    if verdict.signed_wins() || args.always_smc {
+        return smc(field, grid, options, args, out);
+    }
+    say!(
+        out,
+        "--method smc: plain marching cubes on the exact field is faster here, so it runs \
+         instead (its mesh is exact; the signed one matches it to the order-{} error); \
+         --always-smc runs the signed marching cubes anyway",
+        args.high_order
+    )?;
+    with_spinner(args.quiet, "sampling the field and marching cubes", || {
+        mesh_field(field, grid, args.level, options)
+    })
+    .context("extracting the level set")
+}
+
 /// The two-step signed marching cubes of an RBF field, with its counts reported.
 fn smc<K: Kernel + Clone>(
     field: &RbfField<K, 3>,
@@ -426,16 +485,18 @@ fn smc<K: Kernel + Clone>(
         }
     }
     let built = start.elapsed();
+    let operators = pair.low.report().operator_seconds + pair.high.report().operator_seconds;
     bar.suspend(|| {
         say!(
             out,
             "fmm: order {p} (sampled max error {}), order {high} ({}), margin {} = {} × their \
-             sum; built in {}; step 1: {}{probe_note}",
+             sum; built in {} (operators {}); step 1: {}{probe_note}",
             g(pair.low_error),
             g(pair.high_error),
             g(pair.margin),
             g(DEFAULT_SAFETY),
             seconds(built),
+            seconds(Duration::from_secs_f64(operators)),
             match step {
                 CoarseStep::Blocks => "blocks settled by enclosures",
                 _ => "every vertex",
@@ -653,33 +714,9 @@ fn with_spinner<T: Send>(quiet: bool, message: &str, work: impl FnOnce() -> T + 
     })
 }
 
-/// A byte count in binary units.
-fn bytes(n: u64) -> String {
-    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
-    let mut v = n as f64;
-    let mut unit = 0;
-    while v >= 1024.0 && unit + 1 < UNITS.len() {
-        v /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{n} B")
-    } else {
-        format!("{v:.1} {}", UNITS[unit])
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn formats_byte_counts() {
-        assert_eq!(bytes(512), "512 B");
-        assert_eq!(bytes(1536), "1.5 KiB");
-        assert_eq!(bytes(3 << 30), "3.0 GiB");
-        assert_eq!(bytes(u64::MAX), "16384.0 PiB");
-    }
 
     #[test]
     fn spinner_returns_the_work() {

@@ -14,9 +14,17 @@ fn sample() -> PathBuf {
     path
 }
 
+/// Runs the binary; its operator disk cache is off (the tests never write to the user's
+/// cache), except where a test sets `ZEROSET_CACHE_DIR` itself ([`zeroset_with_cache`]).
 fn zeroset<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
+    zeroset_with_cache(args, Path::new(""))
+}
+
+/// Runs the binary with its operator disk cache in `cache` (empty: none).
+fn zeroset_with_cache<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>, cache: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_zeroset"))
         .args(args)
+        .env("ZEROSET_CACHE_DIR", cache)
         .output()
         .expect("cannot run the zeroset binary")
 }
@@ -1154,6 +1162,7 @@ fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
     let args = [
         "--method",
         "smc",
+        "--always-smc",
         "--order",
         "5",
         "--high-order",
@@ -1228,6 +1237,69 @@ fn mesh_smc_reports_the_counts_and_matches_plain_marching_cubes() {
         assert_clean_failure(&o);
         assert!(stderr(&o).contains("order"), "{}", stderr(&o));
     }
+}
+
+/// `--method smc` where plain marching cubes is cheaper (a small field on a coarse grid): the
+/// plan says so and plain marching cubes on the exact field runs, byte for byte the mesh of
+/// `--method mc`.
+#[test]
+fn mesh_smc_picks_plain_marching_cubes_where_it_is_faster() {
+    let (dir, field) = sphere_field();
+    let (smc, mc) = (dir.path().join("smc.ply"), dir.path().join("mc.ply"));
+    let o = mesh(&field, &smc, &["--method", "smc", "--resolution", "12"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("plan: plain marching cubes about "), "{out}");
+    assert!(
+        out.contains("plain marching cubes on the exact field is faster here"),
+        "{out}"
+    );
+    assert!(!out.contains("N_SMC,p"), "{out}");
+    let o = mesh(&field, &mc, &["--resolution", "12"]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(fs::read(&smc).expect("smc") == fs::read(&mc).expect("mc"));
+}
+
+/// The operators go to the disk cache on the first `--method smc` and are read back by the
+/// next run, which writes the same mesh.
+#[test]
+fn mesh_smc_reuses_operators_from_the_disk_cache() {
+    let (dir, field) = sphere_field();
+    let cache = dir.path().join("cache");
+    let run = |name: &str| {
+        let out = dir.path().join(name);
+        let o = zeroset_with_cache(
+            [
+                OsStr::new("mesh"),
+                field.as_os_str(),
+                OsStr::new("-o"),
+                out.as_os_str(),
+                OsStr::new("--quiet"),
+                OsStr::new("--method"),
+                OsStr::new("smc"),
+                OsStr::new("--always-smc"),
+                OsStr::new("--resolution"),
+                OsStr::new("24"),
+            ],
+            &cache,
+        );
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        (stdout(&o), fs::read(&out).expect("mesh"))
+    };
+    let (first, a) = run("a.ply");
+    assert!(
+        first.contains("operators of order 5 to be built, of order 10 to be built"),
+        "{first}"
+    );
+    // One file per order whose tree has M2L pairs (this small field's order-10 tree, with
+    // its larger leaves, may have none).
+    let files = fs::read_dir(cache.join("fmm"))
+        .expect("cache written")
+        .count();
+    assert!((1..=2).contains(&files), "{files} files");
+    let (second, b) = run("b.ply");
+    assert!(second.contains("in the disk cache"), "{second}");
+    assert!(a == b, "the same mesh from cached operators");
 }
 
 // ---- zeroset fit --method neural ----
@@ -1414,9 +1486,6 @@ fn fit_neural_refuses_bad_requests_with_a_message() {
         "{}",
         stderr(&o)
     );
-    let o = fit(&curve, &[]);
-    assert_clean_failure(&o);
-    assert!(stderr(&o).contains("use --method neural"), "{}", stderr(&o));
     let o = fit(&sample(), &["--steps", "10"]);
     assert_clean_failure(&o);
     assert!(
@@ -1424,4 +1493,341 @@ fn fit_neural_refuses_bad_requests_with_a_message() {
         "{}",
         stderr(&o)
     );
+}
+
+// ---- bad input: one line, exit status 1, no output ----
+
+/// A refusal as the user sees it: exit status 1, one line on stderr holding `phrase`, no
+/// panic.
+fn assert_one_line_refusal(o: &Output, phrase: &str) {
+    assert_clean_failure(o);
+    let err = stderr(o);
+    assert_eq!(err.lines().count(), 1, "not one line:\n{err}");
+    assert!(err.contains(phrase), "{phrase:?} missing in: {err}");
+}
+
+#[test]
+fn restore_and_fit_refuse_grids_before_allocating_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.zsf");
+    let o_str = out.to_str().unwrap();
+    let sample = sample();
+    let s = sample.to_str().unwrap();
+    let restore = |extra: &[&str]| {
+        let mut args = vec!["restore", s, "--mask", EARS, "-o", o_str];
+        args.extend(extra);
+        zeroset(args)
+    };
+    let denoise = ["--mode", "denoise", "--coarse", "4,4,4"];
+    let cases: Vec<(Output, &str)> = vec![
+        // More memory than this machine has (read from /proc/meminfo).
+        (
+            restore(&["--mode", "protrusion", "--grid", "100000,100000,100000"]),
+            "--grid 100000,100000,100000 (1e15 cells) needs about",
+        ),
+        // More than any allocation can hold, on any system.
+        (
+            restore(&[&denoise[..], &["--grid", "2000000,2000000,2000000"]].concat()),
+            "more than any allocation can hold",
+        ),
+        // A count whose product overflows.
+        (
+            restore(&[&denoise[..], &["--grid", "10000000,10000000,10000000"]].concat()),
+            "more samples than a 64-bit count can hold",
+        ),
+        (
+            restore(&["--mode", "denoise", "--coarse", "1000000,1000000,1000000"]),
+            "--coarse 1000000,1000000,1000000: coarse resolution 1000000 on axis 0",
+        ),
+        (
+            restore(&[
+                "--mode",
+                "denoise",
+                "--coarse",
+                "10000000,10000000,10000000",
+            ]),
+            "--coarse 10000000,10000000,10000000: the grid would have more samples",
+        ),
+        (
+            fit(
+                &sample,
+                &["-o", o_str, "--sampled", "--grid", "100000,100000,100000"],
+            ),
+            "of memory, more than the",
+        ),
+        (
+            fit(
+                &sample,
+                &[
+                    "-o",
+                    o_str,
+                    "--sampled",
+                    "--grid",
+                    "10000000,10000000,10000000",
+                ],
+            ),
+            "more samples than a 64-bit count can hold",
+        ),
+    ];
+    for (o, phrase) in &cases {
+        assert_one_line_refusal(o, phrase);
+        assert!(stdout(o).lines().count() <= 2, "{}", stdout(o));
+    }
+    assert!(!out.exists(), "a refused run must not leave an output");
+}
+
+#[test]
+fn a_ply_count_the_file_cannot_hold_is_reported_as_truncated() {
+    let dir = tempfile::tempdir().unwrap();
+    // A mesh (faces: the mesh reader) and a point cloud (no faces: the cloud reader), each
+    // claiming 10⁹ vertices in about 250 bytes.
+    for (name, faces) in [("mesh.ply", true), ("cloud.ply", false)] {
+        let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
+                          property float x\nproperty float y\nproperty float z\n"
+            .to_vec();
+        if faces {
+            bytes.extend(b"element face 1\nproperty list uchar int vertex_indices\n");
+        }
+        bytes.extend(b"end_header\n");
+        bytes.extend([0u8; 120]);
+        let path = dir.path().join(name);
+        fs::write(&path, &bytes).unwrap();
+        let o = info(&path, &[]);
+        assert_one_line_refusal(&o, "truncated");
+        assert!(stderr(&o).contains("1000000000"), "{}", stderr(&o));
+    }
+    let png = dir.path().join("mesh.png");
+    let o = zeroset([
+        OsStr::new("preview"),
+        dir.path().join("mesh.ply").as_os_str(),
+        OsStr::new("-o"),
+        png.as_os_str(),
+    ]);
+    assert_one_line_refusal(&o, "truncated");
+    assert!(!png.exists());
+}
+
+#[test]
+fn fit_refuses_colours_and_non_unit_normals_in_xyz_files() {
+    let points = sphere_points(100);
+    let colours: String = points
+        .iter()
+        .enumerate()
+        .map(|(k, (p, _))| {
+            format!(
+                "{} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                k * 7 % 256,
+                k * 13 % 256,
+                200
+            )
+        })
+        .collect();
+    let long: String = points
+        .iter()
+        .map(|(p, n)| {
+            format!(
+                "{} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                5.0 * n[0],
+                5.0 * n[1],
+                5.0 * n[2]
+            )
+        })
+        .collect();
+    for (name, text, phrase) in [
+        ("rgb.xyz", &colours, "as in RGB colours (x y z r g b)"),
+        ("long.xyzn", &long, "the normal's length is 5.0000"),
+    ] {
+        let (dir, path) = temp_file(name, text);
+        let out = dir.path().join("out.zsf");
+        let o = fit(&path, &["-o", out.to_str().unwrap()]);
+        assert_one_line_refusal(&o, phrase);
+        assert!(
+            stderr(&o).contains("do not look like unit normals"),
+            "{}",
+            stderr(&o)
+        );
+        assert!(!out.exists());
+        let o = zeroset([
+            "restore",
+            path.to_str().unwrap(),
+            "--mode",
+            "denoise",
+            "--mask",
+            "0,0,0:0.2,0.2,0.2",
+            "--coarse",
+            "2,2,2",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_one_line_refusal(&o, "do not look like unit normals");
+        assert!(!out.exists());
+    }
+    // Normals half or twice unit length are directions: fitted (after normalising).
+    let scaled: String = points
+        .iter()
+        .enumerate()
+        .map(|(k, (p, n))| {
+            let c = if k % 2 == 0 { 0.5 } else { 2.0 };
+            format!(
+                "{} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                c * n[0],
+                c * n[1],
+                c * n[2]
+            )
+        })
+        .collect();
+    let (_d, path) = temp_file("scaled.xyzn", &scaled);
+    let o = fit(&path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        reported(&stdout(&o), "max residual:") < 1e-8,
+        "{}",
+        stdout(&o)
+    );
+}
+
+// ---- 2-D RBF fits ----
+
+#[test]
+fn fit_rbf_on_the_curve_sample_then_trace_it_for_every_kernel() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, (kernel, extra)) in [
+        ("tps", &[][..]),
+        ("r", &[]),
+        ("r3", &[]),
+        ("wendland", &[]),
+        ("wendland", &["--radius", "0.8"]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let field = dir.path().join(format!("curve_{i}_{kernel}.zsf"));
+        let mut args = vec!["--kernel", kernel, "-o", field.to_str().unwrap()];
+        args.extend(extra);
+        let o = fit(&curve_sample(), &args);
+        assert!(o.status.success(), "{kernel}: {}{}", stdout(&o), stderr(&o));
+        let out = stdout(&o);
+        assert!(
+            out.contains("60 2-D value constraints (15 negative, 30 zero, 15 positive)"),
+            "{out}"
+        );
+        assert!(out.contains(&format!("kernel:       {kernel} (")), "{out}");
+        assert!(out.contains("solver:       dense-cholesky"), "{out}");
+        let residual = reported(&out, "max residual:");
+        assert!(residual < 1e-10, "{kernel}: residual {residual}\n{out}");
+        if kernel == "wendland" {
+            assert!(out.contains("radius:"), "{out}");
+        }
+        let o = info(&field, &[]);
+        let described = stdout(&o);
+        assert!(
+            described.contains("dimension:   2") && described.contains("rbf"),
+            "{described}{}",
+            stderr(&o)
+        );
+        let svg = dir.path().join(format!("curve_{i}_{kernel}.svg"));
+        let o = mesh(&field, &svg, &[]);
+        assert!(o.status.success(), "{kernel}: {}{}", stdout(&o), stderr(&o));
+        assert!(
+            stdout(&o).contains("curve: 1 closed loop(s), 0 open piece(s)"),
+            "{kernel}: {}",
+            stdout(&o)
+        );
+        // The enclosed area of r(t) = 0.6 + 0.15 cos 3t is π (0.36 + 0.01125) = 1.1663.
+        let area: f64 = stdout(&o)
+            .split("enclosed area ")
+            .nth(1)
+            .and_then(|t| t.split_whitespace().next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(f64::NAN);
+        assert!((area - 1.1663).abs() < 0.02, "{kernel}: area {area}");
+        assert!(fs::read_to_string(&svg).unwrap().contains("<svg"));
+    }
+    // The default kernel of a 2-D file is the thin-plate spline.
+    let o = fit(&curve_sample(), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("kernel:       tps"), "{}", stdout(&o));
+}
+
+#[test]
+fn fit_rbf_refuses_what_value_files_cannot_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.zsf");
+    let o_str = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 9] = [
+        (&["--hermite"], "--hermite applies to oriented point clouds"),
+        (
+            &["--offset", "0.01"],
+            "--offset applies to oriented point clouds",
+        ),
+        (&["--sampled"], "--sampled applies to oriented point clouds"),
+        (
+            &["--grid", "8,8,8"],
+            "--grid applies to oriented point clouds",
+        ),
+        (
+            &["--format", "xyz"],
+            "--format applies to oriented point clouds",
+        ),
+        (
+            &["--radius", "0.5"],
+            "--radius is the support radius of --kernel wendland; --kernel tps has none",
+        ),
+        (
+            &["--kernel", "wendland", "--radius", "-1"],
+            "--radius must be a finite distance > 0",
+        ),
+        (
+            &["--kernel", "wendland", "--radius", "inf"],
+            "--radius must be a finite distance > 0",
+        ),
+        (
+            &["--steps", "10"],
+            "--steps is an option of --method neural",
+        ),
+    ];
+    for (extra, phrase) in cases {
+        let mut args = vec!["-o", o_str];
+        args.extend(extra);
+        let o = fit(&curve_sample(), &args);
+        assert_one_line_refusal(&o, phrase);
+        assert!(
+            stdout(&o).is_empty(),
+            "refused before reading: {}",
+            stdout(&o)
+        );
+    }
+    // An unknown kernel is refused by the argument parser, naming the choices.
+    let o = fit(&curve_sample(), &["--kernel", "gauss", "-o", o_str]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("invalid value 'gauss' for '--kernel")
+            && stderr(&o).contains("r, r3, tps, wendland")
+            && !stderr(&o).contains("panicked"),
+        "{}",
+        stderr(&o)
+    );
+    // tps is for 2-D curves; a single point gives Wendland no default radius.
+    let (_d, xyzv) = temp_file("s.xyzv", "0 0 0 -1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 1 1 1\n");
+    let o = fit(&xyzv, &["--kernel", "tps", "-o", o_str]);
+    assert_one_line_refusal(
+        &o,
+        "holds 3-D value constraints: use --kernel r, r3 or wendland",
+    );
+    let (_d, one) = temp_file("one.xyv", "0.5 0.5 0\n");
+    let o = fit(&one, &["--kernel", "wendland", "-o", o_str]);
+    assert_one_line_refusal(&o, "give --radius RHO");
+    // --radius belongs to --method rbf.
+    let o = fit_neural(&curve_sample(), &["--radius", "1"]);
+    assert_one_line_refusal(&o, "--radius is an option of --method rbf");
+    assert!(!out.exists(), "a refused run must not leave an output");
 }

@@ -1315,6 +1315,31 @@ pub const DEFAULT_SAFETY: f64 = 10.0;
 pub const DEFAULT_ERROR_SAMPLES: usize = 4096;
 
 impl<K: Kernel + Clone> OrderPair<K> {
+    /// Checks the options of [`OrderPair::new`] without building anything.
+    ///
+    /// # Errors
+    /// As [`OrderPair::new`] for the options: an order, leaf size or tolerance out of range,
+    /// `high.order < low.order`, a safety factor below 1 or not finite, or no samples.
+    pub fn check(
+        low: &FmmOptions,
+        high: &FmmOptions,
+        samples: usize,
+        safety: f64,
+    ) -> Result<(), FmmError> {
+        low.check()?;
+        high.check()?;
+        if high.order < low.order {
+            return Err(FmmError::Orders {
+                low: low.order,
+                high: high.order,
+            });
+        }
+        if !(safety.is_finite() && safety >= 1.0) || samples == 0 {
+            return Err(FmmError::Safety { safety, samples });
+        }
+        Ok(())
+    }
+
     /// Builds both orders of `field` and measures their errors (see the type's docs).
     ///
     /// # Errors
@@ -1327,17 +1352,7 @@ impl<K: Kernel + Clone> OrderPair<K> {
         samples: usize,
         safety: f64,
     ) -> Result<Self, FmmError> {
-        low.check()?;
-        high.check()?;
-        if high.order < low.order {
-            return Err(FmmError::Orders {
-                low: low.order,
-                high: high.order,
-            });
-        }
-        if !(safety.is_finite() && safety >= 1.0) || samples == 0 {
-            return Err(FmmError::Safety { safety, samples });
-        }
+        Self::check(low, high, samples, safety)?;
         let low_field = FmmField::new(field, low)?;
         let high_field = FmmField::new(field, high)?;
         // Both orders at the same points, so that the direct sum is evaluated once.

@@ -3,17 +3,22 @@
 //!
 //! ```text
 //! cargo run --release --example cp_timing -- --input DIR --rank R [--tol T] [--max-iter N]
-//!     [--repeat K] [--line-search]
+//!     [--repeat K] [--line-search] [--threads N]
 //! cargo run --release --example cp_timing -- --shape 30,30,30 --rank 10 [--noise 1e-6] …
 //! ```
 //!
 //! With `--input DIR` it reads `DIR/x.npy` (`I×J×K`) and the initial factors `DIR/a0.npy`,
-//! `DIR/b0.npy`, `DIR/c0.npy` (`I×R`, `J×R`, `K×R`), runs CP-ALS `K` times from them (the
-//! stopping rule is TensorLy's: the relative error changes by less than `T` between
-//! iterations), and writes `DIR/zeroset.json`: `ms` (median wall time), `times_ms`,
-//! `iterations`, `rel_error` (exact, `‖X − X̂‖/‖X‖`), `threads`, `converged`. Without it, a
-//! planted rank-`R` tensor with standard normal factors plus relative noise `--noise` is made
-//! (seeded) and decomposed from the SVD initialisation.
+//! `DIR/b0.npy`, `DIR/c0.npy` (`I×R`, `J×R`, `K×R`), runs CP-ALS from them once as a warm-up,
+//! then `K` timed times (the timing rule of `common/timing.rs` and `benches/peers/common.py`;
+//! the stopping rule is TensorLy's: the relative error changes by less than `T` between
+//! iterations), and writes `DIR/zeroset.json`: `ms` (median wall time of the `K` timed runs),
+//! `times_ms`, `runs`, `warmup`, `iterations`, `rel_error` (exact, `‖X − X̂‖/‖X‖`), `threads`,
+//! `converged`. Without it, a planted rank-`R` tensor with standard normal factors plus
+//! relative noise `--noise` is made (seeded) and decomposed from the SVD initialisation.
+//!
+//! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU) or `--threads N` (a global
+//! rayon pool of `N` threads); the count in effect (`rayon::current_num_threads()`, which also
+//! drives faer) is printed and written as `threads`.
 
 #[path = "common/npy.rs"]
 mod npy;
@@ -23,7 +28,7 @@ mod rng;
 mod timing;
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use faer::Mat;
 use zeroset::tensor::{CpInit, CpOptions, CpStop, Kruskal, Tensor3, cp_als};
@@ -39,6 +44,7 @@ struct Args {
     max_iter: usize,
     repeat: usize,
     line_search: bool,
+    threads: Option<usize>,
 }
 
 fn parse() -> Res<Args> {
@@ -51,6 +57,7 @@ fn parse() -> Res<Args> {
         max_iter: 1000,
         repeat: 5,
         line_search: false,
+        threads: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -72,6 +79,7 @@ fn parse() -> Res<Args> {
             "--tol" => a.tol = value.parse()?,
             "--max-iter" => a.max_iter = value.parse()?,
             "--repeat" => a.repeat = value.parse::<usize>()?.max(1),
+            "--threads" => a.threads = Some(value.parse()?),
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
@@ -92,6 +100,7 @@ fn matrix(path: PathBuf, rows: usize, rank: usize) -> Res<Mat<f64>> {
 
 fn main() -> Res<()> {
     let args = parse()?;
+    let threads = timing::set_threads(args.threads)?;
     let (x, init) = match &args.input {
         Some(dir) => {
             let (shape, data) = npy::read_npy(&dir.join("x.npy"))?;
@@ -117,24 +126,18 @@ fn main() -> Res<()> {
         .with_max_iter(args.max_iter)
         .with_init(init)
         .with_line_search(args.line_search);
-    let mut times = Vec::new();
-    let mut last = None;
-    for _ in 0..args.repeat {
-        let t = Instant::now();
-        let fit = cp_als(&x, &options, |_| true)?;
-        times.push(t.elapsed());
-        last = Some(fit);
-    }
-    let fit = last.ok_or("no run")?;
+    // One warm-up, then the median of `repeat` runs.
+    let timed = timing::measure(args.repeat, None, || cp_als(&x, &options, |_| true))?;
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
-    let median = ms(timing::median(times.clone()));
-    let threads = rayon::current_num_threads();
+    let median = timed.ms();
+    let times = &timed.times;
+    let fit = &timed.last;
     println!(
-        "cp_timing: {:?} rank {}, {} threads: {} iterations, median {:.2} ms ({:.3} ms/iteration), \
-         rel error {:.3e}, {:?}",
+        "cp_timing: {:?} rank {}, {threads} threads, {}: {} iterations, median {:.2} ms \
+         ({:.3} ms/iteration), rel error {:.3e}, {:?}",
         x.shape(),
         args.rank,
-        threads,
+        timed.how(),
         fit.iterations,
         median,
         median / fit.iterations.max(1) as f64,
@@ -144,9 +147,11 @@ fn main() -> Res<()> {
     if let Some(dir) = &args.input {
         let list: Vec<String> = times.iter().map(|d| format!("{:.4}", ms(*d))).collect();
         let json = format!(
-            "{{\"ms\": {median:.4}, \"times_ms\": [{}], \"iterations\": {}, \"rel_error\": {:e}, \
-             \"threads\": {threads}, \"converged\": {}}}\n",
+            "{{\"ms\": {median:.4}, \"times_ms\": [{}], \"runs\": {}, \"warmup\": {}, \
+             \"iterations\": {}, \"rel_error\": {:e}, \"threads\": {threads}, \"converged\": {}}}\n",
             list.join(", "),
+            timed.runs(),
+            timed.warmup,
             fit.iterations,
             fit.rel_error,
             fit.stop == CpStop::Converged

@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! cargo run --release --example spline_timing -- [--n 256] [--points 1000000] [--repeat 5]
-//!     [--mode mirror|reflect] [--order 2|3] [--write-dir DIR]
+//!     [--mode mirror|reflect] [--order 2|3] [--threads N] [--write-dir DIR]
 //! ```
 //!
 //! The grid holds `sin(0.11 i)·cos(0.07 j) + sin(0.05 k + 0.02 i) + 0.1·u` with `u` uniform in
@@ -15,7 +15,11 @@
 //! `--mode mirror` is `Boundary::WholeSample`, `--mode reflect` (or `grid-mirror`)
 //! `Boundary::HalfSample`.
 //!
-//! Prints one line `n=… points=… mode=… order=… threads=… prefilter_ms=… eval_ms=…`. With
+//! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU) or `--threads N` (a global
+//! rayon pool of `N` threads); the count in effect (`rayon::current_num_threads()`) is printed.
+//!
+//! Prints one line `n=… points=… mode=… order=… threads=… runs=… prefilter_ms=… eval_ms=…`
+//! (`runs`: timed runs of each, after one warm-up). With
 //! `--write-dir DIR` it writes raw little-endian f64 files (read them with `numpy.fromfile`):
 //! `DIR/grid.f64` (`n³`, C order), `DIR/coeffs.f64` (`n³`, C order), `DIR/points.f64` (`3 × P`,
 //! axis-major: all first coordinates, then all second, then all third — the `coordinates`
@@ -26,7 +30,7 @@ mod output;
 #[path = "common/rng.rs"]
 mod rng;
 #[path = "common/timing.rs"]
-#[allow(dead_code)] // only `median` is used here
+#[allow(dead_code)] // `median` and `set_threads` are used here
 mod timing;
 
 use std::path::PathBuf;
@@ -47,11 +51,12 @@ struct Args {
     mode: String,
     degree: Degree,
     order: usize,
+    threads: Option<usize>,
     write_dir: Option<PathBuf>,
 }
 
 const USAGE: &str = "usage: spline_timing [--n 256] [--points 1000000] [--repeat 5] \
-[--mode mirror|reflect] [--order 2|3] [--write-dir DIR]";
+[--mode mirror|reflect] [--order 2|3] [--threads N] [--write-dir DIR]";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -62,6 +67,7 @@ fn parse_args() -> Result<Args, String> {
         mode: "mirror".into(),
         degree: Degree::Quadratic,
         order: 2,
+        threads: None,
         write_dir: None,
     };
     let mut it = std::env::args().skip(1);
@@ -87,6 +93,9 @@ fn parse_args() -> Result<Args, String> {
                     other => return Err(format!("--order: {other}: expected 2 or 3")),
                 }
             }
+            "--threads" => {
+                args.threads = Some(value()?.parse().map_err(|e| format!("--threads: {e}"))?)
+            }
             "--write-dir" => args.write_dir = Some(value()?.into()),
             "--help" | "-h" => return Err(USAGE.into()),
             other => return Err(format!("unknown argument {other}\n{USAGE}")),
@@ -98,17 +107,9 @@ fn parse_args() -> Result<Args, String> {
     Ok(args)
 }
 
-/// The thread count rayon uses: `RAYON_NUM_THREADS` if set, else the available parallelism.
-fn threads() -> usize {
-    std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .filter(|&t| t > 0)
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
+    let threads = timing::set_threads(args.threads)?;
     let n = args.n;
     let shape = [n, n, n];
 
@@ -157,11 +158,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let eval_time = timing::median(times);
 
     println!(
-        "n={n} points={} mode={} order={} threads={} prefilter_ms={:.3} eval_ms={:.3}",
+        "n={n} points={} mode={} order={} threads={threads} runs={} prefilter_ms={:.3} eval_ms={:.3}",
         args.points,
         args.mode,
         args.order,
-        threads(),
+        args.repeat,
         prefilter_time.as_secs_f64() * 1e3,
         eval_time.as_secs_f64() * 1e3,
     );

@@ -575,6 +575,8 @@ pub(crate) fn network<const D: usize>(f: &NeuralField<D>) -> String {
 
 /// Default marching-squares cells along the longer axis of a 2-D field.
 const CURVE_CELLS: usize = 256;
+/// The most samples of a 2-D field's grid (0.8 GB of values).
+const CURVE_SAMPLES: usize = 100_000_000;
 
 /// `zeroset mesh` of a 2-D field: its level curve by marching squares, as SVG.
 fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
@@ -613,15 +615,19 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
     if !(h.is_finite() && h > 0.0) {
         bail!("the field's box is a point: nothing to trace");
     }
-    let counts = ext.map(|e| ((e / h).ceil() as usize).max(1) + 1);
-    if counts[0].saturating_mul(counts[1]) > 100_000_000 {
+    // The same guard as the 3-D grids: counts that cannot overflow, then a size the curve's
+    // samples fit in.
+    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+    let counts = grid.counts();
+    if grid.len() > CURVE_SAMPLES {
         bail!(
-            "a {}×{} grid is too fine; choose a larger --voxel",
+            "a {}×{} grid is too fine for a curve ({} samples, at most {CURVE_SAMPLES}); choose a \
+             larger --voxel or a smaller --resolution",
             counts[0],
-            counts[1]
+            counts[1],
+            grid.len()
         );
     }
-    let grid = Grid::vertex_centered(bounds, counts).context("building the sampling grid")?;
     say!(
         out,
         "field {}: 2-D {} over min {} max {}",

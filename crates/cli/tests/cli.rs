@@ -1756,6 +1756,15 @@ fn fit_rbf_on_the_curve_sample_then_trace_it_for_every_kernel() {
     let o = fit(&curve_sample(), &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).contains("kernel:       tps"), "{}", stdout(&o));
+    // Cells far too small for the curve's grid: one line, no panic, no file.
+    let field = dir.path().join("curve_0_tps.zsf");
+    for (voxel, says) in [("1e-300", "more than"), ("1e-5", "too fine for a curve")] {
+        let svg = dir.path().join("tiny.svg");
+        let o = mesh(&field, &svg, &["--voxel", voxel]);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(says), "{voxel}: {}", stderr(&o));
+        assert!(!svg.exists());
+    }
 }
 
 #[test]

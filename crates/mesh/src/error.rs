@@ -97,8 +97,8 @@ pub enum MeshError {
     GridTooLarge {
         /// The voxel edge asked for.
         voxel: f64,
-        /// The extent of the box (margin included).
-        extent: [f64; 3],
+        /// The extent of the box (margin included), per axis.
+        extent: Vec<f64>,
         /// The most samples allowed.
         limit: u64,
     },

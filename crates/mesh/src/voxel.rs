@@ -87,8 +87,8 @@ pub fn voxel_size(bounds: &Aabb<3>, detail: Detail) -> f64 {
 /// so that sample counts and byte estimates never overflow.
 pub const MAX_SAMPLES: u64 = 1 << 48;
 
-/// A vertex-centred grid of cubic voxels of edge `voxel` covering `bounds` grown by `margin`
-/// on every side: `⌈extent/voxel⌉` voxels per axis (at least one), centred on the box, so the
+/// A vertex-centred grid of cubic voxels (square cells in 2-D) of edge `voxel` covering `bounds`
+/// grown by `margin` on every side: `⌈extent/voxel⌉` voxels per axis (at least one), centred on the box, so the
 /// grid reaches past the grown box by less than a voxel per axis (and falls short of it by at
 /// most a relative `1e-12` when the extent is a whole number of voxels up to rounding).
 ///
@@ -96,7 +96,7 @@ pub const MAX_SAMPLES: u64 = 1 << 48;
 /// - [`MeshError::InvalidSize`] if `voxel` is not finite and positive, or `margin` is negative
 ///   or not finite;
 /// - [`MeshError::GridTooLarge`] if the grid would hold more than [`MAX_SAMPLES`] samples.
-pub fn grid_for(bounds: &Aabb<3>, voxel: f64, margin: f64) -> Result<Grid<3>> {
+pub fn grid_for<const D: usize>(bounds: &Aabb<D>, voxel: f64, margin: f64) -> Result<Grid<D>> {
     if !(voxel.is_finite() && voxel > 0.0) {
         return Err(MeshError::InvalidSize {
             what: "voxel size",
@@ -113,12 +113,12 @@ pub fn grid_for(bounds: &Aabb<3>, voxel: f64, margin: f64) -> Result<Grid<3>> {
     let extent = grown.extent();
     let too_large = || MeshError::GridTooLarge {
         voxel,
-        extent,
+        extent: extent.to_vec(),
         limit: MAX_SAMPLES,
     };
-    let mut cells = [0usize; 3];
+    let mut cells = [0usize; D];
     let mut samples: u64 = 1;
-    for axis in 0..3 {
+    for axis in 0..D {
         // A ratio a rounding error above a whole number does not take another voxel.
         let n = (extent[axis] / voxel * (1.0 - 1e-12)).ceil().max(1.0);
         if n >= MAX_SAMPLES as f64 {

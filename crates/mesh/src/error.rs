@@ -91,7 +91,7 @@ pub enum MeshError {
     /// A sampling grid with more samples than can be indexed (a voxel far too small for its
     /// box).
     #[error(
-        "a grid of voxel {voxel} over a box of extent {extent:?} has more than {limit} samples; \
+        "a grid of voxel {voxel:e} over a box of extent {extent:?} has more than {limit} samples; \
          choose a larger voxel"
     )]
     GridTooLarge {

@@ -22,7 +22,7 @@
 //! evaluations, enclosures and bookkeeping per grid vertex, and `ops(p) ≈ A p⁶` for operators
 //! that must be built (0 in memory; a read of a few milliseconds on disk; per cell width, about
 //! [`LEVELS`] widths, for a kernel that is not homogeneous). `B`, `V` and `A` were measured on
-//! the bunny fields of `examples/smc_timing.rs` (see the constants). The signed marching cubes
+//! fields of scans (see the constants). The signed marching cubes
 //! are chosen only when the model says they take at most [`WIN`] of plain marching cubes'
 //! time, so a wrong guess near the break-even point costs little.
 
@@ -34,16 +34,24 @@ use zeroset_bases::rbf::{Kernel, RbfField};
 use zeroset_field_core::Grid;
 use zeroset_field_core::field::ScalarField;
 
-/// Both fields' builds, in exact kernel terms per centre.
-const BUILD_PER_CENTRE: f64 = 16_000.0;
-/// Step 1 (evaluations or enclosures), step 2 and the bookkeeping, in exact kernel terms per
-/// grid vertex.
-const PER_VERTEX: f64 = 400.0;
-/// Building the operators of order `p`, in exact kernel terms per `p⁶`.
-const OPERATORS_PER_P6: f64 = 1_000.0;
-/// Reading one order's operators from the disk cache, in exact kernel terms per `p⁶` (about
-/// 30× less than building them).
-const READ_PER_P6: f64 = 30.0;
+// The constants were fitted to `zeroset mesh --method smc --always-smc` against `--method mc`
+// on the bunny fields of 6,000 and 10,002 centres and the kitten's 15,630, from the coarse
+// detail (441 vertices) to 6.5 million vertices, on 2 cores (a busy machine, so the fixed part
+// is on the high side; the model errs towards plain marching cubes).
+
+/// Everything but the error samples' direct sum that does not grow with the grid — both
+/// fields' builds, the probe, the bookkeeping — in exact kernel terms per centre (measured
+/// 30,000–43,000).
+const BUILD_PER_CENTRE: f64 = 40_000.0;
+/// Step 1 (evaluations or enclosures), step 2 and the triangulation's extra work, in exact
+/// kernel terms per grid vertex (measured 150–200).
+const PER_VERTEX: f64 = 250.0;
+/// Building the operators of order `p`, in exact kernel terms per `p⁶` (about 0.3 s at
+/// `p = 10` on 2 cores, cross approximation; 0.8 s with this constant at 1.3 ns a term).
+const OPERATORS_PER_P6: f64 = 600.0;
+/// Reading one order's operators from the disk cache, in exact kernel terms per `p⁶` (tens of
+/// milliseconds at `p = 10`).
+const READ_PER_P6: f64 = 50.0;
 /// Cell widths a kernel that is not homogeneous needs operators for (one per tree level).
 pub const LEVELS: f64 = 4.0;
 /// The signed marching cubes are chosen when the model gives them at most this fraction of
@@ -142,4 +150,54 @@ pub fn cache_dir() -> Option<std::path::PathBuf> {
                 .map(|h| PathBuf::from(h).join(".cache"))
         })?;
     Some(base.join("zeroset"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use zeroset_bases::rbf::{Biharmonic, Constraints, RbfFit};
+    use zeroset_field_core::Aabb;
+
+    /// 300 points on the unit sphere with values 0 and ±0.1 off it: 900 centres.
+    fn sphere() -> RbfField<Biharmonic, 3> {
+        let mut c = Constraints::<3>::new();
+        for i in 0..300 {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 300.0;
+            let t = i as f64 * 2.399_963;
+            let r = (1.0 - z * z).sqrt();
+            let p = [r * t.cos(), r * t.sin(), z];
+            c.push_value(p, 0.0);
+            c.push_value(p.map(|v| 1.1 * v), 0.1);
+            c.push_value(p.map(|v| 0.9 * v), -0.1);
+        }
+        RbfFit::new(Biharmonic).fit(&c).expect("fit").field
+    }
+
+    fn grid(n: usize) -> Grid<3> {
+        let b = Aabb::new([-1.2; 3], [1.2; 3]).expect("box");
+        Grid::vertex_centered(b, [n; 3]).expect("grid")
+    }
+
+    /// Plain marching cubes on a coarse grid, the signed ones on a fine grid; the verdict does
+    /// not depend on the machine's speed (the term's time scales both sides).
+    #[test]
+    fn coarse_grids_go_plain_and_fine_grids_signed() {
+        let field = sphere();
+        let (low, high) = (FmmOptions::new(5), FmmOptions::new(10));
+        for term in [1e-9, 5e-9] {
+            let coarse = plan(&field, &grid(12), &low, &high, term);
+            assert!(!coarse.signed_wins(), "{coarse:?}");
+            assert!(coarse.plain_seconds < coarse.signed_seconds);
+            let fine = plan(&field, &grid(300), &low, &high, term);
+            assert!(fine.signed_wins(), "{fine:?}");
+            assert!(fine.signed_seconds < 0.5 * fine.plain_seconds, "{fine:?}");
+        }
+    }
+
+    /// The calibration measures a positive, finite time per kernel term.
+    #[test]
+    fn calibration_gives_a_time_per_term() {
+        let term = calibrate(&sphere(), &grid(40));
+        assert!(term.is_finite() && term > 0.0 && term < 1e-5, "{term}");
+    }
 }

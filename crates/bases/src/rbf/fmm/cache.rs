@@ -3,8 +3,9 @@
 //! The M2L operators are the one part of a multipole field whose cost does not grow with the
 //! data: they depend only on the kernel, the order `p`, the compression tolerance and the
 //! compression (and, for a kernel that is not homogeneous, the cell width). Building them takes
-//! 0.01 s at `p = 5`, about 0.2 s at `p = 8` and 0.5–0.7 s at `p = 10` on two cores, which a
-//! field of a few thousand centres would otherwise pay on every build. So:
+//! about 0.01 s at `p = 5`, 0.1 s at `p = 8` and 0.25–0.3 s at `p = 10` on two cores (0.85–1.3 s
+//! at `p = 12`), which a field of a few thousand centres would otherwise pay on every build,
+//! often more than the build itself. So:
 //!
 //! - **In memory.** [`FmmField::new`](super::FmmField::new) and
 //!   [`FmmField::operators`](super::FmmField::operators) take their operators from one cache per

@@ -389,8 +389,8 @@ impl<K: Kernel + Clone> FmmField<K> {
 
     /// The M2L operators for `kernel` at `options.order`, to share between fields of one kernel
     /// ([`FmmField::with_operators`]), from the process-wide [`cache`]: building them is the one
-    /// step whose cost does not grow with the data (for `r` and `r³` on two cores, about 0.2 s
-    /// at `p = 8` and 0.5–0.7 s at `p = 10`), so it is paid once per process (or once per
+    /// step whose cost does not grow with the data (for `r` and `r³` on two cores, about 0.1 s
+    /// at `p = 8` and 0.25–0.3 s at `p = 10`), so it is paid once per process (or once per
     /// machine with [`cache::set_disk_dir`]). They are computed when a field first needs them.
     ///
     /// # Errors

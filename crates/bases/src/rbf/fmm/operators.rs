@@ -9,7 +9,8 @@
 //! nodes are symmetric (`−x̄_a = x̄_{p−1−a}`), they act on the node indices as a permutation
 //! `Π_t`: `K_t[A, B] = K_c[Π_t(A), Π_t(B)]` (Messner, Schanz & Darve 2012, §3). Only the 16
 //! canonical operators are built, each compressed by a truncated SVD `K_c ≈ (U_cΣ_c) V_cᵀ`
-//! (singular values above `ε σ₁`, by a seeded randomised range finder, exact to well below `ε`
+//! (singular values above `ε σ₁`, by adaptive cross approximation recompressed and checked
+//! against `K_c`, a seeded randomised range finder as the fallback; exact to well below `ε`
 //! because the singular values of a smooth kernel fall geometrically).
 //!
 //! **Per operator** ([`M2lCompression::PerOperator`]): a pair applies `U_cΣ_c (V_cᵀ Π_t M)` in
@@ -36,7 +37,10 @@
 //! of their number of reflections: the same singular values as the 316 offsets' matrix, to
 //! the accuracy of the canonical factors — at `p = 10`, `ε = 3·10⁻¹¹` the latter has 404 above
 //! the cut against 370, the difference being the factors' own asymmetry at the cut, which the
-//! sectors drop: the bunny `r³` field's error is 7.8e-6 against 7.6e-6). At `p = 10` this takes 0.7 s on 2 cores and 20 MB; the M2L step runs 30–45%
+//! sectors drop: the bunny `r³` field's error is 7.8e-6 against 7.6e-6). Each sector's
+//! coordinates have at most 8 non-zeros a column, so its columns are gathered straight from the
+//! canonical factors. At `p = 10`, `ε = 3·10⁻¹¹` the canonical operators and the shared basis
+//! take about 0.3 s on 2 cores (0.7 s before cross approximation) and 20 MB; the M2L step runs 30–45%
 //! faster than with 316 offsets' factors (bigger products, 5.6× fewer operands to stream).
 //!
 //! A kernel with [`homogeneity`](crate::rbf::Kernel::homogeneity) `k` (`r`, `r³`) has
@@ -77,9 +81,9 @@ impl M2lCompression {
     /// faster (at 10,000 bunny centres the M2L step takes 25–30% less time at `p = 8`); per
     /// operator below (`r` is close to `p³`) and above, where the shared basis still makes
     /// the field's build faster (`r³`, 10,000 bunny centres: 44 against 64 ms at `p = 10`) but
-    /// costs more to build once (0.7 against 0.5 s at `p = 10`, 2.3 against 1.7 s and 260
-    /// against 200 MB at `p = 12`), which one-off fields such as the signed marching cubes'
-    /// pay. Applications that build many fields of one kernel and order should choose the
+    /// costs more to build once (`r³` on 2 cores: 0.32 against 0.25 s at `p = 10`, 1.3 against
+    /// 0.85 s and 260 against 200 MB at `p = 12`), which one-off fields such as the signed
+    /// marching cubes' pay where no cache holds the operators ([`super::cache`]). Applications that build many fields of one kernel and order should choose the
     /// shared basis ([`FmmOptions::with_compression`](super::FmmOptions::with_compression)).
     pub fn for_order(p: usize) -> Self {
         if (7..=8).contains(&p) {
@@ -426,53 +430,73 @@ impl FmmOperators {
             .iter()
             .map(|c| c.us.col(0).norm_l2().max(f64::MIN_POSITIVE))
             .collect();
-        let mut fat = Mat::<f64>::zeros(n, total);
-        let mut col = 0;
-        for &code in &codes {
-            let c = sym.canonical_of[code];
-            let us = &canonical[c].us;
-            let perm = &sym.perm[code];
-            let reflections = offset_of(code).iter().filter(|&&v| v != 0).count();
-            let weight = ((1u32 << reflections) as f64).sqrt() / norms[c];
-            for j in 0..us.ncols() {
-                for (i, &from) in perm.iter().enumerate() {
-                    fat[(i, col + j)] = weight * us[(from as usize, j)];
-                }
-            }
-            col += us.ncols();
-        }
-        // Per sector: its orthonormal coordinates Q_e, then the SVD of Q_eᵀ F.
-        let sectors: Vec<(u8, Mat<f64>, Vec<f64>)> = (0u8..8)
+        // Per sector: its orthonormal coordinates Q_e (at most 8 non-zeros a column), then the
+        // SVD of Q_eᵀ F = W_e Σ_e Z_eᵀ, F = [√m_t Π_t U_cΣ_c / σ₁(K_c)] gathered straight from
+        // the canonical factors; the sector's basis columns are Q_e W_e.
+        let sectors: Vec<(ParitySector, Mat<f64>, Vec<f64>)> = (0u8..8)
             .into_par_iter()
             .map(|e| {
-                let q = parity_sector(p, e);
-                let mut projected = Mat::<f64>::zeros(q.ncols(), total);
-                product(projected.as_mut(), q.transpose(), fat.as_ref(), 1.0);
+                let q = ParitySector::new(p, e);
+                let mut projected = Mat::<f64>::zeros(q.len(), total);
+                let mut col = 0;
+                for &code in &codes {
+                    let c = sym.canonical_of[code];
+                    let us = &canonical[c].us;
+                    let reflections = offset_of(code).iter().filter(|&&v| v != 0).count();
+                    let weight = ((1u32 << reflections) as f64).sqrt() / norms[c];
+                    q.gather_into(
+                        us.as_ref(),
+                        &sym.perm[code],
+                        weight,
+                        projected.subcols_mut(col, us.ncols()),
+                    );
+                    col += us.ncols();
+                }
                 let (w, sigma) = left_basis(projected.as_ref(), self.tolerance);
                 let sigma = if sigma.is_empty() {
                     vec![f64::INFINITY; w.ncols()]
                 } else {
                     sigma
                 };
-                let mut columns = Mat::<f64>::zeros(n, w.ncols());
-                product(columns.as_mut(), q.as_ref(), w.as_ref(), 1.0);
-                (e, columns, sigma)
+                (q, w, sigma)
             })
             .collect();
-        drop(fat);
         let mut order: Vec<(f64, u8, usize)> = sectors
             .iter()
-            .flat_map(|(e, _, sigma)| sigma.iter().enumerate().map(|(j, &s)| (s, *e, j)))
+            .enumerate()
+            .flat_map(|(e, (_, _, sigma))| {
+                sigma.iter().enumerate().map(move |(j, &s)| (s, e as u8, j))
+            })
             .collect();
         order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         // Each sector's SVD keeps at least one column; the basis keeps those above the
         // tolerance (at least one).
         let keep = order.iter().filter(|o| o.0 > self.tolerance).count().max(1);
         order.truncate(keep);
-        let basis = Mat::from_fn(n, order.len(), |i, k| {
-            let (_, e, j) = order[k];
-            sectors[e as usize].1[(i, j)]
-        });
+        // Per sector, its kept columns of W_e and where they go in the basis.
+        let kept: Vec<(Mat<f64>, Vec<usize>)> = sectors
+            .iter()
+            .enumerate()
+            .map(|(e, (_, w, _))| {
+                let (locals, globals): (Vec<usize>, Vec<usize>) = order
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, o)| o.1 as usize == e)
+                    .map(|(k, o)| (o.2, k))
+                    .unzip();
+                (
+                    Mat::from_fn(w.nrows(), locals.len(), |i, j| w[(i, locals[j])]),
+                    globals,
+                )
+            })
+            .collect();
+        let mut basis = Mat::<f64>::zeros(n, order.len());
+        for ((q, _, _), (w, globals)) in sectors.iter().zip(&kept) {
+            let columns = q.scatter(w.as_ref(), n);
+            for (j, &k) in globals.iter().enumerate() {
+                basis.col_mut(k).copy_from(columns.col(j));
+            }
+        }
         let basis_sigma: Vec<f64> = order.iter().map(|o| o.0).collect();
         let signs: Vec<Vec<f64>> = (0u8..8)
             .map(|mask| {
@@ -488,11 +512,21 @@ impl FmmOperators {
                     .collect()
             })
             .collect();
+        // Uᵀ Π_t M, sector by sector: W_eᵀ (Q_eᵀ Π_t M), rows scattered to the basis's order.
         let project = |m: &Mat<f64>, code: usize| {
-            let perm = &sym.perm[code];
-            let permuted = Mat::from_fn(n, m.ncols(), |i, j| m[(perm[i] as usize, j)]);
             let mut out = Mat::<f64>::zeros(basis.ncols(), m.ncols());
-            product(out.as_mut(), basis.transpose(), permuted.as_ref(), 1.0);
+            for ((q, _, _), (w, globals)) in sectors.iter().zip(&kept) {
+                if globals.is_empty() {
+                    continue;
+                }
+                let mut z = Mat::<f64>::zeros(q.len(), m.ncols());
+                q.gather_into(m.as_ref(), &sym.perm[code], 1.0, z.as_mut());
+                let mut y = Mat::<f64>::zeros(w.ncols(), m.ncols());
+                product(y.as_mut(), w.transpose(), z.as_ref(), 1.0);
+                for (j, &k) in globals.iter().enumerate() {
+                    out.row_mut(k).copy_from(y.row(j));
+                }
+            }
             out
         };
         let built: Vec<(usize, OffsetOperator)> = codes
@@ -520,48 +554,85 @@ impl FmmOperators {
     }
 }
 
-/// The orthonormal coordinates of parity sector `e` of the `p³` node grid (bit `a` of `e`
-/// set: odd along axis `a`, under the reflection `x̄ₘ ↦ x̄_{p−1−m}`): the products of the
-/// 1-D even vectors `(δₘ + δ_{p−1−m})/√2` (and `δ` at the middle node of an odd order) or
-/// odd vectors `(δₘ − δ_{p−1−m})/√2`, `m < p/2`.
-fn parity_sector(p: usize, e: u8) -> Mat<f64> {
-    let axis = |odd: bool| -> Vec<Vec<f64>> {
-        let h = std::f64::consts::FRAC_1_SQRT_2;
-        let mut out = Vec::new();
-        for m in 0..p.div_ceil(2) {
-            let mut v = vec![0.0; p];
-            if 2 * m + 1 == p {
-                if odd {
-                    continue;
+/// The orthonormal coordinates `Q_e` of parity sector `e` of the `p³` node grid (bit `a` of
+/// `e` set: odd along axis `a`, under the reflection `x̄ₘ ↦ x̄_{p−1−m}`): the products of the
+/// 1-D even vectors `(δₘ + δ_{p−1−m})/√2` (and `δ` at the middle node of an odd order) or odd
+/// vectors `(δₘ − δ_{p−1−m})/√2`, `m < p/2`. Each column has at most 8 non-zeros, kept as a
+/// list, so that `Q_eᵀ X` and `Q_e W` cost `O(8 · size)` instead of a dense product.
+#[derive(Debug, Clone)]
+struct ParitySector {
+    /// Per column: its non-zero entries `(row, value)`.
+    columns: Vec<Vec<(usize, f64)>>,
+}
+
+impl ParitySector {
+    fn new(p: usize, e: u8) -> Self {
+        let axis = |odd: bool| -> Vec<Vec<(usize, f64)>> {
+            let h = std::f64::consts::FRAC_1_SQRT_2;
+            let mut out = Vec::new();
+            for m in 0..p.div_ceil(2) {
+                if 2 * m + 1 == p {
+                    if !odd {
+                        out.push(vec![(m, 1.0)]);
+                    }
+                } else {
+                    out.push(vec![(m, h), (p - 1 - m, if odd { -h } else { h })]);
                 }
-                v[m] = 1.0;
-            } else {
-                v[m] = h;
-                v[p - 1 - m] = if odd { -h } else { h };
             }
-            out.push(v);
-        }
-        out
-    };
-    let [x, y, z] = [0, 1, 2].map(|a| axis(e & (1 << a) != 0));
-    let cols = x.len() * y.len() * z.len();
-    let mut q = Mat::<f64>::zeros(p * p * p, cols);
-    let mut col = 0;
-    for vx in &x {
-        for vy in &y {
-            for vz in &z {
-                for a in 0..p {
-                    for b in 0..p {
-                        for c in 0..p {
-                            q[((a * p + b) * p + c, col)] = vx[a] * vy[b] * vz[c];
+            out
+        };
+        let [x, y, z] = [0, 1, 2].map(|a| axis(e & (1 << a) != 0));
+        let mut columns = Vec::with_capacity(x.len() * y.len() * z.len());
+        for vx in &x {
+            for vy in &y {
+                for vz in &z {
+                    let mut column = Vec::with_capacity(vx.len() * vy.len() * vz.len());
+                    for &(a, u) in vx {
+                        for &(b, v) in vy {
+                            for &(c, w) in vz {
+                                column.push(((a * p + b) * p + c, u * v * w));
+                            }
                         }
                     }
+                    columns.push(column);
                 }
-                col += 1;
+            }
+        }
+        Self { columns }
+    }
+
+    /// The number of columns.
+    fn len(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// `out = weight · Q_eᵀ Π X` (`X`: `p³ × m`, `Π` the node permutation `perm`: row `i` of
+    /// `Π X` is row `perm[i]` of `X`).
+    fn gather_into(&self, x: MatRef<'_, f64>, perm: &[u32], weight: f64, mut out: MatMut<'_, f64>) {
+        for j in 0..x.ncols() {
+            let column = x.col(j);
+            for (k, entries) in self.columns.iter().enumerate() {
+                let sum: f64 = entries
+                    .iter()
+                    .map(|&(i, v)| v * column[perm[i] as usize])
+                    .sum();
+                out[(k, j)] = weight * sum;
             }
         }
     }
-    q
+
+    /// `Q_e W` (`W`: columns of the sector × `m`), `n = p³` rows.
+    fn scatter(&self, w: MatRef<'_, f64>, n: usize) -> Mat<f64> {
+        let mut out = Mat::<f64>::zeros(n, w.ncols());
+        for (k, column) in self.columns.iter().enumerate() {
+            for &(i, v) in column {
+                for j in 0..w.ncols() {
+                    out[(i, j)] += v * w[(k, j)];
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The left singular vectors of `f` whose singular values exceed `tolerance` (at least one),
@@ -645,9 +716,9 @@ fn compress(k: MatRef<'_, f64>, tolerance: f64) -> Compressed {
 /// Step `k` takes the residual's row `i_k` (the largest entry of the previous column among
 /// rows not used yet), its largest entry as the pivot `j_k`, and the residual's column `j_k`:
 /// `R ← R − c rᵀ / R[i_k, j_k]`, reading only one row and one column of `K`. It stops once
-/// three successive updates are below `tolerance / 20` of the running Frobenius norm of the
-/// approximation. The factors `C Rᵀ` are then put in SVD form through the SVDs of `C` and `R`
-/// (`O(n r²)`) and cut at `tolerance · σ₁`. The result is accepted only if
+/// three successive updates are below `tolerance / 4` of the running Frobenius norm of the
+/// approximation. The factors `C Rᵀ` are then put in SVD form through the QR factorisations
+/// of `C` and `R` and the SVD of `R_C R_Rᵀ` (`O(n r²)`), and cut at `tolerance · σ₁`. The result is accepted only if
 /// `‖K Ω − U Σ Vᵀ Ω‖_F ≤ 10 · tolerance · ‖K Ω‖_F` for 8 seeded random vectors, and its rank
 /// is at most `n / 2` (past that a low-rank form is not worth it).
 fn cross_approximation(k: MatRef<'_, f64>, tolerance: f64) -> Option<Compressed> {
@@ -656,7 +727,7 @@ fn cross_approximation(k: MatRef<'_, f64>, tolerance: f64) -> Option<Compressed>
         return None;
     }
     let max_rank = n / 2;
-    let eps = tolerance / 20.0;
+    let eps = tolerance / 4.0;
     let mut cols: Vec<Vec<f64>> = Vec::new(); // c_k, length n
     let mut rows: Vec<Vec<f64>> = Vec::new(); // r_k / pivot, length n
     let mut used = vec![false; n];

@@ -71,13 +71,7 @@ pub fn near_surface_targets(
     count: usize,
     seed: u64,
 ) -> Vec<[f64; 3]> {
-    let mut state = seed;
-    let mut next = move || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(seed);
     (0..count)
         .map(|i| {
             let p = surface[i % surface.len()];
@@ -116,15 +110,20 @@ fn fit<K: zeroset::bases::rbf::Kernel + Clone>(
     Ok(RbfFit::new(kernel).with_solver(Solver::Auto).fit(c)?.field)
 }
 
-/// `count` points drawn uniformly (seeded) in `field`'s bounds.
-pub fn uniform_targets(bounds: &zeroset::core::Aabb<3>, count: usize, seed: u64) -> Vec<[f64; 3]> {
+/// A seeded stream of numbers uniform in `[0, 1)` (a 64-bit LCG's high bits).
+fn uniform(seed: u64) -> impl FnMut() -> f64 {
     let mut state = seed;
-    let mut next = move || {
+    move || {
         state = state
             .wrapping_mul(6_364_136_223_846_793_005)
             .wrapping_add(1_442_695_040_888_963_407);
         (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    }
+}
+
+/// `count` points drawn uniformly (seeded) in `field`'s bounds.
+pub fn uniform_targets(bounds: &zeroset::core::Aabb<3>, count: usize, seed: u64) -> Vec<[f64; 3]> {
+    let mut next = uniform(seed);
     let (lo, hi) = (bounds.min(), bounds.max());
     (0..count)
         .map(|_| std::array::from_fn(|a| lo[a] + next() * (hi[a] - lo[a])))

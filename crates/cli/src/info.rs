@@ -92,7 +92,14 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     if format == Format::Ply && has_faces(path) {
         return mesh_report(path);
     }
-    let options = ReadOptions::default().with_format(format);
+    let mut options = ReadOptions::default().with_format(format);
+    // Columns 4–6 of an xyz file that are not normals (colours): describe the positions and
+    // say why the rest is left out, rather than refuse the file.
+    let mut not_normals = None;
+    if let Err(e @ Error::NotNormals { .. }) = io::read_point_cloud_with(path, &options) {
+        not_normals = Some(e);
+        options = options.with_positions_only(true);
+    }
     // Read strictly first, so that a non-finite value is named with its line; then read again
     // accepting it, to count them all.
     let (cloud, first_non_finite) = match io::read_point_cloud_with(path, &options) {
@@ -114,6 +121,19 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     line(&mut s, "points", &format!("{n} point{}", plural(n)));
     write_bounds(&mut s, &cloud);
     write_normals(&mut s, &stats);
+    if let Some(Error::NotNormals { colours, .. }) = &not_normals {
+        line(
+            &mut s,
+            "columns 4–6",
+            if *colours {
+                "not read as normals: whole numbers from 0 to 255, as in RGB colours; zeroset fit \
+                 and restore refuse this file (keep only x y z, or give unit normals)"
+            } else {
+                "not read as normals: their lengths are far from 1; zeroset fit and restore \
+                 refuse this file (give unit normals)"
+            },
+        );
+    }
     write_non_finite(&mut s, &stats, first_non_finite.as_ref());
     let dup = stats.duplicate_points;
     line(

@@ -1667,6 +1667,18 @@ fn fit_refuses_colours_and_non_unit_normals_in_xyz_files() {
         ]);
         assert_one_line_refusal(&o, "do not look like unit normals");
         assert!(!out.exists());
+        // `zeroset info` still describes the positions, and says why columns 4–6 are left out.
+        let o = info(&path, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let described = stdout(&o);
+        assert!(described.contains("normals:     no"), "{described}");
+        assert!(
+            described.contains("columns 4–6: not read as normals"),
+            "{described}"
+        );
+        if name == "rgb.xyz" {
+            assert!(described.contains("RGB colours"), "{described}");
+        }
     }
     // Normals half or twice unit length are directions: fitted (after normalising).
     let scaled: String = points

@@ -188,9 +188,20 @@ pub struct ReadOptions {
     /// count them and [`PointCloud::validate`](crate::cloud::PointCloud::validate) to reject
     /// them later.
     pub allow_non_finite: bool,
+    /// Read the positions only (default `false`): any normal columns or properties are dropped
+    /// without being checked, so that a file whose columns 4–6 are not normals (an `x y z r g
+    /// b` xyz file: [`Error::NotNormals`]) can still be described.
+    pub positions_only: bool,
 }
 
 impl ReadOptions {
+    /// These options, reading the positions only (`true`) or the normals too (`false`).
+    #[must_use]
+    pub fn with_positions_only(mut self, positions_only: bool) -> Self {
+        self.positions_only = positions_only;
+        self
+    }
+
     /// These options, reading `format` instead of detecting it.
     #[must_use]
     pub fn with_format(mut self, format: Format) -> Self {
@@ -251,13 +262,18 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
     };
     let (positions, normals) = match format {
         Format::Ply => ply::read(path, &checker)?,
-        Format::Xyz => xyz::read(path, &checker)?,
+        Format::Xyz => xyz::read(path, &checker, !options.positions_only)?,
         Format::Csv => table::read_xyz_table(path, &checker)?,
         Format::GemPy => gempy::read_cloud(path, &checker)?,
     };
     if positions.is_empty() {
         return Err(malformed(path, None, "the file holds no point"));
     }
+    let normals = if options.positions_only {
+        None
+    } else {
+        normals
+    };
     PointCloud3::from_raw(positions, normals)
 }
 

@@ -26,7 +26,11 @@ pub const NORMAL_LENGTHS: (f64, f64) = (0.5, 2.0);
 ///
 /// A first data line holding a single non-negative integer (the point count that `.pts` files
 /// start with) is skipped.
-pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> crate::Result<RawPoints> {
+pub(super) fn read(
+    path: &Path,
+    check: &FiniteCheck<'_>,
+    check_normals: bool,
+) -> crate::Result<RawPoints> {
     let mut positions = Vec::new();
     let mut normals: Option<Vec<_>> = None;
     let mut normal_columns = NormalColumns::default();
@@ -75,7 +79,9 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> crate::Result<RawPoi
         }
         Ok(())
     })?;
-    normal_columns.check(path)?;
+    if check_normals {
+        normal_columns.check(path)?;
+    }
     Ok((positions, normals))
 }
 

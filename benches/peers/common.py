@@ -205,6 +205,24 @@ def built_example(name: str, skip_build: bool) -> Path:
     return binary
 
 
+def run_and_read_zeroset(args, example: str, csv_names: dict, run, read, reused: str):
+    """The zeroset side of a peer script: unless `--skip-zeroset`, builds `example` (or reuses it
+    with `--skip-build`) and calls `run(args, binary, config)` for the one-thread configuration
+    "1" and, with `args.mt`, for "all"; then reads both CSVs (`csv_names[config]` in `args.out`)
+    with `read`. Returns (rows at one thread, rows at all threads or [])."""
+    out = args.out
+    if args.skip_zeroset:
+        print(f"--skip-zeroset: reusing {reused} and {', '.join(csv_names.values())} in {out}", flush=True)
+    else:
+        binary = built_example(example, args.skip_build)
+        run(args, binary, "1")
+        if args.mt:
+            run(args, binary, "all")
+    zs1 = read(out / csv_names["1"])
+    zsn = read(out / csv_names["all"]) if args.mt and (out / csv_names["all"]).is_file() else []
+    return zs1, zsn
+
+
 def timed(fn, repeat: int, warmup: bool = True):
     """Optionally one warm-up, then `repeat` timed runs; returns (last result, upper median ms,
     all times in ms). The upper median `sorted[n // 2]` is the rule of the Rust examples

@@ -498,15 +498,7 @@ def main() -> None:
     print(f"BLAS threads: {BLAS_NOTE} ({common.blas_runtime()}); all-threads configuration: "
           f"{args.mt or 'not run'}; load average {load_start}\n", flush=True)  # fmt: skip
 
-    if args.skip_zeroset:
-        print(f"--skip-zeroset: reusing the point files and {', '.join(ZS_CSV.values())} in {out}", flush=True)
-    else:
-        binary = common.built_example(EXAMPLE, args.skip_build)
-        run_zeroset(args, binary, "1")
-        if args.mt:
-            run_zeroset(args, binary, "all")
-    zs1 = read_zeroset(out / ZS_CSV["1"])
-    zsn = read_zeroset(out / ZS_CSV["all"]) if args.mt and (out / ZS_CSV["all"]).is_file() else []
+    zs1, zsn = common.run_and_read_zeroset(args, EXAMPLE, ZS_CSV, run_zeroset, read_zeroset, "the point files")
     for rows, label in [(zs1, "1 thread")] + ([(zsn, "all threads")] if args.mt else []):
         for n in args.ns:
             for k in args.kernel_list:

@@ -46,7 +46,7 @@ use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
 
 use crate::info::{g, point};
-use crate::machine::{available_memory, bytes};
+use crate::machine::ensure_memory;
 use crate::progress::{seconds, spinner};
 
 mod plan;
@@ -295,20 +295,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         c[2],
         g(h)
     )?;
-    let need = voxel::estimate_bytes(&grid);
-    if let Some(available) = available_memory()
-        && need > available
-    {
-        bail!(
-            "the grid {}×{}×{} needs about {} of memory, more than the {} available; choose a \
-             larger --voxel, a smaller --resolution or a coarser --detail",
-            c[0],
-            c[1],
-            c[2],
-            bytes(need),
-            bytes(available)
-        );
-    }
+    ensure_memory(
+        voxel::estimate_bytes(&grid),
+        &format!("the grid {}×{}×{}", c[0], c[1], c[2]),
+        "choose a larger --voxel, a smaller --resolution or a coarser --detail",
+    )?;
 
     let start = Instant::now();
     let options = McOptions::default().with_close_boundary(args.close);

@@ -104,18 +104,21 @@ struct Registry {
     stats: CacheStats,
 }
 
+/// No entries, nothing done yet (`CacheStats::default()`, usable in a `static`).
+const NO_STATS: CacheStats = CacheStats {
+    entries: 0,
+    bytes: 0,
+    memory_hits: 0,
+    memory_misses: 0,
+    disk_reads: 0,
+    builds: 0,
+    disk_writes: 0,
+};
+
 static REGISTRY: Mutex<Registry> = Mutex::new(Registry {
     entries: Vec::new(),
     limit: DEFAULT_MEMORY_LIMIT,
-    stats: CacheStats {
-        entries: 0,
-        bytes: 0,
-        memory_hits: 0,
-        memory_misses: 0,
-        disk_reads: 0,
-        builds: 0,
-        disk_writes: 0,
-    },
+    stats: NO_STATS,
 });
 
 static DISK: RwLock<Option<PathBuf>> = RwLock::new(None);
@@ -212,7 +215,7 @@ pub(crate) fn record(from_disk: bool, written: bool) {
 pub fn clear() {
     let mut reg = registry();
     reg.entries.clear();
-    reg.stats = CacheStats::default();
+    reg.stats = NO_STATS;
 }
 
 /// Sets the most bytes of built operators the in-memory cache keeps (0: keep only the set in

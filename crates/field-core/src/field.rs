@@ -122,6 +122,49 @@ pub fn lipschitz_range<const D: usize, F: ScalarField<D> + ?Sized>(
     v.is_finite().then_some([v - spread, v + spread])
 }
 
+/// The distance from `p` to the zero set of `field`, found by projecting along the gradient:
+/// `q ← q − f(q) ∇f(q)/|∇f(q)|²` from `q = p` until `|f(q)| ≤ tol` (at most `max_steps`
+/// steps); returns `|p − q|` for the point `q` reached, which lies on the zero set, so the
+/// figure is an **upper bound** of the true distance (equal to it where the projection runs
+/// straight, as it does near a smooth surface). `None` where it does not converge or the
+/// gradient vanishes.
+///
+/// ```
+/// use zeroset_field_core::analytic::Sphere;
+/// use zeroset_field_core::field::distance_to_zero_set;
+///
+/// let s = Sphere::new([0.0; 3], 1.0);
+/// let d = distance_to_zero_set(&s, &[0.0, 0.0, 1.25], 1e-12, 20).unwrap();
+/// assert!((d - 0.25).abs() < 1e-12);
+/// ```
+pub fn distance_to_zero_set<const D: usize, F: ScalarField<D> + ?Sized>(
+    field: &F,
+    p: &Point<D>,
+    tol: f64,
+    max_steps: usize,
+) -> Option<f64> {
+    let mut q = *p;
+    for _ in 0..=max_steps {
+        let v = field.value(&q);
+        if !v.is_finite() {
+            return None;
+        }
+        if v.abs() <= tol {
+            let d2: f64 = (0..D).map(|a| (q[a] - p[a]).powi(2)).sum();
+            return Some(d2.sqrt());
+        }
+        let g = field.gradient(&q);
+        let g2: f64 = g.iter().map(|x| x * x).sum();
+        if !(g2 > 0.0 && g2.is_finite()) {
+            return None;
+        }
+        for a in 0..D {
+            q[a] -= v * g[a] / g2;
+        }
+    }
+    None
+}
+
 /// A 2-D field (curves).
 pub trait ScalarField2: ScalarField<2> {}
 impl<T: ScalarField<2> + ?Sized> ScalarField2 for T {}

@@ -494,3 +494,29 @@ fn admm_runs_are_deterministic_and_cancellable() {
         (AdmmStop::MaxIterations, 3)
     );
 }
+
+#[test]
+fn a_warm_start_at_the_answer_stays_there() {
+    use zeroset_solvers::admm::ridge_solution;
+    let shape = [3, 4, 5];
+    let n = 60;
+    let h = Mat::<f64>::from_fn(n, n, |i, j| {
+        (if i == j { 2.0 } else { 0.0 }) + 0.01 * ((i + 1) * (j + 1)) as f64 / n as f64
+    });
+    let b: Vec<f64> = (0..n).map(|i| ((i * 7) % 11) as f64 - 5.0).collect();
+    let c0 = ridge_solution(h.as_ref(), &b, 0.0).unwrap();
+    let terms = TraceNormTerm::mras_terms(shape, 0.0).unwrap();
+    let refs: Vec<&dyn ProxTerm> = terms.iter().map(|t| t as &dyn ProxTerm).collect();
+    let opts = AdmmOptions::default().start(c0.clone());
+    let sol = admm(h.as_ref(), &b, &refs, &opts).unwrap();
+    assert!(sol.converged);
+    assert!(sol.iterations <= 2, "{} iterations", sol.iterations);
+    for (a, e) in sol.c.iter().zip(&c0) {
+        assert!((a - e).abs() < 1e-12, "{a} vs {e}");
+    }
+    let bad = AdmmOptions::default().start(vec![0.0; 3]);
+    assert!(matches!(
+        admm(h.as_ref(), &b, &refs, &bad),
+        Err(AdmmError::Length { what: "start", .. })
+    ));
+}

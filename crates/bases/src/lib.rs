@@ -16,13 +16,15 @@
 //! - [`neural`] — a small multilayer perceptron trained with Jiang–Turk's thin-plate curvature
 //!   loss (input Hessians and their parameter gradients written out over faer products), its
 //!   hidden layers as a learned [`Basis`](zeroset_field_core::basis::Basis).
-//!
-//! Still to come: multilevel low-rank splines (MRAS, Pan–Tong–Chen).
+//! - [`mras`] — multilevel rational algebraic splines (Pan–Tong–Chen): an octree of quadratic
+//!   B-spline offsets blended by a partition of unity, fitted by ADMM with a trace-norm term and
+//!   stored as CP factors of adaptive rank.
 
 #![warn(missing_docs)]
 
 pub mod bspline;
 pub mod field_file;
+pub mod mras;
 pub mod neural;
 pub mod rbf;
 pub mod tangent_plane;

@@ -91,6 +91,9 @@ pub enum Method {
     /// A small neural net (MLP) trained with Adam on the data term plus Jiang–Turk's
     /// thin-plate curvature term; takes point clouds and .xyv/.xyzv value files.
     Neural,
+    /// Multilevel low-rank splines (Pan–Tong–Chen): an octree of quadratic B-spline offsets
+    /// stored as CP factors; compact files for large scans (oriented point clouds only).
+    Mras,
 }
 
 /// The `--kernel` values.
@@ -176,7 +179,8 @@ pub struct FitArgs {
     /// values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,
 
-    /// The fitting method (rbf: radial basis functions; neural: a small MLP).
+    /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel
+    /// low-rank splines).
     #[arg(long, value_enum)]
     pub method: Method,
 
@@ -234,12 +238,20 @@ pub struct FitArgs {
 
     #[command(flatten)]
     pub neural: crate::fit_neural::NeuralArgs,
+
+    #[command(flatten)]
+    pub mras: crate::fit_mras::MrasArgs,
 }
 
 /// Runs `zeroset fit`.
 pub fn run(args: &FitArgs) -> anyhow::Result<()> {
-    if args.method == Method::Neural {
-        return crate::fit_neural::run(args);
+    match args.method {
+        Method::Neural => return crate::fit_neural::run(args),
+        Method::Mras => return crate::fit_mras::run(args),
+        Method::Rbf => {}
+    }
+    if let Some(flag) = args.mras.given() {
+        bail!("{flag} is an option of --method mras, not of --method rbf");
     }
     if let Some(flag) = args.neural.given() {
         bail!("{flag} is an option of --method neural, not of --method rbf");

@@ -130,6 +130,23 @@ impl NeuralArgs {
         .find_map(|(given, flag)| given.then_some(flag))
     }
 
+    /// The first option given other than `--lambda` (which `--method mras` shares).
+    pub fn given_besides_lambda(&self) -> Option<&'static str> {
+        [
+            (self.steps.is_some(), "--steps"),
+            (self.aux.is_some(), "--aux"),
+            (self.widths.is_some(), "--widths"),
+            (self.activation.is_some(), "--activation"),
+            (self.seed.is_some(), "--seed"),
+            (self.learning_rate.is_some(), "--learning-rate"),
+            (self.dropout.is_some(), "--dropout"),
+            (self.resample_aux, "--resample-aux"),
+            (self.refit_last_layer, "--refit-last-layer"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+    }
+
     /// The training parameters, checked; `default_lambda` unless --lambda is given.
     fn params(&self, default_lambda: f64) -> anyhow::Result<NeuralParams> {
         let mut p = NeuralParams::default().with_lambda(default_lambda);
@@ -192,6 +209,9 @@ fn check_request(args: &FitArgs) -> anyhow::Result<()> {
 
 /// Runs `zeroset fit --method neural`.
 pub fn run(args: &FitArgs) -> anyhow::Result<()> {
+    if let Some(flag) = args.mras.given() {
+        bail!("{flag} is an option of --method mras, not of --method neural");
+    }
     check_request(args)?;
     let start = Instant::now();
     match value_file_dimension(&args.points) {

@@ -186,6 +186,7 @@ fn field_report_d<const D: usize>(path: &Path) -> anyhow::Result<String> {
             line(&mut s, "network", &crate::mesh::network(f));
             line(&mut s, "parameters", &f.parameters().len().to_string());
         }
+        AnyField::Mras(f) => mras_report(&mut s, f),
     }
     if let Some(b) = field.bounds() {
         line(&mut s, "bounds", &format!("min {}", point_n(&b.min())));
@@ -200,6 +201,57 @@ fn field_report_d<const D: usize>(path: &Path) -> anyhow::Result<String> {
         }
     }
     Ok(s)
+}
+
+/// Per level: cells, CP ranks, numbers stored and the uncompressed count (paper 004 §6.2).
+fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasField<D>) {
+    line(
+        s,
+        "cube",
+        &format!("origin {}, side {}", point_n(&f.origin()), g(f.side())),
+    );
+    line(
+        s,
+        "levels",
+        "level  m  cells  ranks min/mean/max  full  stored  uncompressed",
+    );
+    for l in f.levels() {
+        let ranks: Vec<usize> = l.cells().iter().filter_map(|c| c.spline.rank()).collect();
+        let full = l.cells().len() - ranks.len();
+        let r = if ranks.is_empty() {
+            "-".to_owned()
+        } else {
+            format!(
+                "{}/{:.1}/{}",
+                ranks.iter().min().unwrap_or(&0),
+                ranks.iter().sum::<usize>() as f64 / ranks.len() as f64,
+                ranks.iter().max().unwrap_or(&0)
+            )
+        };
+        more(
+            s,
+            &format!(
+                "{:5} {:2} {:6}  {:>18}  {:4}  {:6}  {:12}",
+                l.level(),
+                l.knots(),
+                l.cells().len(),
+                r,
+                full,
+                l.stored_numbers() + l.cells().len() * (D + 1),
+                l.uncompressed_numbers() + l.cells().len() * (D + 1)
+            ),
+        );
+    }
+    line(
+        s,
+        "storage",
+        &format!(
+            "{} numbers (uncompressed {}; {:.1}× smaller)",
+            f.storage(),
+            f.uncompressed_storage(),
+            f.uncompressed_storage() as f64 / f.storage().max(1) as f64
+        ),
+    );
 }
 
 /// Whether the PLY header declares a `face` element (a mesh rather than a point cloud).

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod demo;
 mod fit;
+mod fit_mras;
 mod fit_neural;
 mod info;
 mod machine;

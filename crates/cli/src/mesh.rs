@@ -313,7 +313,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             AnyField::Rbf(RbfAny::R3(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Tps(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Wendland(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
-            AnyField::BSpline(_) | AnyField::Neural(_) => bail!(
+            AnyField::BSpline(_) | AnyField::Neural(_) | AnyField::Mras(_) => bail!(
                 "--method smc evaluates RBF fields by the fast multipole method; {} holds a \
                  {} field: use --method mc",
                 args.field.display(),
@@ -550,6 +550,12 @@ pub(crate) fn describe<const D: usize>(field: &AnyField<D>) -> String {
             f.num_centres()
         ),
         AnyField::Neural(f) => format!("neural field ({})", network(f)),
+        AnyField::Mras(f) => format!(
+            "MRAS field ({} levels, {} cells, {} numbers)",
+            f.levels().len(),
+            f.levels().iter().map(|l| l.cells().len()).sum::<usize>(),
+            f.storage()
+        ),
     }
 }
 

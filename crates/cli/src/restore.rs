@@ -295,7 +295,7 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
                 println!("field file {}: {described}", args.input.display());
                 Ok((Box::new(field), grid))
             }
-            field @ (AnyField::Rbf(_) | AnyField::Neural(_)) => {
+            field @ (AnyField::Rbf(_) | AnyField::Neural(_) | AnyField::Mras(_)) => {
                 // Sampled onto a grid over the field's box, like a point cloud's field.
                 let bounds = field.bounds().context("the field has no bounds")?;
                 let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;

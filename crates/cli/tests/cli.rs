@@ -1852,3 +1852,107 @@ fn fit_rbf_refuses_what_value_files_cannot_take() {
     assert_one_line_refusal(&o, "--radius is an option of --method rbf");
     assert!(!out.exists(), "a refused run must not leave an output");
 }
+
+#[test]
+fn mras_fit_info_mesh_and_restore() {
+    let dir = tempfile::tempdir().unwrap();
+    let zsf = dir.path().join("bunny_mras.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        sample().as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("mras"),
+        OsStr::new("--max-level"),
+        OsStr::new("4"),
+        OsStr::new("--quiet"),
+        OsStr::new("-o"),
+        zsf.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("levels:") && out.contains("storage:"), "{out}");
+    // info lists every level with its cells, ranks and storage.
+    let o = info(&zsf, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("kind:        mras"), "{text}");
+    for level in 1..=4 {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start().starts_with(&format!("{level} "))),
+            "level {level} missing:\n{text}"
+        );
+    }
+    // mesh: a closed surface.
+    let ply = dir.path().join("bunny_mras.ply");
+    let o = zeroset([
+        OsStr::new("mesh"),
+        zsf.as_os_str(),
+        OsStr::new("-o"),
+        ply.as_os_str(),
+        OsStr::new("--quiet"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("closed"), "{}", stdout(&o));
+    // --method smc refuses it with a reason.
+    let o = zeroset([
+        OsStr::new("mesh"),
+        zsf.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("smc"),
+        OsStr::new("-o"),
+        dir.path().join("x.ply").as_os_str(),
+    ]);
+    assert_clean_failure(&o);
+    // Options of other methods are refused.
+    let o = zeroset([
+        OsStr::new("fit"),
+        sample().as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("mras"),
+        OsStr::new("--kernel"),
+        OsStr::new("r"),
+    ]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("--kernel"), "{}", stderr(&o));
+    let o = zeroset([
+        OsStr::new("fit"),
+        sample().as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("--tolerance"),
+        OsStr::new("0.01"),
+    ]);
+    assert_clean_failure(&o);
+}
+
+#[test]
+fn mras_refuses_bad_clouds_with_reasons() {
+    // Fewer than 16 points.
+    let few: String = (0..10)
+        .map(|i| format!("{} {} {} 0 0 1\n", i, i * i, 1))
+        .collect();
+    let (_d, path) = temp_file("few.xyzn", &few);
+    let o = zeroset(["fit", path.to_str().unwrap(), "--method", "mras"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("at least 16"), "{}", stderr(&o));
+    // All points on a plane.
+    let flat: String = (0..100)
+        .map(|i| format!("{} {} 0 0 0 1\n", i % 10, i / 10))
+        .collect();
+    let (_d, path) = temp_file("flat.xyzn", &flat);
+    let o = zeroset(["fit", path.to_str().unwrap(), "--method", "mras"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("plane"), "{}", stderr(&o));
+    // Bad tolerance.
+    let o = zeroset([
+        "fit",
+        sample().to_str().unwrap(),
+        "--method",
+        "mras",
+        "--tolerance",
+        "2",
+    ]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("tolerance"), "{}", stderr(&o));
+}

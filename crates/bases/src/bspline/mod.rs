@@ -93,7 +93,7 @@
 mod batch;
 mod prefilter;
 mod space;
-mod stencil;
+pub(crate) mod stencil;
 
 use zeroset_field_core::Error;
 use zeroset_field_core::field::ScalarField;

@@ -1,4 +1,5 @@
-//! The zeroset field file (`.zsf`): a B-spline, RBF or neural field, versioned and checksummed.
+//! The zeroset field file (`.zsf`): a B-spline, RBF, neural or MRAS field, versioned and
+//! checksummed.
 //!
 //! A restored or fitted field is saved so that the next command (restore again, mesh, …) can
 //! load it bit for bit. All numbers are little-endian; `f64` values are stored as their IEEE
@@ -11,52 +12,15 @@
 //! | 8 | magic `ZSFIELD\0` |
 //! | 4 | format version (`u32`, 2) |
 //! | 4 | dimension `D` (`u32`, 2 or 3) |
-//! | 8 | kind tag, ASCII padded with NULs: `bspline`, `rbf` or `neural` |
+//! | 8 | kind tag, ASCII padded with NULs: `bspline`, `rbf`, `neural` or `mras` |
 //! | 4 | metadata length `m` (`u32`) |
 //! | 8 | payload length `p` (`u64`) |
 //! | m | metadata: UTF-8 `key=value` lines (`created-by`, `kind`, `dimension`, `kernel`, …); informative only |
 //! | p | payload (below) |
 //! | 4 | CRC-32 (IEEE) of every byte before it |
 //!
-//! The `bspline` payload is the version-1 body:
-//!
-//! | bytes | content |
-//! |---|---|
-//! | 4 | degree (2 or 3) |
-//! | 4 | boundary (0 = half-sample mirror, 1 = whole-sample mirror) |
-//! | 4 | centering (0 = cell, 1 = vertex) |
-//! | 8·D | samples per axis (`u64`) |
-//! | 16·D | bounding box min then max (`f64`) |
-//! | 8·Π counts | B-spline coefficients (`f64`, last axis fastest) |
-//!
-//! The `rbf` payload, for the field `s(x) = Σⱼ wⱼ Lⱼʸ φ(|x − y|) + c · (1, (x − m)/h)`:
-//!
-//! | bytes | content |
-//! |---|---|
-//! | 4 + t | kernel tag: length `t` (`u32`), then UTF-8 (`r`, `r3`, `tps`, `wendland`) |
-//! | 4 + 8·k | kernel parameters: count `k` (`u32`), then `f64`s (`wendland`: the radius) |
-//! | 8 | number of functionals `n` (`u64`) |
-//! | n·(8·D + 12) | per functional: point (`f64`·D), kind (`u32`: 0 = value, 1 + a = ∂/∂x_a), target (`f64`) |
-//! | 8·n | kernel weights `w` (`f64`) |
-//! | 8·D + 8 | polynomial centre `m` (`f64`·D) and scale `h` (`f64`) |
-//! | 8 + 8·q | polynomial coefficients: count `q = D + 1` (`u64`), then `f64`s |
-//! | 16·D | bounding box min then max (`f64`) |
-//!
-//! The `neural` payload, for the net `f(x) = o · N((x − c)/h)` of
-//! [`NeuralField`] (added within version 2: a reader from before it
-//! reports the kind as unknown):
-//!
-//! | bytes | content |
-//! |---|---|
-//! | 4 | activation (`u32`: 0 = tanh, 1 = softplus) |
-//! | 4 | number of hidden layers `L` (`u32`, at least 1) |
-//! | 8·L | hidden widths (`u64`, each at least 1) |
-//! | 8·D | input centre `c` (`f64`) |
-//! | 8 | input scale `h` (`f64`, > 0) |
-//! | 8 | output scale `o` (`f64`, ≠ 0) |
-//! | 16·D | bounding box min then max (`f64`) |
-//! | 8 | parameter count `n` (`u64`; must be the widths' count) |
-//! | 8·n | parameters (`f64`), layer after layer: `W₁` column-major (`w₁ × D`), `b₁`, …, `w_out`, `b_out` |
+//! Each kind's payload is laid out in its own submodule of this one (`bspline.rs`, `rbf.rs`,
+//! `neural.rs`, `mras.rs`), beside its encoder and decoder.
 //!
 //! # Version 1 (still read)
 //!
@@ -65,7 +29,7 @@
 //! | 8 | magic `ZSFIELD\0` |
 //! | 4 | format version (`u32`, 1) |
 //! | 4 | dimension `D` (2 or 3) |
-//! | … | the `bspline` payload above |
+//! | … | the `bspline` payload (in `bspline.rs`) |
 //! | 4 | CRC-32 (IEEE) of every byte before it |
 //!
 //! Writes are atomic (temporary file + rename). Reads check the magic, version, sizes,
@@ -101,13 +65,22 @@ use std::path::{Path, PathBuf};
 use zeroset_field_core::Error;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point};
-use zeroset_field_core::grid::{Centering, Grid};
 use zeroset_field_core::io::write_atomic;
 
-use crate::bspline::{BSplineField, Boundary, Degree};
-use crate::neural::{Activation, Architecture, NeuralField};
-use crate::rbf::system::{Functional, Polynomial};
-use crate::rbf::{Biharmonic, Kernel, RbfField, ThinPlate, Triharmonic, Wendland};
+use crate::bspline::BSplineField;
+use crate::mras::MrasField;
+use crate::neural::NeuralField;
+use crate::rbf::RbfField;
+
+mod bspline;
+mod mras;
+mod neural;
+mod rbf;
+
+pub use bspline::encode;
+pub use mras::encode_mras;
+pub use neural::encode_neural;
+pub use rbf::{RbfAny, StoredKernel, encode_rbf};
 
 /// The first 8 bytes of every field file.
 pub const MAGIC: &[u8; 8] = b"ZSFIELD\0";
@@ -120,6 +93,8 @@ pub const KIND_BSPLINE: &str = "bspline";
 pub const KIND_RBF: &str = "rbf";
 /// The kind tag of a neural field.
 pub const KIND_NEURAL: &str = "neural";
+/// The kind tag of a multilevel low-rank spline (MRAS) field.
+pub const KIND_MRAS: &str = "mras";
 
 /// Bytes before the metadata in a version-2 file.
 const V2_HEADER: usize = 36;
@@ -219,6 +194,17 @@ pub enum FieldFileError {
         /// The hidden widths.
         widths: Vec<usize>,
     },
+    /// A B-spline field was asked for ([`read_field`]) but the file holds an MRAS field.
+    #[error(
+        "{}: this file holds an MRAS field ({levels} levels), not a B-spline field",
+        path.display()
+    )]
+    HoldsMras {
+        /// The file.
+        path: PathBuf,
+        /// The number of levels.
+        levels: usize,
+    },
     /// An RBF kernel this build does not know.
     #[error(
         "{}: unknown RBF kernel {kernel:?} (this build reads \"r\", \"r3\", \"tps\" and \"wendland\")",
@@ -262,6 +248,7 @@ impl FieldFileError {
             | Self::WrongDimension { path, .. }
             | Self::HoldsRbf { path, .. }
             | Self::HoldsNeural { path, .. }
+            | Self::HoldsMras { path, .. }
             | Self::UnknownKernel { path, .. }
             | Self::Malformed { path, .. }
             | Self::Invalid { path, .. } => path,
@@ -299,158 +286,6 @@ impl From<FieldFileError> for Error {
     }
 }
 
-mod sealed {
-    pub trait Sealed {}
-    impl Sealed for crate::rbf::Biharmonic {}
-    impl Sealed for crate::rbf::Triharmonic {}
-    impl Sealed for crate::rbf::ThinPlate {}
-    impl Sealed for crate::rbf::Wendland {}
-}
-
-/// A kernel the field file stores: the built-in [`Biharmonic`] (`r`), [`Triharmonic`]
-/// (`r3`), [`ThinPlate`] (`tps`) and [`Wendland`] (`wendland`, parameter: the radius).
-pub trait StoredKernel: Kernel + Clone + sealed::Sealed {
-    /// The tag written to the file.
-    fn tag(&self) -> &'static str;
-    /// The kernel's parameters, in file order.
-    fn params(&self) -> Vec<f64>;
-    /// The kernel of `tag` with `params`, or `None` if they are not this kernel's.
-    fn from_tag(tag: &str, params: &[f64]) -> Option<Self>
-    where
-        Self: Sized;
-}
-
-impl StoredKernel for Biharmonic {
-    fn tag(&self) -> &'static str {
-        "r"
-    }
-    fn params(&self) -> Vec<f64> {
-        Vec::new()
-    }
-    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
-        (tag == "r" && params.is_empty()).then_some(Biharmonic)
-    }
-}
-
-impl StoredKernel for Triharmonic {
-    fn tag(&self) -> &'static str {
-        "r3"
-    }
-    fn params(&self) -> Vec<f64> {
-        Vec::new()
-    }
-    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
-        (tag == "r3" && params.is_empty()).then_some(Triharmonic)
-    }
-}
-
-impl StoredKernel for ThinPlate {
-    fn tag(&self) -> &'static str {
-        "tps"
-    }
-    fn params(&self) -> Vec<f64> {
-        Vec::new()
-    }
-    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
-        (tag == "tps" && params.is_empty()).then_some(ThinPlate)
-    }
-}
-
-impl StoredKernel for Wendland {
-    fn tag(&self) -> &'static str {
-        "wendland"
-    }
-    fn params(&self) -> Vec<f64> {
-        vec![self.radius()]
-    }
-    fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
-        match params {
-            [radius] if tag == "wendland" => Wendland::new(*radius),
-            _ => None,
-        }
-    }
-}
-
-/// An RBF field with one of the built-in kernels, as read from a file.
-#[derive(Debug, Clone)]
-pub enum RbfAny<const D: usize> {
-    /// `φ(r) = r`.
-    R(RbfField<Biharmonic, D>),
-    /// `φ(r) = r³`.
-    R3(RbfField<Triharmonic, D>),
-    /// `φ(r) = r² ln r`.
-    Tps(RbfField<ThinPlate, D>),
-    /// Wendland's `ψ₃,₁`.
-    Wendland(RbfField<Wendland, D>),
-}
-
-macro_rules! each_rbf {
-    ($self:expr, $f:ident => $body:expr) => {
-        match $self {
-            RbfAny::R($f) => $body,
-            RbfAny::R3($f) => $body,
-            RbfAny::Tps($f) => $body,
-            RbfAny::Wendland($f) => $body,
-        }
-    };
-}
-
-impl<const D: usize> RbfAny<D> {
-    /// The kernel's tag (`r`, `r3`, `tps`, `wendland`).
-    pub fn kernel_tag(&self) -> &'static str {
-        each_rbf!(self, f => f.kernel().tag())
-    }
-
-    /// The number of centres (functionals).
-    pub fn num_centres(&self) -> usize {
-        each_rbf!(self, f => f.num_centres())
-    }
-
-    /// The kernel weights.
-    pub fn weights(&self) -> &[f64] {
-        each_rbf!(self, f => f.weights())
-    }
-
-    /// The polynomial coefficients.
-    pub fn polynomial_coefficients(&self) -> &[f64] {
-        each_rbf!(self, f => f.polynomial_coefficients())
-    }
-
-    /// The Hessian at `x`.
-    pub fn hessian(&self, x: &Point<D>) -> [[f64; D]; D] {
-        each_rbf!(self, f => f.hessian(x))
-    }
-}
-
-impl<const D: usize> ScalarField<D> for RbfAny<D> {
-    fn value(&self, p: &Point<D>) -> f64 {
-        each_rbf!(self, f => f.value(p))
-    }
-    fn gradient(&self, p: &Point<D>) -> Point<D> {
-        each_rbf!(self, f => f.gradient(p))
-    }
-    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
-        each_rbf!(self, f => f.values(points, out))
-    }
-    fn bounds(&self) -> Option<Aabb<D>> {
-        each_rbf!(self, f => ScalarField::bounds(f))
-    }
-}
-
-macro_rules! rbf_from {
-    ($k:ty, $v:ident) => {
-        impl<const D: usize> From<RbfField<$k, D>> for RbfAny<D> {
-            fn from(f: RbfField<$k, D>) -> Self {
-                RbfAny::$v(f)
-            }
-        }
-    };
-}
-rbf_from!(Biharmonic, R);
-rbf_from!(Triharmonic, R3);
-rbf_from!(ThinPlate, Tps);
-rbf_from!(Wendland, Wendland);
-
 /// A field of any kind, as read by [`read_any_field`].
 #[derive(Debug, Clone)]
 pub enum AnyField<const D: usize> {
@@ -460,6 +295,8 @@ pub enum AnyField<const D: usize> {
     Rbf(RbfAny<D>),
     /// A neural field.
     Neural(NeuralField<D>),
+    /// A multilevel low-rank spline (MRAS) field.
+    Mras(MrasField<D>),
 }
 
 macro_rules! each_field {
@@ -468,17 +305,19 @@ macro_rules! each_field {
             AnyField::BSpline($f) => $body,
             AnyField::Rbf($f) => $body,
             AnyField::Neural($f) => $body,
+            AnyField::Mras($f) => $body,
         }
     };
 }
 
 impl<const D: usize> AnyField<D> {
-    /// The kind tag: [`KIND_BSPLINE`], [`KIND_RBF`] or [`KIND_NEURAL`].
+    /// The kind tag: [`KIND_BSPLINE`], [`KIND_RBF`], [`KIND_NEURAL`] or [`KIND_MRAS`].
     pub fn kind(&self) -> &'static str {
         match self {
             Self::BSpline(_) => KIND_BSPLINE,
             Self::Rbf(_) => KIND_RBF,
             Self::Neural(_) => KIND_NEURAL,
+            Self::Mras(_) => KIND_MRAS,
         }
     }
 
@@ -505,6 +344,14 @@ impl<const D: usize> AnyField<D> {
             _ => None,
         }
     }
+
+    /// The MRAS field, if it is one.
+    pub fn into_mras(self) -> Option<MrasField<D>> {
+        match self {
+            Self::Mras(f) => Some(f),
+            _ => None,
+        }
+    }
 }
 
 impl<const D: usize> ScalarField<D> for AnyField<D> {
@@ -520,6 +367,39 @@ impl<const D: usize> ScalarField<D> for AnyField<D> {
     fn bounds(&self) -> Option<Aabb<D>> {
         each_field!(self, f => ScalarField::bounds(f))
     }
+}
+
+/// The bytes of the field file of `field`, whatever its kind.
+fn encode_any<const D: usize>(field: &AnyField<D>) -> Vec<u8> {
+    match field {
+        AnyField::BSpline(f) => encode(f),
+        AnyField::Rbf(r) => rbf::encode_any(r),
+        AnyField::Neural(f) => encode_neural(f),
+        AnyField::Mras(f) => encode_mras(f),
+    }
+}
+
+/// The body of a version-2 payload of `kind`; `short` is the error for running out.
+///
+/// The one place a kind tag is matched on read: a new kind adds its arm here.
+fn decode_body<const D: usize>(
+    kind: &str,
+    c: &mut Cursor<'_>,
+    path: &Path,
+    short: impl Fn() -> FieldFileError,
+) -> Result<AnyField<D>, FieldFileError> {
+    Ok(match kind {
+        KIND_BSPLINE => AnyField::BSpline(bspline::bspline_body(c, path, short)?),
+        KIND_RBF => AnyField::Rbf(rbf::rbf_body(c, path, short)?),
+        KIND_NEURAL => AnyField::Neural(neural::neural_body(c, path, short)?),
+        KIND_MRAS => AnyField::Mras(mras::mras_body(c, path, short)?),
+        _ => {
+            return Err(FieldFileError::UnknownKind {
+                path: path.to_owned(),
+                kind: kind.to_owned(),
+            });
+        }
+    })
 }
 
 /// Whether `path` starts with the field-file magic (unreadable files are not field files).
@@ -568,6 +448,18 @@ pub fn write_neural_field<const D: usize>(
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
+/// Writes the MRAS `field` to `path` atomically (format version [`VERSION`]).
+///
+/// # Errors
+/// [`Error::Io`] naming `path`.
+pub fn write_mras_field<const D: usize>(
+    path: impl AsRef<Path>,
+    field: &MrasField<D>,
+) -> Result<(), Error> {
+    let bytes = encode_mras(field);
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
 /// Writes a field of any kind to `path` atomically.
 ///
 /// # Errors
@@ -576,11 +468,7 @@ pub fn write_any_field<const D: usize>(
     path: impl AsRef<Path>,
     field: &AnyField<D>,
 ) -> Result<(), Error> {
-    let bytes = match field {
-        AnyField::BSpline(f) => encode(f),
-        AnyField::Rbf(r) => each_rbf!(r, f => encode_rbf(f)),
-        AnyField::Neural(f) => encode_neural(f),
-    };
+    let bytes = encode_any(field);
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
@@ -615,138 +503,6 @@ fn frame(dim: usize, kind: &str, metadata: &[(&str, String)], payload: &[u8]) ->
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     out
-}
-
-/// The bytes of the field file of the B-spline `field` (version [`VERSION`]).
-pub fn encode<const D: usize>(field: &BSplineField<D>) -> Vec<u8> {
-    let grid = field.grid();
-    let coefficients = field.coefficients();
-    let mut payload = Vec::with_capacity(12 + 24 * D + 8 * coefficients.len());
-    let degree = match field.degree() {
-        Degree::Quadratic => 2u32,
-        Degree::Cubic => 3,
-    };
-    let codes = [
-        degree,
-        match field.boundary() {
-            Boundary::HalfSample => 0,
-            Boundary::WholeSample => 1,
-        },
-        match grid.centering() {
-            Centering::Cell => 0,
-            Centering::Vertex => 1,
-        },
-    ];
-    codes
-        .iter()
-        .for_each(|v| payload.extend_from_slice(&v.to_le_bytes()));
-    grid.counts()
-        .iter()
-        .for_each(|&c| payload.extend_from_slice(&(c as u64).to_le_bytes()));
-    let bounds = grid.bounds();
-    put_f64s(
-        &mut payload,
-        bounds
-            .min()
-            .iter()
-            .chain(bounds.max().iter())
-            .chain(coefficients),
-    );
-    let samples = grid
-        .counts()
-        .iter()
-        .map(|c| c.to_string())
-        .collect::<Vec<_>>()
-        .join("x");
-    frame(
-        D,
-        KIND_BSPLINE,
-        &[("degree", degree.to_string()), ("samples", samples)],
-        &payload,
-    )
-}
-
-/// The bytes of the field file of the RBF `field` (version [`VERSION`]).
-pub fn encode_rbf<K: StoredKernel, const D: usize>(field: &RbfField<K, D>) -> Vec<u8> {
-    let kernel = field.kernel();
-    let tag = kernel.tag();
-    let params = kernel.params();
-    let f = field.functionals();
-    let n = f.len();
-    let mut p = Vec::with_capacity(64 + tag.len() + n * (8 * D + 20) + 40 * D);
-    p.extend_from_slice(&(tag.len() as u32).to_le_bytes());
-    p.extend_from_slice(tag.as_bytes());
-    p.extend_from_slice(&(params.len() as u32).to_le_bytes());
-    put_f64s(&mut p, &params);
-    p.extend_from_slice(&(n as u64).to_le_bytes());
-    for j in 0..n {
-        put_f64s(&mut p, &f.points[j]);
-        let kind = match f.kinds[j] {
-            Functional::Value => 0u32,
-            Functional::Derivative(a) => 1 + a as u32,
-        };
-        p.extend_from_slice(&kind.to_le_bytes());
-        put_f64s(&mut p, [&f.targets[j]]);
-    }
-    put_f64s(&mut p, field.weights());
-    let poly = field.polynomial();
-    put_f64s(&mut p, poly.centre.iter().chain([&poly.scale]));
-    let c = field.polynomial_coefficients();
-    p.extend_from_slice(&(c.len() as u64).to_le_bytes());
-    put_f64s(&mut p, c);
-    let bounds = field.bounds;
-    put_f64s(&mut p, bounds.min().iter().chain(bounds.max().iter()));
-    let mut meta = vec![("kernel", tag.to_string())];
-    if !params.is_empty() {
-        let list = params
-            .iter()
-            .map(|v| v.to_string())
-            .collect::<Vec<_>>()
-            .join(",");
-        meta.push(("kernel-params", list));
-    }
-    meta.push(("centres", n.to_string()));
-    frame(D, KIND_RBF, &meta, &p)
-}
-
-/// The bytes of the field file of the neural `field` (version [`VERSION`]).
-pub fn encode_neural<const D: usize>(field: &NeuralField<D>) -> Vec<u8> {
-    let arch = field.architecture();
-    let widths = arch.widths();
-    let params = field.parameters();
-    let mut p = Vec::with_capacity(8 + 8 * widths.len() + 8 * (3 * D + 3) + 8 * params.len());
-    p.extend_from_slice(&arch.activation().code().to_le_bytes());
-    p.extend_from_slice(&(widths.len() as u32).to_le_bytes());
-    for &w in widths {
-        p.extend_from_slice(&(w as u64).to_le_bytes());
-    }
-    let bounds = field.domain();
-    put_f64s(
-        &mut p,
-        field
-            .centre()
-            .iter()
-            .chain([&field.input_scale(), &field.output_scale()])
-            .chain(bounds.min().iter())
-            .chain(bounds.max().iter()),
-    );
-    p.extend_from_slice(&(params.len() as u64).to_le_bytes());
-    put_f64s(&mut p, params);
-    let list = widths
-        .iter()
-        .map(|w| w.to_string())
-        .collect::<Vec<_>>()
-        .join(",");
-    frame(
-        D,
-        KIND_NEURAL,
-        &[
-            ("activation", arch.activation().name().to_string()),
-            ("widths", list),
-            ("parameters", params.len().to_string()),
-        ],
-        &p,
-    )
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, FieldFileError> {
@@ -785,6 +541,11 @@ pub fn decode<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<
         AnyField::Neural(n) => Err(FieldFileError::HoldsNeural {
             path: path.to_owned(),
             widths: n.architecture().widths().to_vec(),
+        }
+        .into()),
+        AnyField::Mras(m) => Err(FieldFileError::HoldsMras {
+            path: path.to_owned(),
+            levels: m.levels().len(),
         }
         .into()),
     }
@@ -888,7 +649,7 @@ pub fn decode_any<const D: usize>(
     path: &Path,
 ) -> Result<AnyField<D>, FieldFileError> {
     match check_head(bytes, path)? {
-        1 => decode_v1(bytes, path).map(AnyField::BSpline),
+        1 => bspline::decode_v1(bytes, path).map(AnyField::BSpline),
         _ => decode_v2(bytes, path),
     }
 }
@@ -993,18 +754,7 @@ fn decode_v2<const D: usize>(bytes: &[u8], path: &Path) -> Result<AnyField<D>, F
         bytes: frame.payload,
         at: 0,
     };
-    let field = if kind == KIND_BSPLINE.as_bytes() {
-        AnyField::BSpline(bspline_body(&mut cursor, path, short)?)
-    } else if kind == KIND_RBF.as_bytes() {
-        AnyField::Rbf(rbf_body(&mut cursor, path, short)?)
-    } else if kind == KIND_NEURAL.as_bytes() {
-        AnyField::Neural(neural_body(&mut cursor, path, short)?)
-    } else {
-        return Err(FieldFileError::UnknownKind {
-            path: path.to_owned(),
-            kind: String::from_utf8_lossy(kind).into_owned(),
-        });
-    };
+    let field = decode_body(&String::from_utf8_lossy(kind), &mut cursor, path, short)?;
     if cursor.at != frame.payload.len() {
         return Err(FieldFileError::Malformed {
             path: path.to_owned(),
@@ -1015,258 +765,6 @@ fn decode_v2<const D: usize>(bytes: &[u8], path: &Path) -> Result<AnyField<D>, F
         });
     }
     Ok(field)
-}
-
-/// A version-1 file: magic, version, dimension, the B-spline body, CRC.
-fn decode_v1<const D: usize>(bytes: &[u8], path: &Path) -> Result<BSplineField<D>, FieldFileError> {
-    let malformed = |reason: String| FieldFileError::Malformed {
-        path: path.to_owned(),
-        reason,
-    };
-    let truncated = |expected: usize| FieldFileError::Truncated {
-        path: path.to_owned(),
-        expected,
-        got: bytes.len(),
-    };
-    let header_len = 28 + 8 * D;
-    let mut cursor = Cursor { bytes, at: 12 };
-    let dim = cursor.u32().ok_or_else(|| truncated(28))?;
-    if dim as usize != D {
-        return Err(FieldFileError::WrongDimension {
-            path: path.to_owned(),
-            found: dim,
-            expected: D,
-        });
-    }
-    cursor.take(12).ok_or_else(|| truncated(28))?;
-    let mut counts = [0usize; D];
-    for c in &mut counts {
-        let v = cursor.u64().ok_or_else(|| truncated(header_len))?;
-        *c = usize::try_from(v).map_err(|_| malformed(format!("axis of {v} samples")))?;
-    }
-    let expected = counts
-        .iter()
-        .try_fold(1usize, |acc, &c| acc.checked_mul(c))
-        .filter(|&n| n > 0)
-        .and_then(|n| n.checked_mul(8))
-        .and_then(|n| n.checked_add(header_len + 16 * D + 4))
-        .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
-    if bytes.len() != expected {
-        return Err(if bytes.len() < expected {
-            truncated(expected)
-        } else {
-            malformed(format!(
-                "{} bytes where the header announces {expected}",
-                bytes.len()
-            ))
-        });
-    }
-    check_crc(bytes, path)?;
-    let mut body = Cursor {
-        bytes: &bytes[..expected - 4],
-        at: 16,
-    };
-    bspline_body(&mut body, path, || malformed("inconsistent sizes".into()))
-}
-
-/// The B-spline body (degree … coefficients); `short` is the error for running out.
-fn bspline_body<const D: usize>(
-    c: &mut Cursor<'_>,
-    path: &Path,
-    short: impl Fn() -> FieldFileError,
-) -> Result<BSplineField<D>, FieldFileError> {
-    let malformed = |reason: String| FieldFileError::Malformed {
-        path: path.to_owned(),
-        reason,
-    };
-    let degree = match c.u32().ok_or_else(&short)? {
-        2 => Degree::Quadratic,
-        3 => Degree::Cubic,
-        d => return Err(malformed(format!("unknown B-spline degree {d}"))),
-    };
-    let boundary = match c.u32().ok_or_else(&short)? {
-        0 => Boundary::HalfSample,
-        1 => Boundary::WholeSample,
-        b => return Err(malformed(format!("unknown boundary code {b}"))),
-    };
-    let centering = match c.u32().ok_or_else(&short)? {
-        0 => Centering::Cell,
-        1 => Centering::Vertex,
-        k => return Err(malformed(format!("unknown centering code {k}"))),
-    };
-    let mut counts = [0usize; D];
-    for n in &mut counts {
-        let v = c.u64().ok_or_else(&short)?;
-        *n = usize::try_from(v).map_err(|_| malformed(format!("axis of {v} samples")))?;
-    }
-    let total = counts
-        .iter()
-        .try_fold(1usize, |acc, &n| acc.checked_mul(n))
-        .filter(|&n| n > 0)
-        .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
-    let min: Point<D> = c.point().ok_or_else(&short)?;
-    let max: Point<D> = c.point().ok_or_else(&short)?;
-    let coefficients = c.f64s(total).ok_or_else(&short)?;
-    let invalid = |source: Error| FieldFileError::Invalid {
-        path: path.to_owned(),
-        source,
-    };
-    let grid =
-        Grid::new(Aabb::new(min, max).map_err(invalid)?, counts, centering).map_err(invalid)?;
-    BSplineField::from_coefficients(grid, coefficients, degree, boundary).map_err(invalid)
-}
-
-/// The RBF body; `short` is the error for running out.
-fn rbf_body<const D: usize>(
-    c: &mut Cursor<'_>,
-    path: &Path,
-    short: impl Fn() -> FieldFileError,
-) -> Result<RbfAny<D>, FieldFileError> {
-    let malformed = |reason: String| FieldFileError::Malformed {
-        path: path.to_owned(),
-        reason,
-    };
-    let tag_len = c.u32().ok_or_else(&short)? as usize;
-    let tag = std::str::from_utf8(c.take(tag_len).ok_or_else(&short)?)
-        .map_err(|_| malformed("kernel tag is not UTF-8".into()))?
-        .to_string();
-    let k = c.u32().ok_or_else(&short)? as usize;
-    let params = c.f64s(k).ok_or_else(&short)?;
-    let n = usize::try_from(c.u64().ok_or_else(&short)?).map_err(|_| short())?;
-    if n.checked_mul(8 * D + 12)
-        .is_none_or(|b| b > c.bytes.len() - c.at)
-    {
-        return Err(short());
-    }
-    let mut points = Vec::with_capacity(n);
-    let mut kinds = Vec::with_capacity(n);
-    let mut targets = Vec::with_capacity(n);
-    for j in 0..n {
-        points.push(c.point::<D>().ok_or_else(&short)?);
-        kinds.push(match c.u32().ok_or_else(&short)? {
-            0 => Functional::Value,
-            a if (a as usize) <= D => Functional::Derivative(a as usize - 1),
-            a => {
-                return Err(malformed(format!(
-                    "functional {j}: unknown kind code {a} for a {D}-D field"
-                )));
-            }
-        });
-        targets.push(c.f64().ok_or_else(&short)?);
-    }
-    let weights = c.f64s(n).ok_or_else(&short)?;
-    let centre: Point<D> = c.point().ok_or_else(&short)?;
-    let scale = c.f64().ok_or_else(&short)?;
-    let q = c.u64().ok_or_else(&short)?;
-    if q != D as u64 + 1 {
-        return Err(malformed(format!(
-            "{q} polynomial coefficients, expected {}",
-            D + 1
-        )));
-    }
-    let coefficients = c.f64s(D + 1).ok_or_else(&short)?;
-    let min: Point<D> = c.point().ok_or_else(&short)?;
-    let max: Point<D> = c.point().ok_or_else(&short)?;
-    let all_finite = params
-        .iter()
-        .chain(points.iter().flatten())
-        .chain(&targets)
-        .chain(&weights)
-        .chain(&centre)
-        .chain(&coefficients)
-        .all(|v| v.is_finite());
-    if !(all_finite && scale.is_finite() && scale > 0.0) {
-        return Err(malformed("a non-finite RBF value or scale".into()));
-    }
-    let bounds = Aabb::new(min, max).map_err(|source| FieldFileError::Invalid {
-        path: path.to_owned(),
-        source,
-    })?;
-    let has_derivatives = kinds.iter().any(|k| *k != Functional::Value);
-    let poly = Polynomial { centre, scale };
-    macro_rules! build {
-        ($k:ty, $v:ident) => {{
-            let kernel = <$k>::from_tag(&tag, &params).ok_or_else(|| {
-                malformed(format!("invalid parameters {params:?} for kernel {tag:?}"))
-            })?;
-            if has_derivatives && kernel.hessian_at_zero().is_none() {
-                return Err(malformed(format!(
-                    "gradient functionals with kernel {tag:?}, which is not smooth enough"
-                )));
-            }
-            RbfAny::$v(RbfField::from_parts(
-                kernel,
-                points,
-                kinds,
-                targets,
-                weights,
-                poly,
-                coefficients,
-                bounds,
-            ))
-        }};
-    }
-    Ok(match tag.as_str() {
-        "r" => build!(Biharmonic, R),
-        "r3" => build!(Triharmonic, R3),
-        "tps" => build!(ThinPlate, Tps),
-        "wendland" => build!(Wendland, Wendland),
-        _ => {
-            return Err(FieldFileError::UnknownKernel {
-                path: path.to_owned(),
-                kernel: tag,
-            });
-        }
-    })
-}
-
-/// The neural body; `short` is the error for running out.
-fn neural_body<const D: usize>(
-    c: &mut Cursor<'_>,
-    path: &Path,
-    short: impl Fn() -> FieldFileError,
-) -> Result<NeuralField<D>, FieldFileError> {
-    let malformed = |reason: String| FieldFileError::Malformed {
-        path: path.to_owned(),
-        reason,
-    };
-    let code = c.u32().ok_or_else(&short)?;
-    let activation = Activation::from_code(code)
-        .ok_or_else(|| malformed(format!("unknown activation code {code}")))?;
-    let layers = c.u32().ok_or_else(&short)? as usize;
-    if layers
-        .checked_mul(8)
-        .is_none_or(|b| b > c.bytes.len() - c.at)
-    {
-        return Err(short());
-    }
-    let mut widths = Vec::with_capacity(layers);
-    for _ in 0..layers {
-        let w = c.u64().ok_or_else(&short)?;
-        widths.push(usize::try_from(w).map_err(|_| malformed(format!("hidden width {w}")))?);
-    }
-    let arch = Architecture::new(widths, activation)
-        .map_err(|e| malformed(format!("invalid network: {e}")))?;
-    let centre: Point<D> = c.point().ok_or_else(&short)?;
-    let input_scale = c.f64().ok_or_else(&short)?;
-    let output_scale = c.f64().ok_or_else(&short)?;
-    let min: Point<D> = c.point().ok_or_else(&short)?;
-    let max: Point<D> = c.point().ok_or_else(&short)?;
-    let n = c.u64().ok_or_else(&short)?;
-    let expected = arch.num_parameters(D);
-    if n != expected as u64 {
-        return Err(malformed(format!(
-            "{n} parameters where the widths {:?} need {expected}",
-            arch.widths()
-        )));
-    }
-    let params = c.f64s(expected).ok_or_else(&short)?;
-    let bounds = Aabb::new(min, max).map_err(|source| FieldFileError::Invalid {
-        path: path.to_owned(),
-        source,
-    })?;
-    NeuralField::new(arch, params, centre, input_scale, output_scale, bounds)
-        .map_err(|e| malformed(format!("invalid neural field: {e}")))
 }
 
 struct Cursor<'a> {
@@ -1317,6 +815,8 @@ impl<'a> Cursor<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bspline::Degree;
+    use zeroset_field_core::grid::Grid;
 
     fn field() -> BSplineField<3> {
         let grid = Grid::cell_centered(Aabb::centered_cube(2.0).unwrap(), [3, 4, 5]).unwrap();

@@ -1,0 +1,134 @@
+//! The `mras` kind: its encoder and its body decoder.
+//!
+//! The `mras` payload, for the [`MrasField`] `f = L · Σ_k o_k((p − origin)/L)` (added within
+//! version 2: a reader from before it reports the kind as unknown). Every number is stored
+//! exactly, so a field read back evaluates to the same bits:
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8·D | cube origin (`f64`) |
+//! | 8 | cube side `L` (`f64`, > 0) |
+//! | 8 | partition-of-unity factor `α` (`f64`, > ½) |
+//! | 4 | number of levels `K` (`u32`) |
+//! | … | `K` levels, each: level `k` (`u32`, 1, 2, … in order), B-splines per axis `m` (`u32`), cell count `n` (`u64`), then `n` cells |
+//! | … | a cell: lattice index (`D × u32`, each below `2^{k−1}`), storage (`u32`: 0 = CP factors, 1 = full tensor), then for CP the rank `R` (`u32`, ≥ 1) and `D` factor matrices `m × R` row-major (`f64`), for a full tensor `m^D` coefficients row-major (`f64`) |
+
+use std::path::Path;
+
+use zeroset_field_core::geometry::Point;
+
+use super::{Cursor, FieldFileError, KIND_MRAS, frame, put_f64s};
+use crate::mras::{CellSpline, MrasCell, MrasField, MrasLevel};
+
+/// The bytes of the field file of the MRAS `field` (version [`VERSION`](super::VERSION)).
+pub fn encode_mras<const D: usize>(field: &MrasField<D>) -> Vec<u8> {
+    let mut p = Vec::with_capacity(64 + 8 * field.storage());
+    put_f64s(
+        &mut p,
+        field
+            .origin()
+            .iter()
+            .chain([field.side(), field.alpha()].iter()),
+    );
+    p.extend_from_slice(&(field.levels().len() as u32).to_le_bytes());
+    let mut cells = 0;
+    for level in field.levels() {
+        p.extend_from_slice(&level.level().to_le_bytes());
+        p.extend_from_slice(&(level.knots() as u32).to_le_bytes());
+        p.extend_from_slice(&(level.cells().len() as u64).to_le_bytes());
+        cells += level.cells().len();
+        for cell in level.cells() {
+            for i in cell.index {
+                p.extend_from_slice(&i.to_le_bytes());
+            }
+            match &cell.spline {
+                CellSpline::Cp { rank, factors } => {
+                    p.extend_from_slice(&0u32.to_le_bytes());
+                    p.extend_from_slice(&(*rank as u32).to_le_bytes());
+                    for f in factors {
+                        put_f64s(&mut p, f);
+                    }
+                }
+                CellSpline::Full { coefficients } => {
+                    p.extend_from_slice(&1u32.to_le_bytes());
+                    put_f64s(&mut p, coefficients);
+                }
+            }
+        }
+    }
+    frame(
+        D,
+        KIND_MRAS,
+        &[
+            ("levels", field.levels().len().to_string()),
+            ("cells", cells.to_string()),
+            ("storage", field.storage().to_string()),
+            ("uncompressed", field.uncompressed_storage().to_string()),
+        ],
+        &p,
+    )
+}
+
+/// The MRAS body; `short` is the error for running out.
+pub(super) fn mras_body<const D: usize>(
+    c: &mut Cursor<'_>,
+    path: &Path,
+    short: impl Fn() -> FieldFileError,
+) -> Result<MrasField<D>, FieldFileError> {
+    let malformed = |reason: String| FieldFileError::Malformed {
+        path: path.to_owned(),
+        reason,
+    };
+    let origin: Point<D> = c.point().ok_or_else(&short)?;
+    let side = c.f64().ok_or_else(&short)?;
+    let alpha = c.f64().ok_or_else(&short)?;
+    let count = c.u32().ok_or_else(&short)?;
+    let mut levels = Vec::new();
+    for _ in 0..count {
+        let level = c.u32().ok_or_else(&short)?;
+        let knots = c.u32().ok_or_else(&short)? as usize;
+        if !(3..=64).contains(&knots) {
+            return Err(malformed(format!(
+                "level {level}: {knots} B-splines per axis"
+            )));
+        }
+        let n = c.u64().ok_or_else(&short)?;
+        // A cell takes at least 4(D + 2) bytes: refuse counts the bytes left cannot hold.
+        if n.checked_mul(4 * (D as u64 + 2))
+            .is_none_or(|b| b > (c.bytes.len() - c.at) as u64)
+        {
+            return Err(short());
+        }
+        let mut cells = Vec::with_capacity(n as usize);
+        for _ in 0..n {
+            let mut index = [0u32; D];
+            for i in &mut index {
+                *i = c.u32().ok_or_else(&short)?;
+            }
+            let spline = match c.u32().ok_or_else(&short)? {
+                0 => {
+                    let rank = c.u32().ok_or_else(&short)? as usize;
+                    if rank == 0 || rank > knots.pow(2) {
+                        return Err(malformed(format!("level {level}: CP rank {rank}")));
+                    }
+                    let mut factors: [Vec<f64>; D] = std::array::from_fn(|_| Vec::new());
+                    for f in &mut factors {
+                        *f = c.f64s(knots * rank).ok_or_else(&short)?;
+                    }
+                    CellSpline::Cp { rank, factors }
+                }
+                1 => CellSpline::Full {
+                    coefficients: c.f64s(knots.pow(D as u32)).ok_or_else(&short)?,
+                },
+                code => {
+                    return Err(malformed(format!(
+                        "level {level}: cell storage code {code}"
+                    )));
+                }
+            };
+            cells.push(MrasCell { index, spline });
+        }
+        levels.push(MrasLevel::new(level, knots, cells).map_err(malformed)?);
+    }
+    MrasField::new(origin, side, alpha, levels).map_err(malformed)
+}

@@ -1,0 +1,827 @@
+//! [`MrasField`]: the multilevel sum of blended low-rank spline offsets, evaluated from the CP
+//! factors directly (see the module docs of [`crate::mras`] for the maths).
+
+use rayon::prelude::*;
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::{Aabb, Point};
+
+use crate::bspline::stencil::weights;
+
+/// The coefficients of one cell's offset spline `φ`, a `m × … × m` tensor (`D` axes).
+#[derive(Debug, Clone, PartialEq)]
+pub enum CellSpline<const D: usize> {
+    /// Rank-`R` CP factors: `c[i₀, …] = Σ_r Π_a factors[a][i_a·R + r]` (weights folded into the
+    /// first axis), so `φ(u) = Σ_r Π_a g_{r,a}(u_a)` with `g_{r,a} = Σ_i N_i(u_a) factors[a][i, r]`.
+    Cp {
+        /// The rank `R`.
+        rank: usize,
+        /// Per axis an `m × R` row-major matrix.
+        factors: [Vec<f64>; D],
+    },
+    /// The full coefficient tensor, row-major (the last axis fastest): the uncompressed MRAS.
+    Full {
+        /// `m^D` coefficients.
+        coefficients: Vec<f64>,
+    },
+}
+
+impl<const D: usize> CellSpline<D> {
+    /// The numbers stored: `D·m·R` for CP factors, `m^D` for a full tensor.
+    pub fn stored_numbers(&self) -> usize {
+        match self {
+            CellSpline::Cp { factors, .. } => factors.iter().map(Vec::len).sum(),
+            CellSpline::Full { coefficients } => coefficients.len(),
+        }
+    }
+
+    /// The CP rank (`None` for a full tensor).
+    pub fn rank(&self) -> Option<usize> {
+        match self {
+            CellSpline::Cp { rank, .. } => Some(*rank),
+            CellSpline::Full { .. } => None,
+        }
+    }
+}
+
+/// One fitted cell of a level: its lattice index and its offset spline.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MrasCell<const D: usize> {
+    /// The cell's index in the level's lattice of `2^{k−1}` cells per axis.
+    pub index: [u32; D],
+    /// The offset `φ` on the cell's support box.
+    pub spline: CellSpline<D>,
+}
+
+/// One octree level `k` (from 1): the fitted cells of the lattice of `2^{k−1}` cells per axis,
+/// each with `m` B-splines per axis.
+#[derive(Debug, Clone)]
+pub struct MrasLevel<const D: usize> {
+    level: u32,
+    knots: usize,
+    cells: Vec<MrasCell<D>>,
+    lookup: CellLookup,
+}
+
+impl<const D: usize> PartialEq for MrasLevel<D> {
+    fn eq(&self, other: &Self) -> bool {
+        self.level == other.level && self.knots == other.knots && self.cells == other.cells
+    }
+}
+
+/// Lattice index → position in `cells` (derived, rebuilt on construction).
+#[derive(Debug, Clone)]
+enum CellLookup {
+    /// One slot per lattice cell (`u32::MAX`: not fitted), and per lattice cell whether a
+    /// fitted cell lies among its 3^D neighbours (else the level adds nothing there).
+    Dense(Vec<u32>, Vec<bool>),
+    /// Sorted linear indices, searched.
+    Sorted(Vec<(u64, u32)>),
+}
+
+/// Lattices with at most this many cells get a dense lookup table.
+const DENSE_LOOKUP: u64 = 1 << 22;
+
+/// The deepest level a field may hold (`2^{19}` cells per axis; far beyond any real fit).
+pub const MAX_LEVEL: u32 = 20;
+
+impl<const D: usize> MrasLevel<D> {
+    /// Level `level` (from 1) with `knots` B-splines per axis and these cells.
+    ///
+    /// # Errors
+    /// A message for a level outside `1..=MAX_LEVEL`, fewer than 3 knots, a cell outside the
+    /// lattice or listed twice, or a spline of the wrong size.
+    pub fn new(level: u32, knots: usize, mut cells: Vec<MrasCell<D>>) -> Result<Self, String> {
+        if !(1..=MAX_LEVEL).contains(&level) {
+            return Err(format!("level {level} outside 1..={MAX_LEVEL}"));
+        }
+        if knots < 3 {
+            return Err(format!(
+                "level {level}: {knots} B-splines per axis (at least 3)"
+            ));
+        }
+        let n = 1u64 << (level - 1);
+        for cell in &cells {
+            if cell.index.iter().any(|&i| u64::from(i) >= n) {
+                return Err(format!(
+                    "level {level}: cell {:?} outside the lattice of {n} cells per axis",
+                    cell.index
+                ));
+            }
+            let ok = match &cell.spline {
+                CellSpline::Cp { rank, factors } => {
+                    *rank >= 1 && factors.iter().all(|f| f.len() == knots * rank)
+                }
+                CellSpline::Full { coefficients } => coefficients.len() == knots.pow(D as u32),
+            };
+            let finite = match &cell.spline {
+                CellSpline::Cp { factors, .. } => factors.iter().flatten().all(|v| v.is_finite()),
+                CellSpline::Full { coefficients } => coefficients.iter().all(|v| v.is_finite()),
+            };
+            if !finite {
+                return Err(format!(
+                    "level {level}: cell {:?} has a coefficient that is not finite",
+                    cell.index
+                ));
+            }
+            if !ok {
+                return Err(format!(
+                    "level {level}: cell {:?} has coefficients of the wrong size for {knots} \
+                     B-splines per axis",
+                    cell.index
+                ));
+            }
+        }
+        cells.sort_by_key(|c| linear(&c.index, n));
+        if cells
+            .windows(2)
+            .any(|w| linear(&w[0].index, n) == linear(&w[1].index, n))
+        {
+            return Err(format!("level {level}: a cell is listed twice"));
+        }
+        let total = n.checked_pow(D as u32).unwrap_or(u64::MAX);
+        let lookup = if total <= DENSE_LOOKUP {
+            let mut slots = vec![u32::MAX; total as usize];
+            let mut near = vec![false; total as usize];
+            for (pos, c) in cells.iter().enumerate() {
+                slots[linear(&c.index, n) as usize] = pos as u32;
+                for code in 0..3usize.pow(D as u32) {
+                    let mut key = 0u64;
+                    let mut c2 = code;
+                    let mut inside = true;
+                    for a in 0..D {
+                        let i = i64::from(c.index[a]) + (c2 % 3) as i64 - 1;
+                        c2 /= 3;
+                        if i < 0 || i >= n as i64 {
+                            inside = false;
+                        }
+                        key = key * n + i.max(0) as u64;
+                    }
+                    if inside {
+                        near[key as usize] = true;
+                    }
+                }
+            }
+            CellLookup::Dense(slots, near)
+        } else {
+            CellLookup::Sorted(
+                cells
+                    .iter()
+                    .enumerate()
+                    .map(|(pos, c)| (linear(&c.index, n), pos as u32))
+                    .collect(),
+            )
+        };
+        Ok(Self {
+            level,
+            knots,
+            cells,
+            lookup,
+        })
+    }
+
+    /// The level `k` (from 1).
+    pub fn level(&self) -> u32 {
+        self.level
+    }
+
+    /// B-splines per axis `m_k`.
+    pub fn knots(&self) -> usize {
+        self.knots
+    }
+
+    /// The fitted cells, sorted by lattice index.
+    pub fn cells(&self) -> &[MrasCell<D>] {
+        &self.cells
+    }
+
+    /// Cells per axis of the level's lattice, `2^{k−1}`.
+    pub fn lattice(&self) -> u64 {
+        1u64 << (self.level - 1)
+    }
+
+    /// Numbers stored for the level's splines (CP factors or full tensors).
+    pub fn stored_numbers(&self) -> usize {
+        self.cells.iter().map(|c| c.spline.stored_numbers()).sum()
+    }
+
+    /// Numbers the level's splines would take as full tensors, `cells · m^D`.
+    pub fn uncompressed_numbers(&self) -> usize {
+        self.cells.len() * self.knots.pow(D as u32)
+    }
+
+    /// Whether a fitted cell lies among the 3^D neighbours of lattice cell `index` (true when
+    /// the level keeps no table for it).
+    fn near(&self, index: &[u64; D]) -> bool {
+        match &self.lookup {
+            CellLookup::Dense(_, near) => {
+                let n = self.lattice();
+                near[index.iter().fold(0u64, |acc, &i| acc * n + i) as usize]
+            }
+            CellLookup::Sorted(_) => true,
+        }
+    }
+
+    fn find(&self, index: &[u64; D]) -> Option<&MrasCell<D>> {
+        let n = self.lattice();
+        let key = index.iter().fold(0u64, |acc, &i| acc * n + i);
+        let pos = match &self.lookup {
+            CellLookup::Dense(slots, _) => match slots[key as usize] {
+                u32::MAX => return None,
+                p => p,
+            },
+            CellLookup::Sorted(keys) => {
+                let at = keys.binary_search_by_key(&key, |&(k, _)| k).ok()?;
+                keys[at].1
+            }
+        };
+        Some(&self.cells[pos as usize])
+    }
+}
+
+fn linear<const D: usize>(index: &[u32; D], n: u64) -> u64 {
+    index.iter().fold(0u64, |acc, &i| acc * n + u64::from(i))
+}
+
+/// The geometry of one level's cells in the unit cube: side `s = 2^{1−k}`, partition-of-unity
+/// radius `ρ = α·√D·s` (α times the cell's full diagonal), and the support box `c ± ρ` holding
+/// `m` B-splines of spacing `h = 2ρ/(m − 2)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelGeometry {
+    /// Cells per axis.
+    pub lattice: u64,
+    /// Cell side `s`.
+    pub side: f64,
+    /// Support radius `ρ`.
+    pub radius: f64,
+    /// B-splines per axis `m`.
+    pub knots: usize,
+    /// Knot spacing `h`.
+    pub spacing: f64,
+}
+
+impl LevelGeometry {
+    /// The geometry of level `level` (from 1) in `D` dimensions.
+    pub fn new(dim: usize, level: u32, knots: usize, alpha: f64) -> Self {
+        let lattice = 1u64 << (level - 1);
+        let side = 1.0 / lattice as f64;
+        let radius = alpha * (dim as f64).sqrt() * side;
+        Self {
+            lattice,
+            side,
+            radius,
+            knots,
+            spacing: 2.0 * radius / (knots as f64 - 2.0),
+        }
+    }
+
+    /// The centre of the cell with lattice index `i` along one axis.
+    #[inline]
+    pub fn centre(&self, i: u64) -> f64 {
+        (i as f64 + 0.5) * self.side
+    }
+
+    /// The continuous B-spline index of the unit-cube coordinate `u` in the cell whose centre
+    /// is `centre` (clamped to the support box `[½, m − 3/2]`).
+    #[inline]
+    pub fn spline_index(&self, u: f64, centre: f64) -> f64 {
+        ((u - centre + self.radius) / self.spacing + 0.5).clamp(0.5, self.knots as f64 - 1.5)
+    }
+}
+
+/// The partition-of-unity weight `w(r) = β²(3r / 2ρ)` (eq. 8) and `dw/dr`.
+#[inline]
+pub(crate) fn pu_weight(r: f64, radius: f64) -> (f64, f64) {
+    let t = 1.5 * r / radius;
+    let dt = 1.5 / radius;
+    if t >= 1.5 {
+        (0.0, 0.0)
+    } else if t <= 0.5 {
+        (0.75 - t * t, -2.0 * t * dt)
+    } else {
+        let l = 1.5 - t;
+        (0.5 * l * l, -l * dt)
+    }
+}
+
+/// A multilevel rational algebraic spline (MRAS) field (paper 004 §4, eqs. 6–9):
+/// `f = side · Σ_k o_k(u)` with `u = (p − origin)/side` in the unit cube and `o_k` the level's
+/// blended offsets `Σ_j w_j φ_j / Σ_i w_i` (the denominator summing over every cell of the
+/// level's lattice, fitted or not).
+///
+/// Points outside the cube are clamped onto it (the field is constant along the clamped
+/// directions there). Evaluation reads the CP factors directly; the full tensors are never
+/// formed. Single and batched evaluation give the same bits on any number of threads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MrasField<const D: usize> {
+    origin: Point<D>,
+    side: f64,
+    alpha: f64,
+    levels: Vec<MrasLevel<D>>,
+}
+
+/// Points per rayon task in [`MrasField::values`].
+const CHUNK: usize = 1024;
+
+impl<const D: usize> MrasField<D> {
+    /// The field on the cube `origin + [0, side]^D` with partition-of-unity factor `alpha` and
+    /// these levels (1, 2, … in order).
+    ///
+    /// # Errors
+    /// A message for a non-finite origin, a side or `alpha` that is not positive and finite, or
+    /// levels not numbered 1, 2, ….
+    pub fn new(
+        origin: Point<D>,
+        side: f64,
+        alpha: f64,
+        levels: Vec<MrasLevel<D>>,
+    ) -> Result<Self, String> {
+        if origin.iter().any(|v| !v.is_finite()) {
+            return Err(format!("origin {origin:?} is not finite"));
+        }
+        if !(side.is_finite() && side > 0.0) {
+            return Err(format!("cube side {side} is not positive and finite"));
+        }
+        // Σw > 0 in every cell needs ρ = α√D·s above the half-diagonal √D·s/2.
+        if !(alpha.is_finite() && alpha > 0.5) {
+            return Err(format!(
+                "partition-of-unity factor α = {alpha}: must exceed 1/2 so that every point \
+                 of a cell lies inside its support"
+            ));
+        }
+        for (i, l) in levels.iter().enumerate() {
+            if l.level as usize != i + 1 {
+                return Err(format!(
+                    "levels must be numbered 1, 2, …: position {} holds level {}",
+                    i + 1,
+                    l.level
+                ));
+            }
+        }
+        Ok(Self {
+            origin,
+            side,
+            alpha,
+            levels,
+        })
+    }
+
+    /// The cube's lowest corner.
+    pub fn origin(&self) -> Point<D> {
+        self.origin
+    }
+
+    /// The cube's side.
+    pub fn side(&self) -> f64 {
+        self.side
+    }
+
+    /// The partition-of-unity factor `α` (the support radius is `α` times the cell diagonal).
+    pub fn alpha(&self) -> f64 {
+        self.alpha
+    }
+
+    /// The levels, coarse to fine.
+    pub fn levels(&self) -> &[MrasLevel<D>] {
+        &self.levels
+    }
+
+    /// Appends the next level.
+    pub(crate) fn push_level(&mut self, level: MrasLevel<D>) -> Result<(), String> {
+        if level.level as usize != self.levels.len() + 1 {
+            return Err(format!(
+                "level {} appended after {} levels",
+                level.level,
+                self.levels.len()
+            ));
+        }
+        self.levels.push(level);
+        Ok(())
+    }
+
+    /// The same field truncated to its first `levels` levels (`f^k` of the paper).
+    pub fn truncated(&self, levels: usize) -> Self {
+        Self {
+            levels: self.levels[..levels.min(self.levels.len())].to_vec(),
+            ..self.clone()
+        }
+    }
+
+    /// The geometry of level `k` (from 1).
+    pub fn geometry(&self, level: &MrasLevel<D>) -> LevelGeometry {
+        LevelGeometry::new(D, level.level, level.knots, self.alpha)
+    }
+
+    /// Numbers stored as the paper counts them (§6.2): every cell's spline (`3·m·R` for CP
+    /// factors) plus its blending function (centre and radius, `D + 1`).
+    pub fn storage(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.stored_numbers() + l.cells.len() * (D + 1))
+            .sum()
+    }
+
+    /// The storage the same cells would need as full tensors (plus the blending functions).
+    pub fn uncompressed_storage(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.uncompressed_numbers() + l.cells.len() * (D + 1))
+            .sum()
+    }
+
+    /// Unit-cube coordinates of `p`, clamped onto the cube.
+    #[inline]
+    pub fn to_unit(&self, p: &Point<D>) -> Point<D> {
+        let mut u = [0.0; D];
+        for a in 0..D {
+            u[a] = ((p[a] - self.origin[a]) / self.side).clamp(0.0, 1.0);
+        }
+        u
+    }
+
+    /// The value and unit-cube gradient of one level's blended offset `o_k(u)`.
+    pub fn level_offset(
+        &self,
+        level: &MrasLevel<D>,
+        u: &Point<D>,
+        with_gradient: bool,
+    ) -> (f64, Point<D>) {
+        let g = self.geometry(level);
+        let n = g.lattice;
+        let mut home = [0u64; D];
+        for a in 0..D {
+            home[a] = ((u[a] * n as f64) as u64).min(n - 1);
+        }
+        // No fitted cell within reach (ρ < 1.5 s): the level adds nothing here.
+        if !level.near(&home) {
+            return (0.0, [0.0; D]);
+        }
+        let (mut wsum, mut num) = (0.0, 0.0);
+        let (mut dwsum, mut dnum) = ([0.0; D], [0.0; D]);
+        // The 3^D lattice cells around the home cell (ρ < 1.5 s: no others reach u).
+        for code in 0..3usize.pow(D as u32) {
+            let mut index = [0u64; D];
+            let mut c = code;
+            let mut inside = true;
+            for a in 0..D {
+                let off = (c % 3) as i64 - 1;
+                c /= 3;
+                let i = home[a] as i64 + off;
+                if i < 0 || i >= n as i64 {
+                    inside = false;
+                    break;
+                }
+                index[a] = i as u64;
+            }
+            if !inside {
+                continue;
+            }
+            let mut d = [0.0; D];
+            let mut r2 = 0.0;
+            for a in 0..D {
+                d[a] = u[a] - g.centre(index[a]);
+                r2 += d[a] * d[a];
+            }
+            if r2 >= g.radius * g.radius {
+                continue;
+            }
+            let r = r2.sqrt();
+            let (w, dw) = pu_weight(r, g.radius);
+            wsum += w;
+            let mut grad_w = [0.0; D];
+            if with_gradient && r > 0.0 {
+                for a in 0..D {
+                    grad_w[a] = dw * d[a] / r;
+                    dwsum[a] += grad_w[a];
+                }
+            }
+            let Some(cell) = level.find(&index) else {
+                continue;
+            };
+            let (phi, dphi) = spline_at(&cell.spline, &g, &index, u, with_gradient);
+            num += w * phi;
+            if with_gradient {
+                for a in 0..D {
+                    dnum[a] += grad_w[a] * phi + w * dphi[a];
+                }
+            }
+        }
+        if wsum <= 0.0 {
+            return (0.0, [0.0; D]);
+        }
+        let value = num / wsum;
+        let mut grad = [0.0; D];
+        if with_gradient {
+            for a in 0..D {
+                grad[a] = (dnum[a] - value * dwsum[a]) / wsum;
+            }
+        }
+        (value, grad)
+    }
+
+    /// `f(p)` and `∇f(p)` (world units).
+    pub fn value_and_gradient(&self, p: &Point<D>) -> (f64, Point<D>) {
+        let u = self.to_unit(p);
+        let (mut v, mut g) = (0.0, [0.0; D]);
+        for level in &self.levels {
+            let (lv, lg) = self.level_offset(level, &u, true);
+            v += lv;
+            for a in 0..D {
+                g[a] += lg[a];
+            }
+        }
+        // Clamped directions have zero derivative outside the cube.
+        for a in 0..D {
+            let t = (p[a] - self.origin[a]) / self.side;
+            if !(0.0..=1.0).contains(&t) {
+                g[a] = 0.0;
+            }
+        }
+        (v * self.side, g)
+    }
+}
+
+/// Ranks up to this are evaluated row-wise on the stack ([`cp_rows`]).
+const FAST_RANK: usize = 64;
+
+/// `φ` and its gradient from CP factors of rank `r ≤ FAST_RANK`: per axis, the weighted sum of
+/// the (at most 3) factor rows the point reads, a contiguous loop over the ranks that the
+/// compiler vectorises; then the products over the axes. Same operations in the same order for
+/// every point, so batched and single evaluation agree bit for bit.
+#[inline]
+fn cp_rows<const D: usize>(
+    factors: &[Vec<f64>; D],
+    r: usize,
+    m: usize,
+    first: &[usize; D],
+    w: &[[f64; 3]; D],
+    d1: &[[f64; 3]; D],
+    with_gradient: bool,
+) -> (f64, [f64; D]) {
+    let mut gv = [[0.0; FAST_RANK]; D];
+    let mut gd = [[0.0; FAST_RANK]; D];
+    for a in 0..D {
+        for q in 0..3 {
+            let i = first[a] + q;
+            if i >= m {
+                continue;
+            }
+            let row = &factors[a][i * r..(i + 1) * r];
+            let (wq, dq) = (w[a][q], d1[a][q]);
+            for (k, &x) in row.iter().enumerate() {
+                gv[a][k] += wq * x;
+            }
+            if with_gradient {
+                for (k, &x) in row.iter().enumerate() {
+                    gd[a][k] += dq * x;
+                }
+            }
+        }
+    }
+    let mut value = 0.0;
+    let mut grad = [0.0; D];
+    for k in 0..r {
+        let mut p = 1.0;
+        for g in &gv {
+            p *= g[k];
+        }
+        value += p;
+        if with_gradient {
+            for a in 0..D {
+                let mut p = gd[a][k];
+                for (b, g) in gv.iter().enumerate() {
+                    if b != a {
+                        p *= g[k];
+                    }
+                }
+                grad[a] += p;
+            }
+        }
+    }
+    (value, grad)
+}
+
+/// `φ(u)` and its unit-cube gradient for one cell.
+#[inline]
+fn spline_at<const D: usize>(
+    spline: &CellSpline<D>,
+    g: &LevelGeometry,
+    index: &[u64; D],
+    u: &Point<D>,
+    with_gradient: bool,
+) -> (f64, Point<D>) {
+    let m = g.knots;
+    let mut first = [0usize; D];
+    let mut w = [[0.0; 3]; D];
+    let mut d1 = [[0.0; 3]; D];
+    for a in 0..D {
+        let x = g.spline_index(u[a], g.centre(index[a]));
+        let aw = weights::<3>(x);
+        first[a] = aw.first as usize;
+        for q in 0..3 {
+            // B-spline m sits past the box; its weight is 0 on it (x ≤ m − 3/2).
+            if first[a] + q < m {
+                w[a][q] = aw.w[q];
+                d1[a][q] = aw.d1[q] / g.spacing;
+            }
+        }
+    }
+    match spline {
+        CellSpline::Cp { rank, factors } => {
+            let r = *rank;
+            if r <= FAST_RANK {
+                return cp_rows(factors, r, m, &first, &w, &d1, with_gradient);
+            }
+            let (mut value, mut grad) = (0.0, [0.0; D]);
+            for k in 0..r {
+                let mut gv = [0.0; D];
+                let mut gd = [0.0; D];
+                for a in 0..D {
+                    let f = &factors[a];
+                    for q in 0..3 {
+                        let i = first[a] + q;
+                        if i < m {
+                            let x = f[i * r + k];
+                            gv[a] += w[a][q] * x;
+                            gd[a] += d1[a][q] * x;
+                        }
+                    }
+                }
+                value += gv.iter().product::<f64>();
+                if with_gradient {
+                    for a in 0..D {
+                        let p = gv
+                            .iter()
+                            .enumerate()
+                            .filter(|&(b, _)| b != a)
+                            .fold(gd[a], |p, (_, g)| p * g);
+                        grad[a] += p;
+                    }
+                }
+            }
+            (value, grad)
+        }
+        CellSpline::Full { coefficients } => {
+            let (mut value, mut grad) = (0.0, [0.0; D]);
+            for code in 0..3usize.pow(D as u32) {
+                let mut c = code;
+                let mut flat = 0usize;
+                let mut q = [0usize; D];
+                let mut skip = false;
+                for a in 0..D {
+                    q[a] = c % 3;
+                    c /= 3;
+                    let i = first[a] + q[a];
+                    if i >= m {
+                        skip = true;
+                    }
+                    flat = flat * m + i;
+                }
+                if skip {
+                    continue;
+                }
+                let coef = coefficients[flat];
+                let mut prod = coef;
+                for a in 0..D {
+                    prod *= w[a][q[a]];
+                }
+                value += prod;
+                if with_gradient {
+                    for a in 0..D {
+                        let mut p = coef * d1[a][q[a]];
+                        for b in 0..D {
+                            if b != a {
+                                p *= w[b][q[b]];
+                            }
+                        }
+                        grad[a] += p;
+                    }
+                }
+            }
+            (value, grad)
+        }
+    }
+}
+
+impl<const D: usize> ScalarField<D> for MrasField<D> {
+    fn value(&self, p: &Point<D>) -> f64 {
+        let u = self.to_unit(p);
+        let mut v = 0.0;
+        for level in &self.levels {
+            v += self.level_offset(level, &u, false).0;
+        }
+        v * self.side
+    }
+
+    fn gradient(&self, p: &Point<D>) -> Point<D> {
+        self.value_and_gradient(p).1
+    }
+
+    fn values(&self, points: &[Point<D>], out: &mut [f64]) {
+        assert_eq!(
+            points.len(),
+            out.len(),
+            "MrasField::values: {} points but {} output slots",
+            points.len(),
+            out.len()
+        );
+        points
+            .par_chunks(CHUNK)
+            .zip(out.par_chunks_mut(CHUNK))
+            .for_each(|(ps, os)| {
+                for (p, o) in ps.iter().zip(os) {
+                    *o = self.value(p);
+                }
+            });
+    }
+
+    fn bounds(&self) -> Option<Aabb<D>> {
+        let mut max = self.origin;
+        for m in &mut max {
+            *m += self.side;
+        }
+        Aabb::new(self.origin, max).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Σ_i w_i(u) over the level's lattice (what the blend divides by).
+    fn weight_sum(level: u32, alpha: f64, u: [f64; 3]) -> f64 {
+        let g = LevelGeometry::new(3, level, 6, alpha);
+        let n = g.lattice;
+        let mut s = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    let c = [g.centre(i), g.centre(j), g.centre(k)];
+                    let r = ((u[0] - c[0]).powi(2) + (u[1] - c[1]).powi(2) + (u[2] - c[2]).powi(2))
+                        .sqrt();
+                    s += pu_weight(r, g.radius).0;
+                }
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn partition_of_unity_covers_the_whole_domain() {
+        // Corners, edge midpoints and face centres of cells (the points farthest from centres),
+        // and a deterministic scatter, at levels 1–4.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for level in 1..=4u32 {
+            let s = 1.0 / f64::from(1u32 << (level - 1));
+            let mut probes = vec![
+                [0.0; 3],
+                [1.0; 3],
+                [s, 0.5 * s, 0.0],
+                [0.5 * s, 0.5 * s, 0.0],
+            ];
+            probes.extend((0..200).map(|_| [next(), next(), next()]));
+            for u in probes {
+                let w = weight_sum(level, 0.75, u);
+                assert!(w > 0.05, "level {level}: Σw = {w} at {u:?}");
+            }
+        }
+        // The paper's radius read as half the diagonal (α·R = 0.65 s) leaves a cell's edge
+        // midpoints uncovered: Σw = 0 there. That is why R is the full diagonal.
+        let half = 0.75 * 3f64.sqrt() / 2.0;
+        let g = LevelGeometry::new(3, 2, 6, 0.75);
+        let edge_midpoint_distance = (2.0f64).sqrt() / 2.0 * g.side;
+        assert!(half * g.side < edge_midpoint_distance);
+        assert!(g.radius > 3f64.sqrt() / 2.0 * g.side);
+    }
+
+    #[test]
+    fn level_checks_its_cells() {
+        let cp = |rank: usize, len: usize| CellSpline::<3>::Cp {
+            rank,
+            factors: [vec![1.0; len], vec![1.0; len], vec![1.0; len]],
+        };
+        let cell = |index, spline| MrasCell { index, spline };
+        assert!(MrasLevel::new(2, 5, vec![cell([0, 1, 1], cp(2, 10))]).is_ok());
+        assert!(MrasLevel::new(2, 5, vec![cell([2, 0, 0], cp(2, 10))]).is_err());
+        assert!(MrasLevel::new(2, 5, vec![cell([0, 0, 0], cp(2, 9))]).is_err());
+        assert!(
+            MrasLevel::new(
+                2,
+                5,
+                vec![cell([0, 0, 0], cp(1, 5)), cell([0, 0, 0], cp(1, 5))]
+            )
+            .is_err()
+        );
+        let nan = CellSpline::Full {
+            coefficients: vec![f64::NAN; 125],
+        };
+        assert!(MrasLevel::new(1, 5, vec![cell([0, 0, 0], nan)]).is_err());
+        assert!(MrasLevel::<3>::new(0, 5, vec![]).is_err());
+        assert!(MrasField::<3>::new([0.0; 3], 1.0, 0.5, vec![]).is_err());
+    }
+}

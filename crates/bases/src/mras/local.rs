@@ -1,0 +1,458 @@
+//! One cell's local fit (paper 004 §5.2–5.4): assemble the quadratic energy of eq. 14, minimise
+//! it plus the trace norm by ADMM (the c-step matrix factored once), and compress the
+//! coefficient tensor by CP-ALS with Algorithm 2's adaptive rank.
+
+use faer::Mat;
+use zeroset_field_core::geometry::Point;
+use zeroset_solvers::admm::{AdmmOptions, ProxTerm, TraceNormTerm, admm, ridge_solution};
+use zeroset_tensor::{CpOptions, Kruskal, Tensor3, cp_als, trace_norm};
+
+use super::MrasError;
+use super::field::{CellSpline, LevelGeometry};
+use crate::bspline::stencil::weights;
+
+/// The 1-D Gram matrices `∫ N_i^{(q)} N_j^{(q)}` (`q = 0, 1, 2`) of the `m` B-splines over the
+/// support box, in the box's local coordinate `t ∈ [0, 1]`, and the thin-plate matrix
+/// `T = Σ_a M₂^{(a)} ⊗ M₀ ⊗ M₀ + 2 Σ_{a<b} M₁^{(a)} ⊗ M₁^{(b)} ⊗ M₀` with
+/// `cᵀTc = ∭_{[0,1]³} ‖∇²φ‖_F²` (the Hessian in local coordinates, so that the term weighs the
+/// same at every level).
+#[derive(Debug, Clone)]
+pub(crate) struct ThinPlate {
+    m: usize,
+    /// `T` by rows: `(column, value)` pairs of the (at most 125) non-zeros of each row.
+    rows: Vec<Vec<(u32, f64)>>,
+}
+
+impl ThinPlate {
+    pub(crate) fn new(m: usize) -> Self {
+        // Gauss–Legendre, 3 points: exact for the degree-4 products on each knot interval.
+        let gl = [
+            (-(0.6f64).sqrt() / 2.0 + 0.5, 5.0 / 18.0),
+            (0.5, 8.0 / 18.0),
+            ((0.6f64).sqrt() / 2.0 + 0.5, 5.0 / 18.0),
+        ];
+        let mut gram = [vec![0.0; m * m], vec![0.0; m * m], vec![0.0; m * m]];
+        // Knot intervals [j + ½, j + 3/2], j = 0 … m − 3, in B-spline index space.
+        for j in 0..m - 2 {
+            for &(s, wq) in &gl {
+                let x = j as f64 + 0.5 + s;
+                let aw = weights::<3>(x);
+                let vals = [aw.w, aw.d1, aw.d2];
+                for (q, v) in vals.iter().enumerate() {
+                    for a in 0..3 {
+                        let ia = aw.first + a as isize;
+                        if ia < 0 || ia as usize >= m {
+                            continue;
+                        }
+                        for b in 0..3 {
+                            let ib = aw.first + b as isize;
+                            if ib < 0 || ib as usize >= m {
+                                continue;
+                            }
+                            gram[q][ia as usize * m + ib as usize] += wq * v[a] * v[b];
+                        }
+                    }
+                }
+            }
+        }
+        // Index space → local t: x = ½ + t(m − 2); d/dt = (m − 2) d/dx, dt = dx/(m − 2).
+        let k = (m - 2) as f64;
+        for (q, g) in gram.iter_mut().enumerate() {
+            let scale = k.powi(2 * q as i32 - 1);
+            g.iter_mut().for_each(|v| *v *= scale);
+        }
+        let n = m * m * m;
+        let mut rows = vec![Vec::new(); n];
+        // (q_x, q_y, q_z, multiplicity): Hessian entries ∂²/∂a∂b.
+        let terms = [
+            (2, 0, 0, 1.0),
+            (0, 2, 0, 1.0),
+            (0, 0, 2, 1.0),
+            (1, 1, 0, 2.0),
+            (1, 0, 1, 2.0),
+            (0, 1, 1, 2.0),
+        ];
+        let band = |i: usize| i.saturating_sub(2)..(i + 3).min(m);
+        for i in 0..m {
+            for j in 0..m {
+                for l in 0..m {
+                    let row = (i * m + j) * m + l;
+                    for i2 in band(i) {
+                        for j2 in band(j) {
+                            for l2 in band(l) {
+                                let col = (i2 * m + j2) * m + l2;
+                                let mut v = 0.0;
+                                for &(qx, qy, qz, mult) in &terms {
+                                    v += mult
+                                        * gram[qx][i * m + i2]
+                                        * gram[qy][j * m + j2]
+                                        * gram[qz][l * m + l2];
+                                }
+                                rows[row].push((col as u32, v));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Self { m, rows }
+    }
+
+    /// `cᵀ T c`.
+    #[cfg(test)]
+    pub(crate) fn energy(&self, c: &[f64]) -> f64 {
+        let mut e = 0.0;
+        for (i, row) in self.rows.iter().enumerate() {
+            let s: f64 = row.iter().map(|&(j, v)| v * c[j as usize]).sum();
+            e += c[i] * s;
+        }
+        e
+    }
+}
+
+/// One data point of a local fit: unit-cube position, the value the offset must reach
+/// (`−f^{k−1}(p)`) and the gradient it must reach (`n − ∇f^{k−1}(p)`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Target {
+    pub u: Point<3>,
+    pub value: f64,
+    pub gradient: Point<3>,
+}
+
+/// The weights of the local energy and its solver.
+#[derive(Debug, Clone)]
+pub(crate) struct LocalSettings {
+    pub omega1: f64,
+    pub omega2: f64,
+    /// The trace-norm weight in the energy per point (the user's `λ` times `ε₀`).
+    pub lambda: f64,
+    /// A value scale (`ε₀`, unit-cube units) for ADMM's absolute tolerance.
+    pub value_scale: f64,
+    pub eta: f64,
+    pub admm_max_iter: usize,
+    pub admm_tol: f64,
+    /// How far the CP factors may be from the tensor; `None`: keep the full tensor (the
+    /// uncompressed MRAS).
+    pub cp_bound: Option<CpBound>,
+}
+
+/// What one cell's fit produced.
+#[derive(Debug, Clone)]
+pub(crate) struct LocalFit {
+    pub spline: CellSpline<3>,
+    pub admm_iterations: usize,
+    /// `‖C − Ĉ‖` of the CP approximation (0 for a full tensor).
+    pub cp_error: f64,
+}
+
+/// Fits one cell (centre index `index` on the level of geometry `g`) to `targets`.
+pub(crate) fn fit_cell(
+    g: &LevelGeometry,
+    index: [u64; 3],
+    targets: &[Target],
+    plate: &ThinPlate,
+    s: &LocalSettings,
+) -> Result<LocalFit, MrasError> {
+    let m = g.knots;
+    debug_assert_eq!(plate.m, m);
+    let n = m * m * m;
+    let centre = [g.centre(index[0]), g.centre(index[1]), g.centre(index[2])];
+    // Normal equations of Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²: H' c = b'.
+    let mut hm = Mat::<f64>::zeros(n, n);
+    let mut b = vec![0.0; n];
+    let mut rows: Vec<Row> = Vec::with_capacity(targets.len());
+    let mut idx = [0usize; 27];
+    let mut val = [0.0; 27];
+    let mut grad = [[0.0; 27]; 3];
+    for t in targets {
+        let mut first = [0usize; 3];
+        let mut w = [[0.0; 3]; 3];
+        let mut d1 = [[0.0; 3]; 3];
+        for a in 0..3 {
+            let aw = weights::<3>(g.spline_index(t.u[a], centre[a]));
+            first[a] = aw.first as usize;
+            for q in 0..3 {
+                if first[a] + q < m {
+                    w[a][q] = aw.w[q];
+                    d1[a][q] = aw.d1[q] / g.spacing;
+                }
+            }
+        }
+        let mut len = 0;
+        for i in 0..3 {
+            for j in 0..3 {
+                for l in 0..3 {
+                    let (a, bb, c) = (first[0] + i, first[1] + j, first[2] + l);
+                    if a >= m || bb >= m || c >= m {
+                        continue;
+                    }
+                    idx[len] = (a * m + bb) * m + c;
+                    val[len] = w[0][i] * w[1][j] * w[2][l];
+                    grad[0][len] = d1[0][i] * w[1][j] * w[2][l];
+                    grad[1][len] = w[0][i] * d1[1][j] * w[2][l];
+                    grad[2][len] = w[0][i] * w[1][j] * d1[2][l];
+                    len += 1;
+                }
+            }
+        }
+        rows.push(Row { len, idx, val });
+        let o1 = s.omega1;
+        for p in 0..len {
+            // H is symmetric: column idx[p] of it, row idx[q].
+            let col = hm.col_as_slice_mut(idx[p]);
+            b[idx[p]] += val[p] * t.value
+                + o1 * (grad[0][p] * t.gradient[0]
+                    + grad[1][p] * t.gradient[1]
+                    + grad[2][p] * t.gradient[2]);
+            for q in 0..len {
+                col[idx[q]] += val[p] * val[q]
+                    + o1 * (grad[0][p] * grad[0][q]
+                        + grad[1][p] * grad[1][q]
+                        + grad[2][p] * grad[2][q]);
+            }
+        }
+    }
+    // The energy per data point, (1/N)(Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²) + ω₂ ∭‖∇²φ‖², so that the
+    // weights balance the same way at every level and sampling density. ADMM minimises
+    // ½cᵀHc − bᵀc: H = 2(H'/N + ω₂T), b = 2b'/N.
+    let inv = 1.0 / targets.len().max(1) as f64;
+    for j in 0..n {
+        for v in hm.col_as_slice_mut(j) {
+            *v *= 2.0 * inv;
+        }
+    }
+    // T is in the box's local coordinates (Hessian × S², S = 2ρ the box side): divide by S⁴
+    // for the mean of ‖∇²φ‖² over the box in unit-cube coordinates, a curvature that means the
+    // same at every level.
+    let box_side = 2.0 * g.radius;
+    let smooth = 2.0 * s.omega2 / box_side.powi(4);
+    for (i, row) in plate.rows.iter().enumerate() {
+        let col = hm.col_as_slice_mut(i);
+        for &(j, v) in row {
+            col[j as usize] += smooth * v;
+        }
+    }
+    b.iter_mut().for_each(|v| *v *= 2.0 * inv);
+    // η in units of H's mean diagonal (the paper's η = 1 is for its unnormalised energy).
+    let mean_diag = (0..n).map(|i| hm[(i, i)]).sum::<f64>() / n as f64;
+    let shape = [m, m, m];
+    let start = ridge_solution(hm.as_ref(), &b, 1e-12 * mean_diag)?;
+    // λ is made dimensionless: the trace norm of the offset costs about λ ε₀² √rank whatever
+    // its amplitude a (the start's RMS coefficient, at least ε₀), as much as a residual of ε₀
+    // at every point — at every level and density. (Unscaled, it would flatten the root
+    // level, whose amplitude only the weak normal term holds.)
+    let amplitude = (start.iter().map(|v| v * v).sum::<f64>() / n as f64)
+        .sqrt()
+        .max(s.value_scale);
+    let weight = s.lambda * s.value_scale * s.value_scale / (amplitude * (n as f64).sqrt());
+    let terms = TraceNormTerm::mras_terms(shape, weight)?;
+    let refs: Vec<&dyn ProxTerm> = terms.iter().map(|t| t as &dyn ProxTerm).collect();
+    let opts = AdmmOptions::default()
+        .start(start)
+        .eta(s.eta * mean_diag)
+        .max_iter(s.admm_max_iter)
+        .eps_abs(s.admm_tol * s.value_scale)
+        .eps_rel(s.admm_tol);
+    let sol = admm(hm.as_ref(), &b, &refs, &opts)?;
+    // The split variables z_i are exactly low-rank unfoldings (c is only close): their mean,
+    // folded back, is the tensor to compress.
+    let mut c = vec![0.0; n];
+    for (t, z) in terms.iter().zip(&sol.z) {
+        t.apply_transpose_add(z, &mut c);
+    }
+    c.iter_mut().for_each(|v| *v /= terms.len() as f64);
+    let (spline, cp_error) = match s.cp_bound {
+        None => (CellSpline::Full { coefficients: c }, 0.0),
+        Some(bound) => compress(c, m, bound, &rows)?,
+    };
+    Ok(LocalFit {
+        spline,
+        admm_iterations: sol.iterations,
+        cp_error,
+    })
+}
+
+/// CP-ALS stops when its relative error changes by less than this between sweeps …
+const CP_TOL: f64 = 1e-5;
+/// … or after this many sweeps (the bound is checked after; a rank that stalls grows).
+const CP_MAX_ITER: usize = 60;
+
+/// The error Algorithm 2 grows the CP rank until it meets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CpBound {
+    /// The paper's `‖C − Ĉ‖_F ≤ ε` over the whole tensor.
+    Tensor(f64),
+    /// `|φ̂ − φ| ≤ ε` at every data point of the cell: the error where the surface is.
+    Points(f64),
+}
+
+/// One data point's basis row (up to 27 entries).
+struct Row {
+    len: usize,
+    idx: [usize; 27],
+    val: [f64; 27],
+}
+
+/// CP factors of the `m³` tensor `c` by Algorithm 2 — the rank starts at
+/// `⌈Σ γ_i ‖C_(i)‖_*⌉` and grows by `⌈3 ln(error/ε)⌉` until `bound` holds — capped at `m²/3`
+/// (where CP factors stop being smaller than the tensor); the full tensor where the cap does not
+/// meet the bound.
+fn compress(
+    c: Vec<f64>,
+    m: usize,
+    bound: CpBound,
+    rows: &[Row],
+) -> Result<(CellSpline<3>, f64), MrasError> {
+    let x = Tensor3::new([m, m, m], c).map_err(MrasError::Tensor)?;
+    if x.as_slice().iter().all(|&v| v == 0.0) {
+        let zero = vec![0.0; m];
+        let factors = [zero.clone(), zero.clone(), zero];
+        return Ok((CellSpline::Cp { rank: 1, factors }, 0.0));
+    }
+    let cap = (m * m / 3).max(1);
+    let mut trace = 0.0;
+    for mode in 0..3 {
+        let u = x.unfold(mode).map_err(MrasError::Tensor)?;
+        trace += trace_norm(u.as_ref()).map_err(MrasError::Tensor)? / 3.0;
+    }
+    let mut rank = (trace.ceil() as usize).clamp(1, cap);
+    let eps = match bound {
+        CpBound::Tensor(e) | CpBound::Points(e) => e,
+    };
+    loop {
+        let opts = CpOptions::new(rank)
+            .with_tol(CP_TOL)
+            .with_max_iter(CP_MAX_ITER)
+            .with_line_search(true);
+        let fit = cp_als(&x, &opts, |_| true).map_err(MrasError::Tensor)?;
+        let error = match bound {
+            CpBound::Tensor(_) => fit.abs_error,
+            CpBound::Points(_) => {
+                let approx = fit.kruskal.to_tensor();
+                let (a, b) = (x.as_slice(), approx.as_slice());
+                rows.iter()
+                    .map(|r| {
+                        (0..r.len)
+                            .map(|k| r.val[k] * (a[r.idx[k]] - b[r.idx[k]]))
+                            .sum::<f64>()
+                            .abs()
+                    })
+                    .fold(0.0, f64::max)
+            }
+        };
+        if error <= eps {
+            return Ok((factors_of(&fit.kruskal, m), error));
+        }
+        if rank >= cap {
+            return Ok((
+                CellSpline::Full {
+                    coefficients: x.as_slice().to_vec(),
+                },
+                0.0,
+            ));
+        }
+        let step = (3.0 * (error / eps).ln()).ceil().max(1.0) as usize;
+        rank = (rank + step).min(cap);
+    }
+}
+
+/// The spline of Kruskal factors, the weights folded into the first axis.
+fn factors_of(k: &Kruskal, m: usize) -> CellSpline<3> {
+    let r = k.rank();
+    let weights = k.weights();
+    let f = k.factors();
+    let mut factors: [Vec<f64>; 3] = [vec![0.0; m * r], vec![0.0; m * r], vec![0.0; m * r]];
+    for (a, out) in factors.iter_mut().enumerate() {
+        for i in 0..m {
+            for q in 0..r {
+                let scale = if a == 0 { weights[q] } else { 1.0 };
+                out[i * r + q] = f[a][(i, q)] * scale;
+            }
+        }
+    }
+    CellSpline::Cp { rank: r, factors }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Coefficients reproducing `t ↦ poly(t)` along each axis for the quadratic B-splines of
+    /// the box: `Σ_j β(x − j) = 1`, `Σ_j j β(x − j) = x`, `Σ_j j² β(x − j) = x² + ¼`, with
+    /// `x = ½ + t(m − 2)`.
+    fn coefficient(m: usize, j: usize, power: u32) -> f64 {
+        let k = (m - 2) as f64;
+        let j = j as f64;
+        match power {
+            0 => 1.0,
+            1 => (j - 0.5) / k,
+            _ => (j * j - j) / (k * k),
+        }
+    }
+
+    #[test]
+    fn thin_plate_energy_is_exact_on_quadratics() {
+        for m in [5, 8] {
+            let plate = ThinPlate::new(m);
+            let tensor = |p: [u32; 3]| -> Vec<f64> {
+                let mut c = Vec::new();
+                for i in 0..m {
+                    for j in 0..m {
+                        for l in 0..m {
+                            c.push(
+                                coefficient(m, i, p[0])
+                                    * coefficient(m, j, p[1])
+                                    * coefficient(m, l, p[2]),
+                            );
+                        }
+                    }
+                }
+                c
+            };
+            // φ = t_x²: Hessian diag(2, 0, 0), ∭‖H‖² = 4. φ = t_x t_y: two off-diagonal 1s, 2.
+            // φ = t_z (affine): 0.
+            let cases = [
+                ([2, 0, 0], 4.0),
+                ([0, 2, 0], 4.0),
+                ([1, 1, 0], 2.0),
+                ([0, 0, 1], 0.0),
+            ];
+            for (p, want) in cases {
+                let e = plate.energy(&tensor(p));
+                assert!((e - want).abs() < 1e-10, "m {m} {p:?}: {e} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn points_bound_measures_the_change_at_the_data() {
+        // A rank-2 tensor ((i+1)·j·0.01 + sin(l)·0.02): the paper's bound on the whole tensor
+        // needs rank ≥ 2 (Algorithm 2 may overshoot), a loose bound at one data point
+        // stops at the first rank tried.
+        let m = 6;
+        let c: Vec<f64> = (0..m * m * m)
+            .map(|f| {
+                let (i, j, l) = (f / 36, (f / 6) % 6, f % 6);
+                (i as f64 + 1.0) * (j as f64) * 0.01 + (l as f64).sin() * 0.02
+            })
+            .collect();
+        let mut row = Row {
+            len: 1,
+            idx: [0; 27],
+            val: [0.0; 27],
+        };
+        row.idx[0] = 100;
+        row.val[0] = 1.0;
+        let rows = std::slice::from_ref(&row);
+        let (spline, err) = compress(c.clone(), m, CpBound::Tensor(1e-8), rows).unwrap();
+        let rank = spline.rank().expect("CP factors");
+        assert!(
+            (2..=12).contains(&rank) && err <= 1e-8,
+            "rank {rank}, error {err}"
+        );
+        let (loose, err) = compress(c, m, CpBound::Points(0.05), rows).unwrap();
+        // Algorithm 2 starts at R⁰ = ⌈Σ γᵢ‖C₍ᵢ₎‖_*⌉ (2 here) and stops there.
+        assert!(loose.rank().expect("CP factors") <= rank.min(2));
+        assert!(err <= 0.05, "{err}");
+    }
+}

@@ -1,0 +1,185 @@
+//! `zeroset fit POINTS --method mras`: a multilevel low-rank spline (MRAS) field (Pan–Tong–Chen,
+//! paper 004; [`zeroset_bases::mras`]).
+//!
+//! `--tolerance T` is the target largest distance from the points to the surface as a fraction
+//! of the cloud's bounding-box diagonal: cells whose points' Sampson distance exceeds it are
+//! split, down to `--max-level`. `--lambda` weighs the trace norm that pushes each cell's
+//! coefficient tensor to low rank (larger: smaller files, larger errors). A bar per level counts
+//! the cells fitted and shows the largest error left by the level before; a table per level
+//! follows (cells, CP ranks, numbers stored, error). `-o` writes the `mras` kind of `.zsf` field
+//! file (exact), which `zeroset mesh`, `restore`, `preview` and `info` read.
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+
+use zeroset_bases::field_file::write_mras_field;
+use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
+
+use crate::fit::{FitArgs, SolverArg, line, load, more, print_check, print_input};
+use crate::info::g;
+use crate::progress::counter;
+
+const HEADING: &str = "MRAS (--method mras)";
+
+/// The options of `--method mras` (`--lambda` is shared with `--method neural`).
+#[derive(Debug, Args, Default)]
+pub struct MrasArgs {
+    /// Target largest distance from the points to the surface, as a fraction of the cloud's
+    /// bounding-box diagonal [default: 1e-3].
+    #[arg(long, value_name = "T", help_heading = HEADING)]
+    pub tolerance: Option<f64>,
+    /// The deepest octree level (the root is 1) [default: 7].
+    #[arg(long, value_name = "L", help_heading = HEADING)]
+    pub max_level: Option<u32>,
+    /// Keep every cell's full coefficient tensor instead of its CP factors (for comparison).
+    #[arg(long, help_heading = HEADING)]
+    pub no_compress: bool,
+}
+
+impl MrasArgs {
+    /// The first option given, as its flag, if any (for refusing them with other methods).
+    pub fn given(&self) -> Option<&'static str> {
+        [
+            (self.tolerance.is_some(), "--tolerance"),
+            (self.max_level.is_some(), "--max-level"),
+            (self.no_compress, "--no-compress"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+    }
+}
+
+/// Refuses the options of the other methods; checks -o.
+fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
+    let others = [
+        (args.kernel.is_some(), "--kernel"),
+        (args.radius.is_some(), "--radius"),
+        (args.hermite, "--hermite"),
+        (args.solver != SolverArg::Auto, "--solver"),
+        (args.sampled, "--sampled"),
+        (args.grid.is_some(), "--grid"),
+        (args.offset.is_some(), "--offset"),
+    ];
+    if let Some((_, flag)) = others.iter().find(|(given, _)| *given) {
+        bail!("{flag} is not an option of --method mras");
+    }
+    if let Some(flag) = args.neural.given_besides_lambda() {
+        bail!("{flag} is an option of --method neural, not of --method mras");
+    }
+    if let Some(output) = &args.output {
+        crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
+    }
+    let mut o = MrasOptions::default();
+    if let Some(t) = args.mras.tolerance {
+        o.tolerance = t;
+    }
+    if let Some(l) = args.mras.max_level {
+        o.max_level = l;
+    }
+    if let Some(l) = args.neural.lambda {
+        o.lambda = l;
+    }
+    o.compress = !args.mras.no_compress;
+    Ok(o)
+}
+
+/// Runs `zeroset fit --method mras`.
+pub fn run(args: &FitArgs) -> anyhow::Result<()> {
+    let options = check_request(args)?;
+    let start = Instant::now();
+    let cloud = load(args)?;
+    print_input(args, &cloud);
+    let normals = cloud.normals().context("the cloud has no normals")?;
+    line(
+        "MRAS",
+        &format!(
+            "tolerance {} of the diagonal, up to {} levels, λ = {}, {}",
+            g(options.tolerance),
+            options.max_level,
+            g(options.lambda),
+            if options.compress {
+                "CP factors"
+            } else {
+                "full tensors (--no-compress)"
+            }
+        ),
+    );
+    let bar = Mutex::new((0u32, counter(args.quiet, 1, "level 1")));
+    let progress = |p: &MrasProgress| {
+        let mut b = bar.lock().unwrap_or_else(|e| e.into_inner());
+        if b.0 != p.level {
+            b.1.finish_and_clear();
+            let message = match p.error {
+                Some(e) => format!("level {} (max error {})", p.level, g(e)),
+                None => format!("level {}", p.level),
+            };
+            b.1 = counter(args.quiet, p.cells_total, "");
+            b.1.set_message(message);
+            b.0 = p.level;
+        }
+        b.1.set_position(p.cells_done as u64);
+    };
+    let fit = fit_mras(cloud.positions(), normals, &options, &progress);
+    bar.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .1
+        .finish_and_clear();
+    let fit = fit.context("fitting the MRAS field")?;
+    if fit.duplicates > 0 {
+        line(
+            "duplicates",
+            &format!("{} exact duplicate positions merged", fit.duplicates),
+        );
+    }
+    line(
+        "levels",
+        "level  m  cells  ranks min/mean/max  stored  uncompressed  max error  mean error  split",
+    );
+    for l in &fit.levels {
+        more(&format!(
+            "{:5} {:2} {:6}  {:>18}  {:6}  {:12}  {:9}  {:10}  {:5}{}",
+            l.level,
+            l.knots,
+            l.cells,
+            format!("{}/{:.1}/{}", l.ranks.0, l.ranks.1, l.ranks.2),
+            l.stored,
+            l.uncompressed,
+            g(l.max_error),
+            g(l.mean_error),
+            l.split,
+            if l.full_cells > 0 {
+                format!("  ({} cells full)", l.full_cells)
+            } else {
+                String::new()
+            }
+        ));
+    }
+    let field = &fit.field;
+    line(
+        "storage",
+        &format!(
+            "{} numbers ({:.1}× fewer than the {} of the uncompressed cells)",
+            field.storage(),
+            field.uncompressed_storage() as f64 / field.storage().max(1) as f64,
+            field.uncompressed_storage()
+        ),
+    );
+    line("time", &format!("{:.2} s", fit.seconds));
+    print_check(field, &cloud);
+    if let Some(output) = &args.output {
+        line(
+            "output",
+            &format!("{}: the MRAS field (exact)", output.display()),
+        );
+        write_mras_field(output, field).with_context(|| format!("writing {}", output.display()))?;
+        println!(
+            "wrote {} (the MRAS field) in {:.2} s",
+            output.display(),
+            start.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}

@@ -1,22 +1,40 @@
 #!/usr/bin/env bash
 # Creates benches/peers/.venv and installs the pinned scipy/numpy (idempotent).
-# Usage: bash benches/peers/setup.sh [--torch]   (from anywhere)
-#   --torch  also installs requirements-torch.txt (PyTorch for neural_peers.py; a ~5 GB download)
+# Usage: bash benches/peers/setup.sh [--torch] [--open3d]   (from anywhere)
+#   --torch   also installs requirements-torch.txt (PyTorch for neural_peers.py; a ~5 GB download)
+#   --open3d  also installs requirements-open3d.txt (Open3D for poisson_peers.py; ~105 MB; needs the
+#             system library libusb-1.0: apt-get install libusb-1.0-0)
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 venv="$here/.venv"
 python="${PYTHON:-python3}"
+torch=0
+open3d=0
+for arg in "$@"; do
+    case "$arg" in
+        --torch) torch=1 ;;
+        --open3d) open3d=1 ;;
+        *)
+            echo "usage: bash benches/peers/setup.sh [--torch] [--open3d]" >&2
+            exit 2
+            ;;
+    esac
+done
 if [ ! -x "$venv/bin/python" ]; then
     echo "creating $venv with $("$python" --version 2>&1)"
     "$python" -m venv "$venv"
 fi
 # pip is a no-op when the pinned versions are already installed.
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$here/requirements.txt"
-if [ "${1:-}" = "--torch" ]; then
+if [ "$torch" = 1 ]; then
     "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$here/requirements-torch.txt"
     "$venv/bin/python" -c 'import torch; print(f"ok: torch {torch.__version__}")'
-elif [ -n "${1:-}" ]; then
-    echo "usage: bash benches/peers/setup.sh [--torch]" >&2
-    exit 2
+fi
+if [ "$open3d" = 1 ]; then
+    "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$here/requirements-open3d.txt"
+    if ! "$venv/bin/python" -c 'import open3d; print(f"ok: open3d {open3d.__version__}")'; then
+        echo "open3d is installed but does not import (if the error names libusb-1.0.so.0: apt-get install libusb-1.0-0)" >&2
+        exit 1
+    fi
 fi
 "$venv/bin/python" -c 'import sys, numpy, scipy; print(f"ok: python {sys.version.split()[0]}, numpy {numpy.__version__}, scipy {scipy.__version__}")'

@@ -114,20 +114,10 @@ pub struct NeuralArgs {
 impl NeuralArgs {
     /// The first option given, as its flag, if any (for refusing them with --method rbf).
     pub fn given(&self) -> Option<&'static str> {
-        [
-            (self.steps.is_some(), "--steps"),
-            (self.lambda.is_some(), "--lambda"),
-            (self.aux.is_some(), "--aux"),
-            (self.widths.is_some(), "--widths"),
-            (self.activation.is_some(), "--activation"),
-            (self.seed.is_some(), "--seed"),
-            (self.learning_rate.is_some(), "--learning-rate"),
-            (self.dropout.is_some(), "--dropout"),
-            (self.resample_aux, "--resample-aux"),
-            (self.refit_last_layer, "--refit-last-layer"),
-        ]
-        .into_iter()
-        .find_map(|(given, flag)| given.then_some(flag))
+        if self.lambda.is_some() {
+            return Some("--lambda");
+        }
+        self.given_besides_lambda()
     }
 
     /// The first option given other than `--lambda` (which `--method mras` shares).

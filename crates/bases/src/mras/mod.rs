@@ -62,7 +62,9 @@
 //! cell; the z-step thresholds the three unfoldings' singular values. The split variables'
 //! mean (exactly low multilinear rank) is compressed by CP-ALS with Algorithm 2's rank schedule
 //! — `R⁰ = ⌈Σ γ_i ‖C_(i)‖_*⌉`, then `R += ⌈3 ln(error/ε)⌉` — until the CP factors change `φ` at
-//! the cell's data points by at most `ε = 0.5 ε₀` ([`MrasOptions::cp_points`]). The paper's
+//! the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`, `e_{k−1}` the largest
+//! error the previous level left ([`MrasOptions::cp_points`]): coarse levels may compress
+//! harder since finer ones correct them, as with the paper's `10^{−k−1}`. The paper's
 //! bound `‖C − Ĉ‖_F ≤ 10^{−k−1}` is available ([`MrasOptions::cp_scale`]) but spends rank on
 //! coefficients no point sees. The rank is capped at `m²/3`, where `3mR` numbers stop being
 //! fewer than `m³` (a cell that needs more is stored full). `f^k` is built from the CP

@@ -8,38 +8,21 @@
 //! cargo bench --bench mras
 //! ```
 
+#[path = "../examples/common/shapes.rs"]
+mod shapes;
+
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use zeroset::bases::mras::{MrasOptions, fit_mras};
 use zeroset::core::field::ScalarField;
 
-/// A torus around the z axis on an `nu × nv` parameter grid, with outward normals.
-fn torus(nu: usize, nv: usize) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
-    let (big, small) = (1.0, 0.4);
-    let mut p = Vec::new();
-    let mut n = Vec::new();
-    for i in 0..nu {
-        let u = 2.0 * std::f64::consts::PI * i as f64 / nu as f64;
-        for j in 0..nv {
-            let v = 2.0 * std::f64::consts::PI * (j as f64 + 0.5 * (i % 2) as f64) / nv as f64;
-            n.push([v.cos() * u.cos(), v.cos() * u.sin(), v.sin()]);
-            p.push([
-                (big + small * v.cos()) * u.cos(),
-                (big + small * v.cos()) * u.sin(),
-                small * v.sin(),
-            ]);
-        }
-    }
-    (p, n)
-}
-
 fn mras_bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("mras");
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(10));
-    let (p, n) = torus(120, 48);
+    let (p, n) = shapes::torus(120, 48, 1.0, 0.4);
     let options = MrasOptions::default().max_level(3);
     group.bench_function("fit torus 5760 points, 3 levels", |b| {
         b.iter(|| fit_mras(&p, &n, &options, &|_| {}).map(|f| f.field.storage()))

@@ -32,6 +32,8 @@
 mod data;
 #[path = "common/rbf_storage.rs"]
 mod rbf_storage;
+#[path = "common/shapes.rs"]
+mod shapes;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -44,6 +46,8 @@ use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::read_point_cloud;
 use zeroset_mesh::preview::{Axis, Image, RenderOptions, render_mesh};
 use zeroset_mesh::{McOptions, check, mesh_field, write_ply};
+
+use shapes::{sphere, torus};
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
@@ -415,42 +419,4 @@ fn distances(fit: &MrasFit, points: &[[f64; 3]]) -> (f64, f64, usize) {
     let max = ok.iter().fold(0.0f64, |a, &b| a.max(b));
     let mean = ok.iter().sum::<f64>() / ok.len().max(1) as f64;
     (max, mean, d.len() - ok.len())
-}
-
-type Cloud = (Vec<[f64; 3]>, Vec<[f64; 3]>);
-
-/// `n` points of the sphere of radius `r` (Fibonacci lattice) with outward normals.
-fn sphere(n: usize, r: f64) -> Cloud {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let d = [
-                s * (golden * i as f64).cos(),
-                s * (golden * i as f64).sin(),
-                z,
-            ];
-            (d.map(|v| v * r), d)
-        })
-        .unzip()
-}
-
-/// A torus (radii `big`, `small`) around the z axis on a `nu × nv` parameter grid.
-fn torus(nu: usize, nv: usize, big: f64, small: f64) -> Cloud {
-    let mut pts = Vec::new();
-    let mut nrm = Vec::new();
-    for i in 0..nu {
-        let u = 2.0 * std::f64::consts::PI * i as f64 / nu as f64;
-        for j in 0..nv {
-            let v = 2.0 * std::f64::consts::PI * (j as f64 + 0.5 * (i % 2) as f64) / nv as f64;
-            nrm.push([v.cos() * u.cos(), v.cos() * u.sin(), v.sin()]);
-            pts.push([
-                (big + small * v.cos()) * u.cos(),
-                (big + small * v.cos()) * u.sin(),
-                small * v.sin(),
-            ]);
-        }
-    }
-    (pts, nrm)
 }

@@ -5,44 +5,12 @@ use zeroset_bases::field_file::{AnyField, decode_any, encode_mras};
 use zeroset_bases::mras::{CellSpline, MrasError, MrasFit, MrasOptions, fit_mras};
 use zeroset_field_core::field::{ScalarField, central_difference_gradient, distance_to_zero_set};
 
+#[path = "../../../examples/common/shapes.rs"]
+mod shapes;
+
+use shapes::{sphere, torus};
+
 type P = [f64; 3];
-
-/// `n` points of the sphere of radius `r` (Fibonacci lattice) with outward normals.
-fn sphere(n: usize, r: f64) -> (Vec<P>, Vec<P>) {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let d = [
-                s * (golden * i as f64).cos(),
-                s * (golden * i as f64).sin(),
-                z,
-            ];
-            (d.map(|v| v * r), d)
-        })
-        .unzip()
-}
-
-/// A torus (radii `big`, `small`) around the z axis on a `nu × nv` parameter grid.
-fn torus(nu: usize, nv: usize, big: f64, small: f64) -> (Vec<P>, Vec<P>) {
-    let mut pts = Vec::new();
-    let mut nrm = Vec::new();
-    for i in 0..nu {
-        let u = 2.0 * std::f64::consts::PI * i as f64 / nu as f64;
-        for j in 0..nv {
-            let v = 2.0 * std::f64::consts::PI * (j as f64 + 0.5 * (i % 2) as f64) / nv as f64;
-            let n = [v.cos() * u.cos(), v.cos() * u.sin(), v.sin()];
-            pts.push([
-                (big + small * v.cos()) * u.cos(),
-                (big + small * v.cos()) * u.sin(),
-                small * v.sin(),
-            ]);
-            nrm.push(n);
-        }
-    }
-    (pts, nrm)
-}
 
 fn fit(points: &[P], normals: &[P], options: &MrasOptions) -> MrasFit {
     fit_mras(points, normals, options, &|_| {}).expect("fit")

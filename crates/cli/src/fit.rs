@@ -597,6 +597,22 @@ pub(crate) fn read_error(path: &Path, e: Error, noun: &str, advice: &str) -> any
     }
 }
 
+impl FitArgs {
+    /// The first option of `--method rbf` only that is given, as its flag.
+    pub(crate) fn rbf_flag_given(&self) -> Option<&'static str> {
+        [
+            (self.kernel.is_some(), "--kernel"),
+            (self.radius.is_some(), "--radius"),
+            (self.hermite, "--hermite"),
+            (self.solver != SolverArg::Auto, "--solver"),
+            (self.sampled, "--sampled"),
+            (self.grid.is_some(), "--grid"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+    }
+}
+
 pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
     let n = cloud.len();
     line(

@@ -18,7 +18,7 @@ use clap::Args;
 use zeroset_bases::field_file::write_mras_field;
 use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 
-use crate::fit::{FitArgs, SolverArg, line, load, more, print_check, print_input};
+use crate::fit::{FitArgs, line, load, more, print_check, print_input};
 use crate::info::g;
 use crate::progress::counter;
 
@@ -54,16 +54,10 @@ impl MrasArgs {
 
 /// Refuses the options of the other methods; checks -o.
 fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
-    let others = [
-        (args.kernel.is_some(), "--kernel"),
-        (args.radius.is_some(), "--radius"),
-        (args.hermite, "--hermite"),
-        (args.solver != SolverArg::Auto, "--solver"),
-        (args.sampled, "--sampled"),
-        (args.grid.is_some(), "--grid"),
-        (args.offset.is_some(), "--offset"),
-    ];
-    if let Some((_, flag)) = others.iter().find(|(given, _)| *given) {
+    let other = args
+        .rbf_flag_given()
+        .or(args.offset.is_some().then_some("--offset"));
+    if let Some(flag) = other {
         bail!("{flag} is not an option of --method mras");
     }
     if let Some(flag) = args.neural.given_besides_lambda() {

@@ -39,8 +39,7 @@ use zeroset_field_core::io::value_file_dimension;
 use zeroset_solvers::DenseQr;
 
 use crate::fit::{
-    AUTO_FRACTION, FitArgs, OffsetArg, SolverArg, line, load, load_values, more, print_check,
-    print_input,
+    AUTO_FRACTION, FitArgs, OffsetArg, line, load, load_values, more, print_check, print_input,
 };
 use crate::info::g;
 use crate::progress::counter;
@@ -175,15 +174,7 @@ impl NeuralArgs {
 
 /// Refuses the options of --method rbf; checks -o.
 fn check_request(args: &FitArgs) -> anyhow::Result<()> {
-    let rbf_only = [
-        (args.kernel.is_some(), "--kernel"),
-        (args.radius.is_some(), "--radius"),
-        (args.hermite, "--hermite"),
-        (args.solver != SolverArg::Auto, "--solver"),
-        (args.sampled, "--sampled"),
-        (args.grid.is_some(), "--grid"),
-    ];
-    if let Some((_, flag)) = rbf_only.iter().find(|(given, _)| *given) {
+    if let Some(flag) = args.rbf_flag_given() {
         bail!("{flag} is an option of --method rbf, not of --method neural");
     }
     if let Some(OffsetArg::Fixed(eps)) = args.offset

@@ -613,38 +613,28 @@ fn check_spread(positions: &[Point<3>], idx: &[usize], extent: f64) -> Result<()
         });
     }
     let svd = thin_svd(Mat::from_fn(3, 3, |a, b| cov[a][b]).as_ref()).map_err(MrasError::Tensor)?;
-    // The thickness across the least-spread direction(s).
-    for (dims, col) in [(2usize, 2usize), (1, 1)] {
-        let v: [f64; 3] = std::array::from_fn(|a| svd.u[(a, col)]);
-        let thickness = idx
-            .iter()
+    // The largest distance of a point from the mean along the covariance's column `col`.
+    let thickness = |col: usize| {
+        idx.iter()
             .map(|&i| {
                 (0..3)
-                    .map(|a| (positions[i][a] - mean[a]) * v[a])
+                    .map(|a| (positions[i][a] - mean[a]) * svd.u[(a, col)])
                     .sum::<f64>()
                     .abs()
             })
-            .fold(0.0, f64::max);
-        if thickness <= 1e-6 * extent {
-            // dims = 2: flat in one direction (a plane) — unless also flat in the next (a line).
-            let flat_next = dims == 2 && {
-                let w: [f64; 3] = std::array::from_fn(|a| svd.u[(a, 1)]);
-                idx.iter()
-                    .map(|&i| {
-                        (0..3)
-                            .map(|a| (positions[i][a] - mean[a]) * w[a])
-                            .sum::<f64>()
-                            .abs()
-                    })
-                    .fold(0.0, f64::max)
-                    <= 1e-6 * extent
-            };
-            return Err(MrasError::Degenerate {
-                shape: if flat_next { shape[1] } else { shape[dims] },
-                thickness,
-                extent,
-            });
-        }
+            .fold(0.0, f64::max)
+    };
+    let (thinnest, next) = (thickness(2), thickness(1));
+    if thinnest <= 1e-6 * extent {
+        return Err(MrasError::Degenerate {
+            shape: if next <= 1e-6 * extent {
+                shape[1]
+            } else {
+                shape[2]
+            },
+            thickness: thinnest,
+            extent,
+        });
     }
     Ok(())
 }

@@ -405,6 +405,31 @@ fn fit_and_report(path: &Path, opts: &MrasOptions) -> Res<MrasFit> {
         mean / fit.diagonal,
         failed
     );
+    // Where the worst points are: the quantiles, and the five farthest with their normals.
+    let tol = 1e-9 * fit.diagonal;
+    let mut d: Vec<(f64, usize)> = cloud
+        .positions()
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let d = distance_to_zero_set(&fit.field, p, tol, 50).unwrap_or(f64::INFINITY);
+            (d / fit.diagonal, i)
+        })
+        .collect();
+    d.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let quantile = |q: f64| d[((1.0 - q) * d.len() as f64) as usize].0;
+    println!(
+        "  quantiles: 50% {:.3e}, 90% {:.3e}, 99% {:.3e}, 99.9% {:.3e}; {} points above 1.5e-3",
+        quantile(0.5),
+        quantile(0.9),
+        quantile(0.99),
+        quantile(0.999),
+        d.iter().filter(|x| x.0 > 1.5e-3).count()
+    );
+    for (e, i) in d.iter().take(5) {
+        let (p, n) = (cloud.positions()[*i], normals[*i]);
+        println!("  {e:.3e} at point {i} {p:.4?}, normal {n:.2?}");
+    }
     Ok(fit)
 }
 

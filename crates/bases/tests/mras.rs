@@ -19,7 +19,7 @@ fn fit(points: &[P], normals: &[P], options: &MrasOptions) -> MrasFit {
 fn max_distance(fit: &MrasFit, points: &[P]) -> f64 {
     points
         .iter()
-        .map(|p| distance_to_zero_set(&fit.field, p, 1e-12, 50).expect("projects"))
+        .map(|p| distance_to_zero_set(&fit.field, p, 1e-10, 100).expect("projects"))
         .fold(0.0, f64::max)
         / fit.diagonal
 }
@@ -38,8 +38,8 @@ fn ranks(fit: &MrasFit) -> Vec<usize> {
 
 #[test]
 fn single_level_sphere_is_low_rank() {
-    // Paper Fig. 5(a): one level, rank 4 at ε ≈ 9.7e-4; zeroset's defaults: rank 7 at 1.1e-3
-    // (measured), 11 B-splines per axis.
+    // Paper Fig. 5(a): one level, rank 4 at ε ≈ 9.7e-4; zeroset's defaults: rank 6 at 1.1e-3
+    // (measured), 11 B-splines per axis over the cube.
     let (p, n) = sphere(3000, 1.0);
     let f = fit(&p, &n, &MrasOptions::default().max_level(1));
     let r = ranks(&f);
@@ -49,7 +49,8 @@ fn single_level_sphere_is_low_rank() {
     assert!(err < 1.5e-3, "max distance / diagonal {err}");
     assert!(f.field.value(&[0.0; 3]) < 0.0);
     assert!(f.field.value(&[1.05, 0.0, 0.0]) > 0.0);
-    // A weak root smoothing fits as well but needs the full rank cap (40).
+    // A weak root smoothing fits closer (6.9e-4) but leaves the coefficients away from the
+    // points free, which costs rank (22).
     let weak = fit(
         &p,
         &n,
@@ -61,20 +62,20 @@ fn single_level_sphere_is_low_rank() {
 
 #[test]
 fn single_level_torus_fits_within_the_root_cells_resolution() {
-    // Paper Fig. 5(b): rank 10 at ε ≈ 8.3e-4. One root cell of 11 B-splines per axis (knot
-    // spacing 0.29 of the cube) reaches 6.9e-3 at rank 24 with the defaults, 3.4e-3 with a weak
-    // root smoothing (measured); deeper levels do the rest.
+    // Paper Fig. 5(b): rank 10 at ε ≈ 8.3e-4. One root cell of 11 B-splines per axis over the
+    // cube reaches 2.6e-3 at rank 9 with the defaults, 9.8e-4 at rank 15 with a weak root
+    // smoothing (measured); deeper levels do the rest.
     let (p, n) = torus(120, 48, 1.0, 0.4);
     let f = fit(&p, &n, &MrasOptions::default().max_level(1));
     let err = max_distance(&f, &p);
-    assert!(err < 1e-2, "max distance / diagonal {err}");
-    assert!(ranks(&f)[0] < 40, "rank {:?}", ranks(&f));
+    assert!(err < 5e-3, "max distance / diagonal {err}");
+    assert!(ranks(&f)[0] <= 12, "rank {:?}", ranks(&f));
     let weak = fit(
         &p,
         &n,
         &MrasOptions::default().max_level(1).omega2_root(1e-8),
     );
-    assert!(max_distance(&weak, &p) < 5e-3);
+    assert!(max_distance(&weak, &p) < 2e-3);
     let deep = fit(&p, &n, &MrasOptions::default().max_level(3));
     assert!(
         max_distance(&deep, &p) < err,

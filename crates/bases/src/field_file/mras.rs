@@ -2,7 +2,9 @@
 //!
 //! The `mras` payload, for the [`MrasField`] `f = L · Σ_k o_k((p − origin)/L)` (added within
 //! version 2: a reader from before it reports the kind as unknown). Every number is stored
-//! exactly, so a field read back evaluates to the same bits:
+//! exactly, so a field read back evaluates to the same bits. A level's geometry follows from
+//! `k`, `m` and `α` ([`LevelGeometry`](crate::mras::LevelGeometry): the root's splines span the
+//! cube, the other levels' the box `c ± α√D·s` around each cell):
 //!
 //! | bytes | content |
 //! |---|---|

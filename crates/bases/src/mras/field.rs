@@ -243,16 +243,22 @@ fn linear<const D: usize>(index: &[u32; D], n: u64) -> u64 {
 }
 
 /// The geometry of one level's cells in the unit cube: side `s = 2^{1−k}`, partition-of-unity
-/// radius `ρ = α·√D·s` (α times the cell's full diagonal), and the support box `c ± ρ` holding
-/// `m` B-splines of spacing `h = 2ρ/(m − 2)`.
+/// radius `ρ = α·√D·s` (α times the cell's full diagonal), and the support box `c ± b` holding
+/// `m` B-splines of spacing `h = 2b/(m − 2)`: `b = ρ` (the box around the weight's support) on
+/// levels 2, 3, …, and `b = ½` — the cube itself — on the root level, whose single cell's
+/// weight is the whole partition of unity (`w/Σw = 1`), so that its splines are spent where the
+/// points are rather than on the 2.6× wider box around a support nobody evaluates outside the
+/// cube.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LevelGeometry {
     /// Cells per axis.
     pub lattice: u64,
     /// Cell side `s`.
     pub side: f64,
-    /// Support radius `ρ`.
+    /// Partition-of-unity support radius `ρ`.
     pub radius: f64,
+    /// Half the side `b` of the support box holding the splines.
+    pub half_box: f64,
     /// B-splines per axis `m`.
     pub knots: usize,
     /// Knot spacing `h`.
@@ -265,12 +271,14 @@ impl LevelGeometry {
         let lattice = 1u64 << (level - 1);
         let side = 1.0 / lattice as f64;
         let radius = alpha * (dim as f64).sqrt() * side;
+        let half_box = if level == 1 { 0.5 } else { radius };
         Self {
             lattice,
             side,
             radius,
+            half_box,
             knots,
-            spacing: 2.0 * radius / (knots as f64 - 2.0),
+            spacing: 2.0 * half_box / (knots as f64 - 2.0),
         }
     }
 
@@ -284,7 +292,7 @@ impl LevelGeometry {
     /// is `centre` (clamped to the support box `[½, m − 3/2]`).
     #[inline]
     pub fn spline_index(&self, u: f64, centre: f64) -> f64 {
-        ((u - centre + self.radius) / self.spacing + 0.5).clamp(0.5, self.knots as f64 - 1.5)
+        ((u - centre + self.half_box) / self.spacing + 0.5).clamp(0.5, self.knots as f64 - 1.5)
     }
 }
 

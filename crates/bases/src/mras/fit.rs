@@ -23,7 +23,7 @@ use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
 /// | `lambda` | 0.3 | `[0.01, 0.05]` (unnormalised) | bunny storage 1.9× → 3.6× smaller than λ = 0.02 for a 2% larger max error |
 /// | `omega1` | 5e-5 | `[5e-5, 1e-3]` | 1e-3 leaves the kitten at 4.5e-3 (normals fight positions), 5e-5 at 2.7e-3 |
 /// | `omega2` | 1e-8 | not given | 1e-6 doubles the bunny's max error |
-/// | `omega2_root` | 1e-4 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves spurious sheets (bunny_2k: 4 components), 1e-4 none; also low ranks (sphere 7) |
+/// | `omega2_root` | 3e-6 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves a spurious sheet (bunny_2k: 2 components), 3e-6 none; sphere rank 6 at 1.1e-3, torus 9 at 2.6e-3 (1e-6: 9 at 8.3e-4, 11 at 1.4e-3; 1e-5 smooths the torus to 7e-3) |
 /// | `m0`, `beta` | 12, 1 | `m_k = m₀ − ⌊βk⌋`, `β ∈ [1, 3]` | 13 costs 1.6× the time for the same error |
 /// | `min_knots` | 6 | — | the coarsest deep-level spline |
 /// | `alpha` | 0.75 | 0.75 | |
@@ -85,7 +85,7 @@ impl Default for MrasOptions {
             lambda: 0.3,
             omega1: 5e-5,
             omega2: 1e-8,
-            omega2_root: 1e-4,
+            omega2_root: 3e-6,
             m0: 12,
             beta: 1.0,
             min_knots: 6,
@@ -690,18 +690,12 @@ impl Buckets {
 }
 
 /// Outside constraints for the root level: on a 5 × 5 × 5 lattice's points on the cube's
-/// boundary, the distance to the points' bounding box (positive: outside) with the direction
-/// away from it as the gradient. The root level alone decides the field far from the points,
-/// where nothing else holds its sign.
+/// boundary, the distance to the nearest data point (positive: outside) with the direction away
+/// from that point as the gradient — the values a signed distance would take there, which is
+/// what the normal term (`|∇f| = 1` at the points) makes the field resemble near the surface.
+/// The root level alone decides the field far from the points, where nothing else holds its
+/// sign.
 fn far_field(u: &[Point<3>]) -> Vec<Target> {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in u {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
     let mut out = Vec::new();
     for i in 0..5 {
         for j in 0..5 {
@@ -711,13 +705,20 @@ fn far_field(u: &[Point<3>]) -> Vec<Target> {
                     continue;
                 }
                 let p: Point<3> = idx.map(|v| v as f64 / 4.0);
-                let d: Point<3> = std::array::from_fn(|a| p[a] - p[a].clamp(lo[a], hi[a]));
-                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let mut best = (f64::INFINITY, [0.0; 3]);
+                for q in u {
+                    let d: Point<3> = std::array::from_fn(|a| p[a] - q[a]);
+                    let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    if l2 < best.0 {
+                        best = (l2, d);
+                    }
+                }
+                let len = best.0.sqrt();
                 if len > 0.0 {
                     out.push(Target {
                         u: p,
                         value: len,
-                        gradient: d.map(|v| v / len),
+                        gradient: best.1.map(|v| v / len),
                     });
                 }
             }

@@ -157,13 +157,14 @@ pub(crate) fn fit_cell(
     debug_assert_eq!(plate.m, m);
     let n = m * m * m;
     let centre = [g.centre(index[0]), g.centre(index[1]), g.centre(index[2])];
-    // Normal equations of Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²: H' c = b'.
+    // Normal equations of Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²: H' c = b'. Points in the same knot
+    // interval read the same 27 coefficients: their 27 × 27 blocks are summed in a small dense
+    // buffer and added to H once per interval (a scattered add per point into the m³ × m³
+    // matrix was the fit's largest cost).
     let mut hm = Mat::<f64>::zeros(n, n);
     let mut b = vec![0.0; n];
     let mut rows: Vec<Row> = Vec::with_capacity(targets.len());
-    let mut idx = [0usize; 27];
-    let mut val = [0.0; 27];
-    let mut grad = [[0.0; 27]; 3];
+    let mut local: Vec<(usize, [f64; 27], [[f64; 27]; 3])> = Vec::with_capacity(targets.len());
     for t in targets {
         let mut first = [0usize; 3];
         let mut w = [[0.0; 3]; 3];
@@ -178,39 +179,84 @@ pub(crate) fn fit_cell(
                 }
             }
         }
-        let mut len = 0;
+        let mut val = [0.0; 27];
+        let mut grad = [[0.0; 27]; 3];
+        let mut row = Row {
+            len: 0,
+            idx: [0; 27],
+            val: [0.0; 27],
+        };
         for i in 0..3 {
             for j in 0..3 {
                 for l in 0..3 {
+                    let k = (i * 3 + j) * 3 + l;
+                    val[k] = w[0][i] * w[1][j] * w[2][l];
+                    grad[0][k] = d1[0][i] * w[1][j] * w[2][l];
+                    grad[1][k] = w[0][i] * d1[1][j] * w[2][l];
+                    grad[2][k] = w[0][i] * w[1][j] * d1[2][l];
                     let (a, bb, c) = (first[0] + i, first[1] + j, first[2] + l);
-                    if a >= m || bb >= m || c >= m {
-                        continue;
+                    if a < m && bb < m && c < m {
+                        row.idx[row.len] = (a * m + bb) * m + c;
+                        row.val[row.len] = val[k];
+                        row.len += 1;
                     }
-                    idx[len] = (a * m + bb) * m + c;
-                    val[len] = w[0][i] * w[1][j] * w[2][l];
-                    grad[0][len] = d1[0][i] * w[1][j] * w[2][l];
-                    grad[1][len] = w[0][i] * d1[1][j] * w[2][l];
-                    grad[2][len] = w[0][i] * w[1][j] * d1[2][l];
-                    len += 1;
                 }
             }
         }
-        rows.push(Row { len, idx, val });
+        let key = (first[0] * m + first[1]) * m + first[2];
         let o1 = s.omega1;
-        for p in 0..len {
-            // H is symmetric: column idx[p] of it, row idx[q].
-            let col = hm.col_as_slice_mut(idx[p]);
-            b[idx[p]] += val[p] * t.value
-                + o1 * (grad[0][p] * t.gradient[0]
-                    + grad[1][p] * t.gradient[1]
-                    + grad[2][p] * t.gradient[2]);
-            for q in 0..len {
-                col[idx[q]] += val[p] * val[q]
-                    + o1 * (grad[0][p] * grad[0][q]
-                        + grad[1][p] * grad[1][q]
-                        + grad[2][p] * grad[2][q]);
+        for k in 0..27 {
+            let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
+            if a < m && bb < m && c < m {
+                b[(a * m + bb) * m + c] += val[k] * t.value
+                    + o1 * (grad[0][k] * t.gradient[0]
+                        + grad[1][k] * t.gradient[1]
+                        + grad[2][k] * t.gradient[2]);
             }
         }
+        rows.push(row);
+        local.push((key, val, grad));
+    }
+    let mut order: Vec<usize> = (0..local.len()).collect();
+    order.sort_by_key(|&i| local[i].0);
+    let mut block = [[0.0f64; 27]; 27];
+    let mut start = 0;
+    while start < order.len() {
+        let key = local[order[start]].0;
+        let mut end = start;
+        for row in block.iter_mut() {
+            row.fill(0.0);
+        }
+        while end < order.len() && local[order[end]].0 == key {
+            let (_, val, grad) = &local[order[end]];
+            for (p, row) in block.iter_mut().enumerate() {
+                let (vp, g0, g1, g2) = (
+                    val[p],
+                    s.omega1 * grad[0][p],
+                    s.omega1 * grad[1][p],
+                    s.omega1 * grad[2][p],
+                );
+                for q in 0..27 {
+                    row[q] += vp * val[q] + g0 * grad[0][q] + g1 * grad[1][q] + g2 * grad[2][q];
+                }
+            }
+            end += 1;
+        }
+        let first = [key / (m * m), (key / m) % m, key % m];
+        let global = |k: usize| -> Option<usize> {
+            let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
+            (a < m && bb < m && c < m).then_some((a * m + bb) * m + c)
+        };
+        for (p, row) in block.iter().enumerate() {
+            let Some(gp) = global(p) else { continue };
+            let col = hm.col_as_slice_mut(gp);
+            for (q, v) in row.iter().enumerate() {
+                if let Some(gq) = global(q) {
+                    col[gq] += v;
+                }
+            }
+        }
+        start = end;
     }
     // The energy per data point, (1/N)(Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²) + ω₂ ∭‖∇²φ‖², so that the
     // weights balance the same way at every level and sampling density. ADMM minimises
@@ -224,7 +270,7 @@ pub(crate) fn fit_cell(
     // T is in the box's local coordinates (Hessian × S², S = 2ρ the box side): divide by S⁴
     // for the mean of ‖∇²φ‖² over the box in unit-cube coordinates, a curvature that means the
     // same at every level.
-    let box_side = 2.0 * g.radius;
+    let box_side = 2.0 * g.half_box;
     let smooth = 2.0 * s.omega2 / box_side.powi(4);
     for (i, row) in plate.rows.iter().enumerate() {
         let col = hm.col_as_slice_mut(i);
@@ -293,10 +339,17 @@ struct Row {
     val: [f64; 27],
 }
 
-/// CP factors of the `m³` tensor `c` by Algorithm 2 — the rank starts at
-/// `⌈Σ γ_i ‖C_(i)‖_*⌉` and grows by `⌈3 ln(error/ε)⌉` until `bound` holds — capped at `m²/3`
-/// (where CP factors stop being smaller than the tensor); the full tensor where the cap does not
-/// meet the bound.
+/// CP factors of the `m³` tensor `c` by Algorithm 2, made scale-free and tightened:
+///
+/// - the rank starts at `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` — the paper's `⌈Σ γ_i ‖C_(i)‖_*⌉`
+///   divided by the tensor's norm, so that it does not depend on the units of the coefficients
+///   (1 for a rank-1 tensor, `√r` for `r` equal singular values: never above the rank of the
+///   unfoldings);
+/// - it grows by the paper's `⌈3 ln(error/ε)⌉` until `bound` holds (the natural log);
+/// - then it bisects between the last rank that failed and the first that held, so the stored
+///   rank is the smallest the growth brackets, not the overshoot of its last step;
+/// - capped at `m²/3` (where CP factors stop being smaller than the tensor): the full tensor
+///   where the cap does not meet the bound.
 fn compress(
     c: Vec<f64>,
     m: usize,
@@ -315,11 +368,12 @@ fn compress(
         let u = x.unfold(mode).map_err(MrasError::Tensor)?;
         trace += trace_norm(u.as_ref()).map_err(MrasError::Tensor)? / 3.0;
     }
-    let mut rank = (trace.ceil() as usize).clamp(1, cap);
+    let norm = x.as_slice().iter().map(|v| v * v).sum::<f64>().sqrt();
     let eps = match bound {
         CpBound::Tensor(e) | CpBound::Points(e) => e,
     };
-    loop {
+    // The CP fit of one rank and its error under `bound`.
+    let attempt = |rank: usize| -> Result<(Kruskal, f64), MrasError> {
         let opts = CpOptions::new(rank)
             .with_tol(CP_TOL)
             .with_max_iter(CP_MAX_ITER)
@@ -340,20 +394,35 @@ fn compress(
                     .fold(0.0, f64::max)
             }
         };
+        Ok((fit.kruskal, error))
+    };
+    let mut rank = ((trace / norm).ceil() as usize).clamp(1, cap);
+    let mut failed = 0;
+    let mut best = loop {
+        let (k, error) = attempt(rank)?;
         if error <= eps {
-            return Ok((factors_of(&fit.kruskal, m), error));
+            break (k, error);
         }
         if rank >= cap {
-            return Ok((
-                CellSpline::Full {
-                    coefficients: x.as_slice().to_vec(),
-                },
-                0.0,
-            ));
+            let full = CellSpline::Full {
+                coefficients: x.as_slice().to_vec(),
+            };
+            return Ok((full, 0.0));
         }
+        failed = rank;
         let step = (3.0 * (error / eps).ln()).ceil().max(1.0) as usize;
         rank = (rank + step).min(cap);
+    };
+    while rank - failed > 1 {
+        let mid = failed + (rank - failed) / 2;
+        let (k, error) = attempt(mid)?;
+        if error <= eps {
+            (rank, best) = (mid, (k, error));
+        } else {
+            failed = mid;
+        }
     }
+    Ok((factors_of(&best.0, m), best.1))
 }
 
 /// The spline of Kruskal factors, the weights folded into the first axis.

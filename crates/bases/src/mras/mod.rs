@@ -23,7 +23,11 @@
 //!   support `0.65 s` misses the cell's edges (`0.707 s` from the centre) and `Σw = 0` there.
 //!   With the full diagonal `ρ ≈ 1.30 s` covers the cell's corners (`0.87 s`), so every point of
 //!   the domain has `Σw > 0`. Each cell's knots are placed on its **support box** `c ± ρ`, since
-//!   `φ_j` is used wherever `w_j > 0`.
+//!   `φ_j` is used wherever `w_j > 0` — except the root's: its one weight is the whole
+//!   partition of unity (`w/Σw = 1`) and the field is only evaluated in the cube, so its knots
+//!   span the cube itself (the box `c ± ρ` would be 2.6 times wider and spend most of its
+//!   B-splines outside: 11 per axis then reached the torus of Fig. 5 at 6.9e-3 and rank 24,
+//!   over the cube 2.6e-3 at rank 9).
 //! - **The denominator sums over every cell of the level's lattice**, fitted or not (an unfitted
 //!   cell has offset 0). The paper writes `Ω = ∪_j Ω_j^k` — the level's cells cover the domain —
 //!   and this keeps `f^k` as smooth as `w` where a refined region ends; a sum over the fitted
@@ -48,8 +52,9 @@
 //!   far from the points and need a strong thin-plate term there (a weak one leaves spurious
 //!   sheets: bunny_2k meshed with 2–5 components), the fine levels must follow the points;
 //! - the root level also gets **outside constraints** on the cube's boundary (value: the
-//!   distance to the points' bounding box, gradient: away from it), so that the far field's
-//!   sign is held by more than the weak normal term;
+//!   distance to the nearest point, gradient: away from it — what a signed distance takes
+//!   there, which the normal term makes the field resemble), so that the far field's sign is
+//!   held by more than the weak normal term;
 //! - the trace-norm weight is `τ = λ ε₀² / (a √(m³))`, `a` the RMS coefficient of the fit
 //!   without it: a dimensionless `λ` that costs about `λ ε₀²` per unit rank at every level (the
 //!   paper's absolute λ flattens the root level, whose amplitude only the normal term holds,
@@ -61,7 +66,10 @@
 //! ADMM (Algorithm 1, [`zeroset_solvers::admm`]) factors the c-step matrix `H + 3ηI` once per
 //! cell; the z-step thresholds the three unfoldings' singular values. The split variables'
 //! mean (exactly low multilinear rank) is compressed by CP-ALS with Algorithm 2's rank schedule
-//! — `R⁰ = ⌈Σ γ_i ‖C_(i)‖_*⌉`, then `R += ⌈3 ln(error/ε)⌉` — until the CP factors change `φ` at
+//! — `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
+//! it does not depend on the coefficients' units), then `R += ⌈3 ln(error/ε)⌉`, then a
+//! bisection back between the last rank that failed and the first that held — until the CP
+//! factors change `φ` at
 //! the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`, `e_{k−1}` the largest
 //! error the previous level left ([`MrasOptions::cp_points`]): coarse levels may compress
 //! harder since finer ones correct them, as with the paper's `10^{−k−1}`. The paper's

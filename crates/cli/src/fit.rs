@@ -26,6 +26,7 @@
 //! diagonal keeps a factor of two from that edge; the solve is dense either way, so a larger
 //! support costs nothing but conditioning (condition estimate 16 there, 5 at 1/4).
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -35,8 +36,8 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
 use zeroset_bases::rbf::{
-    AUTO_DENSE_LIMIT, Biharmonic, Constraints, FitReport, IterativeParams, Offset, OffsetReport,
-    RbfField, RbfFit, Solver, ThinPlate, Triharmonic, Wendland,
+    Biharmonic, Constraints, FitReport, IterativeParams, Offset, OffsetReport, RbfField, RbfFit,
+    Solver, ThinPlate, Triharmonic, Wendland,
 };
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point, dot, norm};
@@ -44,6 +45,7 @@ use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{
     ReadOptions, ValuePoints, read_point_cloud_with, read_value_points, value_file_dimension,
 };
+use zeroset_field_core::lsq::Monitor;
 use zeroset_field_core::{Error, PointCloud3};
 
 use crate::info::{g, point};
@@ -525,7 +527,7 @@ struct ValueFit<'a, const D: usize> {
 
 impl<const D: usize> KernelJob for ValueFit<'_, D> {
     fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()> {
-        let field = solve(kernel, self.args, self.constraints, 0)?;
+        let field = solve(kernel, self.args, self.constraints)?;
         if let Some(output) = &self.args.output {
             save_rbf(&field, output)?;
         }
@@ -664,8 +666,7 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
         print_offset(args.offset.is_none(), &report);
         c
     };
-    let gradients = if args.hermite { n } else { 0 };
-    let field = solve(kernel, args, &constraints, gradients)?;
+    let field = solve(kernel, args, &constraints)?;
     print_check(&field, cloud);
     if let Some(output) = &args.output {
         if args.sampled {
@@ -677,22 +678,17 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
     Ok(())
 }
 
-/// Fits `constraints` (of which `gradients` are gradient constraints) with `kernel` and the
-/// `--solver`, after checking the memory of a dense solve, and prints the report.
+/// Fits `constraints` with `kernel` and the `--solver`, showing the iterative solver's steps,
+/// and prints the report.
 fn solve<K: StoredKernel, const D: usize>(
     kernel: K,
     args: &FitArgs,
     constraints: &Constraints<D>,
-    gradients: usize,
 ) -> anyhow::Result<RbfField<K, D>> {
     line(
         "kernel",
         &format!("{} ({})", kernel.name(), kernel_words(kernel.name())),
     );
-    // A gradient constraint is D functionals.
-    let functionals = constraints.len() + (D - 1) * gradients;
-    check_memory(args, kernel.order() >= 2, functionals, gradients > 0, D)?;
-
     let solver = match args.solver {
         SolverArg::Auto => Solver::Auto,
         SolverArg::Dense => Solver::Dense,
@@ -707,7 +703,21 @@ fn solve<K: StoredKernel, const D: usize>(
             .to_possible_value()
             .map_or("auto".into(), |v| v.get_name().to_owned())
     ));
-    let fitted = RbfFit::new(kernel).with_solver(solver).fit(constraints);
+    // A dense solve the machine cannot hold, or a fallback to one, is refused by the fit
+    // before it allocates (RbfError::Memory names the amount).
+    let shown = spinner.clone();
+    let base = spinner.message();
+    let monitor = Monitor::new(move |p| {
+        shown.set_message(format!(
+            "{base}: step {}, residual {:.1e}",
+            p.iteration, p.rel_residual
+        ));
+        ControlFlow::Continue(())
+    });
+    let fitted = RbfFit::new(kernel)
+        .with_solver(solver)
+        .with_monitor(monitor)
+        .fit(constraints);
     spinner.finish_and_clear();
     let fitted = fitted.context(if args.solver == SolverArg::Iterative {
         "fitting the RBF field (--solver dense is exact, at O(n³) time)"
@@ -752,38 +762,6 @@ fn print_offset(auto: bool, r: &OffsetReport) {
             if r.dropped == 1 { "" } else { "s" }
         ));
     }
-}
-
-/// A dense solve that cannot fit in memory is refused here, with a message, rather than
-/// aborting on a failed allocation inside the solver. `order_two`: the kernel is
-/// conditionally positive definite of order 2 (which `--solver auto` solves densely at any
-/// size, as it does gradient constraints).
-fn check_memory(
-    args: &FitArgs,
-    order_two: bool,
-    functionals: usize,
-    gradients: bool,
-    dim: usize,
-) -> anyhow::Result<()> {
-    // The polynomial adds D + 1 unknowns.
-    let unknowns = functionals.saturating_add(dim + 1);
-    let dense = match args.solver {
-        SolverArg::Dense | SolverArg::Mixed => true,
-        SolverArg::Iterative => false,
-        SolverArg::Auto => gradients || order_two || functionals <= AUTO_DENSE_LIMIT,
-    };
-    if !dense {
-        return Ok(());
-    }
-    let need = (unknowns as u64)
-        .saturating_mul(unknowns as u64)
-        .saturating_mul(8);
-    ensure_memory(
-        need,
-        &format!("the dense RBF solve of {unknowns} unknowns"),
-        "fit fewer points, or use --kernel r (or wendland) with --solver iterative (value \
-         constraints)",
-    )
 }
 
 fn print_report(r: &FitReport) {

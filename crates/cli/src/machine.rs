@@ -3,29 +3,7 @@
 
 use anyhow::bail;
 
-/// `MemAvailable` from `/proc/meminfo`, in bytes; `None` where it cannot be read (not Linux).
-pub(crate) fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib.saturating_mul(1024))
-}
-
-/// A byte count in binary units: `512 B`, `1.5 KiB`, `3.0 GiB`.
-pub(crate) fn bytes(n: u64) -> String {
-    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
-    let mut v = n as f64;
-    let mut unit = 0;
-    while v >= 1024.0 && unit + 1 < UNITS.len() {
-        v /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{n} B")
-    } else {
-        format!("{v:.1} {}", UNITS[unit])
-    }
-}
+use zeroset_field_core::memory::available as available_memory;
 
 /// `counts` written as the user gives them: `64,64,48`.
 pub(crate) fn counts_text(counts: &[usize]) -> String {
@@ -55,38 +33,13 @@ pub(crate) fn sample_count(counts: &[usize], flag: &str) -> anyhow::Result<usize
 /// cells)`), `advice` what to do instead. Where the available memory cannot be read (not
 /// Linux) only the first limit is checked.
 pub(crate) fn ensure_memory(need: u64, what: &str, advice: &str) -> anyhow::Result<()> {
-    // No allocation can exceed isize::MAX bytes (`Vec` fails with a panic above it).
-    let limit = u64::try_from(isize::MAX).unwrap_or(u64::MAX);
-    let available = available_memory();
-    if need > limit {
-        bail!(
-            "{what} needs about {} of memory, more than any allocation can hold; {advice}",
-            bytes(need)
-        );
-    }
-    if let Some(available) = available
-        && need > available
-    {
-        bail!(
-            "{what} needs about {} of memory, more than the {} available; {advice}",
-            bytes(need),
-            bytes(available)
-        );
-    }
-    Ok(())
+    zeroset_field_core::memory::ensure(need, available_memory(), what)
+        .map_err(|e| anyhow::anyhow!("{e}; {advice}"))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn formats_byte_counts() {
-        assert_eq!(bytes(512), "512 B");
-        assert_eq!(bytes(1536), "1.5 KiB");
-        assert_eq!(bytes(3 << 30), "3.0 GiB");
-        assert_eq!(bytes(u64::MAX), "16384.0 PiB");
-    }
 
     #[test]
     fn counts_samples_without_overflow() {

@@ -40,6 +40,7 @@ pub mod interop;
 pub mod io;
 pub mod lsq;
 pub mod mask;
+pub mod memory;
 
 pub use basis::{Basis, BasisField, BasisRow, PolynomialBasis};
 pub use cloud::{CloudStats, PointCloud, PointCloud2, PointCloud3};

@@ -1,6 +1,7 @@
 //! What can go wrong when fitting an RBF field.
 
 use zeroset_field_core::lsq::SolveError;
+use zeroset_field_core::memory::MemoryError;
 
 /// An RBF fit that cannot be made, with the offending input named.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -73,6 +74,13 @@ pub enum RbfError {
     /// An iterative or general solve failed.
     #[error(transparent)]
     Solve(#[from] SolveError),
+    /// A dense solve (or a fallback to one) that needs more memory than the limit
+    /// ([`RbfFit::with_memory_limit`](super::RbfFit::with_memory_limit), by default what the
+    /// machine has available): refused before anything is allocated.
+    #[error(
+        "{0}; fit a subset of the points, or a field that needs no dense system (kernel r or wendland with value constraints, or MRAS)"
+    )]
+    Memory(#[from] MemoryError),
     /// A constraint index outside the fit.
     #[error("{what}: {got} is out of range (at most {limit})")]
     OutOfRange {

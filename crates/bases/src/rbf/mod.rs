@@ -14,9 +14,13 @@
 //!   onto the null space of `Pᵀ` (half the flops of LU on the indefinite matrix; [`dense`]),
 //!   one step of iterative refinement with the exact direct-sum residual; the same Cholesky in
 //!   f32 as the preconditioner of FGMRES on the f64 system (mixed precision, ~0.6× the time);
-//!   or GMRES in a basis of local cardinal functions ([`iterative`]), `O(n²)` per step, no
-//!   matrix. [`Solver::Auto`] picks by size and kernel. Every [`FitReport`] has the largest
-//!   constraint residual by direct sums, the steps taken and a condition estimate.
+//!   or GMRES in a basis of local cardinal functions with a coarse level ([`iterative`]), no
+//!   matrix, its products by direct sums (`O(n²)` per step) or, from [`FMM_PRODUCT_MIN`]
+//!   centres, by the FMM ([`fmm::product`], `O(n)` time and memory). [`Solver::Auto`] picks by
+//!   size and kernel, and no dense solve or fallback starts that needs more memory than the
+//!   machine has ([`RbfError::Memory`] names the amount). Every [`FitReport`] has the largest
+//!   constraint residual by direct sums, the steps taken and a condition estimate; a
+//!   [`Monitor`] sees every GMRES step ([`RbfFit::with_monitor`]).
 //! - [`IncrementalFit`]: add `M` constraints to a solved `N`-constraint fit through the Schur
 //!   complement `S = D − C A⁻¹ Cᵀ` (003 Eq. 9) in `O(N² M)`, and remove the last ones again.
 //! - [`RbfField`] is a [`ScalarField`](zeroset_field_core::field::ScalarField) with analytic
@@ -62,9 +66,11 @@ pub use iterative::IterativeParams;
 pub use kernel::{Biharmonic, Kernel, ThinPlate, Triharmonic, Wendland};
 
 use dense::{DenseFactor, Precision};
+use fmm::product::FmmProduct;
 use system::{Functionals, Polynomial};
 use zeroset_field_core::Aabb;
-use zeroset_field_core::lsq::{LinearOperator, LsqMatrix};
+use zeroset_field_core::lsq::{LinearOperator, LsqMatrix, Monitor, SolveError};
+use zeroset_field_core::memory;
 use zeroset_solvers::gmres::Gmres;
 use zeroset_solvers::precond::Preconditioner;
 
@@ -75,6 +81,10 @@ const MIXED_TOLERANCE: f64 = 1e-12;
 /// A condition estimate above this makes the fit warn (see [`FitReport::warnings`]).
 pub const CONDITION_WARNING: f64 = 1e13;
 
+/// The iterative fit of a 3-D field forms its products by the FMM
+/// ([`fmm::product`]) from this many centres on, by the direct sum below.
+pub const FMM_PRODUCT_MIN: usize = 20_000;
+
 /// [`Solver::Auto`] solves systems of up to this many unknowns densely.
 pub const AUTO_DENSE_LIMIT: usize = 2000;
 
@@ -84,7 +94,9 @@ pub enum Solver {
     /// Up to [`AUTO_DENSE_LIMIT`] functionals [`Solver::Dense`]; above, [`Solver::Iterative`]
     /// for kernels of order ≤ 1 (`r`, Wendland) with value constraints only, otherwise
     /// [`Solver::MixedPrecision`]; either falls back to the f64 dense solve, with a warning, if
-    /// it does not converge (GMRES in the cardinal basis: 100 steps). Measured on the sphere set-up: with
+    /// it does not converge (GMRES in the cardinal basis: 300 steps) — unless the dense solve
+    /// would need more memory than the limit, which is then an error ([`RbfError::Memory`])
+    /// naming both failures. Measured on the sphere set-up: with
     /// `r`, GMRES in the cardinal basis converges in ~25 steps and beats the dense solve from
     /// ~2,000 points; with `r³` (order 2) local sets of 50–100 leave it stalling near 1e-1 (200
     /// converge, but cost as much as the dense solve), so `r³` stays dense.
@@ -150,6 +162,11 @@ pub struct Fitted<K, const D: usize> {
 pub struct RbfFit<K> {
     kernel: K,
     solver: Solver,
+    /// Bytes a dense solve may use (`None`: what the machine has available when it starts).
+    memory_limit: Option<u64>,
+    /// Called every step of an iterative solve (GMRES in the cardinal basis, or the
+    /// mixed-precision refinement).
+    monitor: Option<Monitor>,
 }
 
 impl<K: Kernel + Clone> RbfFit<K> {
@@ -158,7 +175,25 @@ impl<K: Kernel + Clone> RbfFit<K> {
         Self {
             kernel,
             solver: Solver::Auto,
+            memory_limit: None,
+            monitor: None,
         }
+    }
+
+    /// Limits the memory a dense solve may use to `bytes` (default: what the machine has
+    /// available, [`memory::available`], read when the solve starts). A dense solve, or a
+    /// fallback to one, that needs more is refused with [`RbfError::Memory`] before anything is
+    /// allocated.
+    pub fn with_memory_limit(mut self, bytes: u64) -> Self {
+        self.memory_limit = Some(bytes);
+        self
+    }
+
+    /// Reports every step of an iterative solve to `monitor` (step, relative residual); it
+    /// may cancel the fit ([`RbfError::Solve`] with `Cancelled`).
+    pub fn with_monitor(mut self, monitor: Monitor) -> Self {
+        self.monitor = Some(monitor);
+        self
     }
 
     /// Chooses the solver.
@@ -194,10 +229,7 @@ impl<K: Kernel + Clone> RbfFit<K> {
             Solver::Iterative(p) => Some(p.clone()),
             Solver::Auto => {
                 (n > AUTO_DENSE_LIMIT && functionals.values_only() && self.kernel.order() <= 1)
-                    .then(|| IterativeParams {
-                        max_iterations: 100,
-                        ..IterativeParams::default()
-                    })
+                    .then(IterativeParams::default)
             }
         };
         let mixed = match &self.solver {
@@ -207,17 +239,44 @@ impl<K: Kernel + Clone> RbfFit<K> {
         };
         let rhs = self.rhs(&functionals);
         let mut solved = None;
+        let unknowns = n + Polynomial::<D>::len();
         if mixed {
+            self.check_memory(
+                unknowns,
+                Precision::Single,
+                "the mixed-precision dense solve",
+            )?;
             match self.solve_mixed(&functionals, &poly, &rhs) {
                 Ok(s) => solved = Some(s),
+                Err(e @ RbfError::Solve(SolveError::Cancelled { .. })) => return Err(e),
                 Err(e) if self.solver == Solver::Auto => warnings.push(format!(
                     "the mixed-precision solve failed ({e}); solved in f64 instead"
                 )),
                 Err(e) => return Err(e),
             }
         }
+        let mut failed = None;
         if let Some(params) = iterative {
-            match iterative::solve(&self.kernel, &functionals, &poly, &params) {
+            // From `fmm_from` centres on in 3-D, GMRES's products by the FMM.
+            let fmm = if D == 3 && n >= params.fmm_from {
+                Some(
+                    FmmProduct::new(&self.kernel, &functionals.points)
+                        .map_err(|e| RbfError::Singular(format!("the FMM product: {e}")))?,
+                )
+            } else {
+                None
+            };
+            let product = fmm
+                .as_ref()
+                .map(|p| move |w: &[f64], out: &mut [f64]| p.apply(w, out));
+            match iterative::solve(
+                &self.kernel,
+                &functionals,
+                &poly,
+                &params,
+                product.as_ref().map(|p| p as &iterative::KernelProduct<'_>),
+                self.monitor.clone(),
+            ) {
                 Ok(done) => {
                     solved = Some(Solved {
                         solver: "gmres-cardinal",
@@ -228,15 +287,28 @@ impl<K: Kernel + Clone> RbfFit<K> {
                         refinement_steps: 0,
                     })
                 }
-                Err(e) if self.solver == Solver::Auto => warnings.push(format!(
-                    "the iterative solve failed ({e}); solved densely instead"
-                )),
+                Err(e @ RbfError::Solve(SolveError::Cancelled { .. })) => return Err(e),
+                Err(e) if self.solver == Solver::Auto => {
+                    warnings.push(format!(
+                        "the iterative solve failed ({e}); solved densely instead"
+                    ));
+                    failed = Some(e);
+                }
                 Err(e) => return Err(e),
             }
         }
         let solved = match solved {
             Some(s) => s,
-            None => self.solve_dense(&functionals, &poly, &rhs)?,
+            None => {
+                let what = match &failed {
+                    Some(e) => format!(
+                        "the iterative solve failed ({e}); the dense fallback of {unknowns} unknowns"
+                    ),
+                    None => format!("the dense solve of {unknowns} unknowns"),
+                };
+                self.check_memory(unknowns, Precision::Double, &what)?;
+                self.solve_dense(&functionals, &poly, &rhs)?
+            }
         };
         warnings.extend(solved.stalled.map(stall_warning));
         if solved.condition > CONDITION_WARNING {
@@ -255,6 +327,26 @@ impl<K: Kernel + Clone> RbfFit<K> {
             warnings,
         };
         Ok(self.finish(functionals, poly, &solved.x, report, start))
+    }
+
+    /// Refuses a dense solve of `unknowns` whose matrices would not fit in the memory limit:
+    /// the `f64` system (`8 n²` bytes), and for the single-precision factor its `f32` copy too.
+    fn check_memory(
+        &self,
+        unknowns: usize,
+        precision: Precision,
+        what: &str,
+    ) -> Result<(), RbfError> {
+        let per_entry = match precision {
+            Precision::Double => 8,
+            Precision::Single => 12,
+        };
+        let needed = (unknowns as u64)
+            .saturating_mul(unknowns as u64)
+            .saturating_mul(per_entry);
+        let limit = self.memory_limit.or_else(memory::available);
+        memory::ensure(needed, limit, what)?;
+        Ok(())
     }
 
     /// The exact dense solve with one step of iterative refinement (the exact residual of the
@@ -356,10 +448,13 @@ impl<K: Kernel + Clone> RbfFit<K> {
             poly,
         };
         let precond = FactorPreconditioner(&factor);
-        let gmres = Gmres::default()
+        let mut gmres = Gmres::default()
             .with_tolerance(MIXED_TOLERANCE)
             .with_max_iterations(60)
             .with_normal_residual(false);
+        if let Some(m) = &self.monitor {
+            gmres = gmres.with_monitor(m.clone());
+        }
         let result = gmres.solve(LsqMatrix::Operator(&op), rhs, Some(&x0), Some(&precond));
         let (x, iterations, stalled) = system::accept_stall(result)?;
         Ok(Solved {

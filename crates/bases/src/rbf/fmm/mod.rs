@@ -73,6 +73,7 @@ mod chebyshev;
 mod enclosure;
 mod m2l;
 mod operators;
+pub mod product;
 mod tree;
 
 use std::sync::{Arc, OnceLock};
@@ -121,6 +122,16 @@ pub enum FmmError {
     /// The field has no centres.
     #[error("the field has no centres to expand")]
     NoSources,
+    /// New weights that do not match the field's sources one to one.
+    #[error(
+        "{given} weights for a field of {sources} value sources (set_weights takes one weight per value centre, none with gradients)"
+    )]
+    Sources {
+        /// Weights given.
+        given: usize,
+        /// The field's sources.
+        sources: usize,
+    },
     /// A centre, weight or domain corner is NaN or infinite.
     #[error("{what} {index} is not finite")]
     NonFinite {
@@ -506,6 +517,37 @@ impl<K: Kernel + Clone> FmmField<K> {
 }
 
 impl<K: Kernel> FmmField<K> {
+    /// Replaces the weights of a field of value centres at distinct points (one weight per
+    /// centre, in the field's order) and recomputes the expansions over the same tree: the
+    /// products of an iterative fit, without rebuilding the tree or reallocating.
+    ///
+    /// # Errors
+    /// [`FmmError::Sources`] if the count differs from the field's sources or the field has
+    /// derivative (gradient) sources; [`FmmError::NonFinite`] for a non-finite weight.
+    pub fn set_weights(&mut self, weights: &[f64]) -> Result<(), FmmError> {
+        if weights.len() != self.weights.len() || self.dipoles.is_some() {
+            return Err(FmmError::Sources {
+                given: weights.len(),
+                sources: self.weights.len(),
+            });
+        }
+        if let Some(index) = weights.iter().position(|w| !w.is_finite()) {
+            return Err(FmmError::NonFinite {
+                what: "weight",
+                index,
+            });
+        }
+        for (dst, &i) in self.weights.iter_mut().zip(&self.tree.order) {
+            *dst = weights[i as usize];
+        }
+        self.locals.fill(0.0);
+        self.leaf_curvature = OnceLock::new();
+        self.upward();
+        self.m2l();
+        self.downward();
+        Ok(())
+    }
+
     /// What building the field did.
     pub fn report(&self) -> &FmmReport {
         &self.report

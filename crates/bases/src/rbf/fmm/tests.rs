@@ -646,3 +646,45 @@ fn a_field_from_disk_cached_operators_has_the_same_bits() {
             .any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().starts_with("m2l-v")))
     );
 }
+
+#[test]
+fn new_weights_give_the_bits_of_a_field_built_with_them() {
+    let c = blob(1500);
+    let exact = fit(Biharmonic, &c);
+    let options = FmmOptions::new(6);
+    let mut reused = FmmField::new(&exact, &options).unwrap();
+    // Other weights over the same centres: a field fitted to other targets.
+    let mut other = Constraints::new();
+    for (k, con) in c.as_slice().iter().enumerate() {
+        other.push_value(con.point, (k as f64 * 0.37).sin() * 0.1);
+    }
+    let second = fit(Biharmonic, &other);
+    reused.set_weights(second.weights()).unwrap();
+    let fresh = FmmField::new(
+        &RbfField::from_parts(
+            Biharmonic,
+            second.centres().to_vec(),
+            vec![Functional::Value; second.num_centres()],
+            vec![0.0; second.num_centres()],
+            second.weights().to_vec(),
+            *exact.polynomial(),
+            exact.polynomial_coefficients().to_vec(),
+            exact.bounds().unwrap(),
+        ),
+        &options,
+    )
+    .unwrap();
+    for x in probes(&exact.bounds().unwrap(), 200, 0.1) {
+        assert_eq!(reused.value(&x).to_bits(), fresh.value(&x).to_bits());
+    }
+    assert!(matches!(
+        reused.set_weights(&[1.0; 3]),
+        Err(FmmError::Sources { given: 3, .. })
+    ));
+    let mut bad = second.weights().to_vec();
+    bad[7] = f64::NAN;
+    assert!(matches!(
+        reused.set_weights(&bad),
+        Err(FmmError::NonFinite { index: 7, .. })
+    ));
+}

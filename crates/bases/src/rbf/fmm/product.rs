@@ -1,0 +1,73 @@
+//! The product `w ↦ Φ w = (Σⱼ wⱼ φ(|xᵢ − xⱼ|))ᵢ` at the centres themselves by the FMM: the
+//! kernel part of one GMRES step of the iterative fit ([`super::super::iterative`]) in
+//! `O(N)` time and memory instead of the direct sum's `O(N²)` time.
+//!
+//! Each product builds the expansions for its weights over the same centres (the M2L operators
+//! come once from the process-wide [`cache`](super::cache)). The products are inexact: GMRES on
+//! them reaches a relative residual near the FMM's own relative error and no lower, so the
+//! iterative fit asks for no less ([`FMM_PRODUCT_TOLERANCE`]); the fit's report measures the
+//! constraint residual by the exact direct sum.
+
+use std::sync::Mutex;
+
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::{Aabb, Point};
+
+use super::super::field::RbfField;
+use super::super::kernel::Kernel;
+use super::super::system::{Functional, Polynomial};
+use super::{FmmError, FmmField, FmmOptions};
+
+/// The expansion order of the products: for `r`, a relative error near 1e-9 of the field's
+/// scale on the bunny (README, FMM accuracy table).
+pub const FMM_PRODUCT_ORDER: usize = 8;
+
+/// The relative residual GMRES stops at on FMM products: residuals below the products' own
+/// error are noise (an inexact Krylov method stagnates there).
+pub const FMM_PRODUCT_TOLERANCE: f64 = 1e-8;
+
+/// `Φ w` at the centres by the FMM: one field over the centres whose weights each product
+/// replaces ([`FmmField::set_weights`]: the same tree, the expansions recomputed in place).
+pub(crate) struct FmmProduct<K> {
+    points: Vec<Point<3>>,
+    field: Mutex<FmmField<K>>,
+}
+
+impl<K: Kernel + Clone> FmmProduct<K> {
+    /// The product over `points` (the centres, `D = 3`, distinct).
+    pub(crate) fn new<const D: usize>(kernel: &K, points: &[Point<D>]) -> Result<Self, FmmError> {
+        assert_eq!(D, 3, "the FMM product is three-dimensional");
+        let points: Vec<Point<3>> = points
+            .iter()
+            .map(|p| std::array::from_fn(|a| p[a]))
+            .collect();
+        let n = points.len();
+        let bounds = Aabb::from_points(&points).ok_or(FmmError::NoSources)?;
+        let options = FmmOptions::new(FMM_PRODUCT_ORDER).with_expected_points(n);
+        let zero = RbfField::from_parts(
+            kernel.clone(),
+            points.clone(),
+            vec![Functional::Value; n],
+            vec![0.0; n],
+            vec![0.0; n],
+            Polynomial::fit(&points),
+            vec![0.0; Polynomial::<3>::len()],
+            bounds,
+        );
+        let field = FmmField::new(&zero, &options)?;
+        Ok(Self {
+            points,
+            field: Mutex::new(field),
+        })
+    }
+
+    /// `out = Φ w`; NaN everywhere if the FMM refuses the weights (a non-finite weight), so
+    /// that the Krylov method stops on it.
+    pub(crate) fn apply(&self, w: &[f64], out: &mut [f64]) {
+        let mut field = self.field.lock().unwrap_or_else(|e| e.into_inner());
+        match field.set_weights(w) {
+            Ok(()) => field.values(&self.points, out),
+            Err(_) => out.fill(f64::NAN),
+        }
+    }
+}

@@ -17,6 +17,7 @@ mod mesh;
 mod output;
 mod preview;
 mod progress;
+mod reconstruct;
 mod restore;
 
 const EXAMPLES: &str = "\
@@ -40,6 +41,8 @@ Examples:
                                                remove the bunny's ears
   zeroset mesh bunny.zsf -o bunny.ply          mesh the field's zero set (binary PLY)
   zeroset preview bunny.zsf -o bunny.png       a shaded PNG of the field's zero set
+  zeroset reconstruct scan.ply -o scan_mesh.ply
+                                               scan → field → mesh + PNG in one command
   zeroset info --help                          more on one subcommand";
 
 /// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
@@ -105,6 +108,11 @@ enum Command {
     /// shaded, or with --slice the field on an axis-aligned plane with its zero contour.
     #[command(after_help = preview::EXAMPLES)]
     Preview(preview::PreviewArgs),
+    /// From a scan to a mesh in one command: fit a field (RBF for small clouds, MRAS for large
+    /// ones, or --method), mesh its zero set (signed marching cubes for RBF), write the mesh
+    /// and a PNG preview beside it, and summarise the stages' times.
+    #[command(after_help = reconstruct::EXAMPLES)]
+    Reconstruct(reconstruct::ReconstructArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -121,6 +129,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Restore(args) => restore::run(&args),
         Command::Mesh(args) => mesh::run(&args),
         Command::Preview(args) => preview::run(&args),
+        Command::Reconstruct(args) => reconstruct::run(&args),
     }
 }
 

@@ -1956,3 +1956,68 @@ fn mras_refuses_bad_clouds_with_reasons() {
     assert_clean_failure(&o);
     assert!(stderr(&o).contains("tolerance"), "{}", stderr(&o));
 }
+
+#[test]
+fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("bunny.ply");
+    let m = mesh.to_str().unwrap();
+    let sample = sample();
+    let s = sample.to_str().unwrap();
+    let out = zeroset(["reconstruct", s, "-o", m, "--detail", "general", "--quiet"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    for phrase in [
+        "2000 points",
+        "rbf field (auto: RBF up to 10000 points)",
+        "== 1/3 fit",
+        "== 2/3 mesh",
+        "report: closed, Euler characteristic 2, 1 component(s)",
+        "== summary",
+        "total",
+    ] {
+        assert!(text.contains(phrase), "{phrase:?} missing in:\n{text}");
+    }
+    assert!(mesh.is_file() && dir.path().join("bunny.png").is_file());
+    // The temporary field is gone: only the mesh and its preview are left.
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+    // Existing outputs are refused before any work, and nothing is touched.
+    let before = std::fs::read(&mesh).unwrap();
+    let again = zeroset(["reconstruct", s, "-o", m, "--quiet"]);
+    assert!(!again.status.success());
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("exists; pass --force"), "{err}");
+    assert_eq!(std::fs::read(&mesh).unwrap(), before);
+    // MRAS on request, keeping the field.
+    let field = dir.path().join("bunny.zsf");
+    let out = zeroset([
+        "reconstruct",
+        s,
+        "-o",
+        m,
+        "--method",
+        "mras",
+        "--detail",
+        "coarse",
+        "--field",
+        field.to_str().unwrap(),
+        "--no-preview",
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("mras field"));
+    assert!(field.is_file());
+}

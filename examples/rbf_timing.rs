@@ -29,8 +29,10 @@
 //! Threads: rayon's default (`RAYON_NUM_THREADS`, else one per CPU) or `--threads N`; the count
 //! in effect (it also sets faer's dense products) is printed and written to the CSV.
 //!
-//! `--solvers iterative` reads `ZEROSET_RBF_NEIGHBOURS`, `ZEROSET_RBF_FAR` and
-//! `ZEROSET_RBF_MAX_ITER` (default 120) from the environment, for tuning experiments.
+//! `--solvers iterative` reads `ZEROSET_RBF_NEIGHBOURS`, `ZEROSET_RBF_FAR`,
+//! `ZEROSET_RBF_MAX_ITER` (default 300), `ZEROSET_RBF_COARSE` (coarse centres, 0 = none) and
+//! `ZEROSET_RBF_FMM_FROM` (centres from which the products use the FMM) from the environment,
+//! for tuning experiments.
 //!
 //! `--write-dir DIR` writes `DIR/rbf_sphere_n{N}.csv` (`x,y,z,value`) and `DIR/rbf_eval_{M}.csv`
 //! (`x,y,z`), numbers with 17 significant digits (exact round trip); `--csv FILE` writes
@@ -206,7 +208,15 @@ fn run<K: Kernel + Clone>(
             max_iterations: std::env::var("ZEROSET_RBF_MAX_ITER")
                 .ok()
                 .and_then(|v| v.parse().ok())
-                .unwrap_or(120),
+                .unwrap_or(300),
+            coarse: std::env::var("ZEROSET_RBF_COARSE")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(IterativeParams::default().coarse),
+            fmm_from: std::env::var("ZEROSET_RBF_FMM_FROM")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(IterativeParams::default().fmm_from),
             ..IterativeParams::default()
         }),
         _ => Solver::Auto,

@@ -82,8 +82,11 @@ const MIXED_TOLERANCE: f64 = 1e-12;
 pub const CONDITION_WARNING: f64 = 1e13;
 
 /// The iterative fit of a 3-D field forms its products by the FMM
-/// ([`fmm::product`]) from this many centres on, by the direct sum below.
-pub const FMM_PRODUCT_MIN: usize = 20_000;
+/// ([`fmm::product`]) from this many centres on, by the direct sum below. Measured per GMRES
+/// step on the sphere set-up, kernel `r`, 2 threads (`examples/rbf_timing`,
+/// `ZEROSET_RBF_FMM_FROM`): direct 39 / 76 / 385 ms, FMM 48 / 85 / 120 ms at 6,000 / 12,000 /
+/// 24,000 centres. Below, the direct sum also reaches the tighter tolerance.
+pub const FMM_PRODUCT_MIN: usize = 15_000;
 
 /// [`Solver::Auto`] solves systems of up to this many unknowns densely.
 pub const AUTO_DENSE_LIMIT: usize = 2000;

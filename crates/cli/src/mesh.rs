@@ -43,7 +43,10 @@ use zeroset_mesh::signed::{
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::voxel::{self, Detail};
-use zeroset_mesh::{McOptions, PlyFormat, TriMesh, check, mesh_field, write_obj, write_ply};
+use zeroset_mesh::{
+    McOptions, PlyFormat, TriMesh, check, components, mesh_field, unsupported_components,
+    write_obj, write_ply,
+};
 
 use crate::info::{g, point};
 use crate::machine::ensure_memory;
@@ -170,6 +173,11 @@ pub struct MeshArgs {
     #[arg(long)]
     pub close: bool,
 
+    /// Remove the components of the mesh with no input point within 3 voxels (RBF fields
+    /// record their points; the report lists such components either way).
+    #[arg(long)]
+    pub drop_spurious: bool,
+
     /// Write an ASCII PLY instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,
@@ -182,6 +190,9 @@ pub struct MeshArgs {
     #[arg(long)]
     pub quiet: bool,
 }
+
+/// A mesh component with no input point within this many voxels is reported as spurious.
+const SPURIOUS_VOXELS: f64 = 3.0;
 
 /// The output format, from the extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -324,7 +335,52 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let meshing = start.elapsed();
 
     let start = Instant::now();
-    let report = check(&mesh);
+    let mut report = check(&mesh);
+    // Components far from every input point (only RBF fields record their points).
+    let points = match &field {
+        AnyField::Rbf(f) => Some(f.centres()),
+        _ => None,
+    };
+    let mut mesh = mesh;
+    match points {
+        Some(points) if !mesh.is_empty() => {
+            let (labels, count) = components(&mesh);
+            let radius = SPURIOUS_VOXELS * h;
+            let far = unsupported_components(&mesh, &labels, count, points, radius);
+            let spurious = far.iter().filter(|f| **f).count();
+            if spurious > 0 {
+                let triangles = labels.iter().filter(|&&l| far[l as usize]).count();
+                say!(
+                    out,
+                    "spurious: {spurious} of {count} component(s), {triangles} triangles, have no \
+                     input point within {SPURIOUS_VOXELS} voxels ({}){}",
+                    g(radius),
+                    if args.drop_spurious {
+                        "; dropped"
+                    } else {
+                        "; --drop-spurious removes them"
+                    }
+                )?;
+                if args.drop_spurious {
+                    mesh = mesh.retain_triangles(|t| !far[labels[t] as usize]);
+                    report = check(&mesh);
+                }
+            } else {
+                say!(
+                    out,
+                    "spurious: none (every component has an input point within {SPURIOUS_VOXELS} voxels)"
+                )?;
+            }
+        }
+        Some(_) => {}
+        None if args.drop_spurious => bail!(
+            "--drop-spurious needs the points the field was fitted to; {} holds a {} field, \
+             which does not record them",
+            args.field.display(),
+            field.kind()
+        ),
+        None => {}
+    }
     let checking = start.elapsed();
     say!(
         out,

@@ -2021,3 +2021,88 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("mras field"));
     assert!(field.is_file());
 }
+
+#[test]
+fn mesh_reports_and_drops_components_no_point_supports() {
+    // A unit sphere of value constraints, and far from it a cluster of negative values: the
+    // RBF's zero set also wraps around the cluster, a surface no point lies on.
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::new();
+    let n = 300;
+    for k in 0..n {
+        let z = -1.0 + (2 * k + 1) as f64 / n as f64;
+        let (s, t) = ((1.0 - z * z).sqrt(), k as f64 * 2.399_963_229_728_653);
+        let u = [s * t.cos(), s * t.sin(), z];
+        text += &format!("{} {} {} 0\n", u[0], u[1], u[2]);
+        if k % 3 == 0 {
+            for (scale, value) in [(1.1, 0.1), (0.9, -0.1)] {
+                let p = u.map(|c| c * scale);
+                text += &format!("{} {} {} {value}\n", p[0], p[1], p[2]);
+            }
+        }
+    }
+    for k in 0..8 {
+        let p = [
+            6.0 + 0.05 * (k % 2) as f64,
+            0.05 * ((k / 2) % 2) as f64,
+            0.05 * (k / 4) as f64,
+        ];
+        text += &format!("{} {} {} -1\n", p[0], p[1], p[2]);
+    }
+    let points = dir.path().join("two.xyzv");
+    std::fs::write(&points, text).unwrap();
+    let field = dir.path().join("two.zsf");
+    let (f, p) = (field.to_str().unwrap(), points.to_str().unwrap());
+    let out = zeroset(["fit", p, "--method", "rbf", "-o", f, "--quiet"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mesh = dir.path().join("two.ply");
+    let m = mesh.to_str().unwrap();
+    let out = zeroset(["mesh", f, "-o", m, "--quiet"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("spurious: 1 of 2 component(s)")
+            && text.contains("--drop-spurious removes them")
+            && text.contains("2 component(s)"),
+        "{text}"
+    );
+    let out = zeroset(["mesh", f, "-o", m, "--force", "--drop-spurious", "--quiet"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("; dropped")
+            && text.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{text}"
+    );
+    // A field that records no points cannot say what is spurious.
+    let restored = dir.path().join("sampled.zsf");
+    let out = zeroset([
+        "fit",
+        sample().to_str().unwrap(),
+        "--method",
+        "mras",
+        "--max-level",
+        "2",
+        "-o",
+        restored.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = zeroset([
+        "mesh",
+        restored.to_str().unwrap(),
+        "-o",
+        m,
+        "--force",
+        "--drop-spurious",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--drop-spurious needs the points"), "{err}");
+}

@@ -246,6 +246,102 @@ pub fn check(mesh: &TriMesh) -> MeshReport {
     }
 }
 
+/// The connected components of `mesh` (triangles joined by shared edges): a label per
+/// triangle, numbered `0, 1, …` in the order of each component's first triangle, and their
+/// count.
+///
+/// ```
+/// use zeroset_mesh::{TriMesh, checks::components};
+///
+/// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+/// let m = TriMesh::new(v, vec![[0, 1, 2], [4, 5, 6], [1, 3, 2]])?;
+/// assert_eq!(components(&m), (vec![0, 1, 0], 2));
+/// # Ok::<(), zeroset_mesh::MeshError>(())
+/// ```
+pub fn components(mesh: &TriMesh) -> (Vec<u32>, usize) {
+    let sides = sorted_sides(mesh);
+    let mut dsu = Dsu::new(mesh.num_triangles());
+    for group in edge_groups(&sides) {
+        for s in &group[1..] {
+            dsu.union(group[0].triangle, s.triangle);
+        }
+    }
+    let n = mesh.num_triangles();
+    let mut of_root = vec![u32::MAX; n];
+    let mut labels = Vec::with_capacity(n);
+    let mut count = 0u32;
+    for t in 0..n as u32 {
+        let root = dsu.find(t) as usize;
+        if of_root[root] == u32::MAX {
+            of_root[root] = count;
+            count += 1;
+        }
+        labels.push(of_root[root]);
+    }
+    (labels, count as usize)
+}
+
+/// Which components of `mesh` (labels and count from [`components`]) have no point of
+/// `points` within `radius` of any of their vertices: zero-set pieces no data supports, such
+/// as the sheets an off-surface RBF fit can grow far from its points.
+///
+/// ```
+/// use zeroset_mesh::{TriMesh, checks::{components, unsupported_components}};
+///
+/// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+/// let m = TriMesh::new(v, vec![[0, 1, 2], [3, 4, 5]])?;
+/// let (labels, count) = components(&m);
+/// let far = unsupported_components(&m, &labels, count, &[[0.1, 0.1, 0.0]], 0.5);
+/// assert_eq!(far, vec![false, true]);
+/// # Ok::<(), zeroset_mesh::MeshError>(())
+/// ```
+pub fn unsupported_components(
+    mesh: &TriMesh,
+    labels: &[u32],
+    count: usize,
+    points: &[Point<3>],
+    radius: f64,
+) -> Vec<bool> {
+    use std::collections::HashMap;
+    let cell = |p: &Point<3>| -> [i64; 3] { p.map(|v| (v / radius).floor() as i64) };
+    let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+    if radius > 0.0 && radius.is_finite() {
+        for (i, p) in points.iter().enumerate() {
+            if p.iter().all(|v| v.is_finite()) {
+                grid.entry(cell(p)).or_default().push(i as u32);
+            }
+        }
+    }
+    let near = |v: &Point<3>| -> bool {
+        let c = cell(v);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    if list.iter().any(|&i| {
+                        let q = points[i as usize];
+                        let d2: f64 = (0..3).map(|a| (q[a] - v[a]).powi(2)).sum();
+                        d2 <= radius * radius
+                    }) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    };
+    let mut supported = vec![false; count];
+    for (t, tri) in mesh.triangles().iter().enumerate() {
+        let l = labels[t] as usize;
+        if !supported[l] && tri.iter().any(|&v| near(&mesh.vertices()[v as usize])) {
+            supported[l] = true;
+        }
+    }
+    supported.into_iter().map(|s| !s).collect()
+}
+
 /// The number of boundary loops (holes): the connected components of the graph of boundary
 /// edges (edges with one triangle). Two holes that touch at a vertex count as one loop.
 pub fn boundary_loops(mesh: &TriMesh) -> usize {

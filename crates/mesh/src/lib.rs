@@ -91,7 +91,7 @@ pub mod svg;
 pub mod trimesh;
 pub mod voxel;
 
-pub use checks::{MeshReport, boundary_loops, check};
+pub use checks::{MeshReport, boundary_loops, check, components, unsupported_components};
 pub use cubes::{McOptions, marching_cubes, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};

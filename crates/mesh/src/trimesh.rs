@@ -92,6 +92,45 @@ impl TriMesh {
         &self.triangles
     }
 
+    /// The mesh of the triangles `t` with `keep(t)`, and only the vertices (and normals) they
+    /// use, in their order.
+    ///
+    /// ```
+    /// use zeroset_mesh::TriMesh;
+    ///
+    /// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+    /// let m = TriMesh::new(v, vec![[0, 1, 2], [3, 4, 5]])?;
+    /// let kept = m.retain_triangles(|t| t == 1);
+    /// assert_eq!(kept.triangles(), &[[0, 1, 2]]);
+    /// assert_eq!(kept.vertices()[0], [5.0, 5.0, 5.0]);
+    /// # Ok::<(), zeroset_mesh::MeshError>(())
+    /// ```
+    pub fn retain_triangles(&self, keep: impl Fn(usize) -> bool) -> TriMesh {
+        let mut index = vec![u32::MAX; self.vertices.len()];
+        let (mut vertices, mut normals, mut triangles) = (Vec::new(), Vec::new(), Vec::new());
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if !keep(t) {
+                continue;
+            }
+            triangles.push(tri.map(|v| {
+                let v = v as usize;
+                if index[v] == u32::MAX {
+                    index[v] = vertices.len() as u32;
+                    vertices.push(self.vertices[v]);
+                    if !self.normals.is_empty() {
+                        normals.push(self.normals[v]);
+                    }
+                }
+                index[v]
+            }));
+        }
+        TriMesh {
+            vertices,
+            normals,
+            triangles,
+        }
+    }
+
     /// The number of vertices.
     pub fn num_vertices(&self) -> usize {
         self.vertices.len()

@@ -124,6 +124,12 @@ impl<const D: usize> RbfAny<D> {
         each_rbf!(self, f => f.kernel().tag())
     }
 
+    /// The centres (the points of the functionals: for an off-surface fit the cloud and its
+    /// offset points).
+    pub fn centres(&self) -> &[Point<D>] {
+        each_rbf!(self, f => f.centres())
+    }
+
     /// The number of centres (functionals).
     pub fn num_centres(&self) -> usize {
         each_rbf!(self, f => f.num_centres())

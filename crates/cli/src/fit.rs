@@ -36,8 +36,8 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
 use zeroset_bases::rbf::{
-    Biharmonic, Constraints, FitReport, IterativeParams, Offset, OffsetReport, RbfField, RbfFit,
-    Solver, ThinPlate, Triharmonic, Wendland,
+    Biharmonic, Constraints, FitReport, GreedyOptions, IterativeParams, Offset, OffsetReport,
+    RbfField, RbfFit, Solver, ThinPlate, Triharmonic, Wendland,
 };
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point, dot, norm};
@@ -252,7 +252,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         Method::Mras => return crate::fit_mras::run(args),
         Method::Rbf => {}
     }
-    if let Some(flag) = args.mras.given() {
+    if let Some(flag) = args.mras.given_besides_tolerance() {
         bail!("{flag} is an option of --method mras, not of --method rbf");
     }
     if let Some(flag) = args.neural.given() {
@@ -714,17 +714,54 @@ fn solve<K: StoredKernel, const D: usize>(
         ));
         ControlFlow::Continue(())
     });
-    let fitted = RbfFit::new(kernel)
+    let fit = RbfFit::new(kernel)
         .with_solver(solver)
-        .with_monitor(monitor)
-        .fit(constraints);
-    spinner.finish_and_clear();
-    let fitted = fitted.context(if args.solver == SolverArg::Iterative {
+        .with_monitor(monitor);
+    let context = if args.solver == SolverArg::Iterative {
         "fitting the RBF field (--solver dense is exact, at O(n³) time)"
     } else {
         "fitting the RBF field"
-    })?;
+    };
+    let Some(fraction) = args.mras.tolerance else {
+        let fitted = fit.fit(constraints);
+        spinner.finish_and_clear();
+        let fitted = fitted.context(context)?;
+        print_report(&fitted.report);
+        return Ok(fitted.field);
+    };
+    // Greedy centre reduction to a tolerance given as a fraction of the points' diagonal.
+    if !(fraction.is_finite() && fraction > 0.0 && fraction < 1.0) {
+        bail!("--tolerance {fraction}: give a fraction of the diagonal, between 0 and 1");
+    }
+    let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
+    let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
+        let (lo, hi) = (b.min(), b.max());
+        (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+    });
+    let tolerance = fraction * diagonal;
+    let result = fit.fit_greedy(constraints, &GreedyOptions::new(tolerance));
+    spinner.finish_and_clear();
+    let (fitted, greedy) = result.context(context)?;
     print_report(&fitted.report);
+    let first = greedy.rounds.first().map_or(0, |r| r.centres);
+    line(
+        "greedy",
+        &format!(
+            "{} round(s), {first} → {} of {} centres; largest residual {} over all constraints \
+             (tolerance {} = {} of the diagonal){}",
+            greedy.rounds.len(),
+            fitted.field.num_centres(),
+            constraints.len(),
+            g(greedy.max_residual),
+            g(tolerance),
+            g(fraction),
+            if greedy.converged {
+                ""
+            } else {
+                "; NOT met: the round limit stopped it"
+            }
+        ),
+    );
     Ok(fitted.field)
 }
 

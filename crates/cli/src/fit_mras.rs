@@ -28,7 +28,9 @@ const HEADING: &str = "MRAS (--method mras)";
 #[derive(Debug, Args, Default)]
 pub struct MrasArgs {
     /// Target largest distance from the points to the surface, as a fraction of the cloud's
-    /// bounding-box diagonal [default: 1e-3].
+    /// bounding-box diagonal [default: 1e-3]. With --method rbf: the largest residual allowed
+    /// at any constraint, met by Carr's greedy centre reduction (the field keeps only the
+    /// centres it needs).
     #[arg(long, value_name = "T", help_heading = HEADING)]
     pub tolerance: Option<f64>,
     /// The deepest octree level (the root is 1) [default: 7].
@@ -40,15 +42,21 @@ pub struct MrasArgs {
 }
 
 impl MrasArgs {
-    /// The first option given, as its flag, if any (for refusing them with other methods).
-    pub fn given(&self) -> Option<&'static str> {
+    /// As [`MrasArgs::given`], leaving out `--tolerance` (which --method rbf takes too).
+    pub fn given_besides_tolerance(&self) -> Option<&'static str> {
         [
-            (self.tolerance.is_some(), "--tolerance"),
             (self.max_level.is_some(), "--max-level"),
             (self.no_compress, "--no-compress"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
+    }
+
+    /// The first option given, as its flag, if any (for refusing them with other methods).
+    pub fn given(&self) -> Option<&'static str> {
+        (self.tolerance.is_some())
+            .then_some("--tolerance")
+            .or_else(|| self.given_besides_tolerance())
     }
 }
 

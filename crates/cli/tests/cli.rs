@@ -2106,3 +2106,63 @@ fn mesh_reports_and_drops_components_no_point_supports() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--drop-spurious needs the points"), "{err}");
 }
+
+#[test]
+fn rbf_tolerance_keeps_only_the_centres_it_needs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("g.zsf");
+    let sample = sample();
+    let out = zeroset([
+        "fit",
+        sample.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "--tolerance",
+        "1e-3",
+        "-o",
+        out_path.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("greedy:"))
+        .unwrap_or_else(|| panic!("no greedy line in:\n{text}"));
+    // "N round(s), 1000 → K of 6000 centres; largest residual R … (tolerance T = 0.001 …)"
+    let kept: usize = line
+        .split("→ ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(kept < 6000, "{line}");
+    assert!(!line.contains("NOT met"), "{line}");
+    // The field file holds just those centres.
+    let info = zeroset(["info", out_path.to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert!(info.contains(&format!("centres = {kept}")), "{info}");
+    // A tolerance that is not a fraction, and MRAS-only options, are refused.
+    let bad = zeroset([
+        "fit",
+        sample.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "--tolerance",
+        "2",
+    ]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("between 0 and 1"));
+    let bad = zeroset([
+        "fit",
+        sample.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "--max-level",
+        "3",
+    ]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("an option of --method mras"));
+}

@@ -394,7 +394,7 @@ fn local_cardinal<K: Kernel + ?Sized, const D: usize>(
 
 /// `count` centres spread over the set: the first, then repeatedly the one farthest from those
 /// chosen (deterministic).
-fn spread<const D: usize>(points: &[[f64; D]], count: usize) -> Vec<usize> {
+pub(crate) fn spread<const D: usize>(points: &[[f64; D]], count: usize) -> Vec<usize> {
     let mut chosen = Vec::with_capacity(count);
     if count == 0 || points.is_empty() {
         return chosen;

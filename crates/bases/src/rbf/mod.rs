@@ -21,6 +21,9 @@
 //!   machine has ([`RbfError::Memory`] names the amount). Every [`FitReport`] has the largest
 //!   constraint residual by direct sums, the steps taken and a condition estimate; a
 //!   [`Monitor`] sees every GMRES step ([`RbfFit::with_monitor`]).
+//! - [`RbfFit::fit_greedy`] ([`greedy`]): Carr et al.'s centre reduction — fit a subset, add
+//!   the constraints over the tolerance, refit — for a field that keeps only the centres it
+//!   needs.
 //! - [`IncrementalFit`]: add `M` constraints to a solved `N`-constraint fit through the Schur
 //!   complement `S = D − C A⁻¹ Cᵀ` (003 Eq. 9) in `O(N² M)`, and remove the last ones again.
 //! - [`RbfField`] is a [`ScalarField`](zeroset_field_core::field::ScalarField) with analytic
@@ -51,6 +54,7 @@ pub mod dense;
 mod error;
 mod field;
 pub mod fmm;
+pub mod greedy;
 pub mod incremental;
 pub mod iterative;
 pub mod kernel;
@@ -61,6 +65,7 @@ use std::time::{Duration, Instant};
 pub use constraints::{Constraint, Constraints, Offset, OffsetReport, Prescribed};
 pub use error::RbfError;
 pub use field::{RbfField, RbfSpace};
+pub use greedy::{GreedyOptions, GreedyReport, GreedyRound};
 pub use incremental::IncrementalFit;
 pub use iterative::IterativeParams;
 pub use kernel::{Biharmonic, Kernel, ThinPlate, Triharmonic, Wendland};

@@ -574,3 +574,50 @@ fn fmm_products_give_the_dense_fit_to_their_accuracy() {
     let d = field_diff(&fmm.field, &dense.field);
     assert!(d < 2e-4, "dense vs FMM products: {d:.1e}");
 }
+
+#[test]
+fn greedy_reduction_meets_the_tolerance_at_every_constraint_with_fewer_centres() {
+    let c = sphere_setup(3000);
+    let tol = 1e-4;
+    let (fit, report) = RbfFit::new(Biharmonic)
+        .fit_greedy(
+            &c,
+            &GreedyOptions {
+                initial: 200,
+                ..GreedyOptions::new(tol)
+            },
+        )
+        .unwrap();
+    assert!(report.converged, "{report:?}");
+    assert!(fit.field.num_centres() < 3000, "{report:?}");
+    assert_eq!(
+        report.rounds.last().unwrap().centres,
+        fit.field.num_centres()
+    );
+    // The claim checked independently: every constraint, by the field's own evaluation.
+    for con in c.as_slice() {
+        let Prescribed::Value(v) = con.prescribed else {
+            unreachable!()
+        };
+        assert!((fit.field.value(&con.point) - v).abs() <= tol);
+    }
+    assert!(report.max_residual <= tol);
+    // Rounds only add centres; the first is the spread start.
+    assert_eq!(report.rounds[0].centres, 200);
+    assert!(
+        report
+            .rounds
+            .windows(2)
+            .all(|w| w[1].centres > w[0].centres)
+    );
+    // Gradients and a bad tolerance are refused.
+    let mut h = Constraints::new();
+    h.push_value([0.0; 3], 0.0)
+        .push_gradient([0.0; 3], [1.0, 0.0, 0.0]);
+    let fit = RbfFit::new(Triharmonic);
+    assert!(matches!(
+        fit.fit_greedy(&h, &GreedyOptions::new(1e-3)),
+        Err(RbfError::Degenerate { .. })
+    ));
+    assert!(fit.fit_greedy(&c, &GreedyOptions::new(f64::NAN)).is_err());
+}

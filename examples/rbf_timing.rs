@@ -196,29 +196,17 @@ fn run<K: Kernel + Clone>(
     let solver = match solver {
         "dense" => Solver::Dense,
         "mixed" => Solver::MixedPrecision,
-        "iterative" => Solver::Iterative(IterativeParams {
-            neighbours: std::env::var("ZEROSET_RBF_NEIGHBOURS")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(IterativeParams::default().neighbours),
-            far: std::env::var("ZEROSET_RBF_FAR")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(IterativeParams::default().far),
-            max_iterations: std::env::var("ZEROSET_RBF_MAX_ITER")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(300),
-            coarse: std::env::var("ZEROSET_RBF_COARSE")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(IterativeParams::default().coarse),
-            fmm_from: std::env::var("ZEROSET_RBF_FMM_FROM")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(IterativeParams::default().fmm_from),
-            ..IterativeParams::default()
-        }),
+        "iterative" => {
+            let d = IterativeParams::default();
+            Solver::Iterative(IterativeParams {
+                neighbours: env_or("ZEROSET_RBF_NEIGHBOURS", d.neighbours),
+                far: env_or("ZEROSET_RBF_FAR", d.far),
+                max_iterations: env_or("ZEROSET_RBF_MAX_ITER", 300),
+                coarse: env_or("ZEROSET_RBF_COARSE", d.coarse),
+                fmm_from: env_or("ZEROSET_RBF_FMM_FROM", d.fmm_from),
+                ..d
+            })
+        }
         _ => Solver::Auto,
     };
     let fit = RbfFit::new(kernel).with_solver(solver);
@@ -333,4 +321,12 @@ fn run_all() -> Result<(), Box<dyn std::error::Error>> {
         write_text(path, &csv)?;
     }
     Ok(())
+}
+
+/// The environment variable `name` as a count, or `default` when unset or not a number.
+fn env_or(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
 }

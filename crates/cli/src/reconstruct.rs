@@ -156,6 +156,15 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         .to_possible_value()
         .map_or("general".to_owned(), |v| v.get_name().to_owned());
     let mut times = Vec::new();
+    // The flags every stage takes from the user (the fit always overwrites its field file).
+    let common = |argv: &mut Vec<&std::ffi::OsStr>, force: bool| {
+        if force {
+            argv.push(os("--force"));
+        }
+        if args.quiet {
+            argv.push(os("--quiet"));
+        }
+    };
 
     println!("\n== 1/3 fit");
     let t = Instant::now();
@@ -165,10 +174,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         os("--method"),
         os(fit_method),
     ];
-    argv.extend([os("-o"), field.as_os_str(), os("--force")]);
-    if args.quiet {
-        argv.push(os("--quiet"));
-    }
+    argv.extend([os("-o"), field.as_os_str()]);
+    common(&mut argv, true);
     crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));
 
@@ -182,12 +189,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     ];
     argv.extend([os("--method"), os(mesh_method), os("--detail")]);
     argv.push(std::ffi::OsStr::new(&detail));
-    if args.force {
-        argv.push(os("--force"));
-    }
-    if args.quiet {
-        argv.push(os("--quiet"));
-    }
+    common(&mut argv, args.force);
     crate::mesh::run(&stage::<MeshArgs>(&argv)?).context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));
 
@@ -200,12 +202,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             os("-o"),
             png.as_os_str(),
         ];
-        if args.force {
-            argv.push(os("--force"));
-        }
-        if args.quiet {
-            argv.push(os("--quiet"));
-        }
+        common(&mut argv, args.force);
         crate::preview::run(&stage::<PreviewArgs>(&argv)?)
             .context("reconstruct, stage 3 (preview)")?;
         times.push(("preview", t.elapsed()));

@@ -1920,8 +1920,8 @@ fn mras_fit_info_mesh_and_restore() {
         sample().as_os_str(),
         OsStr::new("--method"),
         OsStr::new("rbf"),
-        OsStr::new("--tolerance"),
-        OsStr::new("0.01"),
+        OsStr::new("--max-level"),
+        OsStr::new("3"),
     ]);
     assert_clean_failure(&o);
 }

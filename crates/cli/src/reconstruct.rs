@@ -66,6 +66,11 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "FIELD.zsf")]
     pub field: Option<PathBuf>,
 
+    /// Remove the mesh's components with no input point within 3 voxels (RBF fields only:
+    /// MRAS fields record no points).
+    #[arg(long)]
+    pub drop_spurious: bool,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -134,6 +139,16 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         ReconstructMethod::Mras => ("mras", "mc"),
         _ => ("rbf", "smc"),
     };
+    if args.drop_spurious && method == ReconstructMethod::Mras {
+        bail!(
+            "--drop-spurious needs an RBF field (MRAS fields record no points){}; add --method rbf",
+            if args.method == ReconstructMethod::Auto {
+                format!(" and --method auto chose MRAS for {points} points")
+            } else {
+                String::new()
+            }
+        );
+    }
     println!(
         "reconstruct:  {} ({points} points) → {}, {fit_method} field{}",
         args.scan.display(),
@@ -189,6 +204,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     ];
     argv.extend([os("--method"), os(mesh_method), os("--detail")]);
     argv.push(std::ffi::OsStr::new(&detail));
+    if args.drop_spurious {
+        argv.push(os("--drop-spurious"));
+    }
     common(&mut argv, args.force);
     crate::mesh::run(&stage::<MeshArgs>(&argv)?).context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));

@@ -2020,6 +2020,35 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("mras field"));
     assert!(field.is_file());
+    // Spurious components are an RBF notion: refused for MRAS before any work.
+    let out = zeroset([
+        "reconstruct",
+        s,
+        "-o",
+        m,
+        "--method",
+        "mras",
+        "--drop-spurious",
+        "--force",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--drop-spurious needs an RBF field"), "{err}");
+    let out = zeroset([
+        "reconstruct",
+        s,
+        "-o",
+        m,
+        "--drop-spurious",
+        "--force",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("spurious: none"));
 }
 
 #[test]

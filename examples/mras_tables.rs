@@ -398,23 +398,20 @@ fn fit_and_report(path: &Path, opts: &MrasOptions) -> Res<MrasFit> {
             l.seconds
         );
     }
-    let (max, mean, failed) = distances(&fit, cloud.positions());
+    let each = point_distances(&fit, cloud.positions());
+    let (max, mean, failed) = summary(&each);
     println!(
         "distance to the zero set / diagonal: max {:.3e} mean {:.3e} ({} not projected)",
         max / fit.diagonal,
         mean / fit.diagonal,
         failed
     );
-    // Where the worst points are: the quantiles, and the five farthest with their normals.
-    let tol = 1e-9 * fit.diagonal;
-    let mut d: Vec<(f64, usize)> = cloud
-        .positions()
-        .par_iter()
+    // Where the worst points are: the quantiles, and the five farthest with their normals
+    // (a point that did not project counts as infinitely far).
+    let mut d: Vec<(f64, usize)> = each
+        .iter()
         .enumerate()
-        .map(|(i, p)| {
-            let d = distance_to_zero_set(&fit.field, p, tol, 50).unwrap_or(f64::INFINITY);
-            (d / fit.diagonal, i)
-        })
+        .map(|(i, d)| (d.unwrap_or(f64::INFINITY) / fit.diagonal, i))
         .collect();
     d.sort_by(|a, b| b.0.total_cmp(&a.0));
     let quantile = |q: f64| d[((1.0 - q) * d.len() as f64) as usize].0;
@@ -435,11 +432,21 @@ fn fit_and_report(path: &Path, opts: &MrasOptions) -> Res<MrasFit> {
 
 /// Max and mean distance from the points to the zero set (projection), and failures.
 fn distances(fit: &MrasFit, points: &[[f64; 3]]) -> (f64, f64, usize) {
+    summary(&point_distances(fit, points))
+}
+
+/// Each point's distance to the zero set (projection along the gradient; `None`: it did not
+/// project).
+fn point_distances(fit: &MrasFit, points: &[[f64; 3]]) -> Vec<Option<f64>> {
     let tol = 1e-9 * fit.diagonal;
-    let d: Vec<Option<f64>> = points
+    points
         .par_iter()
         .map(|p| distance_to_zero_set(&fit.field, p, tol, 50))
-        .collect();
+        .collect()
+}
+
+/// Max and mean of the distances that projected, and the count that did not.
+fn summary(d: &[Option<f64>]) -> (f64, f64, usize) {
     let ok: Vec<f64> = d.iter().flatten().copied().collect();
     let max = ok.iter().fold(0.0f64, |a, &b| a.max(b));
     let mean = ok.iter().sum::<f64>() / ok.len().max(1) as f64;

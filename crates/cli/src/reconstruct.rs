@@ -127,6 +127,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if args.field.as_deref() == Some(args.output.as_path()) {
         bail!("--field and -o name the same file");
     }
+    // Read once here for `auto`'s size rule and a bad file's error before any output exists;
+    // the fit stage reads it again (milliseconds beside the fit).
     let cloud = read_point_cloud(&args.scan)?;
     let points = cloud.len();
     let method = match args.method {
@@ -159,12 +161,14 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             String::new()
         }
     );
-    let temporary = Temporary(args.field.is_none().then(|| temporary_field(&args.output)));
-    let field = args
-        .field
-        .clone()
-        .or_else(|| temporary.0.clone())
-        .expect("a field path");
+    // The field file: the user's, or a temporary one removed however the command ends.
+    let (field, temporary) = match &args.field {
+        Some(f) => (f.clone(), Temporary(None)),
+        None => {
+            let t = temporary_field(&args.output);
+            (t.clone(), Temporary(Some(t)))
+        }
+    };
     let os = |s: &'static str| std::ffi::OsStr::new(s);
     let detail = args
         .detail

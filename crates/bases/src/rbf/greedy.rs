@@ -135,13 +135,14 @@ impl<K: Kernel + Clone> RbfFit<K> {
             }
             let fitted = self.fit(&subset)?;
             fitted.field.values(&points, &mut values);
-            let mut over: Vec<(f64, usize)> = (0..n)
-                .map(|i| ((targets[i] - values[i]).abs(), i))
-                .filter(|&(r, _)| r > options.tolerance)
+            let residuals: Vec<f64> = (0..n).map(|i| (targets[i] - values[i]).abs()).collect();
+            let max_residual = residuals.iter().copied().fold(0.0, f64::max);
+            let mut over: Vec<(f64, usize)> = residuals
+                .iter()
+                .enumerate()
+                .filter(|&(_, &r)| r > options.tolerance)
+                .map(|(i, &r)| (r, i))
                 .collect();
-            let max_residual = (0..n)
-                .map(|i| (targets[i] - values[i]).abs())
-                .fold(0.0, f64::max);
             let count = subset.len();
             rounds.push(GreedyRound {
                 centres: count,

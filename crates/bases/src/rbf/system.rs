@@ -311,6 +311,46 @@ pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
     }
 }
 
+/// `Σⱼ wⱼ φ(|x − yⱼ|)` at each target `x`, over centres `yⱼ` given as coordinate slices
+/// (`sources[a][j]`, all as long as `weights`): vectorised per target, in parallel over the
+/// targets (fixed order per target, so the result does not depend on the thread count).
+pub(crate) fn kernel_sums_at<K: Kernel + ?Sized, const D: usize>(
+    kernel: &K,
+    sources: [&[f64]; D],
+    weights: &[f64],
+    targets: &[Point<D>],
+) -> Vec<f64> {
+    let arch = pulp::Arch::new();
+    targets
+        .par_iter()
+        .map(|x| {
+            arch.dispatch(SlicesSumAt {
+                kernel,
+                sources,
+                weights,
+                x,
+            })
+        })
+        .collect()
+}
+
+/// [`kernel_sum_slices`] compiled per instruction set.
+struct SlicesSumAt<'a, K: ?Sized, const D: usize> {
+    kernel: &'a K,
+    sources: [&'a [f64]; D],
+    weights: &'a [f64],
+    x: &'a Point<D>,
+}
+
+impl<K: Kernel + ?Sized, const D: usize> pulp::WithSimd for SlicesSumAt<'_, K, D> {
+    type Output = f64;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> f64 {
+        kernel_sum_slices(self.kernel, self.sources, self.weights, self.x)
+    }
+}
+
 /// Column `j` of `Φ` when every functional is a value: `φ(|xᵢ − xⱼ|)` from squared distances,
 /// compiled per instruction set so the loop vectorises.
 struct ValueColumn<'a, K: ?Sized, const D: usize> {

@@ -814,8 +814,9 @@ fn print_report(r: &FitReport) {
     line(
         "max residual",
         &format!(
-            "{:.2e} (the largest |target − field| over the constraints{refined})",
-            r.max_residual
+            "{:.2e} (the largest |target − field| over the constraints{refined}{by})",
+            r.max_residual,
+            by = if r.residual_exact { "" } else { ", by the FMM" }
         ),
     );
     let condition = if r.condition_estimate.is_nan() {

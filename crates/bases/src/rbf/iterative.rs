@@ -92,6 +92,10 @@ pub struct IterativeParams {
     /// ([`fmm::product`](super::fmm::product)) rather than the direct sum (default
     /// [`FMM_PRODUCT_MIN`](super::FMM_PRODUCT_MIN)).
     pub fmm_from: usize,
+    /// On the FMM path, above this many functionals the fit's report measures the constraint
+    /// residual by the FMM rather than by exact direct sums (default
+    /// [`EXACT_RESIDUAL_MAX`](super::EXACT_RESIDUAL_MAX)).
+    pub exact_residual_max: usize,
 }
 
 impl Default for IterativeParams {
@@ -104,6 +108,7 @@ impl Default for IterativeParams {
             restart: 100,
             coarse: 2000,
             fmm_from: super::FMM_PRODUCT_MIN,
+            exact_residual_max: super::EXACT_RESIDUAL_MAX,
         }
     }
 }

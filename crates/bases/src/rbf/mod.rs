@@ -71,7 +71,7 @@ pub use iterative::IterativeParams;
 pub use kernel::{Biharmonic, Kernel, ThinPlate, Triharmonic, Wendland};
 
 use dense::{DenseFactor, Precision};
-use fmm::product::FmmProduct;
+use fmm::product::{FMM_RESIDUAL_ORDER, FmmProduct};
 use system::{Functionals, Polynomial};
 use zeroset_field_core::Aabb;
 use zeroset_field_core::lsq::{LinearOperator, LsqMatrix, Monitor, SolveError};
@@ -92,6 +92,12 @@ pub const CONDITION_WARNING: f64 = 1e13;
 /// `ZEROSET_RBF_FMM_FROM`): direct 39 / 76 / 385 ms, FMM 48 / 85 / 120 ms at 6,000 / 12,000 /
 /// 24,000 centres. Below, the direct sum also reaches the tighter tolerance.
 pub const FMM_PRODUCT_MIN: usize = 15_000;
+
+/// Up to this many functionals the fit's report measures the constraint residual exactly, by
+/// direct sums (`n²` kernel values: 4 s at the full bunny's 104,502 on 2 threads); above, on
+/// the FMM path, by the FMM of the products ([`FitReport::residual_exact`]), so that the check
+/// grows like the fit and not like `n²` (at 3·10⁵ it would take longer than the fit).
+pub const EXACT_RESIDUAL_MAX: usize = 150_000;
 
 /// [`Solver::Auto`] solves systems of up to this many unknowns densely.
 pub const AUTO_DENSE_LIMIT: usize = 2000;
@@ -133,8 +139,13 @@ pub struct FitReport {
     pub unknowns: usize,
     /// Wall-clock time of the fit.
     pub elapsed: Duration,
-    /// `maxᵢ |Lᵢ s − tᵢ|`, evaluated by direct sums after the solve.
+    /// `maxᵢ |Lᵢ s − tᵢ|`, evaluated after the solve by direct sums, or by the FMM of the
+    /// products above [`IterativeParams::exact_residual_max`] functionals
+    /// ([`FitReport::residual_exact`]).
     pub max_residual: f64,
+    /// Whether `max_residual` comes from exact direct sums (`false`: from the FMM of the
+    /// products, relative error about 1e-9 of the field's scale).
+    pub residual_exact: bool,
     /// A lower bound on the condition number of the projected system (NaN for the iterative
     /// solve, which forms no matrix).
     pub condition_estimate: f64,
@@ -264,9 +275,12 @@ impl<K: Kernel + Clone> RbfFit<K> {
             }
         }
         let mut failed = None;
+        let mut fmm = None;
+        let mut exact_residual_max = usize::MAX;
         if let Some(params) = iterative {
+            exact_residual_max = params.exact_residual_max;
             // From `fmm_from` centres on in 3-D, GMRES's products by the FMM.
-            let fmm = if D == 3 && n >= params.fmm_from {
+            fmm = if D == 3 && n >= params.fmm_from {
                 Some(
                     FmmProduct::new(&self.kernel, &functionals.points)
                         .map_err(|e| RbfError::Singular(format!("the FMM product: {e}")))?,
@@ -322,8 +336,31 @@ impl<K: Kernel + Clone> RbfFit<K> {
         if solved.condition > CONDITION_WARNING {
             warnings.push(condition_warning(solved.condition));
         }
-        let residual = self.residual(&functionals, &poly, &solved.x, &rhs);
+        // The exact residual costs `n²` kernel values (4 s at the full bunny's 104,502 on 2
+        // threads); above `exact_residual_max` it would outgrow the fit, and the FMM of the
+        // products measures it instead.
+        let by_fmm = match &fmm {
+            Some(_) if n > exact_residual_max => Some(
+                FmmProduct::with_order(&self.kernel, &functionals.points, FMM_RESIDUAL_ORDER)
+                    .map_err(|e| RbfError::Singular(format!("the FMM residual check: {e}")))?,
+            ),
+            _ => None,
+        };
+        let residual = match &by_fmm {
+            Some(product) => {
+                let mut ax = vec![0.0; n];
+                product.apply(&solved.x[..n], &mut ax);
+                let c = &solved.x[n..];
+                ax.iter()
+                    .zip(&functionals.points)
+                    .zip(&rhs)
+                    .map(|((a, x), b)| b - a - poly.value(c, x))
+                    .collect()
+            }
+            None => self.residual(&functionals, &poly, &solved.x, &rhs),
+        };
         let report = FitReport {
+            residual_exact: by_fmm.is_none(),
             solver: solved.solver,
             iterations: solved.iterations,
             constraints: constraints.len(),

@@ -573,6 +573,32 @@ fn fmm_products_give_the_dense_fit_to_their_accuracy() {
     // the 1e-8 residual GMRES stops at on inexact products (measured 4.9e-5 of fields ~0.3).
     let d = field_diff(&fmm.field, &dense.field);
     assert!(d < 2e-4, "dense vs FMM products: {d:.1e}");
+    assert!(fmm.report.residual_exact);
+    // Above `exact_residual_max` the report's residual comes from an FMM of higher order than
+    // the products' (one of the same order sees only 3.6e-10 here: the solve absorbed its
+    // error): the exact figure to 1%.
+    let by_fmm = RbfFit::new(Biharmonic)
+        .with_solver(Solver::Iterative(IterativeParams {
+            fmm_from: 0,
+            exact_residual_max: 0,
+            ..IterativeParams::default()
+        }))
+        .fit(&c)
+        .unwrap();
+    assert!(!by_fmm.report.residual_exact);
+    let exact = c
+        .as_slice()
+        .iter()
+        .map(|con| match con.prescribed {
+            Prescribed::Value(v) => (by_fmm.field.value(&con.point) - v).abs(),
+            _ => unreachable!(),
+        })
+        .fold(0.0, f64::max);
+    let got = by_fmm.report.max_residual;
+    assert!(
+        (got - exact).abs() < 0.01 * exact,
+        "FMM residual {got:.3e}, exact {exact:.3e}"
+    );
 }
 
 #[test]

@@ -657,10 +657,11 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
         line(
             "constraints",
             &format!(
-                "{} off-surface (Carr et al.): {n} values 0 on the surface, {} at ±offset along \
+                "{} off-surface (Carr et al.): {} values 0 on the surface, {} at ±offset along \
                  the normals",
                 c.len(),
-                c.len() - n
+                n - report.merged,
+                c.len() - (n - report.merged)
             ),
         );
         print_offset(args.offset.is_none(), &report);
@@ -797,6 +798,29 @@ fn print_offset(auto: bool, r: &OffsetReport) {
              constraint)",
             r.dropped,
             if r.dropped == 1 { "" } else { "s" }
+        ));
+    }
+    if r.opposed_normals > 0 {
+        more(&format!(
+            "warning: {} normal{} point{} against most of {} nearest neighbours' (flipped?): \
+             the surface bulges or grows a bubble there",
+            r.opposed_normals,
+            if r.opposed_normals == 1 { "" } else { "s" },
+            if r.opposed_normals == 1 { "s" } else { "" },
+            if r.opposed_normals == 1 {
+                "its"
+            } else {
+                "their"
+            },
+        ));
+    }
+    if r.merged > 0 {
+        more(&format!(
+            "({} input point{} within {:e} of the diagonal of an earlier one merged into it: \
+             repeated samples, one centre each)",
+            r.merged,
+            if r.merged == 1 { "" } else { "s" },
+            zeroset_bases::rbf::MERGE_DISTANCE
         ));
     }
 }

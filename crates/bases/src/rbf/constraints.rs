@@ -71,7 +71,24 @@ pub struct OffsetReport {
     pub shrunk: usize,
     /// Offset points dropped because even the smallest offset crossed the surface.
     pub dropped: usize,
+    /// Input points merged into an earlier one within [`MERGE_DISTANCE`] (no constraints of
+    /// their own: two centres at one place make the system singular).
+    pub merged: usize,
+    /// Points whose normal points against those of most of their [`NORMAL_NEIGHBOURS`]
+    /// nearest neighbours (negative dot product with more than half): likely flipped normals,
+    /// which put a bump or a bubble into the surface there.
+    pub opposed_normals: usize,
 }
+
+/// How many nearest neighbours [`OffsetReport::opposed_normals`] compares each normal with.
+pub const NORMAL_NEIGHBOURS: usize = 8;
+
+/// Input points closer than this fraction of the bounding-box diagonal are one point to
+/// [`Constraints::off_surface`] (the first is kept, with its normal): about a float32
+/// coordinate's resolution, where a scanner's or a merge's repeated samples are the same
+/// measurement. Two of them with opposite normals are refused
+/// ([`RbfError::ConflictingDuplicates`]).
+pub const MERGE_DISTANCE: f64 = 1e-7;
 
 /// An ordered list of constraints.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -136,12 +153,14 @@ impl<const D: usize> Constraints<D> {
     }
 
     /// Value 0 at every point and `±εᵢ` at `pᵢ ± εᵢ nᵢ` (Carr et al.), `εᵢ` as `offset` says;
-    /// see the [module docs](self). Normals are normalised here.
+    /// see the [module docs](self). Normals are normalised here; points within
+    /// [`MERGE_DISTANCE`] of an earlier one are merged into it ([`OffsetReport::merged`]).
     ///
     /// # Errors
     /// [`RbfError::Empty`], [`RbfError::NonFinite`], [`RbfError::ZeroNormal`], a cloud
-    /// without normals as [`RbfError::Degenerate`], [`RbfError::InvalidOffset`], and for a
-    /// fixed offset [`RbfError::OffsetCrossesSurface`].
+    /// without normals as [`RbfError::Degenerate`], [`RbfError::InvalidOffset`],
+    /// [`RbfError::ConflictingDuplicates`], and for a fixed offset
+    /// [`RbfError::OffsetCrossesSurface`].
     pub fn off_surface(
         cloud: &PointCloud<D>,
         offset: Offset,
@@ -156,16 +175,24 @@ impl<const D: usize> Constraints<D> {
         if !(initial.is_finite() && initial > 0.0) {
             return Err(RbfError::InvalidOffset(initial));
         }
-        let tree = Tree::<D>::new_from_slice(points).map_err(|e| RbfError::Degenerate {
+        let kept = distinct(points, &normals, MERGE_DISTANCE * diagonal)?;
+        let positions: Vec<Point<D>> = kept.iter().map(|&i| points[i]).collect();
+        let tree = Tree::<D>::new_from_slice(&positions).map_err(|e| RbfError::Degenerate {
             detail: format!("cannot index the points: {e}"),
         })?;
-        let mut c = Self::on_surface(cloud);
+        let mut c = Self::new();
+        for p in &positions {
+            c.push_value(*p, 0.0);
+        }
         let mut report = OffsetReport {
             initial,
             smallest: initial,
+            merged: points.len() - kept.len(),
+            opposed_normals: opposed_normals(&tree, &positions, &kept, &normals),
             ..OffsetReport::default()
         };
-        for (i, (p, n)) in points.iter().zip(&normals).enumerate() {
+        for (k, (p, &i)) in positions.iter().zip(&kept).enumerate() {
+            let n = &normals[i];
             for side in [1.0, -1.0] {
                 let mut eps = initial;
                 let mut placed = false;
@@ -176,8 +203,10 @@ impl<const D: usize> Constraints<D> {
                         .nearest_one::<SquaredEuclidean<f64>>()
                         .execute();
                     let own = squared(&q, p);
-                    // Ties (another point exactly as near) count as the own point.
-                    if nearest.item as usize == i || nearest.distance >= own {
+                    // Another point as near (within 0.1%: a near-duplicate sample) counts as
+                    // the own point: the value ±ε is then still the distance to the surface
+                    // within 0.1%.
+                    if nearest.item as usize == k || nearest.distance >= own * (1.0 - 2e-3) {
                         if attempt > 0 {
                             report.shrunk += 1;
                         }
@@ -190,7 +219,7 @@ impl<const D: usize> Constraints<D> {
                         return Err(RbfError::OffsetCrossesSurface {
                             index: i,
                             eps,
-                            nearest: nearest.item as usize,
+                            nearest: kept[nearest.item as usize],
                         });
                     }
                     eps *= 0.5;
@@ -216,6 +245,81 @@ impl<const D: usize> Constraints<D> {
         }
         Ok(c)
     }
+}
+
+/// The indices of the points to keep, in order: each point closer than `radius` to an earlier
+/// kept one is merged into it (exact duplicates always). Opposite normals at one place are an
+/// error: the inside and the outside cannot both be right.
+fn distinct<const D: usize>(
+    points: &[Point<D>],
+    normals: &[Point<D>],
+    radius: f64,
+) -> Result<Vec<usize>, RbfError> {
+    let tree = Tree::<D>::new_from_slice(points).map_err(|e| RbfError::Degenerate {
+        detail: format!("cannot index the points: {e}"),
+    })?;
+    // `within` keeps distances below the bound: the smallest positive one catches exact
+    // duplicates when the radius is 0.
+    let r2 = (radius * radius).max(f64::MIN_POSITIVE);
+    let mut merged = vec![false; points.len()];
+    let mut kept = Vec::with_capacity(points.len());
+    for (i, p) in points.iter().enumerate() {
+        if merged[i] {
+            continue;
+        }
+        kept.push(i);
+        for found in tree.query(p).within::<SquaredEuclidean<f64>>(r2).execute() {
+            let j = found.item as usize;
+            if j <= i || merged[j] {
+                continue;
+            }
+            let dot: f64 = (0..D).map(|a| normals[i][a] * normals[j][a]).sum();
+            if dot < 0.0 {
+                return Err(RbfError::ConflictingDuplicates {
+                    first: i,
+                    second: j,
+                    point: p.to_vec(),
+                    dot,
+                });
+            }
+            merged[j] = true;
+        }
+    }
+    Ok(kept)
+}
+
+/// How many of the kept points have a normal with a negative dot product with more than half
+/// of their [`NORMAL_NEIGHBOURS`] nearest kept neighbours' normals.
+fn opposed_normals<const D: usize>(
+    tree: &Tree<D>,
+    positions: &[Point<D>],
+    kept: &[usize],
+    normals: &[Point<D>],
+) -> usize {
+    let k = (NORMAL_NEIGHBOURS + 1).min(positions.len());
+    let Some(k) = std::num::NonZero::new(k) else {
+        return 0;
+    };
+    positions
+        .iter()
+        .zip(kept)
+        .filter(|(p, i)| {
+            let n = &normals[**i];
+            let found = tree
+                .query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(k)
+                .execute();
+            let others = found.len().saturating_sub(1);
+            let against = found
+                .iter()
+                .filter(|f| {
+                    let m = &normals[kept[f.item as usize]];
+                    (0..D).map(|a| n[a] * m[a]).sum::<f64>() < 0.0
+                })
+                .count();
+            others > 0 && 2 * against > others
+        })
+        .count()
 }
 
 /// The cloud's normals scaled to unit length, checked.
@@ -319,5 +423,78 @@ mod tests {
             Constraints::hermite(&bare).unwrap_err(),
             RbfError::Degenerate { .. }
         ));
+    }
+
+    #[test]
+    fn repeated_samples_are_merged_and_opposite_ones_refused() {
+        let cloud = two_sheets();
+        let (base, _) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.2 }).unwrap();
+        // Every point again: exactly, and moved by a tenth of the merge distance.
+        let (mut p, mut n) = (
+            cloud.positions().to_vec(),
+            cloud.normals().unwrap().to_vec(),
+        );
+        let diagonal = cloud.bounds().unwrap().diagonal();
+        for i in 0..cloud.len() {
+            let q = p[i];
+            let shift = if i % 2 == 0 {
+                0.0
+            } else {
+                0.1 * MERGE_DISTANCE * diagonal
+            };
+            p.push([q[0] + shift, q[1], q[2]]);
+            n.push(n[i]);
+        }
+        let doubled = PointCloud::with_normals(p.clone(), n.clone()).unwrap();
+        let (c, report) =
+            Constraints::off_surface(&doubled, Offset::Auto { fraction: 0.2 }).unwrap();
+        assert_eq!(report.merged, cloud.len(), "{report:?}");
+        // The merged copies change nothing (but the bounding box's diagonal, by 1e-8).
+        assert_eq!(c.len(), base.len());
+        let moved = c
+            .as_slice()
+            .iter()
+            .zip(base.as_slice())
+            .map(|(a, b)| squared(&a.point, &b.point).sqrt())
+            .fold(0.0, f64::max);
+        assert!(moved < 1e-6, "constraints moved by {moved:.1e}");
+        // One copy with its normal reversed: refused, naming both records.
+        n[cloud.len() + 3] = n[3].map(|v| -v);
+        let err = Constraints::off_surface(
+            &PointCloud::with_normals(p, n).unwrap(),
+            Offset::Auto { fraction: 0.2 },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, RbfError::ConflictingDuplicates { first: 3, second, .. } if second == cloud.len() + 3),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn normals_against_their_neighbours_are_counted() {
+        // A sphere with outward normals, two of them flipped.
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (mut p, mut n) = (Vec::new(), Vec::new());
+        for i in 0..400 {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 400.0;
+            let r = (1.0 - z * z).sqrt();
+            let q = [
+                r * (golden * i as f64).cos(),
+                r * (golden * i as f64).sin(),
+                z,
+            ];
+            p.push(q);
+            n.push(q);
+        }
+        let clean = PointCloud::with_normals(p.clone(), n.clone()).unwrap();
+        let (_, report) = Constraints::off_surface(&clean, Offset::default()).unwrap();
+        assert_eq!(report.opposed_normals, 0);
+        for i in [10, 200] {
+            n[i] = n[i].map(|v| -v);
+        }
+        let flipped = PointCloud::with_normals(p, n).unwrap();
+        let (_, report) = Constraints::off_surface(&flipped, Offset::default()).unwrap();
+        assert_eq!(report.opposed_normals, 2, "{report:?}");
     }
 }

@@ -38,6 +38,22 @@ pub enum RbfError {
         /// The shared point.
         point: Vec<f64>,
     },
+    /// Two input points at one place (within [`MERGE_DISTANCE`](super::MERGE_DISTANCE) of
+    /// the diagonal) with opposite normals.
+    #[error(
+        "points {first} and {second} are at the same place {point:?} with opposite normals \
+         (dot product {dot:.3}): the inside and the outside cannot both be right"
+    )]
+    ConflictingDuplicates {
+        /// The first point's index.
+        first: usize,
+        /// The second point's index.
+        second: usize,
+        /// The first point.
+        point: Vec<f64>,
+        /// The unit normals' dot product.
+        dot: f64,
+    },
     /// The constraints do not determine the linear polynomial: too few points, or all of
     /// them on one plane (3-D) or line (2-D).
     #[error("the constraints cannot determine a linear polynomial: {detail}")]

@@ -62,7 +62,9 @@ pub mod system;
 
 use std::time::{Duration, Instant};
 
-pub use constraints::{Constraint, Constraints, Offset, OffsetReport, Prescribed};
+pub use constraints::{
+    Constraint, Constraints, MERGE_DISTANCE, NORMAL_NEIGHBOURS, Offset, OffsetReport, Prescribed,
+};
 pub use error::RbfError;
 pub use field::{RbfField, RbfSpace};
 pub use greedy::{GreedyOptions, GreedyReport, GreedyRound};

@@ -723,23 +723,27 @@ fn solve<K: StoredKernel, const D: usize>(
     } else {
         "fitting the RBF field"
     };
-    let Some(fraction) = args.mras.tolerance else {
+    let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
+    let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
+        let (lo, hi) = (b.min(), b.max());
+        (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+    });
+    let Some(fraction) = args.mras.tolerance_fraction(diagonal)? else {
         let fitted = fit.fit(constraints);
         spinner.finish_and_clear();
         let fitted = fitted.context(context)?;
         print_report(&fitted.report);
         return Ok(fitted.field);
     };
-    // Greedy centre reduction to a tolerance given as a fraction of the points' diagonal.
+    // Greedy centre reduction to a tolerance given as a fraction of the constraints' diagonal
+    // or as a distance.
     if !(fraction.is_finite() && fraction > 0.0 && fraction < 1.0) {
-        bail!("--tolerance {fraction}: give a fraction of the diagonal, between 0 and 1");
+        bail!(
+            "--tolerance {fraction}: give a fraction of the diagonal, between 0 and 1 (or \
+             --tolerance-distance in the cloud's units)"
+        );
     }
-    let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
-    let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
-        let (lo, hi) = (b.min(), b.max());
-        (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-    });
-    let tolerance = fraction * diagonal;
+    let tolerance = args.mras.tolerance_distance.unwrap_or(fraction * diagonal);
     let result = fit.fit_greedy(constraints, &GreedyOptions::new(tolerance));
     spinner.finish_and_clear();
     let (fitted, greedy) = result.context(context)?;

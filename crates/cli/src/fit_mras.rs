@@ -33,6 +33,9 @@ pub struct MrasArgs {
     /// centres it needs).
     #[arg(long, value_name = "T", help_heading = HEADING)]
     pub tolerance: Option<f64>,
+    /// The same target as a distance in the cloud's own units (instead of --tolerance).
+    #[arg(long, value_name = "D", conflicts_with = "tolerance", help_heading = HEADING)]
+    pub tolerance_distance: Option<f64>,
     /// The deepest octree level (the root is 1) [default: 7].
     #[arg(long, value_name = "L", help_heading = HEADING)]
     pub max_level: Option<u32>,
@@ -42,7 +45,26 @@ pub struct MrasArgs {
 }
 
 impl MrasArgs {
-    /// As [`MrasArgs::given`], leaving out `--tolerance` (which --method rbf takes too).
+    /// The target as a fraction of `diagonal` (the cloud's), from --tolerance or
+    /// --tolerance-distance, if either was given.
+    ///
+    /// # Errors
+    /// A distance that is not finite and positive.
+    pub fn tolerance_fraction(&self, diagonal: f64) -> anyhow::Result<Option<f64>> {
+        match (self.tolerance, self.tolerance_distance) {
+            (Some(t), _) => Ok(Some(t)),
+            (None, Some(d)) if d.is_finite() && d > 0.0 && diagonal > 0.0 => Ok(Some(d / diagonal)),
+            (None, Some(d)) => bail!(
+                "--tolerance-distance {d}: give a positive distance in the cloud's units (its \
+                 diagonal is {})",
+                g(diagonal)
+            ),
+            (None, None) => Ok(None),
+        }
+    }
+
+    /// As [`MrasArgs::given`], leaving out `--tolerance` and `--tolerance-distance` (which
+    /// --method rbf takes too).
     pub fn given_besides_tolerance(&self) -> Option<&'static str> {
         [
             (self.max_level.is_some(), "--max-level"),
@@ -54,9 +76,13 @@ impl MrasArgs {
 
     /// The first option given, as its flag, if any (for refusing them with other methods).
     pub fn given(&self) -> Option<&'static str> {
-        (self.tolerance.is_some())
-            .then_some("--tolerance")
-            .or_else(|| self.given_besides_tolerance())
+        [
+            (self.tolerance.is_some(), "--tolerance"),
+            (self.tolerance_distance.is_some(), "--tolerance-distance"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+        .or_else(|| self.given_besides_tolerance())
     }
 }
 
@@ -95,6 +121,11 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     let cloud = load(args)?;
     print_input(args, &cloud);
     let normals = cloud.normals().context("the cloud has no normals")?;
+    let mut options = options;
+    let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+    if let Some(t) = args.mras.tolerance_fraction(diagonal)? {
+        options.tolerance = t;
+    }
     line(
         "MRAS",
         &format!(

@@ -2185,6 +2185,40 @@ fn rbf_tolerance_keeps_only_the_centres_it_needs() {
         "2",
     ]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("between 0 and 1"));
+    // The same target as a distance in the cloud's units: the greedy line names it and its
+    // fraction of the diagonal.
+    let by_distance = zeroset([
+        "fit",
+        sample.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "--tolerance-distance",
+        "2e-4",
+        "--quiet",
+    ]);
+    let text = String::from_utf8_lossy(&by_distance.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("greedy:"))
+        .unwrap_or_else(|| panic!("no greedy line in:\n{text}"));
+    assert!(line.contains("(tolerance 0.0002 = "), "{line}");
+    assert!(!line.contains("NOT met"), "{line}");
+    for (flags, want) in [
+        (&["--tolerance-distance", "0"][..], "positive distance"),
+        (
+            &["--tolerance", "1e-3", "--tolerance-distance", "1"][..],
+            "cannot be used with",
+        ),
+    ] {
+        let mut argv = vec!["fit", sample.to_str().unwrap(), "--method", "rbf"];
+        argv.extend_from_slice(flags);
+        let bad = zeroset(argv);
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains(want),
+            "{flags:?}: {err}"
+        );
+    }
     let bad = zeroset([
         "fit",
         sample.to_str().unwrap(),

@@ -90,6 +90,16 @@ def surface_samples(verts: np.ndarray, faces: np.ndarray, m: int) -> tuple[np.nd
     return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0]), float(np.sqrt(area.sum() / m))
 
 
+def scan_surface(scan: Path, m: int) -> tuple[cKDTree, float, float]:
+    """A k-d tree of `m` area-weighted samples of the scan's surface, the bounding-box diagonal
+    of the scan's triangle vertices and the sample spacing (also used by scan_peers.py)."""
+    sv, sf = read_ply(scan)
+    used = sv[np.unique(sf)]
+    diag = float(np.linalg.norm(used.max(0) - used.min(0)))
+    samples, spacing = surface_samples(sv, sf, m)
+    return cKDTree(samples), diag, spacing
+
+
 def main() -> None:
     args = parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -107,10 +117,7 @@ def main() -> None:
                            "--detail", d, "--quiet", "--force", "-o", str(mesh)])  # fmt: skip
         meshes[d] = mesh
 
-    sv, sf = read_ply(scan)
-    diag = float(np.linalg.norm(sv[np.unique(sf)].max(0) - sv[np.unique(sf)].min(0)))
-    samples, spacing = surface_samples(sv, sf, args.samples)
-    tree = cKDTree(samples)
+    tree, diag, spacing = scan_surface(scan, args.samples)
     header = ["detail", "vertices", "triangles", "mean", "median", "p95", "max"]
     body, rows = [], []
     for d, path in meshes.items():

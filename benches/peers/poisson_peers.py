@@ -86,6 +86,17 @@ UNIT_TOL = 1e-3  # normals are used as given if every length is within this of 1
 DEFAULT_POINTS = common.REPO / "data" / "bunny_points.ply"
 
 
+def add_poisson_settings(p: argparse.ArgumentParser) -> None:
+    """The Poisson settings `poisson` reads (`--scale`, `--linear-fit`, `--full-depth`,
+    `--samples-per-node`, `--point-weight`; defaults = Open3D's); also used by scan_peers.py."""
+    g = p.add_argument_group("Poisson settings (defaults = Open3D's)")
+    g.add_argument("--scale", type=float, default=1.1, help="reconstruction cube diameter / samples' bounding cube")
+    g.add_argument("--linear-fit", action="store_true", help="linear interpolation for the iso-vertices")
+    g.add_argument("--full-depth", type=int, default=5, help="depth up to which the octree is complete")
+    g.add_argument("--samples-per-node", type=float, default=1.5, help="minimum samples per octree node")
+    g.add_argument("--point-weight", type=float, default=2.0, help="screening weight (0 = unscreened Poisson)")
+
+
 def parse_args() -> argparse.Namespace:
     p = argparse.ArgumentParser(
         description="Open3D screened Poisson vs any mesh: time, mesh size and point-to-mesh distance.",
@@ -109,12 +120,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--estimate-normals", action="store_true",
                    help="estimate and orient normals with Open3D even if the file has unit normals")  # fmt: skip
     p.add_argument("--normal-knn", type=int, default=30, help="k nearest neighbours for estimated normals")
-    g = p.add_argument_group("Poisson settings (defaults = Open3D's)")
-    g.add_argument("--scale", type=float, default=1.1, help="reconstruction cube diameter / samples' bounding cube")
-    g.add_argument("--linear-fit", action="store_true", help="linear interpolation for the iso-vertices")
-    g.add_argument("--full-depth", type=int, default=5, help="depth up to which the octree is complete")
-    g.add_argument("--samples-per-node", type=float, default=1.5, help="minimum samples per octree node")
-    g.add_argument("--point-weight", type=float, default=2.0, help="screening weight (0 = unscreened Poisson)")
+    add_poisson_settings(p)
     a = p.parse_args()
 
     a.depth_list = common.int_list(p, a.depths, "--depths", 2, "depth")

@@ -23,15 +23,17 @@ Examples:
   zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan.ply";
 
 /// Clouds of up to this many points are fitted by RBF under `--method auto`, larger ones by
-/// MRAS. Measured on 2 threads: the 2,000-point sample bunny fits by RBF in ~2.7 s (it
-/// interpolates the points); the full 34,834-point bunny by RBF (FMM products) in ~77 s, by
-/// MRAS in ~12 s (the points' mean distance 3.4e-4 of the diagonal).
-pub const AUTO_RBF_POINTS: usize = 10_000;
+/// MRAS. Measured on 2 threads (whole `zeroset reconstruct` commands): the full 34,834-point
+/// bunny by RBF in ~26 s (fit 19–22 s: 15 GMRES steps on FMM products; the points' distance to
+/// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~17 s (3.7e-4,
+/// 4.4e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~55 s to fit and 1.5 GB, where
+/// MRAS's time grows with the detail rather than the count.
+pub const AUTO_RBF_POINTS: usize = 50_000;
 
 /// The field `--method` fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ReconstructMethod {
-    /// RBF up to 10,000 points, MRAS above.
+    /// RBF up to 50,000 points, MRAS above.
     Auto,
     /// Radial basis functions (kernel r, off-surface points), meshed by the signed marching
     /// cubes.

@@ -1973,7 +1973,7 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     let text = String::from_utf8_lossy(&out.stdout);
     for phrase in [
         "2000 points",
-        "rbf field (auto: RBF up to 10000 points)",
+        "rbf field (auto: RBF up to 50000 points)",
         "== 1/3 fit",
         "== 2/3 mesh",
         "report: closed, Euler characteristic 2, 1 component(s)",

@@ -373,3 +373,16 @@ def write_report(md_path: Path, csv_path: Path, lines: list[str], facts: list[tu
     md_path.write_text("\n".join(lines))
     print("\nmachine: " + "; ".join(f"{a}={b}" for a, b in facts))
     print(f"\nwrote {csv_path} and {md_path}")
+
+
+def jsonable(v):
+    """`v` with non-finite floats as None and numpy scalars as Python numbers, for json.dumps."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [jsonable(x) for x in v]
+    if getattr(v, "ndim", None) == 0 and hasattr(v, "item"):  # a numpy scalar
+        return jsonable(v.item())
+    return v

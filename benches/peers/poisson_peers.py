@@ -428,16 +428,6 @@ def target_report(e: float, prows: list[dict], mrows: list[dict], args) -> dict:
     return res
 
 
-def jsonable(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [jsonable(x) for x in v]
-    return v
-
-
 def main() -> None:
     args = parse_args()
     load_start = common.loadavg()
@@ -514,7 +504,7 @@ def main() -> None:
             "settings": settings, "rows": prows + mrows, "target": target, "machine": dict(facts),
         }  # fmt: skip
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(jsonable(doc), indent=1) + "\n")
+        Path(args.json).write_text(json.dumps(common.jsonable(doc), indent=1) + "\n")
         print(f"\nwrote {args.json}")
 
 

@@ -530,19 +530,7 @@ def child(spec: dict, spec_path: Path, blas_threads: int) -> dict | None:
 def worker_main(spec_path: str) -> None:
     spec = json.loads(Path(spec_path).read_text())
     res = scipy_worker(spec) if spec["kind"] == "scipy" else poisson_worker(spec)
-    Path(spec["result"]).write_text(json.dumps(jsonable(res)))
-
-
-def jsonable(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [jsonable(x) for x in v]
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
+    Path(spec["result"]).write_text(json.dumps(common.jsonable(res)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -858,7 +846,7 @@ def main() -> None:
         doc = {"script": "benches/peers/scan_peers.py", "argv": sys.argv[1:], "cloud": str(cloud), "points": int(len(pts)),
                "bbox_diagonal": diag, "grid": grid, "notes": notes, "rows": rows, "machine": dict(facts)}  # fmt: skip
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(jsonable(doc), indent=1) + "\n")
+        Path(args.json).write_text(json.dumps(common.jsonable(doc), indent=1) + "\n")
         print(f"wrote {args.json}")
 
 

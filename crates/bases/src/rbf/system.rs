@@ -285,9 +285,9 @@ pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
     top.par_iter_mut().enumerate().for_each(|(i, out)| {
         let (xi, li) = (&f.points[i], f.kinds[i]);
         if values_only {
-            let sum = arch.dispatch(SumAt {
+            let sum = arch.dispatch(SlicesSumAt {
                 kernel,
-                f,
+                sources: std::array::from_fn(|a| &f.soa[a][..n]),
                 weights: w,
                 x: xi,
             });
@@ -334,7 +334,8 @@ pub(crate) fn kernel_sums_at<K: Kernel + ?Sized, const D: usize>(
         .collect()
 }
 
-/// [`kernel_sum_slices`] compiled per instruction set.
+/// [`kernel_sum_slices`] as a [`pulp::WithSimd`] operation, compiled per instruction set (a
+/// closure would not be compiled for AVX2).
 struct SlicesSumAt<'a, K: ?Sized, const D: usize> {
     kernel: &'a K,
     sources: [&'a [f64]; D],
@@ -527,23 +528,6 @@ impl<K: Kernel + ?Sized, const D: usize> pulp::WithSimd for GradientAt<'_, K, D>
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> [f64; D] {
         kernel_gradient_sum_slices(self.kernel, self.coords, self.weights, self.x)
-    }
-}
-
-/// [`kernel_sum`] as a [`pulp::WithSimd`] operation (a closure would not be compiled for AVX2).
-struct SumAt<'a, K: ?Sized, const D: usize> {
-    kernel: &'a K,
-    f: &'a Functionals<D>,
-    weights: &'a [f64],
-    x: &'a Point<D>,
-}
-
-impl<K: Kernel + ?Sized, const D: usize> pulp::WithSimd for SumAt<'_, K, D> {
-    type Output = f64;
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> f64 {
-        kernel_sum(self.kernel, self.f, self.weights, self.x)
     }
 }
 

@@ -16,8 +16,9 @@
 //! **The coarse level.** Local sets see no far field: on their own the steps grow with `n`
 //! (the full bunny, 104,502 off-surface functionals, stalled at a relative residual of 5e-2
 //! after 100 steps). As in the two-level methods of Beatson, Light & Billings (2000), the
-//! interpolation problem on `|C|` centres spread over the set (farthest-point order,
-//! [`IterativeParams::coarse`], default 2000) is factored once (the dense solve's projected
+//! interpolation problem on `|C|` centres spread over the set (farthest-point order; 2000,
+//! growing as `n/25` to 4000 above 50,000 centres: [`IterativeParams::coarse_size`]) is
+//! factored once (the dense solve's projected
 //! Cholesky) and corrects what the local functions leave, **multiplicatively**: the map from
 //! values to coefficients is
 //!
@@ -29,10 +30,11 @@
 //! then the coarse interpolant of what that sum misses at the coarse centres (one direct sum
 //! from all centres to `C` per step, `n·|C|` kernel values). Adding the coarse interpolant of
 //! `μ` itself instead (additively) took 80 steps on the bunny and 34, 48, 71 on the sphere
-//! set-up at `n` = 10⁴, 3·10⁴, 10⁵; the multiplicative correction takes 15 and 7, 7, 8
-//! (2 threads, `cargo run --release --example rbf_timing -- --n … --solvers iterative`). The
-//! steps stay flat while a coarse centre stands for fewer points than a local set holds
-//! (`n/|C| ≲ q`: 50 at 10⁵ against `q` = 80); far beyond, a deeper hierarchy would be needed.
+//! set-up at `n` = 10⁴, 3·10⁴, 10⁵; the multiplicative correction with 2000 coarse centres
+//! takes 15 and 7, 7, 8 (2 threads, `cargo run --release --example rbf_timing -- --n …
+//! --solvers iterative`). The steps stay flat while a coarse centre stands for fewer points
+//! than a local set holds (`n/|C| ≲ q`: 25 with the growing level against `q` = 80, up to
+//! 10⁵ centres); far beyond (10⁶) a deeper hierarchy would be needed.
 //!
 //! **The products.** A product with `B` is a sparse `Λᵀ μ`, the coarse solve, and one kernel
 //! sum `Φ w` at the centres: a vectorised parallel direct sum, or from
@@ -83,10 +85,11 @@ pub struct IterativeParams {
     pub max_iterations: usize,
     /// GMRES restart length (default 100).
     pub restart: usize,
-    /// Centres of the coarse level (default 2000): the interpolation problem on this many
-    /// centres spread over the set, factored once, corrects what the local cardinal functions
-    /// leave at them (multiplicatively, see the module docs); used when there are more than
-    /// twice as many centres. 0: none.
+    /// The most centres of the coarse level (default 4000): the interpolation problem on
+    /// `n/25` centres spread over the set, at least [`COARSE_MIN`] and at most this many,
+    /// factored once, corrects what the local cardinal functions leave at them
+    /// (multiplicatively, see the module docs); used when there are more than twice as many
+    /// centres. 0: none.
     pub coarse: usize,
     /// From this many centres on (3-D fields), the products are formed by the FMM
     /// ([`fmm::product`](super::fmm::product)) rather than the direct sum (default
@@ -106,10 +109,25 @@ impl Default for IterativeParams {
             tolerance: 1e-12,
             max_iterations: 300,
             restart: 100,
-            coarse: 2000,
+            coarse: 4000,
             fmm_from: super::FMM_PRODUCT_MIN,
             exact_residual_max: super::EXACT_RESIDUAL_MAX,
         }
+    }
+}
+
+/// The fewest centres of the coarse level (or [`IterativeParams::coarse`] if that is less).
+/// 2000 up to 50,000 centres; above, the level grows with `n/25` to
+/// [`IterativeParams::coarse`]: at the full bunny's 104,502 functionals 4000 centres take 13
+/// steps and 18.7 s for the whole `zeroset fit` against 15 steps with 2000, and on 10⁵ sphere
+/// points (3·10⁵ functionals) 15 steps and 53 s against 17 and 63 s (2 threads).
+pub const COARSE_MIN: usize = 2000;
+
+impl IterativeParams {
+    /// The coarse level's size for `n` centres: `n/25` within [`COARSE_MIN`] and
+    /// [`IterativeParams::coarse`] (never above the latter).
+    pub fn coarse_size(&self, n: usize) -> usize {
+        (n / 25).clamp(COARSE_MIN.min(self.coarse), self.coarse)
     }
 }
 
@@ -424,8 +442,9 @@ impl<'a, K: Kernel + ?Sized, const D: usize> CardinalBasis<'a, K, D> {
                 lambda_t[j as usize].push((i as u32, l));
             }
         }
-        let coarse = if params.coarse > 0 && n > 2 * params.coarse {
-            Some(Coarse::new(kernel, f, poly, params.coarse)?)
+        let size = params.coarse_size(n);
+        let coarse = if size > 0 && n > 2 * size {
+            Some(Coarse::new(kernel, f, poly, size)?)
         } else {
             None
         };

@@ -24,7 +24,7 @@ Examples:
 
 /// Clouds of up to this many points are fitted by RBF under `--method auto`, larger ones by
 /// MRAS. Measured on 2 threads (whole `zeroset reconstruct` commands): the full 34,834-point
-/// bunny by RBF in ~26 s (fit ~20 s: 13 GMRES steps on FMM products; the points' distance to
+/// bunny by RBF in ~21 s (fit ~18 s: 13 GMRES steps on FMM products; the points' distance to
 /// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~17 s (3.7e-4,
 /// 4.4e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~53 s to fit and 1.7 GB, where
 /// MRAS's time grows with the detail rather than the count.

@@ -723,11 +723,13 @@ fn solve<K: StoredKernel, const D: usize>(
     } else {
         "fitting the RBF field"
     };
-    let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
-    let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
-        let (lo, hi) = (b.min(), b.max());
-        (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-    });
+    let diagonal = || {
+        let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
+        Aabb::from_points(&points).map_or(0.0, |b| {
+            let (lo, hi) = (b.min(), b.max());
+            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+        })
+    };
     let Some(fraction) = args.mras.tolerance_fraction(diagonal)? else {
         let fitted = fit.fit(constraints);
         spinner.finish_and_clear();
@@ -743,7 +745,10 @@ fn solve<K: StoredKernel, const D: usize>(
              --tolerance-distance in the cloud's units)"
         );
     }
-    let tolerance = args.mras.tolerance_distance.unwrap_or(fraction * diagonal);
+    let tolerance = args
+        .mras
+        .tolerance_distance
+        .unwrap_or_else(|| fraction * diagonal());
     let result = fit.fit_greedy(constraints, &GreedyOptions::new(tolerance));
     spinner.finish_and_clear();
     let (fitted, greedy) = result.context(context)?;

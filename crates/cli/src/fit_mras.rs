@@ -45,21 +45,26 @@ pub struct MrasArgs {
 }
 
 impl MrasArgs {
-    /// The target as a fraction of `diagonal` (the cloud's), from --tolerance or
-    /// --tolerance-distance, if either was given.
+    /// The target as a fraction of the cloud's diagonal (`diagonal`, computed only for
+    /// --tolerance-distance), from --tolerance or --tolerance-distance, if either was given.
     ///
     /// # Errors
     /// A distance that is not finite and positive.
-    pub fn tolerance_fraction(&self, diagonal: f64) -> anyhow::Result<Option<f64>> {
-        match (self.tolerance, self.tolerance_distance) {
-            (Some(t), _) => Ok(Some(t)),
-            (None, Some(d)) if d.is_finite() && d > 0.0 && diagonal > 0.0 => Ok(Some(d / diagonal)),
-            (None, Some(d)) => bail!(
+    pub fn tolerance_fraction(
+        &self,
+        diagonal: impl FnOnce() -> f64,
+    ) -> anyhow::Result<Option<f64>> {
+        let Some(d) = self.tolerance_distance.filter(|_| self.tolerance.is_none()) else {
+            return Ok(self.tolerance);
+        };
+        let diagonal = diagonal();
+        match d {
+            d if d.is_finite() && d > 0.0 && diagonal > 0.0 => Ok(Some(d / diagonal)),
+            d => bail!(
                 "--tolerance-distance {d}: give a positive distance in the cloud's units (its \
                  diagonal is {})",
                 g(diagonal)
             ),
-            (None, None) => Ok(None),
         }
     }
 
@@ -122,7 +127,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     print_input(args, &cloud);
     let normals = cloud.normals().context("the cloud has no normals")?;
     let mut options = options;
-    let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+    let diagonal = || cloud.bounds().map_or(0.0, |b| b.diagonal());
     if let Some(t) = args.mras.tolerance_fraction(diagonal)? {
         options.tolerance = t;
     }

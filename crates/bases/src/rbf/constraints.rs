@@ -175,11 +175,15 @@ impl<const D: usize> Constraints<D> {
         if !(initial.is_finite() && initial > 0.0) {
             return Err(RbfError::InvalidOffset(initial));
         }
-        let kept = distinct(points, &normals, MERGE_DISTANCE * diagonal)?;
+        let all = index(points)?;
+        let kept = distinct(&all, points, &normals, MERGE_DISTANCE * diagonal)?;
         let positions: Vec<Point<D>> = kept.iter().map(|&i| points[i]).collect();
-        let tree = Tree::<D>::new_from_slice(&positions).map_err(|e| RbfError::Degenerate {
-            detail: format!("cannot index the points: {e}"),
-        })?;
+        // The offset test's tree: over the kept points (the same as `all` when none merged).
+        let tree = if kept.len() == points.len() {
+            all
+        } else {
+            index(&positions)?
+        };
         let mut c = Self::new();
         for p in &positions {
             c.push_value(*p, 0.0);
@@ -247,17 +251,22 @@ impl<const D: usize> Constraints<D> {
     }
 }
 
-/// The indices of the points to keep, in order: each point closer than `radius` to an earlier
+/// A k-d tree over `points` (items: their indices).
+fn index<const D: usize>(points: &[Point<D>]) -> Result<Tree<D>, RbfError> {
+    Tree::<D>::new_from_slice(points).map_err(|e| RbfError::Degenerate {
+        detail: format!("cannot index the points: {e}"),
+    })
+}
+
+/// The indices of the points to keep, in order (`tree` indexes `points`): each point closer than `radius` to an earlier
 /// kept one is merged into it (exact duplicates always). Opposite normals at one place are an
 /// error: the inside and the outside cannot both be right.
 fn distinct<const D: usize>(
+    tree: &Tree<D>,
     points: &[Point<D>],
     normals: &[Point<D>],
     radius: f64,
 ) -> Result<Vec<usize>, RbfError> {
-    let tree = Tree::<D>::new_from_slice(points).map_err(|e| RbfError::Degenerate {
-        detail: format!("cannot index the points: {e}"),
-    })?;
     // `within` keeps distances below the bound: the smallest positive one catches exact
     // duplicates when the radius is 0.
     let r2 = (radius * radius).max(f64::MIN_POSITIVE);

@@ -119,7 +119,7 @@ fn remove_ears(sample: &std::path::Path) -> anyhow::Result<()> {
     let cloud = zeroset_field_core::io::read_point_cloud(sample)?;
     let field = TangentPlaneField::new(&cloud, 8)?;
     let bounds = field.bounds().context("the sample has no extent")?;
-    let grid = Grid::cell_centered(bounds, crate::restore::cubic_counts(&bounds, 64))?;
+    let grid = zeroset_restore::sampling_grid(bounds)?;
     let mask = BoxMask::from_corners(&grid, EAR_MASK.0, EAR_MASK.1)?;
     let h = grid.spacing()[1];
     let base = EAR_MASK.0[1];

@@ -32,9 +32,10 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::field_file::write_neural_field;
 use zeroset_bases::neural::{
     Activation, Architecture, NeuralField, NeuralFit, NeuralParams, RefitReport, Trained,
+    to_unit_frame, unit_frame,
 };
 use zeroset_bases::rbf::{Constraints, Offset, Prescribed};
-use zeroset_field_core::geometry::{Aabb, Point};
+use zeroset_field_core::geometry::Point;
 use zeroset_field_core::io::value_file_dimension;
 use zeroset_solvers::DenseQr;
 
@@ -224,8 +225,8 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 
 fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let c = load_values::<D>(args)?;
-    let (centre, scale) = frame(&c.points);
-    let u = to_frame(&c.points, centre, scale);
+    let (centre, scale) = unit_frame(&c.points);
+    let u = to_unit_frame(&c.points, centre, scale);
     let field = train(&u, &c.values, params, args, scale, 1.0)?;
     let field = field
         .transformed(centre, scale, 1.0)
@@ -261,8 +262,8 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
             report.dropped
         ),
     );
-    let (centre, scale) = frame(&points);
-    let u = to_frame(&points, centre, scale);
+    let (centre, scale) = unit_frame(&points);
+    let u = to_unit_frame(&points, centre, scale);
     let unit = report.initial;
     let z: Vec<f64> = targets.iter().map(|t| t / unit).collect();
     let field = train(&u, &z, params, args, scale, unit)?;
@@ -285,24 +286,6 @@ fn values_of(c: &Constraints<3>) -> (Vec<Point<3>>, Vec<f64>) {
             Prescribed::Gradient(_) => None,
         })
         .unzip()
-}
-
-/// The centre of the points' box and half its longest extent (1 for a single point).
-fn frame<const D: usize>(points: &[Point<D>]) -> (Point<D>, f64) {
-    match Aabb::from_points(points) {
-        Some(b) => {
-            let half = b.extent().into_iter().fold(0.0, f64::max) / 2.0;
-            (b.center(), if half > 0.0 { half } else { 1.0 })
-        }
-        None => ([0.0; D], 1.0),
-    }
-}
-
-fn to_frame<const D: usize>(points: &[Point<D>], c: Point<D>, s: f64) -> Vec<Point<D>> {
-    points
-        .iter()
-        .map(|p| std::array::from_fn(|a| (p[a] - c[a]) / s))
-        .collect()
 }
 
 /// Trains on the scaled constraints with a progress bar, reports, and refits if asked.
@@ -451,14 +434,5 @@ mod tests {
         assert_eq!(parse_widths("0,4").unwrap(), Widths(vec![0, 4]));
         assert!(parse_widths("32,x").is_err());
         assert!(parse_widths("").is_err());
-    }
-
-    #[test]
-    fn frames_map_into_the_unit_box() {
-        let (c, s) = frame(&[[1.0, 2.0], [3.0, 3.0]]);
-        assert_eq!((c, s), ([2.0, 2.5], 1.0));
-        let u = to_frame(&[[1.0, 2.0], [3.0, 3.0]], c, s);
-        assert_eq!(u, vec![[-1.0, -0.5], [1.0, 0.5]]);
-        assert_eq!(frame(&[[5.0, 5.0]]), ([5.0, 5.0], 1.0));
     }
 }

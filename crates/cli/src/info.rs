@@ -183,7 +183,7 @@ fn field_report_d<const D: usize>(path: &Path) -> anyhow::Result<String> {
             line(&mut s, "centres", &f.num_centres().to_string());
         }
         AnyField::Neural(f) => {
-            line(&mut s, "network", &crate::mesh::network(f));
+            line(&mut s, "network", &f.network());
             line(&mut s, "parameters", &f.parameters().len().to_string());
         }
         AnyField::Mras(f) => mras_report(&mut s, f),

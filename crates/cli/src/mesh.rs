@@ -33,7 +33,6 @@ use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 
 use zeroset_bases::field_file::{AnyField, RbfAny, read_any_field, read_dimension};
-use zeroset_bases::neural::NeuralField;
 use zeroset_bases::rbf::fmm::cache::{self, Cached};
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
@@ -256,7 +255,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         out,
         "field {}: {} over min {} max {}",
         args.field.display(),
-        describe(&field),
+        field.describe(),
         point(bounds.min()),
         point(bounds.max())
     )?;
@@ -600,37 +599,6 @@ fn smc<K: Kernel + Clone>(
     Ok(mesh)
 }
 
-/// The field's kind in words: `Quadratic B-spline`, `RBF field (kernel r, 600 centres)`,
-/// `neural field (MLP 3 → 32 → 32 → 1, tanh)`.
-pub(crate) fn describe<const D: usize>(field: &AnyField<D>) -> String {
-    match field {
-        AnyField::BSpline(f) => format!("{:?} B-spline", f.degree()),
-        AnyField::Rbf(f) => format!(
-            "RBF field (kernel {}, {} centres)",
-            f.kernel_tag(),
-            f.num_centres()
-        ),
-        AnyField::Neural(f) => format!("neural field ({})", network(f)),
-        AnyField::Mras(f) => format!(
-            "MRAS field ({} levels, {} cells, {} numbers)",
-            f.levels().len(),
-            f.levels().iter().map(|l| l.cells().len()).sum::<usize>(),
-            f.storage()
-        ),
-    }
-}
-
-/// A net in words: `MLP 3 → 32 → 32 → 1, tanh`.
-pub(crate) fn network<const D: usize>(f: &NeuralField<D>) -> String {
-    let arch = f.architecture();
-    let widths: Vec<String> = arch.widths().iter().map(|w| w.to_string()).collect();
-    format!(
-        "MLP {D} → {} → 1, {}",
-        widths.join(" → "),
-        arch.activation().name()
-    )
-}
-
 /// Default marching-squares cells along the longer axis of a 2-D field.
 const CURVE_CELLS: usize = 256;
 /// The most samples of a 2-D field's grid (0.8 GB of values).
@@ -690,7 +658,7 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         out,
         "field {}: 2-D {} over min {} max {}",
         args.field.display(),
-        describe(&field),
+        field.describe(),
         crate::info::point_n(&bounds.min()),
         crate::info::point_n(&bounds.max())
     )?;

@@ -16,7 +16,7 @@ use zeroset_bases::bspline::BSplineField;
 use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, write_field};
 use zeroset_bases::tangent_plane::TangentPlaneField;
 use zeroset_field_core::field::ScalarField;
-use zeroset_field_core::geometry::{Aabb, Point};
+use zeroset_field_core::geometry::Point;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
 use zeroset_field_core::mask::{BoxMask, Face, Side};
@@ -288,7 +288,7 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
     if zsf || is_field_file(&args.input) {
         let field = read_any_field::<3>(&args.input)
             .with_context(|| format!("reading {}", args.input.display()))?;
-        let described = crate::mesh::describe(&field);
+        let described = field.describe();
         return match field {
             AnyField::BSpline(field) => {
                 let grid = *field.grid();
@@ -298,7 +298,7 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
             field @ (AnyField::Rbf(_) | AnyField::Neural(_) | AnyField::Mras(_)) => {
                 // Sampled onto a grid over the field's box, like a point cloud's field.
                 let bounds = field.bounds().context("the field has no bounds")?;
-                let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;
+                let grid = zeroset_restore::sampling_grid(bounds)?;
                 println!(
                     "field file {}: {described}, sampled on the grid",
                     args.input.display()
@@ -322,16 +322,11 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
         cloud.len(),
         field.k()
     );
-    let grid = Grid::cell_centered(bounds, cubic_counts(&bounds, 64))?;
+    let grid = zeroset_restore::sampling_grid(bounds)?;
     Ok((Box::new(field), grid))
 }
 
-/// `longest` cells along the longest axis, the others in proportion (at least 3).
-pub fn cubic_counts(bounds: &Aabb<3>, longest: usize) -> [usize; 3] {
-    let e = bounds.extent();
-    let m = e.iter().copied().fold(0.0, f64::max);
-    e.map(|x| ((x / m * longest as f64).round() as usize).max(3))
-}
+pub use zeroset_field_core::grid::cubic_counts;
 
 pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {

@@ -55,6 +55,22 @@ pub type Grid3 = Grid<3>;
 /// Points generated per task in [`Grid::sample`].
 const SAMPLE_CHUNK: usize = 1 << 16;
 
+/// `longest` cells along the longest axis of `bounds` and the others in proportion (rounded,
+/// at least 3): cells as close to cubes as whole counts allow.
+///
+/// ```
+/// use zeroset_field_core::geometry::Aabb;
+/// use zeroset_field_core::grid::cubic_counts;
+///
+/// let b = Aabb::new([0.0, 0.0, 0.0], [2.0, 1.0, 0.01]).unwrap();
+/// assert_eq!(cubic_counts(&b, 64), [64, 32, 3]);
+/// ```
+pub fn cubic_counts<const D: usize>(bounds: &Aabb<D>, longest: usize) -> [usize; D] {
+    let e = bounds.extent();
+    let m = e.iter().copied().fold(0.0, f64::max);
+    e.map(|x| ((x / m * longest as f64).round() as usize).max(3))
+}
+
 impl<const D: usize> Grid<D> {
     /// A grid with the given sample counts.
     ///

@@ -45,6 +45,24 @@ use zeroset_bases::bspline::BSplineField;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::mask::BoxMask;
 
+/// The cells along the longest axis of the grid a restoration samples a field on when the
+/// field has no grid of its own (an RBF, neural or MRAS field, a point cloud's tangent-plane
+/// field, a Python callable): [`sampling_grid`].
+pub const SAMPLING_CELLS: usize = 64;
+
+/// The cell-centred grid over `bounds` with [`SAMPLING_CELLS`] cells along the longest axis and
+/// the others in proportion ([`zeroset_field_core::grid::cubic_counts`]): where `zeroset
+/// restore` and the Python `zeroset.restore` sample a field that has no grid of its own.
+///
+/// # Errors
+/// As [`Grid::cell_centered`] (a box that is not finite).
+pub fn sampling_grid(bounds: zeroset_field_core::geometry::Aabb<3>) -> Result<Grid<3>> {
+    Ok(Grid::cell_centered(
+        bounds,
+        zeroset_field_core::grid::cubic_counts(&bounds, SAMPLING_CELLS),
+    )?)
+}
+
 /// A restored field and the report of the restoration that made it.
 #[derive(Debug, Clone)]
 pub struct Restored<const D: usize, R> {

@@ -311,6 +311,26 @@ macro_rules! each_field {
 }
 
 impl<const D: usize> AnyField<D> {
+    /// The field in words: `Quadratic B-spline`, `RBF field (kernel r, 600 centres)`, `neural
+    /// field (MLP 3 → 32 → 32 → 1, tanh)`, `MRAS field (4 levels, 512 cells, 384847 numbers)`.
+    pub fn describe(&self) -> String {
+        match self {
+            AnyField::BSpline(f) => format!("{:?} B-spline", f.degree()),
+            AnyField::Rbf(f) => format!(
+                "RBF field (kernel {}, {} centres)",
+                f.kernel_tag(),
+                f.num_centres()
+            ),
+            AnyField::Neural(f) => format!("neural field ({})", f.network()),
+            AnyField::Mras(f) => format!(
+                "MRAS field ({} levels, {} cells, {} numbers)",
+                f.levels().len(),
+                f.levels().iter().map(|l| l.cells().len()).sum::<usize>(),
+                f.storage()
+            ),
+        }
+    }
+
     /// The kind tag: [`KIND_BSPLINE`], [`KIND_RBF`], [`KIND_NEURAL`] or [`KIND_MRAS`].
     pub fn kind(&self) -> &'static str {
         match self {

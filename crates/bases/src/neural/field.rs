@@ -130,6 +130,16 @@ impl<const D: usize> NeuralField<D> {
         &self.arch
     }
 
+    /// The net in words: `MLP 3 → 32 → 32 → 1, tanh`.
+    pub fn network(&self) -> String {
+        let widths: Vec<String> = self.arch.widths().iter().map(|w| w.to_string()).collect();
+        format!(
+            "MLP {D} → {} → 1, {}",
+            widths.join(" → "),
+            self.arch.activation().name()
+        )
+    }
+
     /// All parameters, layer by layer: `W₁` (column-major, `w₁ × D`), `b₁`, `W₂`, `b₂`, …,
     /// `w_out` (`1 × w_L`), `b_out`.
     pub fn parameters(&self) -> &[f64] {

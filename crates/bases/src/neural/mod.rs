@@ -133,7 +133,7 @@ pub use field::NeuralField;
 pub use net::{Architecture, MAX_WIDTH};
 pub use train::{
     CurvatureSites, DOMAIN_MARGIN, DROPOUT_BASELINE_RATE, MAX_AUX_POINTS, NeuralFit, NeuralParams,
-    TrainProgress, TrainReport, Trained, Variant, auxiliary_points,
+    TrainProgress, TrainReport, Trained, Variant, auxiliary_points, to_unit_frame, unit_frame,
 };
 
 /// The random stream of the initial weights.

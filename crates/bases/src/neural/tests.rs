@@ -238,3 +238,46 @@ fn thin_plate_energy_of_a_quadratic_is_exact() {
     let expected = s * ext[0] * ext[1] / 16.0;
     assert!((e - expected).abs() < 1e-10 * expected, "{e} vs {expected}");
 }
+
+#[test]
+fn frames_map_into_the_unit_box() {
+    let (c, s) = unit_frame(&[[1.0, 2.0], [3.0, 3.0]]);
+    assert_eq!((c, s), ([2.0, 2.5], 1.0));
+    let u = to_unit_frame(&[[1.0, 2.0], [3.0, 3.0]], c, s);
+    assert_eq!(u, vec![[-1.0, -0.5], [1.0, 0.5]]);
+    assert_eq!(unit_frame(&[[5.0, 5.0]]), ([5.0, 5.0], 1.0));
+    assert_eq!(unit_frame::<2>(&[]), ([0.0, 0.0], 1.0));
+}
+
+#[test]
+fn a_scaled_fit_is_the_unit_fit_moved_back() {
+    // Points of a circle of radius 40 around (100, -50), targets in units of 5: the scaled fit
+    // is the fit of the unit-frame constraints, moved back, value for value.
+    let circle: Vec<Point<2>> = (0..24)
+        .map(|i| {
+            let t = i as f64 * std::f64::consts::TAU / 24.0;
+            [100.0 + 40.0 * t.cos(), -50.0 + 40.0 * t.sin()]
+        })
+        .collect();
+    let mut points = circle.clone();
+    points.push([100.0, -50.0]);
+    let mut targets = vec![0.0; circle.len()];
+    targets.push(-5.0);
+    let fit = NeuralFit::new(NeuralParams::default().with_steps(40));
+    let scaled = fit
+        .fit_scaled(&points, &targets, 5.0, &mut |_| std::ops::ControlFlow::Continue(()))
+        .unwrap();
+    let (c, s) = unit_frame(&points);
+    let u = to_unit_frame(&points, c, s);
+    let z: Vec<f64> = targets.iter().map(|t| t / 5.0).collect();
+    let unit = fit.fit(&u, &z).unwrap();
+    assert_eq!(scaled.report.loss, unit.report.loss);
+    for (p, q) in points.iter().zip(&u) {
+        let (a, b) = (scaled.field.value(p), 5.0 * unit.field.value(q));
+        assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    assert!(matches!(
+        fit.fit_scaled(&points, &targets, 0.0, &mut |_| std::ops::ControlFlow::Continue(())),
+        Err(NeuralError::InvalidParameter { .. })
+    ));
+}

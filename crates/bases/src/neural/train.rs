@@ -275,6 +275,28 @@ pub struct NeuralFit<const D: usize> {
     domain: Option<Aabb<D>>,
 }
 
+/// The frame a fit in the constraints' own units trains in: the centre `c` of the points' box
+/// and half its longest extent `s` (1 for a single point), so that `u = (x − c)/s` lies in
+/// `[−1, 1]ᴰ` and λ, the learning rate and the initial weights mean the same whatever the
+/// units of the data ([`NeuralFit::fit_scaled`]). `([0; D], 1)` without points.
+pub fn unit_frame<const D: usize>(points: &[Point<D>]) -> (Point<D>, f64) {
+    match Aabb::from_points(points) {
+        Some(b) => {
+            let half = b.extent().into_iter().fold(0.0, f64::max) / 2.0;
+            (b.center(), if half > 0.0 { half } else { 1.0 })
+        }
+        None => ([0.0; D], 1.0),
+    }
+}
+
+/// `points` in the frame `(c, s)` of [`unit_frame`]: `(x − c)/s`.
+pub fn to_unit_frame<const D: usize>(points: &[Point<D>], c: Point<D>, s: f64) -> Vec<Point<D>> {
+    points
+        .iter()
+        .map(|p| std::array::from_fn(|a| (p[a] - c[a]) / s))
+        .collect()
+}
+
 /// `n` points drawn uniformly in `domain` from ChaCha8 seeded with `seed`, stream 1, one
 /// coordinate after the other: the auxiliary points of a fit. With
 /// [`NeuralParams::resample_aux`], step `t` (0-based) uses points `tP … (t+1)P − 1` of this
@@ -600,6 +622,40 @@ impl<const D: usize> NeuralFit<D> {
     /// As [`NeuralFit::fit_with`].
     pub fn fit(&self, points: &[Point<D>], targets: &[f64]) -> Result<Trained<D>, NeuralError> {
         self.fit_with(points, targets, None, &mut |_| ControlFlow::Continue(()))
+    }
+
+    /// Trains on constraints in their own units: the points moved into `[−1, 1]ᴰ` by
+    /// [`unit_frame`] and the targets divided by `unit` (for off-surface constraints, their
+    /// offset), trained by [`NeuralFit::fit_with`] from the initial net, and the field moved
+    /// back by [`NeuralField::transformed`], so that it approximates the targets at the
+    /// given points. The report's loss terms and residual are in the frame's units (divide
+    /// by `unit` to compare with the targets); [`Trained::field`] is in the data's.
+    ///
+    /// # Errors
+    /// As [`NeuralFit::fit_with`]; [`NeuralError::InvalidParameter`] for a `unit` that is
+    /// not finite and non-zero.
+    pub fn fit_scaled(
+        &self,
+        points: &[Point<D>],
+        targets: &[f64],
+        unit: f64,
+        monitor: &mut (dyn FnMut(&TrainProgress) -> ControlFlow<()> + Send),
+    ) -> Result<Trained<D>, NeuralError> {
+        if !(unit.is_finite() && unit != 0.0) {
+            return Err(NeuralError::InvalidParameter {
+                name: "value unit",
+                value: unit,
+                expected: "a finite value ≠ 0",
+            });
+        }
+        let (centre, scale) = unit_frame(points);
+        let u = to_unit_frame(points, centre, scale);
+        let z: Vec<f64> = targets.iter().map(|t| t / unit).collect();
+        let Trained { field, report } = self.fit_with(&u, &z, None, monitor)?;
+        Ok(Trained {
+            field: field.transformed(centre, scale, unit)?,
+            report,
+        })
     }
 
     /// Trains from `initial` (a warm start; its architecture wins over the parameters') or

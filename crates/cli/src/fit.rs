@@ -166,7 +166,7 @@ const CHECK_POINTS: usize = 5;
 
 /// The default support radius of `--kernel wendland`, as a fraction of the diagonal of the
 /// data's box (see the module docs).
-pub(crate) const WENDLAND_FRACTION: f64 = 0.5;
+pub(crate) const WENDLAND_FRACTION: f64 = Wendland::DEFAULT_RADIUS_FRACTION;
 
 /// Bytes per grid sample of `--sampled`: the samples and the spline's coefficients (with one
 /// working copy), 8 bytes each.

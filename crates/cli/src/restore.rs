@@ -19,7 +19,7 @@ use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Point;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
-use zeroset_field_core::mask::{BoxMask, Face, Side};
+use zeroset_field_core::mask::{BoxMask, Face};
 use zeroset_restore::RestoreError;
 use zeroset_restore::denoise::{Denoise, Resampling};
 use zeroset_restore::protrusion::{Convention, Protrusion};
@@ -375,18 +375,7 @@ pub(crate) fn parse_counts(s: &str) -> Result<[usize; 3], String> {
 }
 
 fn parse_face(s: &str) -> Result<Face, String> {
-    let (side, axis) = match s.trim().split_at_checked(1) {
-        Some(("+", a)) => (Side::Upper, a),
-        Some(("-", a)) => (Side::Lower, a),
-        _ => return Err(format!("a face is +x, -x, +y, -y, +z or -z, got {s:?}")),
-    };
-    let axis = match axis {
-        "x" => 0,
-        "y" => 1,
-        "z" => 2,
-        _ => return Err(format!("a face is +x, -x, +y, -y, +z or -z, got {s:?}")),
-    };
-    Ok(Face::new(axis, side))
+    s.parse()
 }
 
 #[cfg(test)]
@@ -402,8 +391,14 @@ mod tests {
         assert!(parse_mask("0,1:3,4,5").is_err());
         assert!(parse_mask("0,1,2").is_err());
         assert!(parse_mask("0,1,nan:1,2,3").is_err());
-        assert_eq!(parse_face("-z").unwrap(), Face::new(2, Side::Lower));
-        assert_eq!(parse_face("+x").unwrap(), Face::new(0, Side::Upper));
+        assert_eq!(
+            parse_face("-z").unwrap(),
+            Face::new(2, zeroset_field_core::mask::Side::Lower)
+        );
+        assert_eq!(
+            parse_face("+x").unwrap(),
+            Face::new(0, zeroset_field_core::mask::Side::Upper)
+        );
         assert!(parse_face("z").is_err());
         assert!(parse_face("+w").is_err());
         assert_eq!(parse_counts("4,5,6").unwrap(), [4, 5, 6]);

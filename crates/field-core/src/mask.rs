@@ -61,6 +61,34 @@ impl Face {
     }
 }
 
+/// A face from its name: `+x`, `-x`, `+y`, `-y`, `+z`, `-z` (surrounding spaces ignored).
+///
+/// ```
+/// use zeroset_field_core::mask::{Face, Side};
+///
+/// assert_eq!("-z".parse::<Face>(), Ok(Face::new(2, Side::Lower)));
+/// assert!("z".parse::<Face>().is_err());
+/// ```
+impl std::str::FromStr for Face {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let wrong = || format!("a face is +x, -x, +y, -y, +z or -z, got {s:?}");
+        let (side, axis) = match s.trim().split_at_checked(1) {
+            Some(("+", a)) => (Side::Upper, a),
+            Some(("-", a)) => (Side::Lower, a),
+            _ => return Err(wrong()),
+        };
+        let axis = match axis {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => return Err(wrong()),
+        };
+        Ok(Face::new(axis, side))
+    }
+}
+
 /// A box of grid samples `lo ..= hi` (inclusive on every axis) on a grid of `counts` samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct BoxMask<const D: usize> {

@@ -41,6 +41,10 @@ pub trait StoredKernel: Kernel + Clone + sealed::Sealed {
     fn from_tag(tag: &str, params: &[f64]) -> Option<Self>
     where
         Self: Sized;
+    /// `field` as the [`RbfAny`] variant of this kernel.
+    fn into_any<const D: usize>(field: RbfField<Self, D>) -> RbfAny<D>
+    where
+        Self: Sized;
 }
 
 impl StoredKernel for Biharmonic {
@@ -52,6 +56,9 @@ impl StoredKernel for Biharmonic {
     }
     fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
         (tag == "r" && params.is_empty()).then_some(Biharmonic)
+    }
+    fn into_any<const D: usize>(field: RbfField<Self, D>) -> RbfAny<D> {
+        RbfAny::R(field)
     }
 }
 
@@ -65,6 +72,9 @@ impl StoredKernel for Triharmonic {
     fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
         (tag == "r3" && params.is_empty()).then_some(Triharmonic)
     }
+    fn into_any<const D: usize>(field: RbfField<Self, D>) -> RbfAny<D> {
+        RbfAny::R3(field)
+    }
 }
 
 impl StoredKernel for ThinPlate {
@@ -76,6 +86,9 @@ impl StoredKernel for ThinPlate {
     }
     fn from_tag(tag: &str, params: &[f64]) -> Option<Self> {
         (tag == "tps" && params.is_empty()).then_some(ThinPlate)
+    }
+    fn into_any<const D: usize>(field: RbfField<Self, D>) -> RbfAny<D> {
+        RbfAny::Tps(field)
     }
 }
 
@@ -91,6 +104,9 @@ impl StoredKernel for Wendland {
             [radius] if tag == "wendland" => Wendland::new(*radius),
             _ => None,
         }
+    }
+    fn into_any<const D: usize>(field: RbfField<Self, D>) -> RbfAny<D> {
+        RbfAny::Wendland(field)
     }
 }
 

@@ -265,7 +265,9 @@ fn a_scaled_fit_is_the_unit_fit_moved_back() {
     targets.push(-5.0);
     let fit = NeuralFit::new(NeuralParams::default().with_steps(40));
     let scaled = fit
-        .fit_scaled(&points, &targets, 5.0, &mut |_| std::ops::ControlFlow::Continue(()))
+        .fit_scaled(&points, &targets, 5.0, &mut |_| {
+            std::ops::ControlFlow::Continue(())
+        })
         .unwrap();
     let (c, s) = unit_frame(&points);
     let u = to_unit_frame(&points, c, s);
@@ -277,7 +279,9 @@ fn a_scaled_fit_is_the_unit_fit_moved_back() {
         assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
     }
     assert!(matches!(
-        fit.fit_scaled(&points, &targets, 0.0, &mut |_| std::ops::ControlFlow::Continue(())),
+        fit.fit_scaled(&points, &targets, 0.0, &mut |_| {
+            std::ops::ControlFlow::Continue(())
+        }),
         Err(NeuralError::InvalidParameter { .. })
     ));
 }

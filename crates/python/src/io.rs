@@ -1,0 +1,29 @@
+//! Point clouds in: every format `zeroset` reads (PLY, xyz / xyzn / pts, CSV, GemPy tables).
+
+use std::path::PathBuf;
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use zeroset_field_core::io::read_point_cloud;
+
+use crate::arrays::rows_array;
+use crate::errors::to_py;
+
+/// Reads a point cloud: `(points, normals)`, normals `None` when the file has none.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+pub(crate) fn read_points(
+    py: Python<'_>,
+    path: PathBuf,
+) -> PyResult<(Bound<'_, PyArray2<f64>>, Option<Bound<'_, PyArray2<f64>>>)> {
+    let cloud = py.detach(|| read_point_cloud(&path)).map_err(to_py)?;
+    let normals = cloud.normals().map(|n| rows_array(py, n.to_vec()));
+    Ok((rows_array(py, cloud.positions().to_vec()), normals))
+}
+
+/// The bundled sample (`samples/bunny_2k.xyzn`: 2,000 points of the Stanford bunny with
+/// normals), as the text of its file.
+#[pyfunction]
+pub(crate) fn sample_xyzn() -> &'static str {
+    include_str!("../../../samples/bunny_2k.xyzn")
+}

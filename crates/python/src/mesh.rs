@@ -1,0 +1,355 @@
+//! Meshes: marching cubes on a numpy volume (scikit-image's layout), the zero set of a field
+//! (marching cubes, or the two-step signed marching cubes of an RBF field by the FMM), and
+//! triangle meshes read and written as PLY / OBJ.
+
+use std::path::PathBuf;
+
+use numpy::IntoPyArray;
+use numpy::ndarray::Array2;
+use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use zeroset_bases::field_file::{AnyField, RbfAny};
+use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
+use zeroset_bases::rbf::{Kernel, RbfField};
+use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::Aabb;
+use zeroset_field_core::grid::{Centering, Grid};
+use zeroset_mesh::signed::{
+    CoarseStep, SmcOptions, SmcStage, expected_evaluations, signed_marching_cubes,
+};
+use zeroset_mesh::voxel::{self, Detail};
+use zeroset_mesh::{
+    McOptions, PlyFormat, TriMesh, marching_cubes, mesh_field, read_ply_mesh, write_obj, write_ply,
+};
+
+use crate::arrays::{points, rows_array, vector};
+use crate::errors::{to_py, value_error};
+use crate::field::NativeField;
+use crate::progress::Hook;
+
+/// Vertices, triangles and normals of a mesh as numpy arrays.
+type MeshArrays<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray2<f64>>,
+);
+
+/// `mesh` as arrays; with `flip` the triangles' orientation reversed, with `negate` the
+/// normals.
+fn arrays(py: Python<'_>, mesh: TriMesh, flip: bool, negate: bool) -> MeshArrays<'_> {
+    let faces: Vec<i64> = mesh
+        .triangles()
+        .iter()
+        .flat_map(|t| {
+            let t = t.map(i64::from);
+            if flip { [t[0], t[2], t[1]] } else { t }
+        })
+        .collect();
+    let n = faces.len() / 3;
+    let faces = Array2::from_shape_vec((n, 3), faces)
+        .expect("n × 3 indices")
+        .into_pyarray(py);
+    let sign = if negate { -1.0 } else { 1.0 };
+    let normals = mesh.normals().iter().map(|v| v.map(|x| sign * x)).collect();
+    (
+        rows_array(py, mesh.vertices().to_vec()),
+        faces,
+        rows_array(py, normals),
+    )
+}
+
+/// Marching cubes on a C-contiguous 3-D volume, sample `[i, j, k]` at `(i, j, k) · spacing`
+/// (scikit-image's vertex coordinates): vertices, faces, normals and the volume's trilinear
+/// value at each vertex, oriented as scikit-image's: normals down the gradient whatever
+/// `descent` says, triangles wound so that their right-hand normal points up the gradient
+/// with `descent` (scikit-image's default `gradient_direction='descent'`, its "left-hand
+/// rule") and down it without.
+#[pyfunction]
+#[pyo3(signature = (volume, level, spacing, descent, close))]
+#[allow(clippy::type_complexity)]
+pub(crate) fn marching_cubes_volume<'py>(
+    py: Python<'py>,
+    volume: PyReadonlyArray3<'py, f64>,
+    level: f64,
+    spacing: [f64; 3],
+    descent: bool,
+    close: bool,
+) -> PyResult<(
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<f64>>,
+)> {
+    let shape = volume.shape();
+    let counts = [shape[0], shape[1], shape[2]];
+    if counts.iter().any(|&c| c < 2) {
+        return Err(value_error(format!(
+            "the volume needs at least 2 samples along every axis, got shape {counts:?}"
+        )));
+    }
+    if spacing.iter().any(|h| !(h.is_finite() && *h > 0.0)) {
+        return Err(value_error(format!(
+            "spacing must be finite and positive, got {spacing:?}"
+        )));
+    }
+    let values = volume
+        .as_slice()
+        .map_err(|_| value_error("the volume must be C-contiguous"))?;
+    let hi: [f64; 3] = std::array::from_fn(|a| (counts[a] - 1) as f64 * spacing[a]);
+    let bounds = Aabb::new([0.0; 3], hi).map_err(to_py)?;
+    let (mesh, at) = py.detach(|| -> PyResult<_> {
+        let grid = Grid::new(bounds, counts, Centering::Vertex).map_err(to_py)?;
+        let options = McOptions::default().with_close_boundary(close);
+        let mesh = marching_cubes(&grid, values, level, &options).map_err(to_py)?;
+        let at = mesh
+            .vertices()
+            .iter()
+            .map(|p| trilinear(values, counts, spacing, p))
+            .collect::<Vec<f64>>();
+        Ok((mesh, at))
+    })?;
+    // Our triangles and normals point up the gradient; scikit-image's normals always point
+    // down it, and its 'ascent' flips the triangles only.
+    let (v, f, n) = arrays(py, mesh, !descent, true);
+    Ok((v, f, n, vector(py, at)))
+}
+
+/// The volume's trilinear interpolant at `p` (grid coordinates `p / spacing`).
+fn trilinear(values: &[f64], counts: [usize; 3], spacing: [f64; 3], p: &[f64; 3]) -> f64 {
+    let mut base = [0usize; 3];
+    let mut t = [0.0; 3];
+    for a in 0..3 {
+        let u = (p[a] / spacing[a]).clamp(0.0, (counts[a] - 1) as f64);
+        let i = (u.floor() as usize).min(counts[a] - 2);
+        base[a] = i;
+        t[a] = u - i as f64;
+    }
+    let at = |i: usize, j: usize, k: usize| values[(i * counts[1] + j) * counts[2] + k];
+    let mut sum = 0.0;
+    for (di, wi) in [(0, 1.0 - t[0]), (1, t[0])] {
+        for (dj, wj) in [(0, 1.0 - t[1]), (1, t[1])] {
+            for (dk, wk) in [(0, 1.0 - t[2]), (1, t[2])] {
+                sum += wi * wj * wk * at(base[0] + di, base[1] + dj, base[2] + dk);
+            }
+        }
+    }
+    sum
+}
+
+/// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
+/// `voxel` edge, or the `detail` class of the l0 rule.
+fn field_grid(
+    bounds: Aabb<3>,
+    detail: &str,
+    resolution: Option<usize>,
+    voxel_edge: Option<f64>,
+) -> PyResult<Grid<3>> {
+    let h = match (resolution, voxel_edge) {
+        (Some(_), Some(_)) => return Err(value_error("give resolution= or voxel=, not both")),
+        (Some(n), None) => {
+            if n < 2 {
+                return Err(value_error(format!(
+                    "resolution must be at least 2 voxels along the longest axis, got {n}"
+                )));
+            }
+            bounds.extent().into_iter().fold(0.0, f64::max) / n as f64
+        }
+        (None, Some(h)) => h,
+        (None, None) => {
+            let detail = match detail {
+                "coarse" => Detail::Coarse,
+                "general" => Detail::General,
+                "fine" => Detail::Fine,
+                other => {
+                    return Err(value_error(format!(
+                        "detail must be 'coarse', 'general' or 'fine', got {other:?}"
+                    )));
+                }
+            };
+            voxel::voxel_size(&bounds, detail)
+        }
+    };
+    if !(h.is_finite() && h > 0.0) {
+        return Err(value_error(format!(
+            "the voxel edge must be finite and positive, got {h}"
+        )));
+    }
+    voxel::grid_for(&bounds, h, 0.0).map_err(to_py)
+}
+
+/// The level set of a field (see `zeroset.mesh`).
+#[pyfunction]
+#[pyo3(signature = (field, level, detail, resolution, voxel, method, close, progress))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn mesh_native<'py>(
+    py: Python<'py>,
+    field: &NativeField,
+    level: f64,
+    detail: &str,
+    resolution: Option<usize>,
+    voxel: Option<f64>,
+    method: &str,
+    close: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<MeshArrays<'py>> {
+    if !level.is_finite() {
+        return Err(value_error(format!("level must be finite, got {level}")));
+    }
+    let f = &field.inner;
+    let bounds = f
+        .bounds()
+        .ok_or_else(|| value_error("the field has no bounds to mesh in"))?;
+    let grid = field_grid(bounds, detail, resolution, voxel)?;
+    let options = McOptions::default().with_close_boundary(close);
+    let hook = Hook::new(progress);
+    let result = py.detach(|| -> PyResult<TriMesh> {
+        match (method, f.as_ref()) {
+            ("mc", f) => mesh_field(f, &grid, level, &options).map_err(to_py),
+            ("smc", AnyField::Rbf(RbfAny::R(f))) => smc(f, &grid, level, &options, &hook),
+            ("smc", AnyField::Rbf(RbfAny::R3(f))) => smc(f, &grid, level, &options, &hook),
+            ("smc", AnyField::Rbf(RbfAny::Tps(f))) => smc(f, &grid, level, &options, &hook),
+            ("smc", AnyField::Rbf(RbfAny::Wendland(f))) => smc(f, &grid, level, &options, &hook),
+            ("smc", other) => Err(value_error(format!(
+                "method='smc' evaluates RBF fields by the fast multipole method; this is a {} \
+                 field: use method='mc'",
+                other.kind()
+            ))),
+            (other, _) => Err(value_error(format!(
+                "method must be 'mc' or 'smc', got {other:?}"
+            ))),
+        }
+    });
+    let mesh = hook.finish(result)?;
+    Ok(arrays(py, mesh, false, false))
+}
+
+/// Expansion orders of the signed marching cubes: `p` settles vertices, `P` the rest (the
+/// `zeroset mesh --method smc` defaults).
+const LOW_ORDER: usize = 5;
+const HIGH_ORDER: usize = 10;
+
+/// The two-step signed marching cubes of an RBF field, blocks settled by enclosures first.
+fn smc<K: Kernel + Clone>(
+    field: &RbfField<K, 3>,
+    grid: &Grid<3>,
+    level: f64,
+    options: &McOptions,
+    hook: &Hook,
+) -> PyResult<TriMesh> {
+    let step = CoarseStep::Blocks;
+    let [low, high] = expected_evaluations(grid, step);
+    let pair = OrderPair::new(
+        field,
+        &FmmOptions::new(LOW_ORDER).with_expected_points(low),
+        &FmmOptions::new(HIGH_ORDER).with_expected_points(high),
+        DEFAULT_ERROR_SAMPLES,
+        DEFAULT_SAFETY,
+    )
+    .map_err(to_py)?;
+    let stages = |stage: SmcStage| {
+        let (name, n) = match stage {
+            SmcStage::Coarse { vertices } => ("smc step 1", vertices),
+            SmcStage::Fine { vertices } => ("smc step 2", vertices),
+            _ => ("smc triangulation", 0),
+        };
+        hook.report(name, 0, usize::try_from(n).unwrap_or(usize::MAX));
+    };
+    signed_marching_cubes(
+        &pair.low,
+        &pair.high,
+        grid,
+        level,
+        pair.margin,
+        &SmcOptions::from(*options).with_coarse_step(step),
+        Some(&stages),
+    )
+    .map(|(mesh, _)| mesh)
+    .map_err(to_py)
+}
+
+/// Reads a triangle mesh from a PLY file: vertices, faces, and normals when it has them.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+pub(crate) fn read_mesh(
+    py: Python<'_>,
+    path: PathBuf,
+) -> PyResult<(
+    Bound<'_, PyArray2<f64>>,
+    Bound<'_, PyArray2<i64>>,
+    Option<Bound<'_, PyArray2<f64>>>,
+)> {
+    let mesh = py.detach(|| read_ply_mesh(&path)).map_err(to_py)?;
+    let has_normals = !mesh.normals().is_empty();
+    let (v, f, n) = arrays(py, mesh, false, false);
+    Ok((v, f, has_normals.then_some(n)))
+}
+
+/// Writes a triangle mesh, atomically: binary PLY (or ASCII with `ascii`) for `.ply`,
+/// Wavefront OBJ for `.obj`.
+#[pyfunction]
+#[pyo3(signature = (path, vertices, faces, normals, ascii))]
+pub(crate) fn write_mesh(
+    py: Python<'_>,
+    path: PathBuf,
+    vertices: PyReadonlyArray2<'_, f64>,
+    faces: PyReadonlyArray2<'_, i64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+    ascii: bool,
+) -> PyResult<()> {
+    let v = points(&vertices, "vertices", true)?.to_vec();
+    let shape = faces.shape();
+    if shape[1] != 3 {
+        return Err(value_error(format!(
+            "faces must have shape (m, 3), got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    let flat = faces
+        .as_slice()
+        .map_err(|_| value_error("faces must be C-contiguous"))?;
+    let mut triangles = Vec::with_capacity(flat.len() / 3);
+    for (i, t) in flat.as_chunks::<3>().0.iter().enumerate() {
+        let mut tri = [0u32; 3];
+        for (slot, &x) in tri.iter_mut().zip(t) {
+            *slot = u32::try_from(x)
+                .ok()
+                .filter(|&x| (x as usize) < v.len())
+                .ok_or_else(|| {
+                    value_error(format!(
+                        "faces[{i}] = {t:?} has an index outside 0 .. {} (the vertices)",
+                        v.len()
+                    ))
+                })?;
+        }
+        triangles.push(tri);
+    }
+    let normals = normals
+        .as_ref()
+        .map(|n| points(n, "normals", true).map(<[_]>::to_vec))
+        .transpose()?;
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    py.detach(|| -> PyResult<()> {
+        let mut mesh = TriMesh::new(v, triangles).map_err(to_py)?;
+        if let Some(n) = normals {
+            mesh = mesh.with_normals(n).map_err(to_py)?;
+        }
+        match extension.as_deref() {
+            Some("ply") => {
+                let format = if ascii {
+                    PlyFormat::Ascii
+                } else {
+                    PlyFormat::BinaryLittleEndian
+                };
+                write_ply(&path, &mesh, format).map_err(to_py)
+            }
+            Some("obj") => write_obj(&path, &mesh).map_err(to_py),
+            _ => Err(value_error(format!(
+                "{}: write a mesh as .ply or .obj",
+                path.display()
+            ))),
+        }
+    })
+}

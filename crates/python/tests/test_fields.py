@@ -1,0 +1,243 @@
+"""Fitting, evaluating, saving and loading fields, against analytic truth and the Rust
+command's own results."""
+
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import zeroset
+from conftest import sphere_cloud
+
+
+def test_rbf_fit_interpolates_and_its_gradient_follows_the_normals(sphere, sphere_field):
+    points, normals = sphere
+    f = sphere_field
+    assert f.kind == "rbf"
+    assert np.abs(f(points)).max() < 1e-8
+    g = f.gradient(points)
+    cos = np.sum(g * normals, axis=1) / np.linalg.norm(g, axis=1)
+    assert cos.min() > 0.99
+    # negative inside, positive outside, close to the signed distance near the surface
+    assert f(np.zeros(3)) < 0 and f(np.array([1.2, 0, 0])) > 0
+    assert abs(f(np.array([1.05, 0.0, 0.0])) - 0.05) < 0.01
+    r = f.report
+    assert r.method == "rbf" and r.constraints == 3 * len(points)
+    assert r.max_residual < 1e-8 and r.seconds > 0
+    assert "iterations" in r.as_dict()
+    lo, hi = f.bounds
+    assert np.all(lo < -0.99) and np.all(hi > 0.99)
+    assert f.centres.shape == (3 * len(points), 3)
+
+
+def test_single_points_and_batches_agree(sphere_field):
+    p = np.array([[0.3, -0.2, 0.9], [0.0, 0.0, 0.0]])
+    batch = sphere_field(p)
+    assert batch.shape == (2,)
+    assert sphere_field(p[0]) == batch[0]
+    assert np.array_equal(sphere_field.gradient(p[1]), sphere_field.gradient(p)[1])
+
+
+@pytest.mark.parametrize(
+    "convert",
+    [
+        lambda a: a.astype(np.float32).astype(np.float64),  # exact in float32 for the check
+        lambda a: np.asfortranarray(a),
+        lambda a: np.repeat(a, 2, axis=0)[::2],  # a strided view
+        lambda a: a.tolist(),
+        lambda a: _read_only(a),
+    ],
+    ids=["float32-exact", "fortran", "strided", "list", "read-only"],
+)
+def test_any_layout_gives_the_same_values(sphere_field, convert):
+    rng = np.random.default_rng(1)
+    p = rng.uniform(-1.2, 1.2, size=(50, 3)).astype(np.float32).astype(np.float64)
+    want = sphere_field(p)
+    assert np.array_equal(sphere_field(convert(p)), want)
+    assert np.array_equal(sphere_field(p.astype(np.float32)), want)
+
+
+def _read_only(a):
+    b = a.copy()
+    b.flags.writeable = False
+    return b
+
+
+def test_save_and_load_round_trip_bit_exactly(tmp_path, sphere_field):
+    path = tmp_path / "sphere.zsf"
+    sphere_field.save(path)
+    loaded = zeroset.load(path)
+    rng = np.random.default_rng(2)
+    p = rng.uniform(-1.5, 1.5, size=(200, 3))
+    assert np.array_equal(loaded(p), sphere_field(p))
+    assert np.array_equal(loaded.gradient(p), sphere_field.gradient(p))
+    assert loaded.report is None and "RBF field" in repr(loaded)
+
+
+def test_the_rust_command_and_python_fit_the_same_field(tmp_path, zeroset_bin, sphere):
+    points, normals = sphere
+    cloud = tmp_path / "sphere.xyzn"
+    np.savetxt(cloud, np.hstack([points, normals]), fmt="%.17g")
+    rust = tmp_path / "rust.zsf"
+    subprocess.run(
+        [zeroset_bin, "fit", str(cloud), "--method", "rbf", "-o", str(rust), "--quiet"],
+        check=True,
+        capture_output=True,
+    )
+    read_p, read_n = zeroset.read_points(cloud)
+    assert np.array_equal(read_p, points) and np.array_equal(read_n, normals)
+    ours = zeroset.fit(read_p, read_n)
+    theirs = zeroset.load(rust)
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-1.3, 1.3, size=(300, 3))
+    assert np.allclose(ours(p), theirs(p), rtol=0, atol=1e-12)
+    # and `zeroset mesh` of the Rust field is the mesh of the Python field
+    ply = tmp_path / "rust.ply"
+    subprocess.run(
+        [zeroset_bin, "mesh", str(rust), "-o", str(ply), "--quiet"], check=True, capture_output=True
+    )
+    v_rust, f_rust, _ = zeroset.read_mesh(ply)
+    v, f, _ = zeroset.mesh(ours)
+    assert f.shape == f_rust.shape
+    assert np.allclose(v, v_rust, atol=1e-9)
+
+
+def test_greedy_tolerance_keeps_fewer_centres_and_meets_it(sphere):
+    points, normals = sphere
+    f = zeroset.fit(points, normals, tolerance=1e-3)
+    r = f.report
+    assert r.centres < r.constraints and r.greedy_converged
+    assert r.greedy_max_residual <= 1e-3 * 2 * np.sqrt(3)
+
+
+def test_hermite_and_other_kernels(sphere):
+    points, normals = sphere_cloud(150)
+    for kernel in ("r3", "tps"):
+        f = zeroset.fit(points, normals, kernel=kernel)
+        assert np.abs(f(points)).max() < 1e-7, kernel
+    f = zeroset.fit(points, normals, kernel="wendland", radius=1.0)
+    assert f.report.radius == 1.0 and np.abs(f(points)).max() < 1e-7
+    h = zeroset.fit(points, normals, kernel="r3", hermite=True)
+    g = h.gradient(points)
+    assert np.allclose(g, normals, atol=1e-6)
+
+
+def test_neural_fit_learns_the_sphere_and_is_seeded():
+    points, normals = sphere_cloud(200)
+    f = zeroset.fit(points, normals, method="neural", steps=300, seed=7)
+    g = zeroset.fit(points, normals, method="neural", steps=300, seed=7)
+    p = np.random.default_rng(4).uniform(-1, 1, size=(20, 3))
+    assert np.array_equal(f(p), g(p))
+    assert f.kind == "neural" and len(f.report.loss_history) == 300
+    assert f.report.loss < f.report.loss_history[0]
+    assert f(np.zeros(3)) < 0 < f(np.array([1.5, 0, 0]))
+
+
+def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
+    points, normals = sphere_cloud(2000)
+    f = zeroset.fit(points, normals, method="mras", tolerance=2e-3)
+    r = f.report
+    assert r.method == "mras" and r.levels >= 1 and r.storage > 0
+    assert r.max_error <= 2e-3
+    # the report's error is the field's largest Sampson distance |f|/|∇f| at the points,
+    # relative to the box diagonal: recompute it from the field
+    v, g = f(points), f.gradient(points)
+    sampson = np.abs(v) / np.linalg.norm(g, axis=1)
+    diagonal = np.linalg.norm(points.max(axis=0) - points.min(axis=0))
+    assert sampson.max() / diagonal == pytest.approx(r.max_error, rel=1e-6)
+    path = tmp_path / "m.zsf"
+    f.save(path)
+    assert np.array_equal(zeroset.load(path)(points), v)
+
+
+@pytest.mark.parametrize(
+    "points, normals, message",
+    [
+        (np.zeros((5, 2)), np.zeros((5, 3)), r"points must have shape \(n, 3\)"),
+        (np.ones((5, 3)), np.ones((4, 3)), "same length"),
+        (np.array([[0, 0, np.nan]] * 3), np.ones((3, 3)), r"points\[0\].*not finite"),
+        (np.ones((3, 3)), np.array([[0, np.inf, 0]] * 3), r"normals\[0\].*not finite"),
+        (np.zeros((0, 3)), np.zeros((0, 3)), "no constraints"),
+    ],
+    ids=["shape", "lengths", "nan", "inf", "empty"],
+)
+def test_bad_clouds_are_value_errors(points, normals, message):
+    with pytest.raises(ValueError, match=message):
+        zeroset.fit(points, normals)
+
+
+def test_bad_options_are_value_errors(sphere):
+    points, normals = sphere
+    with pytest.raises(ValueError, match="method must be"):
+        zeroset.fit(points, normals, method="poisson")
+    with pytest.raises(ValueError, match="kernel must be"):
+        zeroset.fit(points, normals, kernel="gauss")
+    with pytest.raises(ValueError, match="solver must be"):
+        zeroset.fit(points, normals, solver="magic")
+    with pytest.raises(ValueError, match="apply to method='rbf'"):
+        zeroset.fit(points, normals, method="neural", kernel="r")
+    with pytest.raises(ValueError, match="activation"):
+        zeroset.fit(points, normals, method="neural", activation="relu", steps=1)
+
+
+def test_files_errors_are_os_errors(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        zeroset.load(tmp_path / "missing.zsf")
+    with pytest.raises(FileNotFoundError):
+        zeroset.read_points(tmp_path / "missing.ply")
+    bad = tmp_path / "bad.zsf"
+    bad.write_bytes(b"ZSF\x00 not really")
+    with pytest.raises(ValueError):
+        zeroset.load(bad)
+    truncated = tmp_path / "cloud.xyzn"
+    truncated.write_text("0 0 0 0 0 1\n1 1 1 0 0 nan\n")
+    with pytest.raises(ValueError, match="record 1 has a non-finite nz"):
+        zeroset.read_points(truncated)
+
+
+def test_progress_is_called_and_its_exception_stops_the_fit(sphere):
+    points, normals = sphere
+    seen = []
+    zeroset.fit(
+        points,
+        normals,
+        solver="iterative",
+        progress=lambda stage, done, total: seen.append((stage, done)),
+    )
+    assert seen and seen[0] == ("rbf", 1)
+
+    class Stop(Exception):
+        pass
+
+    def stop(stage, done, total):
+        raise Stop("enough")
+
+    with pytest.raises(Stop, match="enough"):
+        zeroset.fit(points, normals, method="neural", steps=500, progress=stop)
+    with pytest.raises(TypeError, match="progress must be"):
+        zeroset.fit(points, normals, progress=3)
+
+
+def test_the_gil_is_released_while_fitting():
+    points, normals = sphere_cloud(200)
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    start = time.perf_counter()
+    try:
+        zeroset.fit(points, normals, method="neural", steps=1500)
+    finally:
+        done.set()
+        t.join()
+    during = [x for x in ticks if x >= start]
+    # the counting thread kept running (a held GIL would leave it one tick or none)
+    assert len(during) > 20, len(during)

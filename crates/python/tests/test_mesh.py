@@ -1,0 +1,143 @@
+"""Marching cubes against scikit-image on the same volume, meshes of fields against their
+analytic truth (Euler characteristic, distance to the sphere), and mesh files."""
+
+import numpy as np
+import pytest
+
+import zeroset
+
+measure = pytest.importorskip("skimage.measure")
+
+
+def ball_volume(n=40, radius=0.7):
+    """A bright ball: 1 − |x|² over [−1, 1]³ sampled on n³ points (positive inside)."""
+    t = np.linspace(-1, 1, n)
+    x, y, z = np.meshgrid(t, t, t, indexing="ij")
+    return radius**2 - (x * x + y * y + z * z), t[1] - t[0]
+
+
+def face_normals(verts, faces):
+    a, b, c = (verts[faces[:, i]] for i in range(3))
+    return np.cross(b - a, c - a)
+
+
+def test_marching_cubes_matches_scikit_image():
+    vol, h = ball_volume()
+    spacing = (h, h, 2 * h)
+    ours = zeroset.marching_cubes(vol, 0.0, spacing=spacing)
+    theirs = measure.marching_cubes(vol, 0.0, spacing=spacing)
+    v, f, n, values = ours
+    sv, sf, sn, _ = theirs
+    # every marching-cubes variant puts one vertex on each crossed edge, linearly interpolated
+    assert v.shape == sv.shape and f.shape == sf.shape
+    key = lambda a: a[np.lexsort(np.round(a, 9).T[::-1])]  # noqa: E731
+    assert np.allclose(key(v), key(sv.astype(np.float64)), atol=1e-5)
+    # orientation as scikit-image's: normals down the gradient (out of the bright ball),
+    # faces' right-hand normals up it (in); 'ascent' flips the faces only
+    centre = np.array([(len(vol) - 1) * s / 2 for s in spacing])
+    for direction, sign in (("descent", -1), ("ascent", 1)):
+        v, f, n, _ = zeroset.marching_cubes(vol, 0.0, spacing=spacing, gradient_direction=direction)
+        sv, sf, sn, _ = measure.marching_cubes(vol, 0.0, spacing=spacing, gradient_direction=direction)
+        assert np.all(np.sum(n * (v - centre), axis=1) > 0)
+        assert np.all(np.sum(sn * (sv - centre), axis=1) > 0)
+        ours_f = np.sign(np.sum(face_normals(v, f) * (v[f[:, 0]] - centre), axis=1))
+        theirs_f = np.sign(np.sum(face_normals(sv, sf) * (sv[sf[:, 0]] - centre), axis=1))
+        assert np.all(ours_f == sign) and np.all(theirs_f == sign), direction
+    assert np.allclose(values, 0.0, atol=0.02)
+
+
+def test_ascent_flips_the_faces_and_default_level_is_the_middle():
+    vol, h = ball_volume(24)
+    v, f, n, _ = zeroset.marching_cubes(vol, 0.0, gradient_direction="ascent")
+    vd, fd, nd, _ = zeroset.marching_cubes(vol, 0.0)
+    assert np.array_equal(v, vd) and np.array_equal(n, nd)
+    assert np.array_equal(f[:, [0, 2, 1]], fd)
+    mid = (vol.min() + vol.max()) / 2
+    a = zeroset.marching_cubes(vol)[0]
+    b = measure.marching_cubes(vol)[0]
+    assert a.shape == b.shape and np.allclose(np.sort(a[:, 0]), np.sort(b[:, 0]), atol=1e-5)
+    assert np.array_equal(a, zeroset.marching_cubes(vol, mid)[0])
+
+
+def test_marching_cubes_takes_any_layout_and_step_size():
+    vol, _ = ball_volume(30)
+    base = zeroset.marching_cubes(vol, 0.0)
+    for variant in (np.asfortranarray(vol), vol.astype(np.float32), vol[:, :, :]):
+        out = zeroset.marching_cubes(variant, 0.0)
+        assert out[0].shape == base[0].shape
+    coarse = zeroset.marching_cubes(vol, 0.0, step_size=2)
+    sk = measure.marching_cubes(vol, 0.0, step_size=2)
+    assert len(coarse[0]) < len(base[0]) and len(sk[0]) < len(base[0])
+
+
+@pytest.mark.parametrize(
+    "volume, kwargs, message",
+    [
+        (np.zeros((4, 4)), {}, "3-D"),
+        (np.zeros((1, 4, 4)), {"level": 0.0}, "at least 2 samples"),
+        (np.zeros((4, 4, 4)), {"level": 1.0}, "outside the volume's range"),
+        (np.full((4, 4, 4), np.nan), {"level": 0.0}, "NaN|non-finite|outside"),
+        (np.zeros((4, 4, 4)), {"level": 0.0, "spacing": (1, 0, 1)}, "spacing"),
+        (np.zeros((4, 4, 4)), {"level": 0.0, "mask": np.ones((4, 4, 4), bool)}, "mask"),
+        (np.zeros((4, 4, 4)), {"level": 0.0, "method": "dual"}, "method"),
+    ],
+)
+def test_bad_volumes_are_value_errors(volume, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        zeroset.marching_cubes(volume, **kwargs)
+
+
+def test_the_mesh_of_a_fitted_sphere_is_a_closed_sphere(sphere_field):
+    v, f, n = zeroset.mesh(sphere_field, resolution=48)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)  # closed and manifold
+    euler = len(v) - len(counts) + len(f)
+    assert euler == 2
+    r = np.linalg.norm(v, axis=1)
+    assert np.abs(r - 1).max() < 0.01
+    assert np.all(np.sum(n * v, axis=1) > 0)  # outward normals
+
+
+def test_signed_marching_cubes_agrees_with_plain_ones(sphere_field):
+    plain = zeroset.mesh(sphere_field, resolution=40)
+    signed = zeroset.mesh(sphere_field, resolution=40, method="smc")
+    assert plain[1].shape == signed[1].shape
+    assert np.allclose(np.sort(plain[0], axis=0), np.sort(signed[0], axis=0), atol=1e-6)
+
+
+def test_fields_callables_and_grids_mesh_alike(sphere_field):
+    lo, hi = np.full(3, -1.2), np.full(3, 1.2)
+    sphere = lambda p: np.linalg.norm(p, axis=1) - 1.0  # noqa: E731
+    v, f, n, _ = zeroset.marching_cubes(sphere, 0.0, bounds=(lo, hi), resolution=41)
+    assert np.abs(np.linalg.norm(v, axis=1) - 1).max() < 0.01
+    assert np.all(np.sum(n * v, axis=1) < 0)  # down the gradient: in, for a signed distance
+    vf, ff, _, _ = zeroset.marching_cubes(sphere_field, 0.0, resolution=41)
+    assert np.abs(np.linalg.norm(vf, axis=1) - 1).max() < 0.01
+    # a callable through zeroset.mesh is interpolated by a quadratic B-spline first
+    vm, fm, _ = zeroset.mesh(sphere, bounds=(lo, hi), resolution=40)
+    assert np.abs(np.linalg.norm(vm, axis=1) - 1).max() < 0.01
+    with pytest.raises(ValueError, match="bounds"):
+        zeroset.mesh(sphere)
+    with pytest.raises(ValueError, match="smc"):
+        zeroset.mesh(sphere, bounds=(lo, hi), method="smc")
+
+
+def test_mesh_files_round_trip(tmp_path, sphere_field):
+    v, f, n = zeroset.mesh(sphere_field, resolution=20)
+    for name, ascii in (("m.ply", False), ("a.ply", True)):
+        zeroset.write_mesh(tmp_path / name, v, f, n, ascii=ascii)
+        rv, rf, rn = zeroset.read_mesh(tmp_path / name)
+        assert np.array_equal(rf, f)
+        assert np.allclose(rv, v, atol=0 if not ascii else 1e-6)
+        assert rn is not None and np.allclose(rn, n, atol=1e-6)
+    zeroset.write_mesh(tmp_path / "m.obj", v, f)
+    assert (tmp_path / "m.obj").read_text().count("\nf ") == len(f)
+    with pytest.raises(ValueError, match="index outside"):
+        zeroset.write_mesh(tmp_path / "x.ply", v, f + len(v))
+    with pytest.raises(ValueError, match="integers"):
+        zeroset.write_mesh(tmp_path / "x.ply", v, f.astype(float))
+    with pytest.raises(ValueError, match=r"\.ply or \.obj"):
+        zeroset.write_mesh(tmp_path / "x.stl", v, f)
+    with pytest.raises(OSError):
+        zeroset.write_mesh(tmp_path / "no" / "such" / "dir.ply", v, f)

@@ -34,7 +34,7 @@ use zeroset_bases::neural::{
     Activation, Architecture, NeuralField, NeuralFit, NeuralParams, RefitReport, Trained,
     to_unit_frame, unit_frame,
 };
-use zeroset_bases::rbf::{Constraints, Offset, Prescribed};
+use zeroset_bases::rbf::{Constraints, Offset};
 use zeroset_field_core::geometry::Point;
 use zeroset_field_core::io::value_file_dimension;
 use zeroset_solvers::DenseQr;
@@ -248,7 +248,7 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     };
     let (constraints, report) =
         Constraints::off_surface(&cloud, offset).context("building the off-surface constraints")?;
-    let (points, targets) = values_of(&constraints);
+    let (points, targets) = constraints.values();
     line(
         "constraints",
         &format!(
@@ -275,17 +275,6 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
         save(&field, output)?;
     }
     Ok(())
-}
-
-/// The value constraints of `c` (off-surface constraints are all values).
-fn values_of(c: &Constraints<3>) -> (Vec<Point<3>>, Vec<f64>) {
-    c.as_slice()
-        .iter()
-        .filter_map(|k| match k.prescribed {
-            Prescribed::Value(v) => Some((k.point, v)),
-            Prescribed::Gradient(_) => None,
-        })
-        .unzip()
 }
 
 /// Trains on the scaled constraints with a progress bar, reports, and refits if asked.

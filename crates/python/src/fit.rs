@@ -13,11 +13,10 @@ use zeroset_bases::field_file::{AnyField, StoredKernel};
 use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 use zeroset_bases::neural::{Activation, Architecture, NeuralFit, NeuralParams};
 use zeroset_bases::rbf::{
-    Biharmonic, Constraints, GreedyOptions, IterativeParams, Offset, Prescribed, RbfFit, Solver,
-    ThinPlate, Triharmonic, Wendland,
+    Biharmonic, Constraints, GreedyOptions, IterativeParams, Offset, RbfFit, Solver, ThinPlate,
+    Triharmonic, Wendland,
 };
 use zeroset_field_core::PointCloud3;
-use zeroset_field_core::geometry::Point;
 use zeroset_field_core::lsq::Monitor;
 
 use crate::arrays::points;
@@ -252,14 +251,7 @@ pub(crate) fn fit_neural<'py>(
     let result = py.detach(|| -> PyResult<_> {
         let offset = offset.map_or(Offset::default(), Offset::Fixed);
         let (constraints, o) = Constraints::off_surface(&cloud, offset).map_err(to_py)?;
-        let (at, targets): (Vec<Point<3>>, Vec<f64>) = constraints
-            .as_slice()
-            .iter()
-            .filter_map(|k| match k.prescribed {
-                Prescribed::Value(v) => Some((k.point, v)),
-                Prescribed::Gradient(_) => None,
-            })
-            .unzip();
+        let (at, targets) = constraints.values();
         let fit = NeuralFit::new(params);
         let every = (steps / 100).max(1);
         let trained = fit

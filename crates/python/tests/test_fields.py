@@ -241,3 +241,16 @@ def test_the_gil_is_released_while_fitting():
     during = [x for x in ticks if x >= start]
     # the counting thread kept running (a held GIL would leave it one tick or none)
     assert len(during) > 20, len(during)
+
+
+def test_the_rbf_fit_agrees_with_scipy_rbf_interpolator(sphere):
+    interpolate = pytest.importorskip("scipy.interpolate")
+    points, normals = sphere_cloud(300)
+    eps = 0.05
+    centres = np.vstack([points, points + eps * normals, points - eps * normals])
+    values = np.concatenate([np.zeros(300), np.full(300, eps), np.full(300, -eps)])
+    theirs = interpolate.RBFInterpolator(centres, values, kernel="linear", degree=1)
+    ours = zeroset.fit(points, normals, offset=eps)
+    assert ours.report.smallest_offset == eps
+    p = np.random.default_rng(10).uniform(-1.3, 1.3, size=(500, 3))
+    assert np.abs(ours(p) - theirs(p)).max() < 1e-9

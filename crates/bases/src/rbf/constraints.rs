@@ -109,6 +109,18 @@ impl<const D: usize> Constraints<D> {
         &self.items
     }
 
+    /// The value constraints as points and targets, in order (gradient constraints left
+    /// out): the data of a fit that takes values only, such as a neural field's.
+    pub fn values(&self) -> (Vec<Point<D>>, Vec<f64>) {
+        self.items
+            .iter()
+            .filter_map(|k| match k.prescribed {
+                Prescribed::Value(v) => Some((k.point, v)),
+                Prescribed::Gradient(_) => None,
+            })
+            .unzip()
+    }
+
     /// The number of constraints.
     pub fn len(&self) -> usize {
         self.items.len()

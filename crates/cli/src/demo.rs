@@ -38,7 +38,7 @@ use zeroset_solvers::{
 const BUNNY_AZIMUTH: f64 = -45.0;
 
 /// The bundled sample (Stanford bunny, 2,000 oriented points; see `samples/README.md`).
-const SAMPLE: &str = include_str!("../../../samples/bunny_2k.xyzn");
+const SAMPLE: &str = include_str!("../samples/bunny_2k.xyzn");
 
 /// Shown after `zeroset demo --help`.
 pub const EXAMPLES: &str = "\

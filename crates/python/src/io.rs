@@ -25,5 +25,5 @@ pub(crate) fn read_points(
 /// normals), as the text of its file.
 #[pyfunction]
 pub(crate) fn sample_xyzn() -> &'static str {
-    include_str!("../../../samples/bunny_2k.xyzn")
+    include_str!("../samples/bunny_2k.xyzn")
 }

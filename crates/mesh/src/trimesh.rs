@@ -92,6 +92,12 @@ impl TriMesh {
         &self.triangles
     }
 
+    /// The mesh taken apart without copying: `(vertices, triangles, normals)` (normals empty
+    /// when there are none).
+    pub fn into_parts(self) -> (Vec<Point<3>>, Vec<[u32; 3]>, Vec<Point<3>>) {
+        (self.vertices, self.triangles, self.normals)
+    }
+
     /// The mesh of the triangles `t` with `keep(t)`, and only the vertices (and normals) they
     /// use, in their order.
     ///

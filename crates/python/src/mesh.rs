@@ -8,6 +8,7 @@ use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use rayon::prelude::*;
 use zeroset_bases::field_file::{AnyField, RbfAny};
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
@@ -34,28 +35,40 @@ type MeshArrays<'py> = (
     Bound<'py, PyArray2<f64>>,
 );
 
-/// `mesh` as arrays; with `flip` the triangles' orientation reversed, with `negate` the
-/// normals.
-fn arrays(py: Python<'_>, mesh: TriMesh, flip: bool, negate: bool) -> MeshArrays<'_> {
-    let faces: Vec<i64> = mesh
-        .triangles()
-        .iter()
-        .flat_map(|t| {
-            let t = t.map(i64::from);
-            if flip { [t[0], t[2], t[1]] } else { t }
-        })
-        .collect();
-    let n = faces.len() / 3;
-    let faces = Array2::from_shape_vec((n, 3), faces)
-        .expect("n × 3 indices")
-        .into_pyarray(py);
-    let sign = if negate { -1.0 } else { 1.0 };
-    let normals = mesh.normals().iter().map(|v| v.map(|x| sign * x)).collect();
-    (
-        rows_array(py, mesh.vertices().to_vec()),
-        faces,
-        rows_array(py, normals),
-    )
+/// A mesh taken apart for numpy: vertices, flat `i64` triangle indices, normals.
+struct MeshParts(Vec<[f64; 3]>, Vec<i64>, Vec<[f64; 3]>);
+
+impl MeshParts {
+    /// `mesh` without copying its vertices; with `flip` the triangles' orientation reversed,
+    /// with `negate` the normals (in parallel: run it with the GIL released).
+    fn new(mesh: TriMesh, flip: bool, negate: bool) -> Self {
+        let (vertices, triangles, mut normals) = mesh.into_parts();
+        let mut faces = vec![0i64; 3 * triangles.len()];
+        faces
+            .par_chunks_mut(3)
+            .zip(triangles.par_iter())
+            .with_min_len(4096)
+            .for_each(|(out, t)| {
+                let t = t.map(i64::from);
+                out.copy_from_slice(&if flip { [t[0], t[2], t[1]] } else { t });
+            });
+        if negate {
+            normals
+                .par_iter_mut()
+                .with_min_len(4096)
+                .for_each(|n| *n = n.map(|x| -x));
+        }
+        Self(vertices, faces, normals)
+    }
+
+    /// The parts as numpy arrays (the vectors' memory handed over).
+    fn arrays(self, py: Python<'_>) -> MeshArrays<'_> {
+        let n = self.1.len() / 3;
+        let faces = Array2::from_shape_vec((n, 3), self.1)
+            .expect("n × 3 indices")
+            .into_pyarray(py);
+        (rows_array(py, self.0), faces, rows_array(py, self.2))
+    }
 }
 
 /// Marching cubes on a C-contiguous 3-D volume, sample `[i, j, k]` at `(i, j, k) · spacing`
@@ -97,20 +110,20 @@ pub(crate) fn marching_cubes_volume<'py>(
         .map_err(|_| value_error("the volume must be C-contiguous"))?;
     let hi: [f64; 3] = std::array::from_fn(|a| (counts[a] - 1) as f64 * spacing[a]);
     let bounds = Aabb::new([0.0; 3], hi).map_err(to_py)?;
-    let (mesh, at) = py.detach(|| -> PyResult<_> {
+    let (parts, at) = py.detach(|| -> PyResult<_> {
         let grid = Grid::new(bounds, counts, Centering::Vertex).map_err(to_py)?;
         let options = McOptions::default().with_close_boundary(close);
         let mesh = marching_cubes(&grid, values, level, &options).map_err(to_py)?;
-        let at = mesh
-            .vertices()
-            .iter()
-            .map(|p| trilinear(values, counts, spacing, p))
-            .collect::<Vec<f64>>();
-        Ok((mesh, at))
+        let mut at = vec![0.0; mesh.num_vertices()];
+        at.par_iter_mut()
+            .zip(mesh.vertices().par_iter())
+            .with_min_len(4096)
+            .for_each(|(v, p)| *v = trilinear(values, counts, spacing, p));
+        // Our triangles and normals point up the gradient; scikit-image's normals always
+        // point down it, and its 'ascent' flips the triangles only.
+        Ok((MeshParts::new(mesh, !descent, true), at))
     })?;
-    // Our triangles and normals point up the gradient; scikit-image's normals always point
-    // down it, and its 'ascent' flips the triangles only.
-    let (v, f, n) = arrays(py, mesh, !descent, true);
+    let (v, f, n) = parts.arrays(py);
     Ok((v, f, n, vector(py, at)))
 }
 
@@ -202,8 +215,8 @@ pub(crate) fn mesh_native<'py>(
     let grid = field_grid(bounds, detail, resolution, voxel)?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
-    let result = py.detach(|| -> PyResult<TriMesh> {
-        match (method, f.as_ref()) {
+    let result = py.detach(|| -> PyResult<MeshParts> {
+        let mesh = match (method, f.as_ref()) {
             ("mc", f) => mesh_field(f, &grid, level, &options).map_err(to_py),
             ("smc", AnyField::Rbf(RbfAny::R(f))) => smc(f, &grid, level, &options, &hook),
             ("smc", AnyField::Rbf(RbfAny::R3(f))) => smc(f, &grid, level, &options, &hook),
@@ -217,10 +230,10 @@ pub(crate) fn mesh_native<'py>(
             (other, _) => Err(value_error(format!(
                 "method must be 'mc' or 'smc', got {other:?}"
             ))),
-        }
+        }?;
+        Ok(MeshParts::new(mesh, false, false))
     });
-    let mesh = hook.finish(result)?;
-    Ok(arrays(py, mesh, false, false))
+    Ok(hook.finish(result)?.arrays(py))
 }
 
 /// Expansion orders of the signed marching cubes: `p` settles vertices, `P` the rest (the
@@ -280,7 +293,7 @@ pub(crate) fn read_mesh(
 )> {
     let mesh = py.detach(|| read_ply_mesh(&path)).map_err(to_py)?;
     let has_normals = !mesh.normals().is_empty();
-    let (v, f, n) = arrays(py, mesh, false, false);
+    let (v, f, n) = MeshParts::new(mesh, false, false).arrays(py);
     Ok((v, f, has_normals.then_some(n)))
 }
 

@@ -3,7 +3,7 @@
 //! from Python costs over the library.
 //!
 //! ```text
-//! cargo run --release --example python_overhead -- DIR [--repeat K]
+//! cargo run --release --example python_overhead -- DIR [--repeat K] [--only OP]
 //! ```
 //!
 //! `DIR` holds what the script wrote: `eval.npy` (`n × 3` evaluation points), `torus.npy`
@@ -22,7 +22,9 @@
 //! - `lsqr`: LSQR at `atol = btol = 1e-10` on the CSR system — `zeroset.lstsq(A, b)`.
 //!
 //! One warm-up, then the median of `K` runs (default 5; the rule of `common/timing.rs`);
-//! prints `op seconds` per line. Threads: rayon's default (`RAYON_NUM_THREADS`).
+//! prints `op seconds` per line, for every operation or only `OP` (the script alternates Rust
+//! and Python runs of one operation, so that the machine's drift falls on both sides).
+//! Threads: rayon's default (`RAYON_NUM_THREADS`).
 
 #[path = "common/npy.rs"]
 mod npy;
@@ -44,28 +46,52 @@ use zeroset::tensor::{CpOptions, Tensor3, cp_als};
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
+const USAGE: &str = "usage: python_overhead DIR [--repeat K] [--only fit|eval|mc|cp|lsqr]";
+
 fn main() -> Res<()> {
     let mut args = std::env::args().skip(1);
-    let dir = PathBuf::from(
-        args.next()
-            .ok_or("usage: python_overhead DIR [--repeat K]")?,
-    );
-    let repeat = match (args.next().as_deref(), args.next()) {
-        (Some("--repeat"), Some(k)) => k.parse()?,
-        (None, _) => 5,
-        _ => return Err("usage: python_overhead DIR [--repeat K]".into()),
-    };
+    let dir = PathBuf::from(args.next().ok_or(USAGE)?);
+    let (mut repeat, mut only) = (5, None);
+    while let Some(flag) = args.next() {
+        match (flag.as_str(), args.next()) {
+            ("--repeat", Some(k)) => repeat = k.parse()?,
+            ("--only", Some(op)) => only = Some(op),
+            _ => return Err(USAGE.into()),
+        }
+    }
+    let run = |op: &str| only.as_deref().is_none_or(|o| o == op);
+    if run("fit") || run("eval") {
+        fit_and_eval(&dir, repeat, run("fit"), run("eval"))?;
+    }
+    if run("mc") {
+        mc(&dir, repeat)?;
+    }
+    if run("cp") {
+        cp(&dir, repeat)?;
+    }
+    if run("lsqr") {
+        lsqr(&dir, repeat)?;
+    }
+    Ok(())
+}
+
+fn fit_and_eval(dir: &Path, repeat: usize, time_fit: bool, time_eval: bool) -> Res<()> {
     let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/bunny_2k.xyzn");
     let cloud = read_point_cloud(&sample)?;
-
     let fit = || -> Res<_> {
         let (constraints, _) = Constraints::off_surface(&cloud, Offset::default())?;
         Ok(RbfFit::new(Biharmonic).fit(&constraints)?.field)
     };
-    let t = timing::measure(repeat, None, fit)?;
-    println!("fit {}", t.median.as_secs_f64());
-    let field = t.last;
-
+    let field = if time_fit {
+        let t = timing::measure(repeat, None, fit)?;
+        println!("fit {}", t.median.as_secs_f64());
+        t.last
+    } else {
+        fit()?
+    };
+    if !time_eval {
+        return Ok(());
+    }
     let (shape, flat) = npy::read_npy(&dir.join("eval.npy"))?;
     let points: Vec<[f64; 3]> = flat.as_chunks::<3>().0.to_vec();
     assert_eq!(shape, [points.len(), 3]);
@@ -75,7 +101,10 @@ fn main() -> Res<()> {
         Ok(out)
     })?;
     println!("eval {}", t.median.as_secs_f64());
+    Ok(())
+}
 
+fn mc(dir: &Path, repeat: usize) -> Res<()> {
     let (shape, volume) = npy::read_npy(&dir.join("torus.npy"))?;
     let counts = [shape[0], shape[1], shape[2]];
     let hi = counts.map(|c| (c - 1) as f64);
@@ -84,19 +113,23 @@ fn main() -> Res<()> {
         Ok(marching_cubes(&grid, &volume, 0.0, &McOptions::default())?)
     })?;
     println!("mc {}", t.median.as_secs_f64());
+    Ok(())
+}
 
+fn cp(dir: &Path, repeat: usize) -> Res<()> {
     let (shape, data) = npy::read_npy(&dir.join("cp.npy"))?;
     let x = Tensor3::new([shape[0], shape[1], shape[2]], data)?;
-    let rank: usize = std::fs::read_to_string(dir.join("cp_rank.txt"))?
-        .trim()
-        .parse()?;
-    let iters: usize = std::fs::read_to_string(dir.join("cp_iters.txt"))?
-        .trim()
-        .parse()?;
-    let options = CpOptions::new(rank).with_tol(0.0).with_max_iter(iters);
+    let number =
+        |name: &str| -> Res<usize> { Ok(std::fs::read_to_string(dir.join(name))?.trim().parse()?) };
+    let options = CpOptions::new(number("cp_rank.txt")?)
+        .with_tol(0.0)
+        .with_max_iter(number("cp_iters.txt")?);
     let t = timing::measure(repeat, None, || cp_als(&x, &options, |_| true))?;
     println!("cp {}", t.median.as_secs_f64());
+    Ok(())
+}
 
+fn lsqr(dir: &Path, repeat: usize) -> Res<()> {
     let indices = |name: &str| -> Res<Vec<usize>> {
         let (_, v) = npy::read_npy(&dir.join(name))?;
         Ok(v.into_iter().map(|x| x as usize).collect())

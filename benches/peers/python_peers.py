@@ -10,7 +10,8 @@ Two tables, on the same inputs in the same run:
    CP-ALS of a 60³ rank-20 tensor (50 sweeps), LSQR on a 2-D Laplacian least-squares system
    (128² unknowns). Both sides use rayon's default threads (`RAYON_NUM_THREADS`, else one per
    CPU); the Python side counts everything the call does (argument conversion, copies, the
-   GIL release, progress hooks, results handed to numpy).
+   GIL release, progress hooks, results handed to numpy). Rust and Python alternate per
+   operation (`--rounds`, default 5), and the overhead is the median of the rounds' ratios.
 2. **Migration** — the scipy / scikit-image / TensorLy call a user replaces, on the same input:
    `RBFInterpolator` (kernel `linear` = zeroset's `r`, degree 1, the same off-surface points)
    fit + evaluation, `scipy.sparse.linalg.lsqr`, `skimage.measure.marching_cubes`, TensorLy
@@ -42,6 +43,7 @@ def parse() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--threads", type=int, default=None, help="RAYON and BLAS threads (default: leave)")
     p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--rounds", type=int, default=5, help="alternations of Rust and Python per operation")
     p.add_argument("--skip-overhead", action="store_true")
     p.add_argument("--skip-migration", action="store_true")
     return p.parse_args()
@@ -117,19 +119,30 @@ def overhead() -> None:
             ["cargo", "build", "--release", "--quiet", "--example", "python_overhead"],
             cwd=REPO, check=True,
         )
-        out = subprocess.run(
-            [str(REPO / "target/release/examples/python_overhead"), str(d), "--repeat", str(ARGS.repeat)],
-            check=True, capture_output=True, text=True,
-        ).stdout
-    rust = {k: float(v) for k, v in (line.split() for line in out.strip().splitlines())}
-    field = zeroset.fit(points, normals)
-    py = {
-        "fit": timed(lambda: zeroset.fit(points, normals)),
-        "eval": timed(lambda: field(evals)),
-        "mc": timed(lambda: zeroset.marching_cubes(volume, 0.0)),
-        "cp": timed(lambda: zeroset.cp_als(x, CP_RANK, tol=0.0, n_iter_max=CP_ITERS)),
-        "lsqr": timed(lambda: zeroset.lstsq(a, b)),
-    }
+        field = zeroset.fit(points, normals)
+        python = {
+            "fit": lambda: zeroset.fit(points, normals),
+            "eval": lambda: field(evals),
+            "mc": lambda: zeroset.marching_cubes(volume, 0.0),
+            "cp": lambda: zeroset.cp_als(x, CP_RANK, tol=0.0, n_iter_max=CP_ITERS),
+            "lsqr": lambda: zeroset.lstsq(a, b),
+        }
+        # Rust and Python alternate, operation by operation, ROUNDS times: the machine's
+        # drift falls on both sides; the overhead is the median of the rounds' ratios.
+        rust, py, ratio = {}, {}, {}
+        for op, call in python.items():
+            pairs = []
+            for _ in range(ARGS.rounds):
+                out = subprocess.run(
+                    [str(REPO / "target/release/examples/python_overhead"), str(d),
+                     "--repeat", str(ARGS.repeat), "--only", op],
+                    check=True, capture_output=True, text=True,
+                ).stdout.split()
+                pairs.append((float(out[1]), timed(call)))
+            rust[op] = sorted(p[0] for p in pairs)[len(pairs) // 2]
+            py[op] = sorted(p[1] for p in pairs)[len(pairs) // 2]
+            ratios = sorted(p[1] / p[0] for p in pairs)
+            ratio[op] = (ratios[len(ratios) // 2], ratios[0], ratios[-1])
     what = {
         "fit": "RBF fit, bunny_2k (6,000 constraints, r)",
         "eval": "field at 10⁵ points",
@@ -139,10 +152,13 @@ def overhead() -> None:
     }
     threads = os.environ.get("RAYON_NUM_THREADS", f"default ({os.cpu_count()} CPUs)")
     print(f"\n## Overhead of the Python call over the Rust library (threads: {threads})\n")
-    print("| operation | Rust | Python | overhead |")
-    print("|---|---|---|---|")
+    print(f"{ARGS.rounds} rounds of Rust then Python, each a warm-up and the median of {ARGS.repeat} runs\n")
+    print("| operation | Rust | Python | overhead (median of the rounds' ratios) | range |")
+    print("|---|---|---|---|---|")
     for k in what:
-        print(f"| {what[k]} | {rust[k]*1e3:.2f} ms | {py[k]*1e3:.2f} ms | {100*(py[k]/rust[k]-1):+.1f}% |")
+        mid, lo, hi = ratio[k]
+        print(f"| {what[k]} | {rust[k]*1e3:.2f} ms | {py[k]*1e3:.2f} ms | {100*(mid-1):+.1f}% "
+              f"| {100*(lo-1):+.1f}% … {100*(hi-1):+.1f}% |")
 
 
 def migration() -> None:

@@ -14,6 +14,7 @@ pub fn median(mut v: Vec<Duration>) -> Duration {
 }
 
 /// Parses `"16,24,32"` for the flag `flag`.
+#[allow(dead_code)]
 pub fn parse_list(flag: &str, value: &str) -> Result<Vec<usize>, String> {
     value
         .split(',')

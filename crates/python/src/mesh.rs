@@ -72,8 +72,8 @@ impl MeshParts {
 }
 
 /// Marching cubes on a C-contiguous 3-D volume, sample `[i, j, k]` at `(i, j, k) · spacing`
-/// (scikit-image's vertex coordinates): vertices, faces, normals and the volume's trilinear
-/// value at each vertex, oriented as scikit-image's: normals down the gradient whatever
+/// (scikit-image's vertex coordinates): vertices, faces, normals and the largest sample of
+/// each vertex's grid cell, oriented as scikit-image's: normals down the gradient whatever
 /// `descent` says, triangles wound so that their right-hand normal points up the gradient
 /// with `descent` (scikit-image's default `gradient_direction='descent'`, its "left-hand
 /// rule") and down it without.
@@ -118,7 +118,7 @@ pub(crate) fn marching_cubes_volume<'py>(
         at.par_iter_mut()
             .zip(mesh.vertices().par_iter())
             .with_min_len(4096)
-            .for_each(|(v, p)| *v = trilinear(values, counts, spacing, p));
+            .for_each(|(v, p)| *v = cell_max(values, counts, spacing, p));
         // Our triangles and normals point up the gradient; scikit-image's normals always
         // point down it, and its 'ascent' flips the triangles only.
         Ok((MeshParts::new(mesh, !descent, true), at))
@@ -127,26 +127,24 @@ pub(crate) fn marching_cubes_volume<'py>(
     Ok((v, f, n, vector(py, at)))
 }
 
-/// The volume's trilinear interpolant at `p` (grid coordinates `p / spacing`).
-fn trilinear(values: &[f64], counts: [usize; 3], spacing: [f64; 3], p: &[f64; 3]) -> f64 {
-    let mut base = [0usize; 3];
-    let mut t = [0.0; 3];
-    for a in 0..3 {
+/// The largest of the 8 samples of the grid cell that holds `p` (grid coordinates
+/// `p / spacing`): how far the data rises near the vertex, for colour maps (scikit-image's
+/// `values` are also the largest data value near each vertex, over its own neighbourhood).
+fn cell_max(values: &[f64], counts: [usize; 3], spacing: [f64; 3], p: &[f64; 3]) -> f64 {
+    let base: [usize; 3] = std::array::from_fn(|a| {
         let u = (p[a] / spacing[a]).clamp(0.0, (counts[a] - 1) as f64);
-        let i = (u.floor() as usize).min(counts[a] - 2);
-        base[a] = i;
-        t[a] = u - i as f64;
-    }
+        (u.floor() as usize).min(counts[a] - 2)
+    });
     let at = |i: usize, j: usize, k: usize| values[(i * counts[1] + j) * counts[2] + k];
-    let mut sum = 0.0;
-    for (di, wi) in [(0, 1.0 - t[0]), (1, t[0])] {
-        for (dj, wj) in [(0, 1.0 - t[1]), (1, t[1])] {
-            for (dk, wk) in [(0, 1.0 - t[2]), (1, t[2])] {
-                sum += wi * wj * wk * at(base[0] + di, base[1] + dj, base[2] + dk);
+    let mut max = f64::NEG_INFINITY;
+    for di in 0..2 {
+        for dj in 0..2 {
+            for dk in 0..2 {
+                max = max.max(at(base[0] + di, base[1] + dj, base[2] + dk));
             }
         }
     }
-    sum
+    max
 }
 
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit

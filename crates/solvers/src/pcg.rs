@@ -177,14 +177,17 @@ impl LeastSquaresSolver for Pcg {
 
     /// PCG on `AᵀA x = Aᵀb`; `tol` applies to `‖Aᵀ(b − A x)‖/‖Aᵀb‖`.
     fn solve(&self, a: LsqMatrix<'_>, b: &[f64]) -> Result<Solution, SolveError> {
-        let start = Instant::now();
-        let a = prepare(a, b)?;
-        let mut rhs = vec![0.0; a.shape().1];
-        a.apply_transpose(b, &mut rhs);
-        let normal = NormalOperator { a: &a };
-        match self.iterate(self.name(), &normal, &rhs)? {
-            Outcome::Converged(x, it) => Ok(finish(self.name(), &a, x, b, it, start, vec![])),
-            Outcome::Exhausted(x, it) => Err(no_convergence(&a, x, b, it)),
-        }
+        // On a worker of the pool, as in LSQR's solve.
+        rayon::scope(|_| {
+            let start = Instant::now();
+            let a = prepare(a, b)?;
+            let mut rhs = vec![0.0; a.shape().1];
+            a.apply_transpose(b, &mut rhs);
+            let normal = NormalOperator { a: &a };
+            match self.iterate(self.name(), &normal, &rhs)? {
+                Outcome::Converged(x, it) => Ok(finish(self.name(), &a, x, b, it, start, vec![])),
+                Outcome::Exhausted(x, it) => Err(no_convergence(&a, x, b, it)),
+            }
+        })
     }
 }

@@ -478,8 +478,9 @@ def marching_cubes(
     """Marching cubes with the arguments and results of ``skimage.measure.marching_cubes``.
 
     ``volume[i, j, k]`` is the sample at ``(i, j, k) * spacing``; returns ``(verts, faces,
-    normals, values)`` with verts in those coordinates and ``values`` the volume's trilinear
-    interpolant at each vertex. Orientation as scikit-image's: the normals point down the
+    normals, values)`` with verts in those coordinates and ``values`` the largest sample of
+    the grid cell each vertex lies in (for colour maps; scikit-image's are the largest data
+    value over a neighbourhood of its own, so the numbers differ). Orientation as scikit-image's: the normals point down the
     gradient (out of a bright object) whatever ``gradient_direction`` says, and the faces are
     wound so that their right-hand normal points up the gradient with ``"descent"`` (the
     default; scikit-image's "left-hand rule" around its normals) and down it with
@@ -543,11 +544,13 @@ def marching_cubes(
     vol = np.ascontiguousarray(vol, dtype=np.float64)
     if level is None:
         level = float(vol.min() + vol.max()) / 2.0
-    if not (vol.min() <= level <= vol.max()):
-        raise ValueError(f"level {level} is outside the volume's range [{vol.min()}, {vol.max()}]")
     verts, faces, normals, values = _native.marching_cubes_volume(
         vol, float(level), tuple(h), gradient_direction == "descent", False
     )
+    # As scikit-image, a level outside the data is an error; checked only when nothing was
+    # found, so that a mesh costs no extra pass over the volume.
+    if len(faces) == 0 and not (vol.min() <= level <= vol.max()):
+        raise ValueError(f"level {level} is outside the volume's range [{vol.min()}, {vol.max()}]")
     if not allow_degenerate and len(faces):
         a, b, c = (verts[faces[:, i]] for i in range(3))
         area = np.linalg.norm(np.cross(b - a, c - a), axis=1)

@@ -284,6 +284,19 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
 ///
 /// The new file gets default permissions (an existing file's are not copied).
 ///
+/// The temporary file is named `.<name>.<pid>.<n>.tmp` (`<name>` is `path`'s file name, `<pid>`
+/// the writing process, `<n>` a counter). A process killed while writing (SIGKILL, a power
+/// cut) leaves it behind; the next `write_atomic` to the same `path` removes it first. On
+/// Linux, it removes every file of that directory whose name has exactly that form for the same
+/// `<name>`, that is a regular file owned by the current user, and whose `<pid>` names no
+/// running process (`/proc/<pid>` does not exist): a live writer's temporary file, in this
+/// process or another, is never touched; nor is anything else that merely looks similar. If
+/// `/proc` is not mounted nothing is removed. Elsewhere stale temporary files are left alone
+/// (they are hidden, and never mistaken for `path`). A writer that this process cannot see in
+/// `/proc` though it is running (another PID namespace writing to a shared directory, `/proc`
+/// mounted with `hidepid`) may have its temporary file removed; its write then fails with an
+/// error, and `path` is still never left partial.
+///
 /// ```no_run
 /// use std::io::Write;
 /// zeroset_field_core::io::write_atomic("out.txt", |w| writeln!(w, "hello"))?;
@@ -308,6 +321,7 @@ where
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
+    remove_stale_temps(dir, name);
     let (tmp_path, file) = create_temp(dir, name).map_err(io_error(path))?;
     let result = (|| {
         let mut writer = BufWriter::new(file);
@@ -330,17 +344,15 @@ where
     Ok(())
 }
 
-/// Creates a new, uniquely named hidden file `.<name>.<pid>.<n>.tmp` in `dir`.
+/// Creates a new, uniquely named hidden file `.<name>.<pid>.<n>.tmp` in `dir` (parsed back by
+/// [`temp_writer`]).
 fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let pid = std::process::id();
     let mut last_error = None;
     for _ in 0..64 {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".{pid}.{n}.tmp"));
-        let tmp_path = dir.join(tmp_name);
+        let tmp_path = dir.join(temp_name(name, pid, n));
         match OpenOptions::new()
             .write(true)
             .create_new(true)
@@ -352,6 +364,83 @@ fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File)
         }
     }
     Err(last_error.unwrap_or_else(|| io::Error::other("could not create a temporary file")))
+}
+
+/// `.<name>.<pid>.<n>.tmp`: the name of [`create_temp`]'s temporary files.
+fn temp_name(name: &std::ffi::OsStr, pid: u32, n: u64) -> std::ffi::OsString {
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".{pid}.{n}.tmp"));
+    tmp_name
+}
+
+/// The writer's process id if `file_name` is exactly a temporary file name of [`create_temp`]
+/// for the target `name`: `.<name>.<pid>.<n>.tmp` with `<pid>` and `<n>` written as
+/// [`temp_name`] writes them (decimal digits, no sign, no leading zero, `<pid>` not 0).
+/// Anything else, such as a temporary file of a target whose name extends `name`
+/// (`.<name>.1.<pid>.<n>.tmp`) or a copy (`...tmp.bak`), is `None`.
+fn temp_writer(file_name: &std::ffi::OsStr, name: &std::ffi::OsStr) -> Option<u32> {
+    let file_name = file_name.as_encoded_bytes();
+    let rest = file_name
+        .strip_prefix(b".")?
+        .strip_prefix(name.as_encoded_bytes())?
+        .strip_prefix(b".")?
+        .strip_suffix(b".tmp")?;
+    let rest = std::str::from_utf8(rest).ok()?;
+    let (pid, n) = rest.split_once('.')?;
+    let canonical = |s: &str| {
+        !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()) && (s == "0" || !s.starts_with('0'))
+    };
+    if !canonical(pid) || !canonical(n) {
+        return None;
+    }
+    n.parse::<u64>().ok()?;
+    pid.parse::<u32>().ok().filter(|&pid| pid != 0)
+}
+
+/// Removes, best effort, the temporary files of [`create_temp`] for the target `name` in `dir`
+/// whose writing process has ended (see [`write_atomic`]). Errors are ignored: a file another
+/// process removed first, an unreadable directory (then [`create_temp`] reports the error).
+#[cfg(target_os = "linux")]
+fn remove_stale_temps(dir: &Path, name: &std::ffi::OsStr) {
+    use std::os::unix::fs::MetadataExt;
+    // Without procfs every process would look gone.
+    let Ok(me) = fs::metadata("/proc/self") else {
+        return;
+    };
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let Some(pid) = temp_writer(&entry.file_name(), name) else {
+            continue;
+        };
+        // Not a symbolic link, a directory or someone else's file.
+        let Ok(meta) = entry.metadata() else {
+            continue;
+        };
+        if !meta.file_type().is_file() || meta.uid() != me.uid() {
+            continue;
+        }
+        if pid == std::process::id() || process_exists(pid) {
+            continue;
+        }
+        let _ = fs::remove_file(entry.path());
+    }
+}
+
+/// Elsewhere nothing tells a live writer from a dead one: stale temporary files are left.
+#[cfg(not(target_os = "linux"))]
+fn remove_stale_temps(_dir: &Path, _name: &std::ffi::OsStr) {}
+
+/// Whether process `pid` exists (a zombie counts): `/proc/<pid>` does. Any answer but "no
+/// such file" (a permission error, say) counts as yes.
+#[cfg(target_os = "linux")]
+fn process_exists(pid: u32) -> bool {
+    !matches!(
+        fs::symlink_metadata(format!("/proc/{pid}")),
+        Err(e) if e.kind() == io::ErrorKind::NotFound
+    )
 }
 
 /// How many records to reserve room for when a file's header announces `count` records, each
@@ -444,4 +533,106 @@ pub(crate) fn open_nonempty(path: &Path) -> Result<(File, u64)> {
 /// Parses a number as Rust does (`1`, `-2.5e-3`, `nan`, `inf`, ...), after trimming.
 pub(crate) fn parse_number(token: &str) -> Option<f64> {
     token.trim().parse::<f64>().ok()
+}
+
+#[cfg(test)]
+mod stale_temp_tests {
+    use super::*;
+    use std::ffi::OsStr;
+
+    #[test]
+    fn temp_names_parse_strictly() {
+        let name = OsStr::new("out.ply");
+        let pid = |s: &str| temp_writer(OsStr::new(s), name);
+        assert_eq!(pid(".out.ply.123.4.tmp"), Some(123));
+        assert_eq!(pid(".out.ply.7.0.tmp"), Some(7));
+        assert_eq!(temp_name(name, 42, 9), ".out.ply.42.9.tmp");
+        assert_eq!(temp_writer(&temp_name(name, 42, 9), name), Some(42));
+        for other in [
+            "out.ply",
+            ".out.ply.123.4.tmp.bak",
+            ".out.ply.123.4.tmpx",
+            "..out.ply.123.4.tmp",
+            ".out.ply.123.tmp",
+            ".out.ply.1.123.4.tmp", // a temporary file of `out.ply.1`
+            ".out.ply.0123.4.tmp",
+            ".out.ply.123.04.tmp",
+            ".out.ply.+123.4.tmp",
+            ".out.ply.-1.4.tmp",
+            ".out.ply.0.4.tmp",
+            ".out.ply..4.tmp",
+            ".out.ply.123..tmp",
+            ".out.ply.x.4.tmp",
+            ".out.ply.99999999999.4.tmp", // beyond u32
+            ".out.plyx.123.4.tmp",
+            ".out.123.4.tmp",
+            ".other.ply.123.4.tmp",
+        ] {
+            assert_eq!(pid(other), None, "{other}");
+        }
+        // For the target `out.ply.1`, `out.ply`'s temporary file does not parse either.
+        assert_eq!(
+            temp_writer(OsStr::new(".out.ply.1.4.tmp"), OsStr::new("out.ply.1")),
+            None
+        );
+    }
+
+    /// The id of a process that has ended and been reaped.
+    #[cfg(target_os = "linux")]
+    fn dead_pid() -> u32 {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        assert!(!process_exists(pid));
+        pid
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn stale_temps_of_the_target_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.ply");
+        fs::write(&target, b"old").unwrap();
+        let dead = dead_pid();
+        let me = std::process::id();
+        let stale = [
+            format!(".out.ply.{dead}.0.tmp"),
+            format!(".out.ply.{dead}.17.tmp"),
+        ];
+        let kept = [
+            format!(".out.ply.{me}.999999.tmp"), // this process: maybe a live writer
+            ".out.ply.1.5.tmp".to_owned(),       // pid 1 is alive
+            format!(".out.ply.{dead}.0.tmp.bak"), // looks similar
+            format!(".out.ply.0{dead}.0.tmp"),
+            format!(".other.ply.{dead}.0.tmp"), // another target
+            format!(".out.ply.1.{dead}.0.tmp"), // the target `out.ply.1`
+        ];
+        for f in stale.iter().chain(&kept) {
+            fs::write(dir.path().join(f), b"partial").unwrap();
+        }
+        // A directory and a symbolic link named like stale temporaries stay too.
+        let stale_dir = format!(".out.ply.{dead}.1.tmp");
+        fs::create_dir(dir.path().join(&stale_dir)).unwrap();
+        let stale_link = format!(".out.ply.{dead}.2.tmp");
+        std::os::unix::fs::symlink(&target, dir.path().join(&stale_link)).unwrap();
+
+        write_atomic(&target, |w| w.write_all(b"new")).unwrap();
+
+        assert_eq!(fs::read(&target).unwrap(), b"new");
+        for f in &stale {
+            assert!(!dir.path().join(f).exists(), "{f} was not removed");
+        }
+        for f in kept.iter().chain([&stale_dir, &stale_link]) {
+            assert!(
+                dir.path().join(f).symlink_metadata().is_ok(),
+                "{f} was removed"
+            );
+        }
+        let mut names: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        assert_eq!(names.len(), 1 + kept.len() + 2, "{names:?}");
+    }
 }

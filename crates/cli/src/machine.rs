@@ -3,8 +3,6 @@
 
 use anyhow::bail;
 
-use zeroset_field_core::memory::available as available_memory;
-
 /// `counts` written as the user gives them: `64,64,48`.
 pub(crate) fn counts_text(counts: &[usize]) -> String {
     counts
@@ -29,11 +27,12 @@ pub(crate) fn sample_count(counts: &[usize], flag: &str) -> anyhow::Result<usize
 }
 
 /// Refuses work that would need `need` bytes when that is more than one allocation can hold or
-/// more than the machine has available: `what` says what needs it (`--grid 64,64,64 (262144
-/// cells)`), `advice` what to do instead. Where the available memory cannot be read (not
-/// Linux) only the first limit is checked.
+/// more than the memory available (the machine's, or the cap of `ZEROSET_MEMORY_LIMIT`):
+/// `what` says what needs it (`--grid 64,64,64 (262144 cells)`), `advice` what to do
+/// instead. Where the available memory cannot be read (not Linux) only the first limit is
+/// checked ([`zeroset_field_core::limits::check_bytes`]).
 pub(crate) fn ensure_memory(need: u64, what: &str, advice: &str) -> anyhow::Result<()> {
-    zeroset_field_core::memory::ensure(need, available_memory(), what)
+    zeroset_field_core::limits::check_bytes(what, need)
         .map_err(|e| anyhow::anyhow!("{e}; {advice}"))
 }
 

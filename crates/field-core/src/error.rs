@@ -167,6 +167,58 @@ pub enum Error {
         /// The header found.
         header: String,
     },
+    /// An allocation the memory available cannot hold (or no allocation can), refused before it
+    /// is made: names what needed it, how much and the limit
+    /// ([`limits`](crate::limits)).
+    #[error(transparent)]
+    Memory(#[from] crate::memory::MemoryError),
+    /// An allocation whose size in bytes overflows a 64-bit count.
+    #[error(
+        "{what}: {count} items of {bytes_each} bytes each overflow a 64-bit byte count: more \
+         than any allocation can hold"
+    )]
+    SizeOverflow {
+        /// What the allocation was for.
+        what: String,
+        /// The number of items asked for.
+        count: u64,
+        /// Bytes per item.
+        bytes_each: u64,
+    },
+    /// A count announced by an input (a file header, a length field) that the rest of the input
+    /// cannot hold: the input is corrupt or truncated, and nothing was allocated for it.
+    #[error("{}", exceeds_input_message(what, *count, *min_bytes, *remaining))]
+    ExceedsInput {
+        /// What was counted ("level 2 cells", "RBF functionals").
+        what: String,
+        /// The count announced.
+        count: u64,
+        /// The fewest bytes one item takes in the input.
+        min_bytes: u64,
+        /// The bytes left in the input.
+        remaining: u64,
+    },
+    /// A value of [`MEMORY_LIMIT_ENV`](crate::limits::MEMORY_LIMIT_ENV) that is not a size.
+    #[error(
+        "ZEROSET_MEMORY_LIMIT={value:?} is not a size: give bytes, or a number with a unit \
+         (512MiB, 4GiB, 4G, 1.5GB)"
+    )]
+    InvalidMemoryLimit {
+        /// The value found.
+        value: String,
+    },
+}
+
+/// The message of [`Error::ExceedsInput`].
+fn exceeds_input_message(what: &str, count: u64, min_bytes: u64, remaining: u64) -> String {
+    let need = match count.checked_mul(min_bytes) {
+        Some(n) => format!("{n} bytes"),
+        None => format!("{:.1e} bytes", count as f64 * min_bytes as f64),
+    };
+    format!(
+        "{what}: {count} announced, which need at least {need} ({min_bytes} each), but only \
+         {remaining} bytes remain: the input is corrupt or truncated"
+    )
 }
 
 /// The message of [`Error::NotNormals`]: what was found, and what to do.

@@ -38,6 +38,7 @@ pub mod geometry;
 pub mod grid;
 pub mod interop;
 pub mod io;
+pub mod limits;
 pub mod lsq;
 pub mod mask;
 pub mod memory;

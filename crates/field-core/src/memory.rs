@@ -13,7 +13,7 @@
 
 /// A request for more memory than the machine (or one allocation) can hold.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{what} needs about {} of memory, more than {}", format_bytes(*.needed), limit_text(*.available))]
+#[error("{what} needs about {} of memory, more than {}", format_bytes(*.needed), limit_text(*.available, *.capped))]
 pub struct MemoryError {
     /// What needed it, as the message shows it.
     pub what: String,
@@ -21,16 +21,26 @@ pub struct MemoryError {
     pub needed: u64,
     /// Bytes available (`None`: the limit was the largest single allocation, `isize::MAX`).
     pub available: Option<u64>,
+    /// Whether `available` is the cap set by
+    /// [`MEMORY_LIMIT_ENV`](crate::limits::MEMORY_LIMIT_ENV) rather than what the machine has.
+    pub capped: bool,
 }
 
-fn limit_text(available: Option<u64>) -> String {
+fn limit_text(available: Option<u64>, capped: bool) -> String {
     match available {
+        Some(a) if capped => format!(
+            "the {} allowed by {}",
+            format_bytes(a),
+            crate::limits::MEMORY_LIMIT_ENV
+        ),
         Some(a) => format!("the {} available", format_bytes(a)),
         None => "any allocation can hold".to_owned(),
     }
 }
 
 /// `MemAvailable` from `/proc/meminfo`, in bytes; `None` where it cannot be read (not Linux).
+/// Read afresh on every call; checks before an allocation go through
+/// [`limits`](crate::limits), which reads it once and applies the `ZEROSET_MEMORY_LIMIT` cap.
 pub fn available() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
@@ -50,6 +60,7 @@ pub fn ensure(needed: u64, available: Option<u64>, what: &str) -> Result<(), Mem
         what: what.to_owned(),
         needed,
         available,
+        capped: false,
     };
     if needed > limit {
         return Err(error(None));

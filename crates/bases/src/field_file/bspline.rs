@@ -17,7 +17,7 @@ use zeroset_field_core::Error;
 use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::grid::{Centering, Grid};
 
-use super::{Cursor, FieldFileError, KIND_BSPLINE, check_crc, frame, put_f64s};
+use super::{Cursor, FieldFileError, KIND_BSPLINE, check_crc, counted, frame, put_f64s};
 use crate::bspline::{BSplineField, Boundary, Degree};
 
 /// The bytes of the field file of the B-spline `field` (version [`VERSION`](super::VERSION)).
@@ -161,6 +161,8 @@ pub(super) fn bspline_body<const D: usize>(
         .ok_or_else(|| malformed(format!("impossible grid of {counts:?} samples")))?;
     let min: Point<D> = c.point().ok_or_else(&short)?;
     let max: Point<D> = c.point().ok_or_else(&short)?;
+    let what = format!("B-spline coefficients of the grid {counts:?}");
+    let total = counted(c, path, &what, total as u64, 8, 8)?;
     let coefficients = c.f64s(total).ok_or_else(&short)?;
     let invalid = |source: Error| FieldFileError::Invalid {
         path: path.to_owned(),

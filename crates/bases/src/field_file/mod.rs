@@ -224,6 +224,17 @@ pub enum FieldFileError {
         /// What is wrong.
         reason: String,
     },
+    /// A count in the file (cells, centres, coefficients, layers) that the bytes after it cannot
+    /// hold, or whose values would need more memory than is available: refused before
+    /// anything is allocated for it ([`limits`](zeroset_field_core::limits)).
+    #[error("{}: {source}", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// [`Error::ExceedsInput`], [`Error::Memory`] or [`Error::SizeOverflow`].
+        #[source]
+        source: Error,
+    },
     /// The contents do not make a valid field (grid, bounds, coefficients).
     #[error("{}: {source}", path.display())]
     Invalid {
@@ -251,6 +262,7 @@ impl FieldFileError {
             | Self::HoldsMras { path, .. }
             | Self::UnknownKernel { path, .. }
             | Self::Malformed { path, .. }
+            | Self::TooLarge { path, .. }
             | Self::Invalid { path, .. } => path,
         }
     }
@@ -792,7 +804,35 @@ struct Cursor<'a> {
     at: usize,
 }
 
+/// Checks a `count` read from the file before anything is allocated for it: each item takes
+/// at least `min_bytes_each` of the bytes left after the cursor
+/// ([`limits::check_count`](zeroset_field_core::limits::check_count)), and `count` items of
+/// `bytes_per_item` bytes in memory fit in the memory available
+/// ([`limits::check_alloc`](zeroset_field_core::limits::check_alloc)). `what` names the items.
+fn counted(
+    c: &Cursor<'_>,
+    path: &Path,
+    what: &str,
+    count: u64,
+    min_bytes_each: usize,
+    bytes_per_item: usize,
+) -> Result<usize, FieldFileError> {
+    use zeroset_field_core::limits;
+    let too_large = |source| FieldFileError::TooLarge {
+        path: path.to_owned(),
+        source,
+    };
+    let n = limits::check_count(what, count, min_bytes_each as u64, c.remaining() as u64)
+        .map_err(too_large)?;
+    limits::check_alloc(what, n, bytes_per_item).map_err(too_large)?;
+    Ok(n)
+}
+
 impl<'a> Cursor<'a> {
+    /// The bytes after the cursor.
+    fn remaining(&self) -> usize {
+        self.bytes.len().saturating_sub(self.at)
+    }
     fn take(&mut self, n: usize) -> Option<&'a [u8]> {
         let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
         self.at += n;
@@ -852,6 +892,122 @@ mod tests {
         assert_eq!(back.coefficients(), f.coefficients());
         assert_eq!(back.grid(), f.grid());
         assert_eq!(back.degree(), f.degree());
+    }
+
+    /// A version-2 file of `kind` around `payload`, its checksum right: only the counts inside
+    /// are forged.
+    fn forged(kind: &str, payload: &[u8]) -> Vec<u8> {
+        frame(3, kind, &[], payload)
+    }
+
+    fn u32s(values: &[u32]) -> Vec<u8> {
+        values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    fn u64s(values: &[u64]) -> Vec<u8> {
+        values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    fn f64s(values: &[f64]) -> Vec<u8> {
+        values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    /// Decodes `bytes`, expecting [`FieldFileError::TooLarge`] for a count the file cannot
+    /// hold, whose message names `what`.
+    fn assert_too_large(bytes: &[u8], what: &str) {
+        let start = std::time::Instant::now();
+        let e = decode_any::<3>(bytes, Path::new("forged.zsf")).unwrap_err();
+        assert!(start.elapsed().as_secs_f64() < 1.0, "slow refusal: {e}");
+        assert!(
+            matches!(
+                &e,
+                FieldFileError::TooLarge {
+                    source: Error::ExceedsInput { .. },
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        let text = e.to_string();
+        assert!(
+            text.starts_with("forged.zsf: ") && text.contains(what) && text.contains("corrupt"),
+            "{text}"
+        );
+        // Converted to the crate-wide error, the message stays.
+        let e: Error = decode_any::<3>(bytes, Path::new("forged.zsf"))
+            .unwrap_err()
+            .into();
+        assert!(e.to_string().contains(what), "{e}");
+    }
+
+    #[test]
+    fn a_forged_bspline_grid_is_refused_before_allocating() {
+        let mut p = u32s(&[2, 0, 0]);
+        p.extend(u64s(&[1 << 20, 1 << 20, 1 << 20]));
+        p.extend(f64s(&[-1.0, -1.0, -1.0, 1.0, 1.0, 1.0, 0.5]));
+        assert_too_large(&forged(KIND_BSPLINE, &p), "B-spline coefficients");
+    }
+
+    #[test]
+    fn forged_rbf_counts_are_refused_before_allocating() {
+        let mut p = u32s(&[1]);
+        p.extend(b"r");
+        p.extend(u32s(&[0]));
+        p.extend(u64s(&[1 << 40]));
+        p.extend(f64s(&[0.0; 8]));
+        assert_too_large(&forged(KIND_RBF, &p), "RBF functionals");
+        let mut p = u32s(&[1]);
+        p.extend(b"r");
+        p.extend(u32s(&[u32::MAX]));
+        p.extend(f64s(&[0.0; 4]));
+        assert_too_large(&forged(KIND_RBF, &p), "kernel parameters");
+    }
+
+    #[test]
+    fn forged_neural_counts_are_refused_before_allocating() {
+        let p = u32s(&[0, u32::MAX, 32, 0, 32, 0]);
+        assert_too_large(&forged(KIND_NEURAL, &p), "hidden layers");
+        // Widths within range, the parameter count right for them, the parameters missing.
+        let mut p = u32s(&[0, 2]);
+        p.extend(u64s(&[4096, 4096]));
+        p.extend(f64s(&[
+            0.0, 0.0, 0.0, 1.0, 1.0, -1.0, -1.0, -1.0, 1.0, 1.0, 1.0,
+        ]));
+        let n = crate::neural::Architecture::new(vec![4096, 4096], Default::default())
+            .unwrap()
+            .num_parameters(3);
+        p.extend(u64s(&[n as u64]));
+        assert_too_large(&forged(KIND_NEURAL, &p), "network parameters");
+    }
+
+    #[test]
+    fn forged_mras_counts_are_refused_before_allocating() {
+        let head = f64s(&[0.0, 0.0, 0.0, 1.0, 0.75]);
+        // One level announcing 2⁶⁰ cells.
+        let mut p = head.clone();
+        p.extend(u32s(&[1, 1, 3]));
+        p.extend(u64s(&[1 << 60]));
+        p.extend(u32s(&[0; 6]));
+        assert_too_large(&forged(KIND_MRAS, &p), "level 1 cells");
+        // A cell announcing a CP rank whose factors the file does not hold.
+        let mut p = head.clone();
+        p.extend(u32s(&[1, 1, 64]));
+        p.extend(u64s(&[1]));
+        p.extend(u32s(&[0, 0, 0, 0, 4096]));
+        p.extend(f64s(&[0.0; 8]));
+        assert_too_large(&forged(KIND_MRAS, &p), "CP factors of rank 4096");
+        // Millions of levels, or levels out of order, are refused before any level is built.
+        let mut p = head.clone();
+        p.extend(u32s(&[u32::MAX]));
+        let e = decode_any::<3>(&forged(KIND_MRAS, &p), Path::new("m.zsf")).unwrap_err();
+        assert!(e.to_string().contains("4294967295 levels (at most"), "{e}");
+        let mut p = head;
+        p.extend(u32s(&[2, 1, 3]));
+        p.extend(u64s(&[0]));
+        p.extend(u32s(&[1, 3]));
+        p.extend(u64s(&[0]));
+        let e = decode_any::<3>(&forged(KIND_MRAS, &p), Path::new("m.zsf")).unwrap_err();
+        assert!(e.to_string().contains("position 2 holds level 1"), "{e}");
     }
 
     #[test]

@@ -19,8 +19,8 @@ use std::path::Path;
 
 use zeroset_field_core::geometry::Point;
 
-use super::{Cursor, FieldFileError, KIND_MRAS, frame, put_f64s};
-use crate::mras::{CellSpline, MrasCell, MrasField, MrasLevel};
+use super::{Cursor, FieldFileError, KIND_MRAS, counted, frame, put_f64s};
+use crate::mras::{CellSpline, MAX_LEVEL, MrasCell, MrasField, MrasLevel};
 
 /// The bytes of the field file of the MRAS `field` (version [`VERSION`](super::VERSION)).
 pub fn encode_mras<const D: usize>(field: &MrasField<D>) -> Vec<u8> {
@@ -85,9 +85,19 @@ pub(super) fn mras_body<const D: usize>(
     let side = c.f64().ok_or_else(&short)?;
     let alpha = c.f64().ok_or_else(&short)?;
     let count = c.u32().ok_or_else(&short)?;
-    let mut levels = Vec::new();
-    for _ in 0..count {
+    // Levels are numbered 1, 2, … up to MAX_LEVEL: checked here, before each level builds its
+    // cell lookup, so that a forged count or numbering cannot make thousands of them.
+    if count > MAX_LEVEL {
+        return Err(malformed(format!("{count} levels (at most {MAX_LEVEL})")));
+    }
+    let mut levels = Vec::with_capacity(count as usize);
+    for position in 1..=count {
         let level = c.u32().ok_or_else(&short)?;
+        if level != position {
+            return Err(malformed(format!(
+                "levels must be numbered 1, 2, …: position {position} holds level {level}"
+            )));
+        }
         let knots = c.u32().ok_or_else(&short)? as usize;
         if !(3..=64).contains(&knots) {
             return Err(malformed(format!(
@@ -96,12 +106,15 @@ pub(super) fn mras_body<const D: usize>(
         }
         let n = c.u64().ok_or_else(&short)?;
         // A cell takes at least 4(D + 2) bytes: refuse counts the bytes left cannot hold.
-        if n.checked_mul(4 * (D as u64 + 2))
-            .is_none_or(|b| b > (c.bytes.len() - c.at) as u64)
-        {
-            return Err(short());
-        }
-        let mut cells = Vec::with_capacity(n as usize);
+        let n = counted(
+            c,
+            path,
+            &format!("level {level} cells"),
+            n,
+            4 * (D + 2),
+            std::mem::size_of::<MrasCell<D>>(),
+        )?;
+        let mut cells = Vec::with_capacity(n);
         for _ in 0..n {
             let mut index = [0u32; D];
             for i in &mut index {
@@ -113,15 +126,21 @@ pub(super) fn mras_body<const D: usize>(
                     if rank == 0 || rank > knots.pow(2) {
                         return Err(malformed(format!("level {level}: CP rank {rank}")));
                     }
+                    let what = format!("level {level}: CP factors of rank {rank}");
+                    counted(c, path, &what, (D * knots * rank) as u64, 8, 8)?;
                     let mut factors: [Vec<f64>; D] = std::array::from_fn(|_| Vec::new());
                     for f in &mut factors {
                         *f = c.f64s(knots * rank).ok_or_else(&short)?;
                     }
                     CellSpline::Cp { rank, factors }
                 }
-                1 => CellSpline::Full {
-                    coefficients: c.f64s(knots.pow(D as u32)).ok_or_else(&short)?,
-                },
+                1 => {
+                    let what = format!("level {level}: full tensor of {knots}^{D} coefficients");
+                    let n = counted(c, path, &what, knots.pow(D as u32) as u64, 8, 8)?;
+                    CellSpline::Full {
+                        coefficients: c.f64s(n).ok_or_else(&short)?,
+                    }
+                }
                 code => {
                     return Err(malformed(format!(
                         "level {level}: cell storage code {code}"

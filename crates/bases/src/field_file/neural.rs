@@ -20,7 +20,7 @@ use std::path::Path;
 
 use zeroset_field_core::geometry::{Aabb, Point};
 
-use super::{Cursor, FieldFileError, KIND_NEURAL, frame, put_f64s};
+use super::{Cursor, FieldFileError, KIND_NEURAL, counted, frame, put_f64s};
 use crate::neural::{Activation, Architecture, NeuralField};
 
 /// The bytes of the field file of the neural `field` (version [`VERSION`](super::VERSION)).
@@ -76,13 +76,8 @@ pub(super) fn neural_body<const D: usize>(
     let code = c.u32().ok_or_else(&short)?;
     let activation = Activation::from_code(code)
         .ok_or_else(|| malformed(format!("unknown activation code {code}")))?;
-    let layers = c.u32().ok_or_else(&short)? as usize;
-    if layers
-        .checked_mul(8)
-        .is_none_or(|b| b > c.bytes.len() - c.at)
-    {
-        return Err(short());
-    }
+    let layers = c.u32().ok_or_else(&short)?;
+    let layers = counted(c, path, "hidden layers", layers.into(), 8, 8)?;
     let mut widths = Vec::with_capacity(layers);
     for _ in 0..layers {
         let w = c.u64().ok_or_else(&short)?;
@@ -103,6 +98,7 @@ pub(super) fn neural_body<const D: usize>(
             arch.widths()
         )));
     }
+    let expected = counted(c, path, "network parameters", n, 8, 8)?;
     let params = c.f64s(expected).ok_or_else(&short)?;
     let bounds = Aabb::new(min, max).map_err(|source| FieldFileError::Invalid {
         path: path.to_owned(),

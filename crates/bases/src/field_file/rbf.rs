@@ -18,7 +18,7 @@ use std::path::Path;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point};
 
-use super::{Cursor, FieldFileError, KIND_RBF, frame, put_f64s};
+use super::{Cursor, FieldFileError, KIND_RBF, counted, frame, put_f64s};
 use crate::rbf::system::{Functional, Polynomial};
 use crate::rbf::{Biharmonic, Kernel, RbfField, ThinPlate, Triharmonic, Wendland};
 
@@ -258,14 +258,20 @@ pub(super) fn rbf_body<const D: usize>(
     let tag = std::str::from_utf8(c.take(tag_len).ok_or_else(&short)?)
         .map_err(|_| malformed("kernel tag is not UTF-8".into()))?
         .to_string();
-    let k = c.u32().ok_or_else(&short)? as usize;
+    let k = c.u32().ok_or_else(&short)?;
+    let k = counted(c, path, "kernel parameters", k.into(), 8, 8)?;
     let params = c.f64s(k).ok_or_else(&short)?;
-    let n = usize::try_from(c.u64().ok_or_else(&short)?).map_err(|_| short())?;
-    if n.checked_mul(8 * D + 12)
-        .is_none_or(|b| b > c.bytes.len() - c.at)
-    {
-        return Err(short());
-    }
+    let n = c.u64().ok_or_else(&short)?;
+    // A functional takes its point, kind and target, then its weight: 8·D + 20 bytes in the
+    // file; in memory its point, kind, target and weight.
+    let n = counted(
+        c,
+        path,
+        "RBF functionals",
+        n,
+        8 * D + 20,
+        std::mem::size_of::<(Point<D>, Functional, f64, f64)>(),
+    )?;
     let mut points = Vec::with_capacity(n);
     let mut kinds = Vec::with_capacity(n);
     let mut targets = Vec::with_capacity(n);

@@ -92,6 +92,34 @@ fn resize(v: &mut Vec<f64>, len: usize) {
     v.resize(len, 0.0);
 }
 
+/// Bytes [`Work::prepare`] allocates for `n` points of `layout`'s net, at most (the lean
+/// variant of the last layer counted as the full one), in saturating arithmetic: checked
+/// before training starts.
+pub(crate) fn work_bytes(layout: &Layout, n: usize, jets: bool, dropout: bool) -> u64 {
+    let (d, n) = (layout.dims[0] as u64, n as u64);
+    let cols = if jets {
+        n.saturating_mul(jet_columns(layout.dims[0]) as u64)
+    } else {
+        n
+    };
+    let hidden = layout.hidden();
+    let mut values = d.saturating_mul(n);
+    for l in 0..hidden {
+        let w = layout.dims[l + 1] as u64;
+        let per_point = 2 * cols + n + if jets { 2 * n } else { 0 } + if dropout { n } else { 0 };
+        values = values.saturating_add(w.saturating_mul(per_point));
+    }
+    let wmax = layout.max_width() as u64;
+    // f, fbar; hbar, abar; g1; grad; lu, lubar, lv, lvbar.
+    values = values
+        .saturating_add(2 * cols)
+        .saturating_add(wmax.saturating_mul(2 * cols))
+        .saturating_add(wmax.saturating_mul(d + d * (d + 1) / 2))
+        .saturating_add(layout.total as u64)
+        .saturating_add(wmax.saturating_mul(4 * n));
+    values.saturating_mul(8)
+}
+
 impl Work {
     /// Sizes the buffers for `n` points (with or without jets) of `layout`'s net.
     pub fn prepare(&mut self, layout: &Layout, n: usize, jets: bool, dropout: bool) {

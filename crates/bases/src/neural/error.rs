@@ -6,6 +6,12 @@ use zeroset_field_core::lsq::SolveError;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum NeuralError {
+    /// Training buffers (every point's activations through every layer) that would need more
+    /// memory than is available: refused before anything is allocated.
+    #[error(
+        "{0}; use fewer or narrower layers, fewer auxiliary points or a subsample of the points"
+    )]
+    Memory(#[from] zeroset_field_core::memory::MemoryError),
     /// No constraint at all: there is nothing to fit.
     #[error("no constraints to fit (a neural field needs at least one point with a target value)")]
     NoConstraints,

@@ -8,6 +8,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point};
+use zeroset_field_core::limits;
 
 use super::engine::{self, Work};
 use super::field::NeuralField;
@@ -399,6 +400,43 @@ pub(crate) struct Trainer<const D: usize> {
     scratch: Vec<Point<D>>,
 }
 
+/// The bytes a [`Trainer`] of `points` constraints allocates for `layout`'s net, at most:
+/// each chunk's [`Work`] buffers and its copy of its points, cut as [`Trainer::new`] cuts them.
+fn trainer_bytes(
+    layout: &super::net::Layout,
+    dim: usize,
+    points: usize,
+    params: &NeuralParams,
+    curvature_weight: f64,
+) -> u64 {
+    let dropout = params.dropout > 0.0;
+    let chunked = |total: usize, size: usize, jets: bool| -> u64 {
+        let per_chunk = |n: usize| {
+            engine::work_bytes(layout, n, jets, dropout)
+                .saturating_add((n as u64).saturating_mul(8 * dim as u64 + 8))
+        };
+        ((total / size) as u64)
+            .saturating_mul(per_chunk(size))
+            .saturating_add(if total.is_multiple_of(size) {
+                0
+            } else {
+                per_chunk(total % size)
+            })
+    };
+    let at_constraints =
+        curvature_weight > 0.0 && params.curvature_at == CurvatureSites::Constraints;
+    let size = if at_constraints {
+        TRAIN_JET_CHUNK
+    } else {
+        TRAIN_VALUE_CHUNK
+    };
+    let mut bytes = chunked(points, size, at_constraints);
+    if curvature_weight > 0.0 && params.curvature_at == CurvatureSites::Auxiliary {
+        bytes = bytes.saturating_add(chunked(params.aux_points, TRAIN_JET_CHUNK, true));
+    }
+    bytes
+}
+
 impl<const D: usize> Trainer<D> {
     pub(crate) fn new(
         net: &NeuralField<D>,
@@ -698,6 +736,30 @@ impl<const D: usize> NeuralFit<D> {
         } else {
             0.0
         };
+        // The training buffers grow with the points times the widths: checked before the net
+        // or any buffer is made (a warm start's architecture wins, as below).
+        let arch = initial
+            .as_ref()
+            .map_or(&p.architecture, |f| f.architecture());
+        let layout = super::net::Layout::new(D, arch.widths());
+        let what = format!(
+            "training the net {:?} on {} points{}",
+            arch.widths(),
+            points.len(),
+            if curvature_weight > 0.0 && p.curvature_at == CurvatureSites::Auxiliary {
+                format!(" and {} auxiliary points", p.aux_points)
+            } else {
+                String::new()
+            }
+        );
+        let needed = trainer_bytes(&layout, D, points.len(), p, curvature_weight)
+            .saturating_add((layout.total as u64).saturating_mul(8 * 5));
+        let limit = limits::current_limit().unwrap_or_else(|_| {
+            limits::machine_available().map_or(limits::Limit::Unknown, limits::Limit::Machine)
+        });
+        if let Some(e) = limits::memory_error(&what, needed, limit) {
+            return Err(e.into());
+        }
         let mut net = match initial {
             Some(f) => f,
             None => NeuralField::initial(p.architecture.clone(), domain, p.seed),
@@ -705,7 +767,8 @@ impl<const D: usize> NeuralFit<D> {
         let mut trainer = Trainer::new(&net, points, targets, p, domain, curvature_weight);
         let mut adam = Adam::new(net.parameters().len(), p);
         let mut grad = vec![0.0; net.parameters().len()];
-        let mut history = Vec::with_capacity(p.steps);
+        // The history grows step by step: a huge --steps is not reserved up front.
+        let mut history = Vec::with_capacity(p.steps.min(1 << 16));
         // The loop runs on a worker of the current rayon pool, so that each step's parallel
         // pass neither wakes the calling thread nor waits for it (a step is ~0.3 ms).
         rayon::scope(|_| -> Result<(), NeuralError> {

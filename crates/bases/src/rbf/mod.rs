@@ -76,8 +76,8 @@ use dense::{DenseFactor, Precision};
 use fmm::product::{FMM_RESIDUAL_ORDER, FmmProduct};
 use system::{Functionals, Polynomial};
 use zeroset_field_core::Aabb;
+use zeroset_field_core::limits::{self, Limit};
 use zeroset_field_core::lsq::{LinearOperator, LsqMatrix, Monitor, SolveError};
-use zeroset_field_core::memory;
 use zeroset_solvers::gmres::Gmres;
 use zeroset_solvers::precond::Preconditioner;
 
@@ -201,10 +201,10 @@ impl<K: Kernel + Clone> RbfFit<K> {
         }
     }
 
-    /// Limits the memory a dense solve may use to `bytes` (default: what the machine has
-    /// available, [`memory::available`], read when the solve starts). A dense solve, or a
-    /// fallback to one, that needs more is refused with [`RbfError::Memory`] before anything is
-    /// allocated.
+    /// Limits the memory a dense solve may use to `bytes` (default: the cap of
+    /// `ZEROSET_MEMORY_LIMIT` or what the machine has available, [`limits::current_limit`]).
+    /// A dense solve, or a fallback to one, that needs more is refused with
+    /// [`RbfError::Memory`] before anything is allocated.
     pub fn with_memory_limit(mut self, bytes: u64) -> Self {
         self.memory_limit = Some(bytes);
         self
@@ -391,9 +391,17 @@ impl<K: Kernel + Clone> RbfFit<K> {
         let needed = (unknowns as u64)
             .saturating_mul(unknowns as u64)
             .saturating_mul(per_entry);
-        let limit = self.memory_limit.or_else(memory::available);
-        memory::ensure(needed, limit, what)?;
-        Ok(())
+        // A budget given here wins; else ZEROSET_MEMORY_LIMIT or what the machine has.
+        let limit = match self.memory_limit {
+            Some(bytes) => Limit::Machine(bytes),
+            None => limits::current_limit().unwrap_or_else(|_| {
+                limits::machine_available().map_or(Limit::Unknown, Limit::Machine)
+            }),
+        };
+        match limits::memory_error(what, needed, limit) {
+            Some(e) => Err(e.into()),
+            None => Ok(()),
+        }
     }
 
     /// The exact dense solve with one step of iterative refinement (the exact residual of the

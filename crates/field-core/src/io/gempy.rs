@@ -268,9 +268,11 @@ fn surface_points(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Surf
     let pos = position_columns(table)?;
     let form = table.require(&FORMATION, FORMATION_COLUMN)?;
     let mut out = Vec::new();
+    let what = format!("the surface points of {}", table.path().display());
     while let Some(row) = table.next_row()? {
         let position = table.numbers(&row, pos)?;
         check.check(row.record, Some(row.line), &POSITION_FIELDS, &position)?;
+        crate::limits::grow(&mut out, 1, &what)?;
         out.push(SurfacePoint {
             position,
             formation: formation(table, &row, form)?,
@@ -288,6 +290,7 @@ fn orientations(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Orient
     ];
     let form = table.require(&FORMATION, FORMATION_COLUMN)?;
     let mut out = Vec::new();
+    let what = format!("the orientations of {}", table.path().display());
     while let Some(row) = table.next_row()? {
         let position = table.numbers(&row, pos)?;
         check.check(row.record, Some(row.line), &POSITION_FIELDS, &position)?;
@@ -305,6 +308,7 @@ fn orientations(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Orient
                 format!("polarity must be 1 or -1, found {polarity}"),
             ));
         }
+        crate::limits::grow(&mut out, 1, &what)?;
         out.push(Orientation {
             position,
             normal: orientation_normal(dip, azimuth, polarity),

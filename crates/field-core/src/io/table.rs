@@ -204,13 +204,16 @@ pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<Raw
     };
     let mut positions = Vec::new();
     let mut normals = nrm.map(|_| Vec::new());
+    let what = format!("the points of {}", path.display());
     while let Some(row) = table.next_row()? {
         let p = table.numbers(&row, pos)?;
         check.check(row.record, Some(row.line), &POSITION_FIELDS, &p)?;
+        crate::limits::grow(&mut positions, 1, &what)?;
         positions.push(p);
         if let (Some(cols), Some(normals)) = (nrm, normals.as_mut()) {
             let n = table.numbers(&row, cols)?;
             check.check(row.record, Some(row.line), &NORMAL_FIELDS, &n)?;
+            crate::limits::grow(normals, 1, &what)?;
             normals.push(n);
         }
     }

@@ -72,6 +72,7 @@ pub fn read_value_points<const D: usize>(path: impl AsRef<Path>) -> Result<Value
         .chain(["value"])
         .collect();
     let mut out = ValuePoints::default();
+    let what = format!("the constraints of {}", path.display());
     for_each_number_line(path, |line, values, _| {
         if values.len() != D + 1 {
             let want = names.join(" ");
@@ -86,6 +87,8 @@ pub fn read_value_points<const D: usize>(path: impl AsRef<Path>) -> Result<Value
             ));
         }
         check.check(out.points.len(), Some(line), &names, values)?;
+        crate::limits::grow(&mut out.points, 1, &what)?;
+        crate::limits::grow(&mut out.values, 1, &what)?;
         out.points.push(std::array::from_fn(|a| values[a]));
         out.values.push(values[D]);
         Ok(())

@@ -3,7 +3,7 @@
 //! Columns 4–6 carry no names, and `x y z r g b` files (colours) are common: they are read as
 //! normals only if they look like normals ([`NormalColumns`]).
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, malformed, open_nonempty};
@@ -33,6 +33,7 @@ pub(super) fn read(
 ) -> crate::Result<RawPoints> {
     let mut positions = Vec::new();
     let mut normals: Option<Vec<_>> = None;
+    let what = format!("the points of {}", path.display());
     let mut normal_columns = NormalColumns::default();
     // Column count and the line that set it.
     let mut columns: Option<(usize, usize)> = None;
@@ -70,11 +71,13 @@ pub(super) fn read(
         }
         let record = positions.len();
         check.check(record, Some(line_no), &POSITION_FIELDS, &values[..3])?;
+        crate::limits::grow(&mut positions, 1, &what)?;
         positions.push([values[0], values[1], values[2]]);
         if let Some(n) = normals.as_mut() {
             check.check(record, Some(line_no), &NORMAL_FIELDS, &values[3..6])?;
             let normal = [values[3], values[4], values[5]];
             normal_columns.see(record, line_no, &normal);
+            crate::limits::grow(n, 1, &what)?;
             n.push(normal);
         }
         Ok(())
@@ -161,15 +164,26 @@ pub(super) fn for_each_number_line(
     let (file, _) = open_nonempty(path)?;
     let mut reader = BufReader::new(file);
     let mut buf = String::new();
+    // A line is read at most MAX_LINE bytes at a time: a file without line breaks (a binary
+    // file given by mistake, a corrupted one) does not become one string the size of the file.
+    let limit = MAX_LINE as u64 + 1;
     let mut line_no = 0;
     let mut values: Vec<f64> = Vec::with_capacity(8);
     loop {
         buf.clear();
-        let n = reader
+        let n = (&mut reader)
+            .take(limit)
             .read_line(&mut buf)
             .map_err(|e| malformed(path, Some(line_no + 1), format!("cannot read line: {e}")))?;
         if n == 0 {
             return Ok(());
+        }
+        if n > MAX_LINE {
+            return Err(malformed(
+                path,
+                Some(line_no + 1),
+                format!("line longer than {MAX_LINE} bytes: not a text file of numbers"),
+            ));
         }
         line_no += 1;
         let text = if line_no == 1 {
@@ -197,6 +211,9 @@ pub(super) fn for_each_number_line(
         }
     }
 }
+
+/// The longest line the text readers take, in bytes (1 MiB).
+pub(super) const MAX_LINE: usize = 1 << 20;
 
 /// Whether a line is a lone non-negative integer such as `5210`.
 fn is_count_header(content: &str) -> bool {

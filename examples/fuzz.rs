@@ -158,7 +158,7 @@ fn worker(args: &Args) -> ExitCode {
             continue;
         };
         let mut entries = Vec::new();
-        for p in rd.flatten().map(|e| e.path()) {
+        for p in rd.flatten().map(|e| e.path()).take(fuzz::CORPUS_MAX) {
             if let Ok(bytes) = std::fs::read(&p) {
                 let ext = p
                     .extension()

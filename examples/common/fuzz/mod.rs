@@ -51,7 +51,10 @@ pub const HANG: Duration = Duration::from_secs(10);
 pub const HANG_MARKER: &str = "fuzz: hang:";
 
 /// The most inputs kept per target (a full corpus replaces a random entry).
-const CORPUS_MAX: usize = 4000;
+pub const CORPUS_MAX: usize = 4000;
+
+/// Inputs larger than this are not saved to the corpus folder (it would grow to gigabytes).
+const SAVE_MAX: usize = 64 * 1024;
 
 /// The per-execution hang watchdog: a thread that aborts the process when an execution has run
 /// over [`HANG`], after writing [`HANG_MARKER`] and the target to stderr.
@@ -367,7 +370,11 @@ impl Fuzzer {
             None => {}
         }
         if ex.finding.is_none() && lane.seen.insert(ex.outcome.clone()) {
-            if let Some(dir) = &self.corpus_dir {
+            if let Some(dir) = self
+                .corpus_dir
+                .as_ref()
+                .filter(|_| input.bytes.len() <= SAVE_MAX)
+            {
                 let d = dir.join(lane.target.name());
                 let _ = std::fs::create_dir_all(&d);
                 let _ = std::fs::write(

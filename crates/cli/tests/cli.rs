@@ -1008,30 +1008,6 @@ fn threads_zero_is_a_clear_error() {
     assert!(stdout(&o).contains("--threads"), "{}", stdout(&o));
 }
 
-#[test]
-fn mesh_is_identical_for_any_thread_count() {
-    let (dir, field) = sphere_field();
-    let mut plys = Vec::new();
-    for n in ["1", "2"] {
-        let out = dir.path().join(format!("s{n}.ply"));
-        let mut args: Vec<&OsStr> = vec![OsStr::new("--threads"), OsStr::new(n)];
-        args.extend([
-            OsStr::new("mesh"),
-            field.as_os_str(),
-            OsStr::new("-o"),
-            out.as_os_str(),
-            OsStr::new("--quiet"),
-            OsStr::new("--resolution"),
-            OsStr::new("24"),
-        ]);
-        let o = zeroset(args);
-        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
-        plys.push(fs::read(&out).unwrap());
-    }
-    assert!(!plys[0].is_empty());
-    assert!(plys[0] == plys[1], "the PLY files differ");
-}
-
 // ---- zeroset info on a mesh ----
 
 #[test]

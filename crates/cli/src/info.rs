@@ -257,28 +257,10 @@ fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasFiel
 /// Whether the PLY header declares a `face` element (a mesh rather than a point cloud).
 /// An unreadable header answers `false`: the point-cloud reader then names the problem.
 fn has_faces(path: &Path) -> bool {
-    use std::io::BufRead as _;
-    let Ok(file) = std::fs::File::open(path) else {
-        return false;
-    };
-    let mut reader = std::io::BufReader::new(file);
-    let mut buf = Vec::new();
-    // The header is ASCII text ending at `end_header`; stop there (binary data follows).
-    for _ in 0..10_000 {
-        buf.clear();
-        match reader.read_until(b'\n', &mut buf) {
-            Ok(0) | Err(_) => return false,
-            Ok(_) => {}
-        }
-        let text = String::from_utf8_lossy(&buf);
-        let mut words = text.split_whitespace();
-        match (words.next(), words.next()) {
-            (Some("end_header"), _) => return false,
-            (Some("element"), Some("face")) => return true,
-            _ => {}
-        }
-    }
-    false
+    matches!(
+        zeroset_field_core::io::ply::read_header(path),
+        Ok(Ok(header)) if header.element("face").is_some()
+    )
 }
 
 /// The report of a PLY mesh: counts and the `zeroset_mesh::checks` report.

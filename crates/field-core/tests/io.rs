@@ -769,7 +769,7 @@ fn ply_malformed_records_and_headers() {
     assert!(matches!(e, Error::Malformed { line: Some(1), .. }), "{e}");
     assert!(
         e.to_string()
-            .ends_with("a.ply:1: not a valid PLY header: Expected magic number 'ply'."),
+            .ends_with("a.ply:1: not a PLY file (the first line is not 'ply')"),
         "{e}"
     );
     let e = read_err(

@@ -74,8 +74,8 @@ fn ply_round_trips_in_both_formats() {
             let bytes = std::fs::read(&path).unwrap();
             assert_eq!(bytes, ply_to_bytes(&mesh, format).unwrap());
             assert_eq!(ply_from_bytes(&bytes, "mem").unwrap(), mesh);
-            // An independent PLY parser (ply-rs, through field-core's point-cloud reader)
-            // accepts the file and finds the same vertices and normals.
+            // The point-cloud reader (the same PLY layer, read for points) finds the same
+            // vertices and normals.
             let cloud = zeroset_field_core::io::read_point_cloud(&path).unwrap();
             assert_eq!(cloud.positions(), mesh.vertices());
             assert_eq!(cloud.normals().unwrap_or_default(), mesh.normals());
@@ -328,7 +328,7 @@ property float z\nend_header\n1 2\n",
         b"ply\nformat ascii 1.0\nelement vertex 1\nproperty uchar x\nproperty float y\n\
 property float z\nend_header\n300 2 3\n",
     );
-    assert!(msg.contains("'x' = \"300\""), "{msg}");
+    assert!(msg.contains("'x' = '300'"), "{msg}");
     assert!(
         expect_err(b"ply\nformat binary_middle_endian 1.0\nend_header\n").contains("unsupported")
     );

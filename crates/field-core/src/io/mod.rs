@@ -47,7 +47,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Point3;
 
 pub mod gempy;
-mod ply;
+pub mod ply;
 mod table;
 pub mod values;
 mod xyz;

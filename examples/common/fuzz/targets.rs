@@ -338,27 +338,11 @@ fn info(path: &Path) -> String {
     s
 }
 
-/// `has_faces` of crates/cli/src/info.rs: whether the PLY header declares a `face` element.
+/// `has_faces` of crates/cli/src/info.rs: whether the PLY header declares a `face` element,
+/// read by the one PLY layer.
 fn has_faces(path: &Path) -> bool {
-    use std::io::BufRead as _;
-    let Ok(file) = std::fs::File::open(path) else {
-        return false;
-    };
-    let mut reader = std::io::BufReader::new(file);
-    let mut buf = Vec::new();
-    for _ in 0..10_000 {
-        buf.clear();
-        match reader.read_until(b'\n', &mut buf) {
-            Ok(0) | Err(_) => return false,
-            Ok(_) => {}
-        }
-        let text = String::from_utf8_lossy(&buf);
-        let mut words = text.split_whitespace();
-        match (words.next(), words.next()) {
-            (Some("end_header"), _) => return false,
-            (Some("element"), Some("face")) => return true,
-            _ => {}
-        }
-    }
-    false
+    matches!(
+        io::ply::read_header(path),
+        Ok(Ok(header)) if header.element("face").is_some()
+    )
 }

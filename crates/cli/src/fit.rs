@@ -575,7 +575,22 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
             path.display()
         );
     }
+    check_extent(path, &cloud)?;
     Ok(cloud)
+}
+
+/// Refuses a cloud whose points all lie at one position (a box of diagonal 0): no surface
+/// passes through it, and every length zeroset derives from the box would be 0.
+pub(crate) fn check_extent(path: &Path, cloud: &PointCloud3) -> anyhow::Result<()> {
+    if cloud.bounds().is_none_or(|b| b.diagonal() <= 0.0) {
+        bail!(
+            "{}: all {} points lie at one position (the cloud has no extent); a surface needs \
+             points spread over it",
+            path.display(),
+            cloud.len()
+        );
+    }
+    Ok(())
 }
 
 /// A reading error for the user: a non-finite value named by file, line, `noun` (record,

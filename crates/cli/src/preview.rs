@@ -245,7 +245,17 @@ fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("ply") => read_ply_mesh(path).with_context(|| format!("reading {}", path.display())),
+        Some("ply") => {
+            let mesh =
+                read_ply_mesh(path).with_context(|| format!("reading {}", path.display()))?;
+            if mesh.triangles().is_empty() {
+                bail!(
+                    "{} holds no triangle (a point cloud?): there is nothing to render",
+                    path.display()
+                );
+            }
+            Ok(mesh)
+        }
         Some("obj") => bail!(
             "{}: OBJ meshes are not supported for reading yet; convert to PLY, or preview the \
              .zsf field it came from",

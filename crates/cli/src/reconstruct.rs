@@ -114,16 +114,15 @@ impl Drop for Temporary {
 pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let preview = (!args.no_preview).then(|| args.output.with_extension("png"));
-    // Every output is checked before any work.
-    for path in [Some(&args.output), preview.as_ref(), args.field.as_ref()]
-        .into_iter()
-        .flatten()
-    {
-        if path.exists() && !args.force {
-            bail!(
-                "the output {} exists; pass --force to overwrite it",
-                path.display()
-            );
+    // Every output is checked before any work: its extension, its directory, and --force.
+    let outputs: [(Option<&PathBuf>, &[&str]); 3] = [
+        (Some(&args.output), &["ply", "obj"]),
+        (preview.as_ref(), &["png"]),
+        (args.field.as_ref(), &["zsf"]),
+    ];
+    for (path, extensions) in outputs {
+        if let Some(path) = path {
+            crate::output::check_output(path, &[&args.scan], args.force, extensions)?;
         }
     }
     if args.field.as_deref() == Some(args.output.as_path()) {
@@ -131,7 +130,15 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
-    let cloud = read_point_cloud(&args.scan)?;
+    let cloud = read_point_cloud(&args.scan).map_err(|e| {
+        crate::fit::read_error(
+            &args.scan,
+            e,
+            "record",
+            "zeroset reconstruct needs finite coordinates and normals (`zeroset info` counts \
+             them all)",
+        )
+    })?;
     let points = cloud.len();
     let method = match args.method {
         ReconstructMethod::Auto if points <= AUTO_RBF_POINTS => ReconstructMethod::Rbf,

@@ -140,9 +140,9 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     let mask = BoxMask::from_corners(&grid, a, b).with_context(|| {
         let bb = grid.bounds();
         format!(
-            "the mask must lie in the field's box {:?} .. {:?}",
-            bb.min(),
-            bb.max()
+            "the mask must lie in the field's box {} .. {}",
+            crate::info::point(bb.min()),
+            crate::info::point(bb.max())
         )
     })?;
     check_size(args, &grid, &mask)?;
@@ -311,8 +311,23 @@ fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)
     if let Some(format) = &args.format {
         options = options.with_format(format.parse().context("--format")?);
     }
-    let cloud = read_point_cloud_with(&args.input, &options)
-        .with_context(|| format!("reading {}", args.input.display()))?;
+    let cloud = read_point_cloud_with(&args.input, &options).map_err(|e| {
+        crate::fit::read_error(
+            &args.input,
+            e,
+            "record",
+            "zeroset restore needs finite coordinates and normals (`zeroset info` counts them all)",
+        )
+    })?;
+    if cloud.normals().is_none() {
+        bail!(
+            "{} has no normals: a point cloud is restored through its tangent-plane field, \
+             which needs an oriented cloud (x y z nx ny nz; PLY properties nx ny nz; CSV \
+             columns nx,ny,nz)",
+            args.input.display()
+        );
+    }
+    crate::fit::check_extent(&args.input, &cloud)?;
     let field = TangentPlaneField::new(&cloud, args.neighbours)
         .context("building the tangent-plane field (the cloud needs normals)")?;
     let bounds = field.bounds().context("the point cloud has no extent")?;

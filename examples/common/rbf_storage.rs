@@ -180,19 +180,7 @@ pub fn rbf_rows(
 
 /// `0..len` in a seeded random order: Fisher–Yates with SplitMix64.
 fn shuffled(len: usize, seed: u64) -> Vec<usize> {
-    let mut state = seed;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
     let mut order: Vec<usize> = (0..len).collect();
-    for i in (1..len).rev() {
-        // Multiply-shift: uniform in 0..=i up to a bias of (i + 1) / 2⁶⁴.
-        let j = ((u128::from(next()) * (i as u128 + 1)) >> 64) as usize;
-        order.swap(i, j);
-    }
+    zeroset::core::rng::SplitMix64::new(seed).shuffle(&mut order);
     order
 }

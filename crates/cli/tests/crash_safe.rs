@@ -17,30 +17,15 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
+/// The schedule's random numbers, the same on every run.
+use zeroset_field_core::rng::SplitMix64 as Rng;
+
 /// Kills in all.
 const KILLS: usize = 100;
 /// The schedule's seed.
 const SEED: u64 = 0x5eed_2024_0024_0004;
 /// What the output holds before each killed run.
 const OLD: &[u8] = b"old output: a killed run must leave these bytes or the complete new file\n";
-
-/// SplitMix64: the schedule's random numbers, the same on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// A command under test: its arguments (output last) and what an unkilled run writes.
 struct Case {

@@ -83,7 +83,10 @@ pub enum Error {
     #[error("point cloud is empty")]
     EmptyCloud,
     /// A coordinate or normal component that is NaN or infinite.
-    #[error("{source_name}: record {record} has a non-finite {field} ({value})")]
+    #[error(
+        "{source_name}{}: record {record} has a non-finite {field} ({value})",
+        line.map(|l| format!(":{l}")).unwrap_or_default()
+    )]
     NonFinite {
         /// The file (or "input" for in-memory data).
         source_name: String,

@@ -42,6 +42,7 @@ pub mod limits;
 pub mod lsq;
 pub mod mask;
 pub mod memory;
+pub mod rng;
 
 pub use basis::{Basis, BasisField, BasisRow, PolynomialBasis};
 pub use cloud::{CloudStats, PointCloud, PointCloud2, PointCloud3};

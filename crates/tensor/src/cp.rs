@@ -38,6 +38,8 @@ use faer::{Accum, Mat, MatMut, Par, Side};
 
 use crate::dense::khatri_rao_unchecked;
 use crate::mttkrp::Mttkrp;
+use zeroset_field_core::rng::SplitMix64;
+
 use crate::{Tensor3, TensorError, lowrank};
 
 /// A Kruskal tensor: weights `w_r` and three factor matrices (`Iₙ × R`) whose columns are the
@@ -340,6 +342,7 @@ fn sweeps(
     mut progress: impl FnMut(&CpProgress) -> bool,
 ) -> Result<CpResult, TensorError> {
     check_input(x, options.rank)?;
+    check_work_space(x.shape(), options.rank)?;
     if options.tol.is_nan() || options.tol < 0.0 {
         return Err(TensorError::Tolerance { tol: options.tol });
     }
@@ -434,6 +437,26 @@ pub fn max_rank(shape: [usize; 3]) -> usize {
     (a * b).min(a * c).min(b * c)
 }
 
+/// Checks that a rank-`rank` fit of `shape` fits in memory before anything is allocated: the
+/// factors, their previous values and the MTTKRP results (`4 R (I₀ + I₁ + I₂)` numbers) and the
+/// Gram matrices and their products (`6 R²`).
+fn check_work_space(shape: [usize; 3], rank: usize) -> Result<(), TensorError> {
+    let rows = shape.iter().fold(0usize, |a, &n| a.saturating_add(n));
+    let numbers = rank
+        .saturating_mul(rows)
+        .saturating_mul(4)
+        .saturating_add(rank.saturating_mul(rank).saturating_mul(6));
+    zeroset_field_core::limits::check_alloc(
+        &format!(
+            "a rank-{rank} CP fit of a {}×{}×{} tensor",
+            shape[0], shape[1], shape[2]
+        ),
+        numbers,
+        std::mem::size_of::<f64>(),
+    )
+    .map_err(|e| TensorError::Memory(e.to_string()))
+}
+
 fn check_input(x: &Tensor3, rank: usize) -> Result<(), TensorError> {
     if x.is_empty() {
         return Err(TensorError::EmptyShape { shape: x.shape() });
@@ -450,7 +473,7 @@ fn check_input(x: &Tensor3, rank: usize) -> Result<(), TensorError> {
 fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], TensorError> {
     let rank = options.rank;
     let shape = x.shape();
-    let mut rng = SplitMix(0x00C0_FFEE);
+    let mut rng = SplitMix64::new(0x00C0_FFEE);
     match &options.init {
         CpInit::Given(k) => {
             if k.rank() != rank || k.shape() != shape {
@@ -469,9 +492,9 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
             Ok(f)
         }
         CpInit::Random(seed) => {
-            let mut rng = SplitMix(*seed);
+            let mut rng = SplitMix64::new(*seed);
             Ok(std::array::from_fn(|n| {
-                Mat::from_fn(shape[n], rank, |_, _| rng.uniform())
+                Mat::from_fn(shape[n], rank, |_, _| rng.unit())
             }))
         }
         CpInit::Svd => {
@@ -479,11 +502,7 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
             for (n, slot) in out.iter_mut().enumerate() {
                 let u = lowrank::thin_svd(x.unfold(n)?.as_ref())?.u;
                 *slot = Mat::from_fn(shape[n], rank, |i, r| {
-                    if r < u.ncols() {
-                        u[(i, r)]
-                    } else {
-                        rng.uniform()
-                    }
+                    if r < u.ncols() { u[(i, r)] } else { rng.unit() }
                 });
             }
             Ok(out)
@@ -567,17 +586,45 @@ fn error_from(norm2: f64, inner: f64, g: &Mat<f64>) -> f64 {
     }
 }
 
-/// SplitMix64, for seeded initial factors.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+/// A planted rank-`rank` tensor, the truth CP solvers are tested and timed against: the
+/// Kruskal tensor with standard normal factors (weights 1) drawn from the seeded stream
+/// ([`SplitMix64`]), and that tensor plus Gaussian noise scaled to `‖noise‖ = noise · ‖X‖`.
+///
+/// ```
+/// use zeroset_tensor::cp::planted;
+/// let (truth, x) = planted([4, 5, 6], 2, 0.0, 7)?;
+/// assert_eq!((truth.rank(), x.shape()), (2, [4, 5, 6]));
+/// assert_eq!(truth.to_tensor().as_slice(), x.as_slice());
+/// # Ok::<(), zeroset_tensor::TensorError>(())
+/// ```
+///
+/// # Errors
+/// [`TensorError::EmptyShape`] for a zero extent or a rank of 0; [`TensorError::Memory`] for
+/// a tensor larger than the memory available.
+pub fn planted(
+    shape: [usize; 3],
+    rank: usize,
+    noise: f64,
+    seed: u64,
+) -> Result<(Kruskal, Tensor3), TensorError> {
+    if rank == 0 || shape.contains(&0) {
+        return Err(TensorError::EmptyShape { shape });
     }
+    let entries = shape.iter().fold(1usize, |a, &n| a.saturating_mul(n));
+    zeroset_field_core::limits::check_alloc("a planted tensor", entries.saturating_mul(2), 8)
+        .map_err(|e| TensorError::Memory(e.to_string()))?;
+    let mut g = SplitMix64::new(seed);
+    let factors = std::array::from_fn(|n| Mat::from_fn(shape[n], rank, |_, _| g.normal()));
+    let truth = Kruskal::new(vec![1.0; rank], factors)?;
+    let mut x = truth.to_tensor();
+    if noise != 0.0 {
+        let e: Vec<f64> = (0..x.len()).map(|_| g.normal()).collect();
+        let scale = noise * x.frobenius_norm() / e.iter().map(|v| v * v).sum::<f64>().sqrt();
+        for (v, e) in x.as_mut_slice().iter_mut().zip(&e) {
+            *v += scale * e;
+        }
+    }
+    Ok((truth, x))
 }
 
 /// Options of [`cp_adaptive`].

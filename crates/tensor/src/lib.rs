@@ -43,7 +43,7 @@ mod mttkrp;
 
 pub use cp::{
     AdaptiveOptions, AdaptiveResult, CpInit, CpOptions, CpProgress, CpResult, CpStop, Kruskal,
-    cp_adaptive, cp_als,
+    cp_adaptive, cp_als, planted,
 };
 pub use dense::{Tensor3, khatri_rao};
 pub use lowrank::{ThinSvd, svt, thin_svd, trace_norm};
@@ -112,4 +112,8 @@ pub enum TensorError {
     /// The SVD did not converge.
     #[error("the singular value decomposition did not converge")]
     Svd,
+    /// The work space of a fit, or a tensor, is more than the memory available
+    /// ([`zeroset_field_core::limits`]); the message names what, the amount and the limit.
+    #[error("{0}")]
+    Memory(String),
 }

@@ -7,37 +7,10 @@ use zeroset_tensor::{
     AdaptiveOptions, CpInit, CpOptions, CpStop, Kruskal, Tensor3, TensorError, cp_adaptive, cp_als,
 };
 
-/// Seeded standard normal numbers (Box–Muller over SplitMix64).
-struct Normal(u64);
-
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (((z ^ (z >> 31)) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn next(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
-
 /// A planted rank-`rank` Kruskal tensor with normal factors, and the tensor plus noise of
-/// relative size `noise`.
+/// relative size `noise` ([`zeroset_tensor::planted`]).
 fn planted(shape: [usize; 3], rank: usize, noise: f64, seed: u64) -> (Kruskal, Tensor3) {
-    let mut g = Normal(seed);
-    let factors = std::array::from_fn(|n| Mat::from_fn(shape[n], rank, |_, _| g.next()));
-    let k = Kruskal::new(vec![1.0; rank], factors).unwrap();
-    let mut x = k.to_tensor();
-    let e: Vec<f64> = (0..x.len()).map(|_| g.next()).collect();
-    let scale = noise * x.frobenius_norm() / e.iter().map(|v| v * v).sum::<f64>().sqrt();
-    for (v, e) in x.as_mut_slice().iter_mut().zip(&e) {
-        *v += scale * e;
-    }
-    (k, x)
+    zeroset_tensor::planted(shape, rank, noise, seed).unwrap()
 }
 
 fn max_diff(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
@@ -258,9 +231,9 @@ proptest! {
         seed in 0u64..500,
     ) {
         let shape = [dims.0, dims.1, dims.2];
-        let mut g = Normal(seed);
-        let weights: Vec<f64> = (0..rank).map(|_| g.next()).collect();
-        let factors = std::array::from_fn(|n| Mat::from_fn(shape[n], rank, |_, _| g.next()));
+        let mut g = zeroset_field_core::rng::SplitMix64::new(seed);
+        let weights: Vec<f64> = (0..rank).map(|_| g.normal()).collect();
+        let factors = std::array::from_fn(|n| Mat::from_fn(shape[n], rank, |_, _| g.normal()));
         let k = Kruskal::new(weights.clone(), factors).unwrap();
         let x = k.to_tensor();
         let f = k.factors();

@@ -322,10 +322,6 @@ impl Fuzzer {
         }
     }
 
-    fn below(&mut self, n: usize) -> usize {
-        (self.rng.next_u64() % n.max(1) as u64) as usize
-    }
-
     /// One fuzzing step on lane `i`: mutate a corpus entry, execute, keep it if its outcome is
     /// new. Returns the execution and the input.
     pub fn step(&mut self, i: usize) -> (Execution, Entry) {
@@ -337,8 +333,8 @@ impl Fuzzer {
                 ext: target.ext().into(),
             }
         } else {
-            let a = self.below(n);
-            let b = self.below(n);
+            let a = self.rng.below(n);
+            let b = self.rng.below(n);
             let lane = &self.lanes[i];
             let bytes = mutate::mutate(
                 &mut self.rng,
@@ -358,7 +354,7 @@ impl Fuzzer {
 
     /// Counts an execution of lane `i` and keeps its input if the outcome is new.
     fn record(&mut self, i: usize, ex: &Execution, input: &Entry) {
-        let replace = self.below(CORPUS_MAX);
+        let replace = self.rng.below(CORPUS_MAX);
         let lane = &mut self.lanes[i];
         let s = &mut lane.stats;
         s.execs += 1;

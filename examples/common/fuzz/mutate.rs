@@ -95,14 +95,6 @@ pub const WORDS: [&str; 46] = [
     "#",
 ];
 
-fn below(rng: &mut SplitMix64, n: usize) -> usize {
-    if n == 0 {
-        0
-    } else {
-        (rng.next_u64() % n as u64) as usize
-    }
-}
-
 fn is_num(b: u8) -> bool {
     b.is_ascii_digit() || matches!(b, b'.' | b'-' | b'+' | b'e' | b'E')
 }
@@ -114,9 +106,9 @@ fn is_word(b: u8) -> bool {
 /// A position to work at: half the time in the first 512 bytes, where the headers are.
 fn position(rng: &mut SplitMix64, len: usize) -> usize {
     if rng.next_u64() & 1 == 0 {
-        below(rng, len.min(512))
+        rng.below(len.min(512))
     } else {
-        below(rng, len)
+        rng.below(len)
     }
 }
 
@@ -171,50 +163,50 @@ fn line_at(data: &[u8], i: usize) -> (usize, usize) {
 /// One mutation of `data`, with `other` for splices.
 pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
     if data.is_empty() {
-        let n = 1 + below(rng, 64);
+        let n = 1 + rng.below(64);
         data.extend((0..n).map(|_| rng.next_u64() as u8));
         return;
     }
     let len = data.len();
-    match below(rng, 20) {
+    match rng.below(20) {
         0 => {
             // bit flips
-            for _ in 0..1 + below(rng, 4) {
+            for _ in 0..1 + rng.below(4) {
                 let i = position(rng, len);
-                data[i] ^= 1 << below(rng, 8);
+                data[i] ^= 1 << rng.below(8);
             }
         }
         1 => {
             let i = position(rng, len);
-            data[i] = INTERESTING_BYTES[below(rng, INTERESTING_BYTES.len())];
+            data[i] = INTERESTING_BYTES[rng.below(INTERESTING_BYTES.len())];
         }
         2 => {
             // a run of random bytes
             let i = position(rng, len);
-            let n = (1 + below(rng, 16)).min(len - i);
+            let n = (1 + rng.below(16)).min(len - i);
             for b in &mut data[i..i + n] {
                 *b = rng.next_u64() as u8;
             }
         }
-        3 => data.truncate(below(rng, len)),
+        3 => data.truncate(rng.below(len)),
         4 => {
-            let a = below(rng, len);
-            let b = (a + 1 + below(rng, 256.min(len - a))).min(len);
+            let a = rng.below(len);
+            let b = (a + 1 + rng.below(256.min(len - a))).min(len);
             data.drain(a..b);
         }
         5 => {
             // duplicate a chunk somewhere
-            let a = below(rng, len);
-            let n = 1 + below(rng, 256.min(len - a));
+            let a = rng.below(len);
+            let n = 1 + rng.below(256.min(len - a));
             let chunk = data[a..a + n].to_vec();
-            let at = below(rng, len + 1);
+            let at = rng.below(len + 1);
             data.splice(at..at, chunk);
         }
         6 => {
             // splice: a prefix of this input, a suffix of the other
             if !other.is_empty() {
-                let a = below(rng, len + 1);
-                let b = below(rng, other.len());
+                let a = rng.below(len + 1);
+                let b = rng.below(other.len());
                 data.truncate(a);
                 data.extend_from_slice(&other[b..]);
             }
@@ -223,22 +215,22 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
             // a number in text
             let from = position(rng, len);
             if let Some(span) = token_at(data, from, is_num, true) {
-                let n = NUMBERS[below(rng, NUMBERS.len())];
+                let n = NUMBERS[rng.below(NUMBERS.len())];
                 replace(data, span, n.as_bytes());
             }
         }
         10 | 11 => {
             let from = position(rng, len);
             if let Some(span) = token_at(data, from, is_word, false) {
-                let w = WORDS[below(rng, WORDS.len())];
+                let w = WORDS[rng.below(WORDS.len())];
                 replace(data, span, w.as_bytes());
             }
         }
         12 => {
             // an over-long line (up to 300 kB)
             let i = position(rng, len);
-            let n = 1000 << below(rng, 9);
-            let fill: &[u8] = match below(rng, 4) {
+            let n = 1000 << rng.below(9);
+            let fill: &[u8] = match rng.below(4) {
                 0 => b"1",
                 1 => b" ",
                 2 => b"1 ",
@@ -269,7 +261,7 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
         14 => {
             // invalid UTF-8
             let i = position(rng, len + 1);
-            let bad: &[u8] = match below(rng, 3) {
+            let bad: &[u8] = match rng.below(3) {
                 0 => &[0xFF, 0xFE],
                 1 => &[0xC3],
                 _ => &[0xE2, 0x82],
@@ -283,7 +275,7 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
             if len >= w {
                 let i = position(rng, len - w + 1) & !(if rng.next_u64() & 1 == 0 { 3 } else { 0 });
                 let i = i.min(len - w);
-                let v: u64 = match below(rng, 8) {
+                let v: u64 = match rng.below(8) {
                     0 => u64::MAX,
                     1 => 1 << 31,
                     2 => 1 << 32,
@@ -314,10 +306,10 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
         }
         17 => {
             // a line repeated many times
-            let i = below(rng, len);
+            let i = rng.below(len);
             let (a, b) = line_at(data, i);
             let line = data[a..(b + 1).min(len)].to_vec();
-            let copies = 1 + below(rng, 2000);
+            let copies = 1 + rng.below(2000);
             let mut rep = Vec::with_capacity(line.len() * copies);
             for _ in 0..copies {
                 rep.extend_from_slice(&line);
@@ -329,14 +321,14 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
         }
         18 => {
             // a line deleted
-            let i = below(rng, len);
+            let i = rng.below(len);
             let (a, b) = line_at(data, i);
             data.drain(a..(b + 1).min(len));
         }
         _ => {
             // a float in binary: NaN, ±inf, huge, subnormal
             if len >= 8 {
-                let i = below(rng, len - 7);
+                let i = rng.below(len - 7);
                 let v = [
                     f64::NAN,
                     f64::INFINITY,
@@ -344,7 +336,7 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
                     1e308,
                     5e-324,
                     -0.0,
-                ][below(rng, 6)];
+                ][rng.below(6)];
                 if rng.next_u64() & 1 == 0 {
                     data[i..i + 8].copy_from_slice(&v.to_le_bytes());
                 } else {
@@ -360,13 +352,13 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
 pub fn mutate(rng: &mut SplitMix64, data: &[u8], other: &[u8], zsf: bool) -> Vec<u8> {
     let mut out = data.to_vec();
     let most = if rng.next_u64() & 3 == 0 { 6 } else { 2 };
-    let n = 1 + below(rng, most);
+    let n = 1 + rng.below(most);
     for _ in 0..n {
         mutate_once(rng, &mut out, other);
         out.truncate(MAX_LEN);
     }
     if zsf {
-        let r = below(rng, 10);
+        let r = rng.below(10);
         if r < 5 {
             fix_zsf_sizes(&mut out);
         }

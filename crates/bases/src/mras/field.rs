@@ -777,13 +777,8 @@ mod tests {
     fn partition_of_unity_covers_the_whole_domain() {
         // Corners, edge midpoints and face centres of cells (the points farthest from centres),
         // and a deterministic scatter, at levels 1–4.
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = zeroset_field_core::rng::SplitMix64::new(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.unit();
         for level in 1..=4u32 {
             let s = 1.0 / f64::from(1u32 << (level - 1));
             let mut probes = vec![

@@ -305,15 +305,8 @@ fn removing_every_batch_gives_back_the_base_fit() {
 fn random_constraints(seed: u64, n: usize) -> Constraints<3> {
     // A smooth target on scattered points (a deterministic pseudo-random sequence).
     let mut c = Constraints::new();
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = zeroset_field_core::rng::SplitMix64::new(seed);
+    let mut next = || rng.unit();
     for _ in 0..n {
         let p = [next(), next(), next()];
         c.push_value(p, (3.0 * p[0]).sin() + p[1] * p[2]);

@@ -252,6 +252,12 @@ pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
 ///   (RGB colours, or lengths outside [`NORMAL_LENGTHS`]).
 pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<PointCloud3> {
     let path = path.as_ref();
+    if path.is_dir() {
+        return Err(Error::Io {
+            path: path.to_owned(),
+            source: io::Error::new(io::ErrorKind::InvalidInput, "a directory, not a file"),
+        });
+    }
     let format = match options.format {
         Some(format) => format,
         None => detect_format(path)?,

@@ -81,6 +81,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::rng::SplitMix64;
 use zeroset_field_core::{Aabb, Point};
 
 use super::field::RbfField;
@@ -582,15 +583,8 @@ impl<K: Kernel> FmmField<K> {
     /// The points [`FmmField::sampled_error`] measures at: `count` of them, half uniform in the
     /// field's bounds, half at the centres moved by up to a leaf's width (seeded).
     fn error_samples(&self, count: usize, seed: u64) -> Vec<Point<3>> {
-        let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
-        let mut uniform = move || {
-            // SplitMix64.
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = SplitMix64::new(seed ^ 0x9E37_79B9_7F4A_7C15);
+        let mut uniform = move || rng.unit();
         let b = self.bounds;
         let leaf = self
             .tree

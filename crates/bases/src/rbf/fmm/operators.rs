@@ -58,6 +58,7 @@ use std::sync::{Arc, Mutex};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
+use zeroset_field_core::rng::SplitMix64;
 
 use super::cache::{self, OperatorKey};
 use super::chebyshev::Chebyshev;
@@ -884,16 +885,10 @@ fn thin_qr(a: MatRef<'_, f64>) -> (Mat<f64>, Mat<f64>) {
     (q, r)
 }
 
-/// An `n × l` matrix of seeded uniform numbers in `[−1, 1)` (SplitMix64): always the same.
+/// An `n × l` matrix of seeded uniform numbers in `[−1, 1)` ([`SplitMix64`]): always the same.
 fn seeded_uniform(n: usize, l: usize) -> Mat<f64> {
-    let mut state = 0x5EED_u64;
-    Mat::from_fn(n, l, |_, _| {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        2.0 * (((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64) - 1.0
-    })
+    let mut rng = SplitMix64::new(0x5EED);
+    Mat::from_fn(n, l, |_, _| rng.uniform(-1.0, 1.0))
 }
 
 /// The truncated SVD of `K` restricted to the range of `K Ω` (`Ω`: `n × l`, seeded), after one

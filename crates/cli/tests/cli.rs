@@ -5,28 +5,12 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn sample() -> PathBuf {
-    let path = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../samples/bunny_2k.xyzn"
-    ));
-    assert!(path.is_file(), "sample {} not found", path.display());
-    path
-}
-
-/// Runs the binary; its operator disk cache is off (the tests never write to the user's
-/// cache), except where a test sets `ZEROSET_CACHE_DIR` itself ([`zeroset_with_cache`]).
-fn zeroset<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
-    zeroset_with_cache(args, Path::new(""))
-}
+mod common;
+use common::{sample, zeroset};
 
 /// Runs the binary with its operator disk cache in `cache` (empty: none).
 fn zeroset_with_cache<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>, cache: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .args(args)
-        .env("ZEROSET_CACHE_DIR", cache)
-        .output()
-        .expect("cannot run the zeroset binary")
+    common::zeroset_with(args, &[("ZEROSET_CACHE_DIR", cache.as_os_str())])
 }
 
 fn info(path: &Path, extra: &[&str]) -> Output {

@@ -5,7 +5,7 @@
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 use zeroset_bases::bspline::{BSplineField, Degree};
@@ -13,23 +13,12 @@ use zeroset_bases::field_file::write_field;
 use zeroset_field_core::geometry::Aabb;
 use zeroset_field_core::grid::Grid;
 
-fn sample() -> PathBuf {
-    let path = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../samples/bunny_2k.xyzn"
-    ));
-    assert!(path.is_file(), "sample {} not found", path.display());
-    path
-}
+mod common;
+use common::sample;
 
 /// Runs the binary with `ZEROSET_MEMORY_LIMIT=limit` and its disk cache off.
 fn zeroset_capped<S: AsRef<OsStr>>(limit: &str, args: impl IntoIterator<Item = S>) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .args(args)
-        .env("ZEROSET_CACHE_DIR", "")
-        .env("ZEROSET_MEMORY_LIMIT", limit)
-        .output()
-        .expect("cannot run the zeroset binary")
+    common::zeroset_with(args, &[("ZEROSET_MEMORY_LIMIT", OsStr::new(limit))])
 }
 
 /// A refusal as the user sees it: status 1, an `error:` line holding every phrase, no panic,

@@ -11,28 +11,12 @@
 use std::ffi::OsStr;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 /// The thread count compared with 1.
 const MANY: &str = "4";
 
-fn sample() -> PathBuf {
-    let path = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../samples/bunny_2k.xyzn"
-    ));
-    assert!(path.is_file(), "sample {} not found", path.display());
-    path
-}
-
-/// Runs the binary with its operator disk cache off (never the user's cache).
-fn zeroset<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .args(args)
-        .env("ZEROSET_CACHE_DIR", "")
-        .output()
-        .expect("cannot run the zeroset binary")
-}
+mod common;
+use common::{sample, zeroset};
 
 /// Every `every`-th point of the sample (2,000 points), as `name` in `dir`.
 fn subset(dir: &Path, name: &str, every: usize) -> PathBuf {

@@ -259,11 +259,23 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A temporary field file beside the output, named so that a rerun's leftovers are
-/// recognisable (`.NAME.reconstruct-PID.zsf`).
+/// A temporary field file beside the output, `.NAME.reconstruct-PID.zsf`; the ones a killed
+/// run left (their process gone) are removed first.
 fn temporary_field(output: &Path) -> PathBuf {
     let name = output
         .file_stem()
         .map_or("mesh".into(), |s| s.to_string_lossy().into_owned());
-    output.with_file_name(format!(".{name}.reconstruct-{}.zsf", std::process::id()))
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let prefix = format!(".{name}.reconstruct-");
+    zeroset_field_core::io::remove_stale_files(dir, |file| {
+        let pid = file.to_str()?.strip_prefix(&prefix)?.strip_suffix(".zsf")?;
+        if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        pid.parse().ok()
+    });
+    output.with_file_name(format!("{prefix}{}.zsf", std::process::id()))
 }

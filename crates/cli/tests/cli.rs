@@ -1924,7 +1924,21 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     let m = mesh.to_str().unwrap();
     let sample = sample();
     let s = sample.to_str().unwrap();
+    // What a killed run leaves (its process gone) is removed; a live run's file is not.
+    let mut ended = std::process::Command::new("true").spawn().unwrap();
+    ended.wait().unwrap();
+    let stale = dir
+        .path()
+        .join(format!(".bunny.reconstruct-{}.zsf", ended.id()));
+    let live = dir
+        .path()
+        .join(format!(".bunny.reconstruct-{}.zsf", std::process::id()));
+    std::fs::write(&stale, b"left by a killed run").unwrap();
+    std::fs::write(&live, b"a run still going").unwrap();
     let out = zeroset(["reconstruct", s, "-o", m, "--detail", "general", "--quiet"]);
+    assert!(!stale.exists(), "a killed run's field file is left");
+    assert!(live.exists(), "a live run's field file was removed");
+    std::fs::remove_file(&live).unwrap();
     assert!(
         out.status.success(),
         "{}",

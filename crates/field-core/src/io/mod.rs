@@ -327,7 +327,7 @@ where
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
-    remove_stale_temps(dir, name);
+    remove_stale_files(dir, |file| temp_writer(file, name));
     let (tmp_path, file) = create_temp(dir, name).map_err(io_error(path))?;
     let result = (|| {
         let mut writer = BufWriter::new(file);
@@ -404,40 +404,47 @@ fn temp_writer(file_name: &std::ffi::OsStr, name: &std::ffi::OsStr) -> Option<u3
     pid.parse::<u32>().ok().filter(|&pid| pid != 0)
 }
 
-/// Removes, best effort, the temporary files of [`create_temp`] for the target `name` in `dir`
-/// whose writing process has ended (see [`write_atomic`]). Errors are ignored: a file another
-/// process removed first, an unreadable directory (then [`create_temp`] reports the error).
-#[cfg(target_os = "linux")]
-fn remove_stale_temps(dir: &Path, name: &std::ffi::OsStr) {
-    use std::os::unix::fs::MetadataExt;
-    // Without procfs every process would look gone.
-    let Ok(me) = fs::metadata("/proc/self") else {
-        return;
-    };
-    let Ok(entries) = fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let Some(pid) = temp_writer(&entry.file_name(), name) else {
-            continue;
+/// Removes, best effort, the files in `dir` that a process left behind when it was killed:
+/// those for which `writer` gives the id of the process that made them (parsed from the name)
+/// and that process has ended. [`write_atomic`] calls it with its own temporary names; a
+/// command that keeps an intermediate file of its own (named with its process id) calls it
+/// with that name's pattern before making one. Only regular files of this user are removed,
+/// never one of this process; errors are ignored (a file another process removed first, an
+/// unreadable directory).
+///
+/// On Linux a process has ended when `/proc/<pid>` is gone; without `/proc`, and on other
+/// systems, where nothing tells a live writer from a dead one, nothing is removed.
+pub fn remove_stale_files(dir: &Path, writer: impl Fn(&std::ffi::OsStr) -> Option<u32>) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::MetadataExt;
+        // Without procfs every process would look gone.
+        let Ok(me) = fs::metadata("/proc/self") else {
+            return;
         };
-        // Not a symbolic link, a directory or someone else's file.
-        let Ok(meta) = entry.metadata() else {
-            continue;
+        let Ok(entries) = fs::read_dir(dir) else {
+            return;
         };
-        if !meta.file_type().is_file() || meta.uid() != me.uid() {
-            continue;
+        for entry in entries.flatten() {
+            let Some(pid) = writer(&entry.file_name()) else {
+                continue;
+            };
+            // Not a symbolic link, a directory or someone else's file.
+            let Ok(meta) = entry.metadata() else {
+                continue;
+            };
+            if !meta.file_type().is_file() || meta.uid() != me.uid() {
+                continue;
+            }
+            if pid == std::process::id() || process_exists(pid) {
+                continue;
+            }
+            let _ = fs::remove_file(entry.path());
         }
-        if pid == std::process::id() || process_exists(pid) {
-            continue;
-        }
-        let _ = fs::remove_file(entry.path());
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (dir, writer);
 }
-
-/// Elsewhere nothing tells a live writer from a dead one: stale temporary files are left.
-#[cfg(not(target_os = "linux"))]
-fn remove_stale_temps(_dir: &Path, _name: &std::ffi::OsStr) {}
 
 /// Whether process `pid` exists (a zombie counts): `/proc/<pid>` does. Any answer but "no
 /// such file" (a permission error, say) counts as yes.

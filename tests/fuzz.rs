@@ -49,6 +49,11 @@ fn regression_files_are_read_without_panics() {
     let f = Fuzzer::new(&dir, &[], &[], 0);
     let mut failures = Vec::new();
     let files = fuzz::regression_files(&root);
+    assert!(
+        files.len() >= 3,
+        "no regression files found under {}",
+        root.display()
+    );
     for (target, path, ext) in &files {
         let bytes = std::fs::read(path).expect("a regression file");
         let ex = f.execute(*target, &bytes, ext);

@@ -260,10 +260,13 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
 }
 
 /// A temporary field file beside the output, `.NAME.reconstruct-PID.zsf`; the ones a killed
-/// run left (their process gone) are removed first.
+/// run left (their process gone from this machine's `/proc`) are removed first. A run on
+/// another machine or in another PID namespace writing to the same directory looks gone:
+/// give such runs `--field` files of their own.
 fn temporary_field(output: &Path) -> PathBuf {
+    // The whole name: `x.ply` and `x.obj` written at once do not share a field.
     let name = output
-        .file_stem()
+        .file_name()
         .map_or("mesh".into(), |s| s.to_string_lossy().into_owned());
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,

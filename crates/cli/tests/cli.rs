@@ -1929,10 +1929,10 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     ended.wait().unwrap();
     let stale = dir
         .path()
-        .join(format!(".bunny.reconstruct-{}.zsf", ended.id()));
+        .join(format!(".bunny.ply.reconstruct-{}.zsf", ended.id()));
     let live = dir
         .path()
-        .join(format!(".bunny.reconstruct-{}.zsf", std::process::id()));
+        .join(format!(".bunny.ply.reconstruct-{}.zsf", std::process::id()));
     std::fs::write(&stale, b"left by a killed run").unwrap();
     std::fs::write(&live, b"a run still going").unwrap();
     let out = zeroset(["reconstruct", s, "-o", m, "--detail", "general", "--quiet"]);

@@ -69,7 +69,9 @@ enum Phase {
 fn command(args: &[OsString]) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_zeroset"));
     // No operator disk cache: the tests never write to the user's.
-    c.args(args).env("ZEROSET_CACHE_DIR", "");
+    c.args(args)
+        .env("ZEROSET_CACHE_DIR", "")
+        .env_remove("ZEROSET_MEMORY_LIMIT");
     c
 }
 
@@ -228,7 +230,9 @@ fn killed_run(case: &Case, aim: Aim) -> (ExitStatus, u32, bool) {
 #[test]
 fn killed_writers_leave_the_old_output_or_the_complete_new_one() {
     let begin = Instant::now();
-    let dir = tempfile::tempdir().unwrap();
+    // On the target's disk, not a tmpfs /tmp: fsync there takes long enough for kills to land
+    // while the temporary file exists.
+    let dir = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
     let d = |name: &str| dir.path().join(name);
 
     // Small inputs: 300 points of the sample, a 24³ sampled field.

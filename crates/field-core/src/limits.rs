@@ -243,10 +243,18 @@ pub fn grow<T>(v: &mut Vec<T>, additional: usize, what: &str) -> Result<()> {
     }
     let item = std::mem::size_of::<T>().max(1);
     let needed = v.len().checked_add(additional);
-    let target = needed
+    let doubled = needed
         .map(|n| n.max(v.capacity().saturating_mul(2)).max(8))
         .unwrap_or(usize::MAX);
-    check_alloc(what, target, item)?;
+    // Doubling keeps pushes amortised; near the limit, just what is needed.
+    let target = match (check_alloc(what, doubled, item), needed) {
+        (Ok(()), _) => doubled,
+        (Err(_), Some(exact)) if exact < doubled => {
+            check_alloc(what, exact, item)?;
+            exact
+        }
+        (Err(e), _) => return Err(e),
+    };
     v.try_reserve_exact(target - v.len()).map_err(|_| {
         Error::Memory(MemoryError {
             what: what.to_owned(),

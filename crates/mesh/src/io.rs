@@ -34,8 +34,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use zeroset_field_core::Point;
-use zeroset_field_core::io::ply::{Header, Kind, Place, PlyError, Record, Records};
+use zeroset_field_core::io::ply::{Header, Kind, Place, PlyError, Record, Records, Scalar};
 use zeroset_field_core::io::write_atomic;
+use zeroset_field_core::limits;
 
 use crate::{MeshError, Result, TriMesh};
 
@@ -186,10 +187,7 @@ pub fn obj_to_string(mesh: &TriMesh) -> String {
 /// - [`MeshError::PlyTruncated`] naming the element and record where the file ends.
 pub fn read_ply_mesh(path: impl AsRef<Path>) -> Result<TriMesh> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| zeroset_field_core::Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let bytes = zeroset_field_core::io::ply::read_whole(path)?;
     parse_ply(path, &bytes)
 }
 
@@ -284,17 +282,36 @@ fn parse_ply(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             // Never from the header's count alone: a file whose count it cannot hold is
             // reported as truncated by `records.read`, after at most that many records.
             let capacity = records.records_that_fit(element);
+            let per_vertex = if normal_slots.is_some() { 48 } else { 24 };
+            limits::check_alloc(
+                &format!("the {capacity} vertices of {}", path.display()),
+                capacity,
+                per_vertex,
+            )?;
             vertices.reserve(capacity);
             if normal_slots.is_some() {
                 normals.reserve(capacity);
             }
         } else if Some(e) == face_el {
-            triangles.reserve(records.records_that_fit(element));
+            let capacity = records.records_that_fit(element);
+            limits::check_alloc(
+                &format!("the {capacity} faces of {}", path.display()),
+                capacity,
+                12,
+            )?;
+            triangles.reserve(capacity);
         }
         for r in 0..element.count {
             let here = records.read(element, r, &mut record).map_err(error)?;
             if e == vertex_el {
-                let get = |slots: [usize; 3]| slots.map(|s| record.scalar(s));
+                // A `float` property holds an `f32`: an ASCII one is rounded to it as a binary
+                // one is, so that a mesh reads back the same from either encoding.
+                let get = |slots: [usize; 3]| {
+                    slots.map(|s| match element.properties[s].kind {
+                        Kind::Scalar(Scalar::F32) => f64::from(record.scalar(s) as f32),
+                        _ => record.scalar(s),
+                    })
+                };
                 let p = get(xyz);
                 if let Some(axis) = p.iter().position(|v| !v.is_finite()) {
                     return Err(ply_error(

@@ -15,7 +15,8 @@ pub fn sample() -> PathBuf {
     path
 }
 
-/// Runs the binary with its operator disk cache off: the tests never write to the user's cache.
+/// Runs the binary with its operator disk cache off (the tests never write to the user's
+/// cache) and no memory cap of the user's.
 pub fn zeroset<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
     zeroset_with(args, &[])
 }
@@ -27,7 +28,11 @@ pub fn zeroset_with<S: AsRef<OsStr>>(
     env: &[(&str, &OsStr)],
 ) -> Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_zeroset"));
-    command.args(args).env("ZEROSET_CACHE_DIR", "");
+    // The user's memory cap is not the tests'.
+    command
+        .args(args)
+        .env("ZEROSET_CACHE_DIR", "")
+        .env_remove("ZEROSET_MEMORY_LIMIT");
     for (name, value) in env {
         command.env(name, value);
     }

@@ -9,10 +9,11 @@
 //! [`Records`] walks the records, each decoded into a [`Record`] of `f64` values.
 //!
 //! - Scalar types: `char uchar short ushort int uint float double` and the aliases
-//!   `int8 uint8 int16 uint16 int32 uint32 float32 float64`. An ASCII `float` is rounded to
-//!   `f32`, so that ASCII and binary files give the same values; an ASCII integer must be a
-//!   whole number in its type's range. `nan` and `inf` are read as such; whoever uses the
-//!   values decides whether they are allowed.
+//!   `int8 uint8 int16 uint16 int32 uint32 float32 float64`. An ASCII value keeps the text's
+//!   precision (an `f64`, even for a `float` property: georeferenced coordinates often have
+//!   more digits than an `f32` holds); an ASCII integer must be a whole number in its type's
+//!   range. `nan` and `inf` are read as such; whoever uses the values decides whether they
+//!   are allowed.
 //! - `comment` and `obj_info` lines are skipped; blank ASCII lines between records are too.
 //! - Nothing is sized from the header alone: [`Records::records_that_fit`] caps a count by what
 //!   the bytes after the header can hold, a list's items are read one by one, and a file that
@@ -46,6 +47,7 @@ use super::records_that_fit;
 mod points;
 
 pub(super) use points::read;
+pub use points::read_whole;
 pub use points::write_ply;
 
 /// A PLY scalar type.
@@ -152,20 +154,16 @@ impl Scalar {
         }
     }
 
-    /// Parses one ASCII token; `None` if it is not a value of this type.
+    /// Parses one ASCII token; `None` if it is not a value of this type. A float keeps the
+    /// text's value (`f64`), so that a `float` column of 15-digit coordinates loses nothing;
+    /// an integer must be a whole number (`7`, `7.0`, `7e0`) in its type's range.
     fn parse_token(self, token: &str) -> Option<f64> {
-        if self.is_integer() {
-            let v: i64 = token.parse().ok()?;
-            let (lo, hi) = self.range();
-            (lo..=hi).contains(&v).then_some(v as f64)
-        } else {
-            let v: f64 = token.parse().ok()?;
-            Some(if self == Self::F32 {
-                f64::from(v as f32)
-            } else {
-                v
-            })
+        let v: f64 = token.parse().ok()?;
+        if !self.is_integer() {
+            return Some(v);
         }
+        let (lo, hi) = self.range();
+        (v.fract() == 0.0 && v >= lo as f64 && v <= hi as f64).then_some(v)
     }
 }
 
@@ -389,6 +387,9 @@ impl Header {
         let mut line_no = 0;
         let mut encoding = None;
         let mut elements: Vec<Element> = Vec::new();
+        // The current element's property names: a header of 10⁵ properties is checked for
+        // repeats in linear time.
+        let mut names = std::collections::HashSet::new();
         loop {
             if pos >= bytes.len() {
                 return Err(syntax(
@@ -438,13 +439,14 @@ impl Header {
                         count,
                         properties: Vec::new(),
                     });
+                    names.clear();
                 }
                 "property" => {
                     let Some(element) = elements.last_mut() else {
                         return Err(syntax(place, "'property' before any 'element'"));
                     };
                     let property = parse_property(&place, words)?;
-                    if element.find(&property.name).is_some() {
+                    if !names.insert(property.name.clone()) {
                         return Err(syntax(
                             place,
                             format!(
@@ -593,14 +595,16 @@ impl Record {
         self.values[self.starts[p]]
     }
 
-    /// The items of list property `p`.
-    ///
-    /// # Panics
-    /// If `p` is out of range for the element read or is not a list.
+    /// The items of list property `p`; empty if `p` is not a list property of the element
+    /// last read successfully.
     pub fn list(&self, p: usize) -> &[f64] {
-        let start = self.starts[p];
-        let n = self.values[start] as usize;
-        &self.values[start + 1..start + 1 + n]
+        let Some(&start) = self.starts.get(p) else {
+            return &[];
+        };
+        let n = self.values.get(start).map_or(0, |&v| v as usize);
+        self.values
+            .get(start + 1..(start + 1).saturating_add(n))
+            .unwrap_or(&[])
     }
 }
 
@@ -699,7 +703,11 @@ impl<'a> Records<'a> {
                 t.parse_token(token).ok_or_else(|| {
                     syntax(
                         here.clone(),
-                        format!("'{name}' = '{token}' is not a valid {} value", t.name()),
+                        format!(
+                            "'{name}' = '{}' is not a valid {} value",
+                            brief(token),
+                            t.name()
+                        ),
                     )
                 })
             };
@@ -707,7 +715,10 @@ impl<'a> Records<'a> {
             if let Some(extra) = tokens.next() {
                 return Err(syntax(
                     here,
-                    format!("unexpected value {extra:?} after the record's last property"),
+                    format!(
+                        "unexpected value '{}' after the record's last property",
+                        brief(extra)
+                    ),
                 ));
             }
             Ok(here)
@@ -724,6 +735,14 @@ impl<'a> Records<'a> {
             read_properties(element, &here, out, &mut take)?;
             Ok(here)
         }
+    }
+}
+
+/// `token`, cut to 40 characters for a message.
+fn brief(token: &str) -> String {
+    match token.char_indices().nth(40) {
+        Some((end, _)) => format!("{}...", &token[..end]),
+        None => token.to_owned(),
     }
 }
 
@@ -756,4 +775,61 @@ fn read_properties(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_first(header: &str, body: &str) -> Result<Record, PlyError> {
+        let bytes = format!("{header}{body}").into_bytes();
+        let h = Header::parse(&bytes)?;
+        let mut records = Records::new(&h, &bytes);
+        let mut record = Record::default();
+        records.read(&h.elements[0], 0, &mut record)?;
+        Ok(record)
+    }
+
+    const ONE: &str = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+                       property uchar red\nend_header\n";
+
+    #[test]
+    fn ascii_values_keep_the_text_precision_and_integers_must_be_whole() {
+        // A georeferenced coordinate in a `float` column is not rounded to f32.
+        let r = read_first(ONE, "4500000.37 255.0\n").unwrap();
+        assert_eq!((r.scalar(0), r.scalar(1)), (4_500_000.37, 255.0));
+        assert!(read_first(ONE, "1 1e2\n").is_ok());
+        for bad in ["1 1.5\n", "1 256\n", "1 -1\n", "1 nan\n"] {
+            let e = read_first(ONE, bad).unwrap_err();
+            assert!(e.to_string().contains("not a valid uchar"), "{bad}: {e}");
+        }
+        // A huge token is cut in the message.
+        let long = "9".repeat(10_000);
+        let e = read_first(ONE, &format!("1 {long}\n")).unwrap_err();
+        assert!(e.to_string().len() < 200, "{e}");
+    }
+
+    #[test]
+    fn repeated_properties_are_found_in_a_long_header() {
+        let mut header = String::from("ply\nformat ascii 1.0\nelement vertex 1\n");
+        for i in 0..50_000 {
+            header.push_str(&format!("property char p{i}\n"));
+        }
+        header.push_str("property char p7\nend_header\n");
+        let e = Header::parse(header.as_bytes()).unwrap_err();
+        assert!(e.to_string().contains("'p7' repeated"), "{e}");
+        assert!(matches!(e, PlyError::Syntax { place: Place::Header(Some(50_004)), .. }));
+    }
+
+    #[test]
+    fn list_is_empty_rather_than_a_panic_for_a_wrong_property() {
+        let r = read_first(
+            "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int ids\nend_header\n",
+            "2 7 8\n",
+        )
+        .unwrap();
+        assert_eq!(r.list(0), &[7.0, 8.0]);
+        assert!(r.list(1).is_empty());
+        assert!(Record::default().list(0).is_empty());
+    }
 }

@@ -11,10 +11,11 @@ use crate::geometry::Point3;
 use crate::io::{
     FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, io_error, malformed, write_atomic,
 };
+use crate::limits;
 
 /// Reads the `vertex` element of a PLY file; records after it (faces) are not read.
 pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
-    let bytes = std::fs::read(path).map_err(io_error(path))?;
+    let bytes = read_whole(path)?;
     if bytes.is_empty() {
         return Err(malformed(path, None, "the file is empty (0 bytes)"));
     }
@@ -36,6 +37,12 @@ pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoi
     let element = &header.elements[vertex];
     // Never from the header's count alone (`records_that_fit`).
     let capacity = records.records_that_fit(element);
+    let per_point = if normal_slots.is_some() { 48 } else { 24 };
+    limits::check_alloc(
+        &format!("the {capacity} points of {}", path.display()),
+        capacity,
+        per_point,
+    )?;
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = normal_slots.map(|_| Vec::with_capacity(capacity));
     let get = |record: &Record, slots: [usize; 3]| slots.map(|s| record.scalar(s));
@@ -51,6 +58,17 @@ pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoi
         }
     }
     Ok((positions, normals))
+}
+
+/// The bytes of the file at `path`, after checking that they fit in the memory available
+/// ([`limits`]).
+///
+/// # Errors
+/// [`Error::Io`] naming `path`; [`Error::Memory`] for a file larger than the memory available.
+pub fn read_whole(path: &Path) -> Result<Vec<u8>> {
+    let len = std::fs::metadata(path).map_err(io_error(path))?.len();
+    limits::check_bytes(&format!("reading {}", path.display()), len)?;
+    std::fs::read(path).map_err(io_error(path))
 }
 
 /// The point-cloud reader's error for a PLY error in `path`.
@@ -93,7 +111,7 @@ fn point_error(path: &Path, e: PlyError) -> Error {
 /// `nx ny nz` if the cloud has normals), atomically ([`write_atomic`]).
 ///
 /// Values are written as they are, non-finite ones included; an empty cloud gives a valid
-/// file with 0 vertices (which [`read_point_cloud`](super::read_point_cloud) rejects).
+/// file with 0 vertices (which [`read_point_cloud`](crate::io::read_point_cloud) rejects).
 ///
 /// # Errors
 /// [`Error::Io`] naming `path`.

@@ -818,7 +818,13 @@ mod tests {
         header.push_str("property char p7\nend_header\n");
         let e = Header::parse(header.as_bytes()).unwrap_err();
         assert!(e.to_string().contains("'p7' repeated"), "{e}");
-        assert!(matches!(e, PlyError::Syntax { place: Place::Header(Some(50_004)), .. }));
+        assert!(matches!(
+            e,
+            PlyError::Syntax {
+                place: Place::Header(Some(50_004)),
+                ..
+            }
+        ));
     }
 
     #[test]

@@ -36,7 +36,6 @@ use std::path::Path;
 use zeroset_field_core::Point;
 use zeroset_field_core::io::ply::{Header, Kind, Place, PlyError, Record, Records, Scalar};
 use zeroset_field_core::io::write_atomic;
-use zeroset_field_core::limits;
 
 use crate::{MeshError, Result, TriMesh};
 
@@ -281,25 +280,19 @@ fn parse_ply(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
         if e == vertex_el {
             // Never from the header's count alone: a file whose count it cannot hold is
             // reported as truncated by `records.read`, after at most that many records.
-            let capacity = records.records_that_fit(element);
             let per_vertex = if normal_slots.is_some() { 48 } else { 24 };
-            limits::check_alloc(
-                &format!("the {capacity} vertices of {}", path.display()),
-                capacity,
+            let capacity = records.capacity(
+                element,
                 per_vertex,
+                &format!("vertices of {}", path.display()),
             )?;
             vertices.reserve(capacity);
             if normal_slots.is_some() {
                 normals.reserve(capacity);
             }
         } else if Some(e) == face_el {
-            let capacity = records.records_that_fit(element);
-            limits::check_alloc(
-                &format!("the {capacity} faces of {}", path.display()),
-                capacity,
-                12,
-            )?;
-            triangles.reserve(capacity);
+            let what = format!("faces of {}", path.display());
+            triangles.reserve(records.capacity(element, 12, &what)?);
         }
         for r in 0..element.count {
             let here = records.read(element, r, &mut record).map_err(error)?;

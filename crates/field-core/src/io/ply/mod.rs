@@ -651,6 +651,23 @@ impl<'a> Records<'a> {
         records_that_fit(element.count, left as u64, min_record)
     }
 
+    /// How many records of `element` to reserve room for when each takes `bytes_each` bytes
+    /// once read: [`Records::records_that_fit`], checked against the memory available
+    /// ([`crate::limits`]). `what` names them in the error ("points of scan.ply").
+    ///
+    /// # Errors
+    /// [`crate::Error::Memory`] (or `SizeOverflow`) naming the count and `what`.
+    pub fn capacity(
+        &self,
+        element: &Element,
+        bytes_each: usize,
+        what: &str,
+    ) -> crate::Result<usize> {
+        let n = self.records_that_fit(element);
+        crate::limits::check_alloc(&format!("the {n} {what}"), n, bytes_each)?;
+        Ok(n)
+    }
+
     /// Reads record `index` of `element` (the next record in the file) into `out`; returns
     /// its place, for messages about its values.
     ///

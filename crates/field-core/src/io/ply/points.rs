@@ -36,13 +36,9 @@ pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoi
     }
     let element = &header.elements[vertex];
     // Never from the header's count alone (`records_that_fit`).
-    let capacity = records.records_that_fit(element);
     let per_point = if normal_slots.is_some() { 48 } else { 24 };
-    limits::check_alloc(
-        &format!("the {capacity} points of {}", path.display()),
-        capacity,
-        per_point,
-    )?;
+    let capacity =
+        records.capacity(element, per_point, &format!("points of {}", path.display()))?;
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = normal_slots.map(|_| Vec::with_capacity(capacity));
     let get = |record: &Record, slots: [usize; 3]| slots.map(|s| record.scalar(s));

@@ -31,6 +31,8 @@ pub mod mutate;
 #[path = "../rng.rs"]
 pub mod rng;
 pub mod seeds;
+#[path = "../shapes.rs"]
+pub mod shapes;
 pub mod targets;
 
 use std::collections::HashSet;

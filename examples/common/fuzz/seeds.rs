@@ -237,21 +237,7 @@ fn generated(dir: &Path) -> Result<Vec<Seed>, String> {
     use zeroset::mesh::{PlyFormat, TriMesh};
 
     let e = |e: &dyn std::fmt::Display| e.to_string();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let sphere = |n: usize| -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
-        (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let s = (1.0 - z * z).sqrt();
-                let d = [
-                    s * (golden * i as f64).cos(),
-                    s * (golden * i as f64).sin(),
-                    z,
-                ];
-                (d.map(|v| 0.5 * v), d)
-            })
-            .unzip()
-    };
+    let sphere = |n: usize| super::shapes::sphere(n, 0.5);
     let mut out = Vec::new();
     let file = |name: &str| dir.join(name);
 

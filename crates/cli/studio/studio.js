@@ -117,6 +117,8 @@ const page = {
   mask: null,             // { lo: [k, k, k], hi: [k, k, k] }: cell-face indices
   face: '-y',             // or null
   alphaTouched: false,    // the user moved the α slider: send its value, not null
+  defaultAlpha: null,     // the last report's default_alpha (the field's mean slope)
+  alphaDecimals: 6,       // the α sent is rounded to the slider step's decimals
   lastReport: null,       // the report of the surface on screen as "after"
   dirty: false,           // the live surface is a preview not yet applied
   showBefore: false,
@@ -596,7 +598,7 @@ const alphaInput = $('alpha');
 
 /** The α to send: null (the field's default) until the user moves the slider. */
 function alphaValue() {
-  return page.alphaTouched ? Number(Number(alphaInput.value).toFixed(page.alphaDecimals ?? 6)) : null;
+  return page.alphaTouched ? Number(Number(alphaInput.value).toFixed(page.alphaDecimals)) : null;
 }
 
 /** Sets the slider from a report: its range, the default's mark, and the value while untouched. */
@@ -626,12 +628,8 @@ function updateAlpha(report) {
   alphaInput.max = hi;
   alphaInput.step = 10 ** exponent;
   const preferred = Number.isFinite(report.default_alpha) ? report.default_alpha : null;
-  if (!page.alphaTouched) {
-    const used = Number.isFinite(report.alpha_used) ? report.alpha_used : preferred;
-    if (used !== null) alphaInput.value = used;
-  } else {
-    alphaInput.value = current;
-  }
+  page.defaultAlpha = preferred;
+  alphaInput.value = page.alphaTouched ? current : preferred ?? current;
   mark.hidden = preferred === null;
   if (preferred !== null) mark.style.setProperty('--p', String(clamp((preferred - lo) / (hi - lo), 0, 1)));
   $('alpha-default').textContent = preferred === null ? 'default α: —' : `default α: ${formatAlpha(preferred)}`;
@@ -640,9 +638,10 @@ function updateAlpha(report) {
 
 const formatAlpha = (a) => (Math.abs(a) >= 1000 || (Math.abs(a) < 1e-3 && a !== 0) ? a.toExponential(3) : a.toFixed(4));
 
+/** The α shown: the slider's once moved, else the default (exact, not the slider's step). */
 function showAlphaValue() {
-  const value = Number(alphaInput.value);
-  $('alpha-value').textContent = formatAlpha(value) + (page.alphaTouched ? '' : ' (default)');
+  const value = page.alphaTouched ? alphaValue() : page.defaultAlpha;
+  $('alpha-value').textContent = value === null ? '—' : formatAlpha(value) + (page.alphaTouched ? '' : ' (default)');
 }
 
 alphaInput.addEventListener('input', () => {
@@ -655,6 +654,7 @@ alphaInput.addEventListener('input', () => {
 $('alpha-reset').addEventListener('click', () => {
   page.alphaTouched = false;
   $('alpha-reset').disabled = true;
+  if (page.defaultAlpha !== null) alphaInput.value = page.defaultAlpha;
   showAlphaValue();
   change('alpha');
 });

@@ -19,6 +19,7 @@ mod preview;
 mod progress;
 mod reconstruct;
 mod restore;
+mod studio;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -41,6 +42,9 @@ Examples:
                                                remove the bunny's ears
   zeroset mesh bunny.zsf -o bunny.ply          mesh the field's zero set (binary PLY)
   zeroset preview bunny.zsf -o bunny.png       a shaded PNG of the field's zero set
+  zeroset studio samples/bunny_2k.xyzn -o no_ears.zsf
+                                               restore in the browser: place the mask, move
+                                               alpha, see the surface live, save
   zeroset reconstruct scan.ply -o scan_mesh.ply
                                                scan → field → mesh + PNG in one command
   zeroset info --help                          more on one subcommand";
@@ -113,6 +117,12 @@ enum Command {
     /// and a PNG preview beside it, and summarise the stages' times.
     #[command(after_help = reconstruct::EXAMPLES)]
     Reconstruct(reconstruct::ReconstructArgs),
+    /// The interactive restoration studio: a local web page (served by this binary on
+    /// 127.0.0.1, with an access token) to place a box mask on the surface, move α or the
+    /// de-noising resolution and see the restored surface live; undo/redo, the equivalent
+    /// `zeroset restore` commands, and Save (atomic .zsf, and the mesh as .ply).
+    #[command(after_help = studio::EXAMPLES)]
+    Studio(studio::StudioArgs),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -130,6 +140,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mesh(args) => mesh::run(&args),
         Command::Preview(args) => preview::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
+        Command::Studio(args) => studio::run(&args),
     }
 }
 

@@ -12,7 +12,7 @@ use std::time::Instant;
 use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 
-use zeroset_bases::bspline::BSplineField;
+use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, write_field};
 use zeroset_bases::tangent_plane::TangentPlaneField;
 use zeroset_field_core::field::ScalarField;
@@ -22,6 +22,7 @@ use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
 use zeroset_field_core::mask::{BoxMask, Face};
 use zeroset_restore::RestoreError;
 use zeroset_restore::denoise::{Denoise, Resampling};
+use zeroset_restore::error::face_name;
 use zeroset_restore::protrusion::{Convention, Protrusion};
 
 use crate::info::g;
@@ -49,12 +50,37 @@ pub enum Mode {
     Denoise,
 }
 
-/// Arguments of `zeroset restore`.
+/// Where a restoration's field comes from: the input and how to read it. Shared by `zeroset
+/// restore` and `zeroset studio`.
 #[derive(Debug, Args)]
-pub struct RestoreArgs {
+pub struct Source {
     /// A field file (.zsf: a B-spline field, or an RBF field sampled onto the grid) or an
     /// oriented point cloud (PLY, xyz/xyzn/pts, CSV).
     pub input: PathBuf,
+
+    /// Grid cells per axis, L,M,N (default: a B-spline field file's grid, or 64 along the
+    /// longest axis of an RBF field's or a point cloud's box with near-cubic cells).
+    #[arg(long, value_parser = parse_counts)]
+    pub grid: Option<[usize; 3]>,
+
+    /// Point clouds: the number of nearest samples averaged by the tangent-plane field.
+    #[arg(long, default_value_t = 8)]
+    pub neighbours: usize,
+
+    /// Force the point-cloud format (ply, xyz, xyzn, pts, csv) when the extension says nothing.
+    #[arg(long)]
+    pub format: Option<String>,
+
+    /// The data are positive inside (zeroset's convention is negative inside).
+    #[arg(long)]
+    pub positive_inside: bool,
+}
+
+/// Arguments of `zeroset restore`.
+#[derive(Debug, Args)]
+pub struct RestoreArgs {
+    #[command(flatten)]
+    pub source: Source,
 
     /// The box to restore, two opposite corners in world coordinates: x0,y0,z0:x1,y1,z1.
     #[arg(long, value_parser = parse_mask, allow_hyphen_values = true)]
@@ -74,10 +100,6 @@ pub struct RestoreArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub alpha: Option<f64>,
 
-    /// The data are positive inside (zeroset's convention is negative inside).
-    #[arg(long)]
-    pub positive_inside: bool,
-
     /// Denoise: coarse cells per axis inside the mask, m,n,l (fewer = smoother).
     #[arg(long, value_parser = parse_counts)]
     pub coarse: Option<[usize; 3]>,
@@ -87,19 +109,6 @@ pub struct RestoreArgs {
     #[arg(long)]
     pub point_resampling: bool,
 
-    /// Grid cells per axis, L,M,N (default: a B-spline field file's grid, or 64 along the
-    /// longest axis of an RBF field's or a point cloud's box with near-cubic cells).
-    #[arg(long, value_parser = parse_counts)]
-    pub grid: Option<[usize; 3]>,
-
-    /// Point clouds: the number of nearest samples averaged by the tangent-plane field.
-    #[arg(long, default_value_t = 8)]
-    pub neighbours: usize,
-
-    /// Force the point-cloud format (ply, xyz, xyzn, pts, csv) when the extension says nothing.
-    #[arg(long)]
-    pub format: Option<String>,
-
     /// The output field file (.zsf), written atomically.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -107,6 +116,39 @@ pub struct RestoreArgs {
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
+}
+
+impl RestoreArgs {
+    /// The restoration the flags ask for, refusing flags of the other mode.
+    fn restoration(&self) -> anyhow::Result<Restoration> {
+        match self.mode {
+            Mode::Protrusion => {
+                if self.coarse.is_some() {
+                    bail!("--coarse applies to --mode denoise");
+                }
+                Ok(Restoration::Protrusion {
+                    mask: self.mask,
+                    face: self.face,
+                    alpha: self.alpha,
+                })
+            }
+            Mode::Denoise => {
+                if self.face.is_some() || self.alpha.is_some() {
+                    bail!("--face and --alpha apply to --mode protrusion");
+                }
+                let Some(coarse) = self.coarse else {
+                    bail!(
+                        "--mode denoise needs --coarse m,n,l (coarse cells per axis in the mask)"
+                    );
+                };
+                Ok(Restoration::Denoise {
+                    mask: self.mask,
+                    coarse,
+                    point_resampling: self.point_resampling,
+                })
+            }
+        }
+    }
 }
 
 /// Bytes per grid sample that a restoration holds at once: the field's samples, the restored
@@ -120,32 +162,20 @@ const BYTES_PER_MASK_CELL: u64 = 64;
 
 /// Runs `zeroset restore`.
 pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
-    crate::output::check_output(&args.output, &[&args.input], args.force, &["zsf"])?;
+    let input = &args.source.input;
+    crate::output::check_output(&args.output, &[input], args.force, &["zsf"])?;
     // Counts whose product overflows are refused before anything is read.
-    if let Some(counts) = &args.grid {
-        sample_count(counts, "--grid")?;
-    }
+    args.source.check_counts()?;
     if let Some(coarse) = &args.coarse {
         sample_count(coarse, "--coarse")?;
     }
+    let restoration = args.restoration()?;
     let start = Instant::now();
-    let (field, default_grid) = load(args)?;
-    let grid = match args.grid {
-        Some(counts) => {
-            Grid::cell_centered(default_grid.bounds(), counts).context("building the --grid")?
-        }
-        None => default_grid,
-    };
-    let [a, b] = args.mask;
-    let mask = BoxMask::from_corners(&grid, a, b).with_context(|| {
-        let bb = grid.bounds();
-        format!(
-            "the mask must lie in the field's box {} .. {}",
-            crate::info::point(bb.min()),
-            crate::info::point(bb.max())
-        )
-    })?;
-    check_size(args, &grid, &mask)?;
+    let loaded = args.source.load()?;
+    println!("{}", loaded.description);
+    let grid = loaded.grid;
+    let mask = restoration.mask(&grid)?;
+    restoration.check_size(&grid, &mask, args.source.grid.is_some())?;
     let counts = grid.counts();
     println!(
         "grid {}×{}×{} cells over {:?} .. {:?}; mask cells {:?} ..= {:?} ({} cells)",
@@ -158,28 +188,19 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
         mask.hi(),
         mask.len()
     );
-    let restored: BSplineField<3> = match args.mode {
-        Mode::Protrusion => {
-            if args.coarse.is_some() {
-                bail!("--coarse applies to --mode denoise");
-            }
-            let params = Protrusion {
-                face: args.face,
-                alpha: args.alpha,
-                convention: if args.positive_inside {
-                    Convention::PositiveInside
-                } else {
-                    Convention::NegativeInside
-                },
-                ..Protrusion::default()
-            };
-            if args.face.is_none() {
-                println!("no --face: filling the mask harmonically from its boundary");
-            }
-            let out = params
-                .apply(field.as_ref(), &grid, &mask)
-                .context("protrusion removal")?;
-            let r = &out.report;
+    if let Restoration::Protrusion { face: None, .. } = restoration {
+        println!("no --face: filling the mask harmonically from its boundary");
+    }
+    let samples = grid.sample(loaded.field.as_ref());
+    let restored = restoration.restore(
+        loaded.field.as_ref(),
+        &grid,
+        &samples,
+        &mask,
+        args.source.convention(),
+    )?;
+    match &restored.report {
+        Report::Protrusion(r) => {
             if let Some(alpha) = r.alpha {
                 println!(
                     "alpha {alpha:.4}{}",
@@ -191,44 +212,28 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
                 );
             }
             println!(
-                "{} unknowns, {} equations, solver {}: assembly {:.1} ms, solve {:.1} ms, \
-                 spline {:.1} ms; relative residual {:.3e}",
+                "{} unknowns, {} equations, solver {}: assembly {:.1} ms, solve {:.1} ms; \
+                 relative residual {:.3e}",
                 r.unknowns,
                 r.rows,
                 r.solve.solver,
                 r.assembly.as_secs_f64() * 1e3,
                 r.solve.elapsed.as_secs_f64() * 1e3,
-                r.interpolation.as_secs_f64() * 1e3,
                 r.solve.rel_residual
             );
-            out.field
         }
-        Mode::Denoise => {
-            if args.face.is_some() || args.alpha.is_some() {
-                bail!("--face and --alpha apply to --mode protrusion");
-            }
-            let Some(coarse) = args.coarse else {
-                bail!("--mode denoise needs --coarse m,n,l (coarse cells per axis in the mask)");
-            };
-            let resampling = if args.point_resampling {
-                Resampling::Point
-            } else {
-                Resampling::Area
-            };
-            let out = Denoise::new(coarse)
-                .with_resampling(resampling)
-                .apply(field.as_ref(), &grid, &mask)
-                .context("de-noising")?;
-            println!(
-                "coarse {:?} ({resampling:?} resampling): {:.1} ms, spline {:.1} ms",
-                out.report.coarse,
-                out.report.coarse_fit.as_secs_f64() * 1e3,
-                out.report.interpolation.as_secs_f64() * 1e3
-            );
-            out.field
-        }
-    };
-    write_field(&args.output, &restored)
+        Report::Denoise { coarse, resampling } => println!(
+            "coarse {coarse:?} ({resampling:?} resampling): {:.1} ms",
+            restored.elapsed.as_secs_f64() * 1e3,
+        ),
+    }
+    let spline = Instant::now();
+    let field = interpolate(&grid, restored.samples)?;
+    println!(
+        "quadratic spline through the restored samples: {:.1} ms",
+        spline.elapsed().as_secs_f64() * 1e3
+    );
+    write_field(&args.output, &field)
         .with_context(|| format!("writing {}", args.output.display()))?;
     println!(
         "wrote {} in {:.2} s",
@@ -238,107 +243,333 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Refuses a grid (or a coarse grid) that cannot be restored here, before the field is
-/// sampled: `--coarse` finer than the mask on some axis, or more memory than is available
-/// ([`BYTES_PER_SAMPLE`] per grid sample plus [`BYTES_PER_MASK_CELL`] per mask and coarse
-/// cell).
-fn check_size(args: &RestoreArgs, grid: &Grid<3>, mask: &BoxMask<3>) -> anyhow::Result<()> {
-    let counts = grid.counts();
-    let coarse_cells = match (args.mode, args.coarse) {
-        (Mode::Denoise, Some(coarse)) => {
-            let extent = mask.extent();
-            if let Some(axis) = (0..3).find(|&a| coarse[a] > extent[a]) {
-                return Err(anyhow::Error::new(RestoreError::InvalidCoarse {
-                    axis,
-                    coarse: coarse[axis],
-                    extent: extent[axis],
-                })
-                .context(format!("--coarse {}", counts_text(&coarse))));
-            }
-            sample_count(&coarse, "--coarse")?
-        }
-        _ => 0,
-    };
-    let samples = sample_count(&counts, "--grid")?;
-    let need = (samples as u64)
-        .saturating_mul(BYTES_PER_SAMPLE)
-        .saturating_add(
-            (mask.len() as u64)
-                .saturating_add(coarse_cells as u64)
-                .saturating_mul(BYTES_PER_MASK_CELL),
-        );
-    let what = match args.grid {
-        Some(_) => format!(
-            "--grid {} ({} cells)",
-            counts_text(&counts),
-            g(samples as f64)
-        ),
-        None => format!(
-            "the field file's grid {} ({} cells)",
-            counts_text(&counts).replace(',', "×"),
-            g(samples as f64)
-        ),
-    };
-    ensure_memory(need, &what, "choose fewer cells per axis with --grid L,M,N")
+/// One restoration, as `zeroset restore`'s flags (or a studio request) give it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Restoration {
+    /// `--mode protrusion`.
+    Protrusion {
+        /// Two opposite corners of the box, world coordinates.
+        mask: [[f64; 3]; 2],
+        /// `--face`, or the harmonic fill.
+        face: Option<Face>,
+        /// `--alpha`, or the field's mean slope across the face.
+        alpha: Option<f64>,
+    },
+    /// `--mode denoise`.
+    Denoise {
+        /// Two opposite corners of the box, world coordinates.
+        mask: [[f64; 3]; 2],
+        /// `--coarse`.
+        coarse: [usize; 3],
+        /// `--point-resampling`.
+        point_resampling: bool,
+    },
 }
 
-/// The input as a field, and the grid to restore it on by default.
-fn load(args: &RestoreArgs) -> anyhow::Result<(Box<dyn ScalarField<3>>, Grid<3>)> {
-    let zsf = args.input.extension().and_then(|e| e.to_str()) == Some("zsf");
-    if zsf || is_field_file(&args.input) {
-        let field = read_any_field::<3>(&args.input)
-            .with_context(|| format!("reading {}", args.input.display()))?;
-        let described = field.describe();
-        return match field {
-            AnyField::BSpline(field) => {
-                let grid = *field.grid();
-                println!("field file {}: {described}", args.input.display());
-                Ok((Box::new(field), grid))
+/// What a restoration did.
+#[derive(Debug, Clone)]
+pub(crate) enum Report {
+    /// The least-squares solve's report.
+    Protrusion(zeroset_restore::protrusion::Report),
+    /// The coarse grid and its resampling rule.
+    Denoise {
+        coarse: [usize; 3],
+        resampling: Resampling,
+    },
+}
+
+/// The restored samples of the grid and how they were made.
+#[derive(Debug, Clone)]
+pub(crate) struct Restored {
+    /// `f` outside the mask, the restoration inside (last axis fastest).
+    pub samples: Vec<f64>,
+    pub report: Report,
+    /// Time to restore the samples (not the spline through them).
+    pub elapsed: std::time::Duration,
+}
+
+impl Restoration {
+    /// The mask's corners.
+    pub(crate) fn corners(&self) -> [[f64; 3]; 2] {
+        match self {
+            Self::Protrusion { mask, .. } | Self::Denoise { mask, .. } => *mask,
+        }
+    }
+
+    /// The mask on `grid`: the cells whose centres lie in the box.
+    ///
+    /// # Errors
+    /// A box outside the grid's, or one holding no cell centre.
+    pub(crate) fn mask(&self, grid: &Grid<3>) -> anyhow::Result<BoxMask<3>> {
+        let [a, b] = self.corners();
+        BoxMask::from_corners(grid, a, b).with_context(|| {
+            let bb = grid.bounds();
+            format!(
+                "the mask must lie in the field's box {} .. {}",
+                crate::info::point(bb.min()),
+                crate::info::point(bb.max())
+            )
+        })
+    }
+
+    /// Refuses a restoration that cannot run here, before the field is sampled: `--coarse`
+    /// finer than the mask on some axis, or more memory than is available
+    /// ([`BYTES_PER_SAMPLE`] per grid sample plus [`BYTES_PER_MASK_CELL`] per mask and coarse
+    /// cell). `explicit_grid`: the grid came from `--grid` (for the message).
+    pub(crate) fn check_size(
+        &self,
+        grid: &Grid<3>,
+        mask: &BoxMask<3>,
+        explicit_grid: bool,
+    ) -> anyhow::Result<()> {
+        let counts = grid.counts();
+        let coarse_cells = match self {
+            Self::Denoise { coarse, .. } => {
+                let extent = mask.extent();
+                if let Some(axis) = (0..3).find(|&a| coarse[a] > extent[a]) {
+                    return Err(anyhow::Error::new(RestoreError::InvalidCoarse {
+                        axis,
+                        coarse: coarse[axis],
+                        extent: extent[axis],
+                    })
+                    .context(format!("--coarse {}", counts_text(coarse))));
+                }
+                sample_count(coarse, "--coarse")?
             }
-            field @ (AnyField::Rbf(_) | AnyField::Neural(_) | AnyField::Mras(_)) => {
-                // Sampled onto a grid over the field's box, like a point cloud's field.
-                let bounds = field.bounds().context("the field has no bounds")?;
-                let grid = zeroset_restore::sampling_grid(bounds)?;
-                println!(
-                    "field file {}: {described}, sampled on the grid",
-                    args.input.display()
-                );
-                Ok((Box::new(field), grid))
-            }
+            Self::Protrusion { .. } => 0,
         };
+        let samples = sample_count(&counts, "--grid")?;
+        let need = (samples as u64)
+            .saturating_mul(BYTES_PER_SAMPLE)
+            .saturating_add(
+                (mask.len() as u64)
+                    .saturating_add(coarse_cells as u64)
+                    .saturating_mul(BYTES_PER_MASK_CELL),
+            );
+        let what = if explicit_grid {
+            format!(
+                "--grid {} ({} cells)",
+                counts_text(&counts),
+                g(samples as f64)
+            )
+        } else {
+            format!(
+                "the field file's grid {} ({} cells)",
+                counts_text(&counts).replace(',', "×"),
+                g(samples as f64)
+            )
+        };
+        ensure_memory(need, &what, "choose fewer cells per axis with --grid L,M,N")
     }
-    let mut options = ReadOptions::default();
-    if let Some(format) = &args.format {
-        options = options.with_format(format.parse().context("--format")?);
+
+    /// Restores `samples` (of `field` on `grid`) in `mask`: the same computation, on the same
+    /// samples, whether `zeroset restore` or the studio asks, so their fields are the same bits.
+    ///
+    /// # Errors
+    /// The restoration's (a face on the grid's border, a mask covering the grid, …).
+    pub(crate) fn restore(
+        &self,
+        field: &dyn ScalarField<3>,
+        grid: &Grid<3>,
+        samples: &[f64],
+        mask: &BoxMask<3>,
+        convention: Convention,
+    ) -> anyhow::Result<Restored> {
+        let start = Instant::now();
+        match *self {
+            Self::Protrusion { face, alpha, .. } => {
+                let params = Protrusion {
+                    face,
+                    alpha,
+                    convention,
+                    ..Protrusion::default()
+                };
+                let (samples, report) = params
+                    .restore_samples(grid, samples, mask)
+                    .context("protrusion removal")?;
+                Ok(Restored {
+                    samples,
+                    report: Report::Protrusion(report),
+                    elapsed: start.elapsed(),
+                })
+            }
+            Self::Denoise {
+                coarse,
+                point_resampling,
+                ..
+            } => {
+                let resampling = if point_resampling {
+                    Resampling::Point
+                } else {
+                    Resampling::Area
+                };
+                let samples = Denoise::new(coarse)
+                    .with_resampling(resampling)
+                    .restore_samples(field, grid, samples, mask)
+                    .context("de-noising")?;
+                Ok(Restored {
+                    samples,
+                    report: Report::Denoise { coarse, resampling },
+                    elapsed: start.elapsed(),
+                })
+            }
+        }
     }
-    let cloud = read_point_cloud_with(&args.input, &options).map_err(|e| {
-        crate::fit::read_error(
-            &args.input,
-            e,
-            "record",
-            "zeroset restore needs finite coordinates and normals (`zeroset info` counts them all)",
-        )
-    })?;
-    if cloud.normals().is_none() {
-        bail!(
-            "{} has no normals: a point cloud is restored through its tangent-plane field, \
-             which needs an oriented cloud (x y z nx ny nz; PLY properties nx ny nz; CSV \
-             columns nx,ny,nz)",
-            args.input.display()
+
+    /// The `zeroset restore` flags that ask for this restoration (numbers written so that they
+    /// parse back to the same `f64`).
+    pub(crate) fn flags(&self) -> String {
+        let [a, b] = self.corners();
+        let mask = format!(
+            "--mask {},{},{}:{},{},{}",
+            a[0], a[1], a[2], b[0], b[1], b[2]
         );
+        match self {
+            Self::Protrusion { face, alpha, .. } => {
+                let mut text = format!("--mode protrusion {mask}");
+                if let Some(face) = face {
+                    text.push_str(&format!(" --face {}", face_name(*face)));
+                }
+                if let Some(alpha) = alpha {
+                    text.push_str(&format!(" --alpha {alpha}"));
+                }
+                text
+            }
+            Self::Denoise {
+                coarse,
+                point_resampling,
+                ..
+            } => {
+                let mut text = format!("--mode denoise {mask} --coarse {}", counts_text(coarse));
+                if *point_resampling {
+                    text.push_str(" --point-resampling");
+                }
+                text
+            }
+        }
     }
-    crate::fit::check_extent(&args.input, &cloud)?;
-    let field = TangentPlaneField::new(&cloud, args.neighbours)
-        .context("building the tangent-plane field (the cloud needs normals)")?;
-    let bounds = field.bounds().context("the point cloud has no extent")?;
-    println!(
-        "point cloud {}: {} points, tangent-plane field over {} neighbours",
-        args.input.display(),
-        cloud.len(),
-        field.k()
-    );
-    let grid = zeroset_restore::sampling_grid(bounds)?;
-    Ok((Box::new(field), grid))
+}
+
+/// The quadratic B-spline through the samples of `grid` (the paper's Eqs. 6 and 9): the
+/// restored field.
+pub(crate) fn interpolate(grid: &Grid<3>, samples: Vec<f64>) -> anyhow::Result<BSplineField<3>> {
+    BSplineField::interpolate(*grid, samples, Degree::Quadratic)
+        .context("interpolating the restored samples")
+}
+
+/// The input, read: the field to restore, the grid to restore it on, and what it is.
+pub(crate) struct Loaded {
+    /// The field (a point cloud's tangent-plane field, or the field file's).
+    pub field: Box<dyn ScalarField<3>>,
+    /// The grid: `--grid` over the field's box, a B-spline field's own grid, or
+    /// [`zeroset_restore::sampling_grid`].
+    pub grid: Grid<3>,
+    /// One line saying what was read.
+    pub description: String,
+    /// A point cloud's points (none for a field file).
+    pub points: Option<Vec<Point<3>>>,
+}
+
+impl Source {
+    /// Refuses `--grid` counts whose product overflows, before anything is read.
+    pub(crate) fn check_counts(&self) -> anyhow::Result<()> {
+        if let Some(counts) = &self.grid {
+            sample_count(counts, "--grid")?;
+        }
+        Ok(())
+    }
+
+    /// The sign convention of the data.
+    pub(crate) fn convention(&self) -> Convention {
+        if self.positive_inside {
+            Convention::PositiveInside
+        } else {
+            Convention::NegativeInside
+        }
+    }
+
+    /// Reads the input as a field and picks the grid to restore it on.
+    pub(crate) fn load(&self) -> anyhow::Result<Loaded> {
+        let mut loaded = self.load_field()?;
+        if let Some(counts) = self.grid {
+            loaded.grid =
+                Grid::cell_centered(loaded.grid.bounds(), counts).context("building the --grid")?;
+        }
+        Ok(loaded)
+    }
+
+    /// The input as a field, and the grid to restore it on by default.
+    fn load_field(&self) -> anyhow::Result<Loaded> {
+        let input = &self.input;
+        let zsf = input.extension().and_then(|e| e.to_str()) == Some("zsf");
+        if zsf || is_field_file(input) {
+            let field = read_any_field::<3>(input)
+                .with_context(|| format!("reading {}", input.display()))?;
+            let described = field.describe();
+            return match field {
+                AnyField::BSpline(field) => {
+                    let grid = *field.grid();
+                    Ok(Loaded {
+                        field: Box::new(field),
+                        grid,
+                        description: format!("field file {}: {described}", input.display()),
+                        points: None,
+                    })
+                }
+                field @ (AnyField::Rbf(_) | AnyField::Neural(_) | AnyField::Mras(_)) => {
+                    // Sampled onto a grid over the field's box, like a point cloud's field.
+                    let bounds = field.bounds().context("the field has no bounds")?;
+                    let grid = zeroset_restore::sampling_grid(bounds)?;
+                    Ok(Loaded {
+                        field: Box::new(field),
+                        grid,
+                        description: format!(
+                            "field file {}: {described}, sampled on the grid",
+                            input.display()
+                        ),
+                        points: None,
+                    })
+                }
+            };
+        }
+        let mut options = ReadOptions::default();
+        if let Some(format) = &self.format {
+            options = options.with_format(format.parse().context("--format")?);
+        }
+        let cloud = read_point_cloud_with(input, &options).map_err(|e| {
+            crate::fit::read_error(
+                input,
+                e,
+                "record",
+                "zeroset restore needs finite coordinates and normals (`zeroset info` counts them all)",
+            )
+        })?;
+        if cloud.normals().is_none() {
+            bail!(
+                "{} has no normals: a point cloud is restored through its tangent-plane field, \
+                 which needs an oriented cloud (x y z nx ny nz; PLY properties nx ny nz; CSV \
+                 columns nx,ny,nz)",
+                input.display()
+            );
+        }
+        crate::fit::check_extent(input, &cloud)?;
+        let field = TangentPlaneField::new(&cloud, self.neighbours)
+            .context("building the tangent-plane field (the cloud needs normals)")?;
+        let bounds = field.bounds().context("the point cloud has no extent")?;
+        let description = format!(
+            "point cloud {}: {} points, tangent-plane field over {} neighbours",
+            input.display(),
+            cloud.len(),
+            field.k()
+        );
+        let grid = zeroset_restore::sampling_grid(bounds)?;
+        Ok(Loaded {
+            field: Box::new(field),
+            grid,
+            description,
+            points: Some(cloud.positions().to_vec()),
+        })
+    }
 }
 
 pub use zeroset_field_core::grid::cubic_counts;

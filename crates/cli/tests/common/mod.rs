@@ -38,3 +38,5 @@ pub fn zeroset_with<S: AsRef<OsStr>>(
     }
     command.output().expect("cannot run the zeroset binary")
 }
+
+pub mod studio;

@@ -1,0 +1,446 @@
+//! The studio's HTTP API (`docs/studio.md`) on axum: one guard in front of every route (the
+//! `Host` the studio bound, no cross-origin request, the access token, a body limit), JSON in,
+//! JSON or binary meshes out, errors as `{"error": "..."}` with a 4xx status. The computations
+//! run on tokio's blocking pool, one at a time, behind the session's mutex.
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use axum::Router;
+use axum::body::{Body, Bytes};
+use axum::extract::{Path, Request, State};
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use serde::Deserialize;
+use serde_json::{Value, json};
+
+use zeroset_field_core::mask::Face;
+
+use super::assets;
+use super::session::{ApiError, Session};
+use crate::restore::Restoration;
+
+/// The largest request body the studio reads (a restoration is under 300 bytes).
+pub(crate) const BODY_LIMIT: usize = 64 * 1024;
+
+/// What every request handler shares.
+pub(crate) struct App {
+    /// The session; requests that compute take turns.
+    pub session: Mutex<Session>,
+    /// The access token.
+    pub token: String,
+    /// The cookie that carries the token for the page's scripts and styles.
+    pub cookie: String,
+    /// The `Host` header values accepted; `None` when the studio is bound beyond loopback (then
+    /// the token alone admits, and `Origin` must still match `Host`).
+    pub hosts: Option<Vec<String>>,
+}
+
+/// The studio's routes behind the guard.
+pub(crate) fn router(app: Arc<App>) -> Router {
+    Router::new()
+        .route("/", get(index))
+        .route("/assets/{name}", get(asset))
+        .route("/api/state", get(state))
+        .route("/api/mesh", get(mesh))
+        .route("/api/points", get(points))
+        .route("/api/preview", post(preview))
+        .route("/api/apply", post(apply))
+        .route("/api/undo", post(undo))
+        .route("/api/redo", post(redo))
+        .route("/api/save", post(save))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
+        .with_state(app)
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let status = StatusCode::from_u16(self.status).unwrap_or(StatusCode::BAD_REQUEST);
+        (status, axum::Json(json!({ "error": self.message }))).into_response()
+    }
+}
+
+fn refuse(status: u16, message: impl Into<String>) -> ApiError {
+    ApiError {
+        status,
+        message: message.into(),
+    }
+}
+
+/// Admits a request or says why not; adds the cookie to `GET /?token=…` and the headers that
+/// keep the page out of frames, caches and referrers.
+async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Response {
+    if let Err(e) = admit(&app, request.headers(), request.uri()) {
+        return e.into_response();
+    }
+    let set_cookie = request.uri().path() == "/";
+    let mut response = next.run(request).await;
+    let headers = response.headers_mut();
+    if set_cookie
+        && let Ok(value) = HeaderValue::from_str(&format!(
+            "{}={}; Path=/; HttpOnly; SameSite=Strict",
+            app.cookie, app.token
+        ))
+    {
+        headers.insert(header::SET_COOKIE, value);
+    }
+    for (name, value) in [
+        ("cache-control", "no-store"),
+        ("referrer-policy", "no-referrer"),
+        ("x-content-type-options", "nosniff"),
+        ("x-frame-options", "DENY"),
+        (
+            "content-security-policy",
+            "default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' \
+             'unsafe-inline'; img-src 'self' data: blob:; connect-src 'self'; \
+             frame-ancestors 'none'",
+        ),
+    ] {
+        headers.insert(name, HeaderValue::from_static(value));
+    }
+    response
+}
+
+/// The guard's checks, in order: the `Host` (DNS rebinding), the `Origin` and `Sec-Fetch-Site`
+/// (other web pages), the token, the declared body size.
+fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
+    let text = |name: header::HeaderName| headers.get(name).and_then(|v| v.to_str().ok());
+    let host = text(header::HOST).unwrap_or("");
+    if let Some(hosts) = &app.hosts
+        && !hosts.iter().any(|h| h.eq_ignore_ascii_case(host))
+    {
+        return Err(refuse(
+            403,
+            format!(
+                "this studio answers only at http://{} (the request's Host is {host:?})",
+                hosts[0]
+            ),
+        ));
+    }
+    if let Some(origin) = text(header::ORIGIN)
+        && !origin.eq_ignore_ascii_case(&format!("http://{host}"))
+    {
+        return Err(refuse(
+            403,
+            format!("cross-origin request refused (Origin {origin:?})"),
+        ));
+    }
+    if headers
+        .get("sec-fetch-site")
+        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"cross-site"))
+    {
+        return Err(refuse(403, "cross-site request refused"));
+    }
+    let given = query_token(uri)
+        .or_else(|| {
+            headers
+                .get("x-zeroset-token")
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_owned)
+        })
+        .or_else(|| cookie_token(headers, &app.cookie));
+    match given {
+        Some(t) if same(t.as_bytes(), app.token.as_bytes()) => {}
+        Some(_) => {
+            return Err(refuse(
+                401,
+                "wrong access token: open the address zeroset studio printed",
+            ));
+        }
+        None => {
+            return Err(refuse(
+                401,
+                "missing access token: open the address zeroset studio printed (it ends in \
+                 ?token=…), or send the header X-Zeroset-Token",
+            ));
+        }
+    }
+    let declared = text(header::CONTENT_LENGTH).and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > BODY_LIMIT as u64) {
+        return Err(body_too_large());
+    }
+    Ok(())
+}
+
+fn body_too_large() -> ApiError {
+    refuse(
+        413,
+        format!("request body over the studio's limit of {BODY_LIMIT} bytes"),
+    )
+}
+
+/// The `token` parameter of the query, if any.
+fn query_token(uri: &Uri) -> Option<String> {
+    uri.query()?
+        .split('&')
+        .find_map(|pair| pair.strip_prefix("token="))
+        .map(str::to_owned)
+}
+
+/// The token in the studio's cookie, if any.
+fn cookie_token(headers: &HeaderMap, name: &str) -> Option<String> {
+    headers
+        .get_all(header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(';'))
+        .find_map(|pair| {
+            let (k, v) = pair.trim().split_once('=')?;
+            (k == name).then(|| v.to_owned())
+        })
+}
+
+/// Compares two tokens in time independent of where they differ.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Runs `work` on the session on tokio's blocking pool.
+async fn with_session<T: Send + 'static>(
+    app: Arc<App>,
+    work: impl FnOnce(&mut Session) -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    tokio::task::spawn_blocking(move || {
+        let mut session = app.session.lock().unwrap_or_else(PoisonError::into_inner);
+        work(&mut session)
+    })
+    .await
+    .map_err(|e| refuse(500, format!("the computation failed: {e}")))?
+}
+
+/// Reads a JSON body: `application/json`, at most [`BODY_LIMIT`] bytes, well-formed.
+async fn read_json<T: for<'de> Deserialize<'de>>(
+    headers: &HeaderMap,
+    body: Body,
+) -> Result<T, ApiError> {
+    let json = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| {
+            v.split(';')
+                .next()
+                .is_some_and(|t| t.trim().eq_ignore_ascii_case("application/json"))
+        });
+    if !json {
+        return Err(refuse(
+            415,
+            "send the body as Content-Type: application/json",
+        ));
+    }
+    let bytes: Bytes = axum::body::to_bytes(body, BODY_LIMIT)
+        .await
+        .map_err(|_| body_too_large())?;
+    serde_json::from_slice(&bytes).map_err(|e| refuse(400, format!("malformed JSON: {e}")))
+}
+
+fn binary(bytes: Vec<u8>) -> Response {
+    ([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response()
+}
+
+fn json_response(value: Value) -> Response {
+    axum::Json(value).into_response()
+}
+
+async fn index() -> Response {
+    match assets::find("index.html") {
+        Some(asset) => ([(header::CONTENT_TYPE, asset.content_type)], asset.bytes).into_response(),
+        None => not_found().await,
+    }
+}
+
+async fn asset(Path(name): Path<String>) -> Response {
+    match assets::find(&name) {
+        Some(asset) => ([(header::CONTENT_TYPE, asset.content_type)], asset.bytes).into_response(),
+        None => not_found().await,
+    }
+}
+
+async fn not_found() -> Response {
+    refuse(
+        404,
+        "no such page or API endpoint (docs/studio.md lists them)",
+    )
+    .into_response()
+}
+
+async fn method_not_allowed(method: Method) -> Response {
+    refuse(405, format!("{method} is not allowed here")).into_response()
+}
+
+async fn state(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
+    Ok(json_response(with_session(app, |s| Ok(s.state())).await?))
+}
+
+async fn mesh(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
+    Ok(binary(with_session(app, |s| s.mesh()).await?))
+}
+
+async fn points(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
+    let bytes = with_session(app, |s| {
+        s.points()
+            .ok_or_else(|| refuse(404, "the input is a field file: it has no points"))
+    })
+    .await?;
+    Ok(binary(bytes))
+}
+
+/// A restoration as the API's JSON (`docs/studio.md`).
+#[derive(Debug, Deserialize)]
+#[serde(tag = "mode", rename_all = "lowercase")]
+enum RestorationJson {
+    Protrusion {
+        mask: [[f64; 3]; 2],
+        #[serde(default)]
+        face: Option<String>,
+        #[serde(default)]
+        alpha: Option<f64>,
+    },
+    Denoise {
+        mask: [[f64; 3]; 2],
+        coarse: [usize; 3],
+        #[serde(default)]
+        resampling: Option<String>,
+    },
+}
+
+impl RestorationJson {
+    fn check(self) -> Result<Restoration, ApiError> {
+        let finite = |mask: &[[f64; 3]; 2]| {
+            if mask.iter().flatten().all(|v| v.is_finite()) {
+                Ok(())
+            } else {
+                Err(refuse(400, "mask corners must be finite numbers"))
+            }
+        };
+        match self {
+            Self::Protrusion { mask, face, alpha } => {
+                finite(&mask)?;
+                let face = face
+                    .map(|f| f.parse::<Face>())
+                    .transpose()
+                    .map_err(|e| refuse(400, e))?;
+                if alpha.is_some_and(|a| !a.is_finite()) {
+                    return Err(refuse(400, "alpha must be a finite number or null"));
+                }
+                Ok(Restoration::Protrusion { mask, face, alpha })
+            }
+            Self::Denoise {
+                mask,
+                coarse,
+                resampling,
+            } => {
+                finite(&mask)?;
+                let point_resampling = match resampling.as_deref() {
+                    None | Some("area") => false,
+                    Some("point") => true,
+                    Some(other) => {
+                        return Err(refuse(
+                            400,
+                            format!("resampling is \"area\" or \"point\", got {other:?}"),
+                        ));
+                    }
+                };
+                if coarse.contains(&0) {
+                    return Err(refuse(400, "coarse cell counts must be at least 1"));
+                }
+                Ok(Restoration::Denoise {
+                    mask,
+                    coarse,
+                    point_resampling,
+                })
+            }
+        }
+    }
+}
+
+async fn restoration(headers: &HeaderMap, body: Body) -> Result<Restoration, ApiError> {
+    read_json::<RestorationJson>(headers, body).await?.check()
+}
+
+async fn preview(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    let r = restoration(&headers, body).await?;
+    Ok(binary(with_session(app, move |s| s.preview(&r)).await?))
+}
+
+async fn apply(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    let r = restoration(&headers, body).await?;
+    let state = with_session(app, move |s| {
+        s.apply(&r)?;
+        Ok(s.state())
+    })
+    .await?;
+    Ok(json_response(state))
+}
+
+async fn undo(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
+    let state = with_session(app, |s| {
+        s.undo()?;
+        Ok(s.state())
+    })
+    .await?;
+    Ok(json_response(state))
+}
+
+async fn redo(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
+    let state = with_session(app, |s| {
+        s.redo()?;
+        Ok(s.state())
+    })
+    .await?;
+    Ok(json_response(state))
+}
+
+/// The body of `POST /api/save`.
+#[derive(Debug, Deserialize)]
+struct SaveJson {
+    #[serde(default)]
+    mesh: bool,
+}
+
+async fn save(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    let request = read_json::<SaveJson>(&headers, body).await?;
+    Ok(json_response(
+        with_session(app, move |s| s.save(request.mesh)).await?,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tokens_come_from_the_query_or_the_cookie() {
+        let uri: Uri = "/?a=1&token=abc".parse().unwrap();
+        assert_eq!(query_token(&uri).as_deref(), Some("abc"));
+        let uri: Uri = "/api/state".parse().unwrap();
+        assert_eq!(query_token(&uri), None);
+        let mut headers = HeaderMap::new();
+        headers.insert(
+            header::COOKIE,
+            HeaderValue::from_static("x=1; zeroset-studio-7878=tok"),
+        );
+        assert_eq!(
+            cookie_token(&headers, "zeroset-studio-7878").as_deref(),
+            Some("tok")
+        );
+        assert_eq!(cookie_token(&headers, "zeroset-studio-7879"), None);
+        assert!(same(b"abc", b"abc"));
+        assert!(!same(b"abc", b"abd"));
+        assert!(!same(b"abc", b"ab"));
+    }
+}

@@ -111,7 +111,7 @@ impl Drop for SampleFile {
 
 /// The bunny's ears, as the mask of the restoration step: the box above the head, its
 /// bottom face (−y) where the ears join it.
-const EAR_MASK: ([f64; 3], [f64; 3]) = ([-0.095, 0.145, -0.065], [0.0, 0.2, 0.04]);
+const EAR_MASK: ([f64; 3], [f64; 3]) = ([-0.1, 0.145, -0.07], [0.005, 0.2, 0.05]);
 
 /// A restoration step on the bundled bunny: its tangent-plane field on a grid, the ears
 /// removed by protrusion removal for a few α, and how high the surface still reaches.

@@ -38,7 +38,7 @@ Examples:
   zeroset fit samples/curve.xyv --method neural -o curve_nn.zsf
                                                a neural field through the same constraints
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \
-      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
+      --mask -0.1,0.145,-0.07:0.005,0.2,0.05 --face -y -o no_ears.zsf
                                                remove the bunny's ears
   zeroset mesh bunny.zsf -o bunny.ply          mesh the field's zero set (binary PLY)
   zeroset preview bunny.zsf -o bunny.png       a shaded PNG of the field's zero set

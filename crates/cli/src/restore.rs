@@ -33,10 +33,10 @@ pub const EXAMPLES: &str = "\
 Examples:
   # remove the bunny's ears: the mask's bottom face (-y) is where they join the head
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \\
-      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y -o no_ears.zsf
+      --mask -0.1,0.145,-0.07:0.005,0.2,0.05 --face -y -o no_ears.zsf
   # flatter: a steeper slope across the face
   zeroset restore samples/bunny_2k.xyzn --mode protrusion \\
-      --mask -0.095,0.145,-0.065:0.0,0.2,0.04 --face -y --alpha 3 -o flat.zsf
+      --mask -0.1,0.145,-0.07:0.005,0.2,0.05 --face -y --alpha 3 -o flat.zsf
   # then smooth a region of the result (restorations compose)
   zeroset restore no_ears.zsf --mode denoise --mask -0.05,0.05,-0.03:0.05,0.12,0.06 \\
       --coarse 6,6,4 -o smooth.zsf";

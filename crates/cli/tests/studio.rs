@@ -9,7 +9,7 @@ use common::studio::{Studio, parse_mesh};
 use common::{sample, zeroset};
 
 /// The bunny's ears (the README's example).
-const EARS: &str = r#"{"mode":"protrusion","mask":[[-0.095,0.145,-0.065],[0.0,0.2,0.04]],"face":"-y","alpha":null}"#;
+const EARS: &str = r#"{"mode":"protrusion","mask":[[-0.1,0.145,-0.07],[0.005,0.2,0.05]],"face":"-y","alpha":null}"#;
 
 #[test]
 fn the_token_is_required_and_other_origins_and_hosts_are_refused() {
@@ -161,7 +161,7 @@ fn bad_requests_get_4xx_with_a_message() {
 fn previews_are_well_formed_meshes_and_undo_redo_walk_the_history() {
     let studio = Studio::start([sample()]);
     let state = studio.get("/api/state").json();
-    assert_eq!(state["grid"]["counts"], serde_json::json!([64, 63, 52]));
+    assert_eq!(state["grid"]["counts"], serde_json::json!([64, 63, 53]));
     assert_eq!(state["points"], 2000);
     let points = studio.get("/api/points");
     assert_eq!(&points.body[..8], b"ZSP1\xd0\x07\0\0");
@@ -203,6 +203,10 @@ fn previews_are_well_formed_meshes_and_undo_redo_walk_the_history() {
         high(&after),
         high(&before)
     );
+    // The ears go whole: one surface is left (the mask encloses them with cells to spare); a
+    // speck of a few vertices where the slope condition meets the head is not an ear.
+    assert_eq!(pieces(&before, 20), 1);
+    assert_eq!(pieces(&after, 20), 1, "pieces of the ears stayed behind");
     let alpha = after.report["alpha_used"].as_f64().unwrap();
     assert_eq!(after.report["default_alpha"].as_f64(), Some(alpha));
     let range = after.report["alpha_range"].as_array().unwrap();
@@ -237,6 +241,34 @@ fn previews_are_well_formed_meshes_and_undo_redo_walk_the_history() {
     studio.post("/api/redo", "");
     let redone = parse_mesh(&studio.get("/api/mesh").body);
     assert!(redone.triangles == committed.triangles && redone.positions == committed.positions);
+}
+
+/// The number of connected pieces of a mesh (triangles sharing vertices) with at least
+/// `min_vertices` vertices, by union-find.
+fn pieces(mesh: &common::studio::WireMesh, min_vertices: usize) -> usize {
+    let mut parent: Vec<usize> = (0..mesh.positions.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (
+                root(&mut parent, t[0] as usize),
+                root(&mut parent, t[k] as usize),
+            );
+            parent[a] = b;
+        }
+    }
+    let used: std::collections::HashSet<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let mut sizes = std::collections::HashMap::<usize, usize>::new();
+    for i in used {
+        *sizes.entry(root(&mut parent, i as usize)).or_default() += 1;
+    }
+    sizes.values().filter(|&&n| n >= min_vertices).count()
 }
 
 /// Splits a command line the studio printed (no quoting: the test's paths have no spaces).

@@ -50,16 +50,26 @@ use zeroset_field_core::mask::BoxMask;
 /// field, a Python callable): [`sampling_grid`].
 pub const SAMPLING_CELLS: usize = 64;
 
-/// The cell-centred grid over `bounds` with [`SAMPLING_CELLS`] cells along the longest axis and
-/// the others in proportion ([`zeroset_field_core::grid::cubic_counts`]): where `zeroset
-/// restore` and the Python `zeroset.restore` sample a field that has no grid of its own.
+/// The cells [`sampling_grid`] adds beyond the field's box on every side. A scan's box touches
+/// its surface (a bunny's ear tips are on the top face), and a mask must enclose a protrusion
+/// with a ring of cells to spare: without the margin the tips outside the last mask cell would
+/// stay behind as floating pieces, and the zero set would be cut open at the box.
+pub const SAMPLING_MARGIN: usize = 3;
+
+/// The cell-centred grid over `bounds` widened by [`SAMPLING_MARGIN`] cells on every side, with
+/// [`SAMPLING_CELLS`] cells along the longest axis and the others in proportion
+/// ([`zeroset_field_core::grid::cubic_counts`]): where `zeroset restore`, `zeroset studio` and
+/// the Python `zeroset.restore` sample a field that has no grid of its own.
 ///
 /// # Errors
 /// As [`Grid::cell_centered`] (a box that is not finite).
 pub fn sampling_grid(bounds: zeroset_field_core::geometry::Aabb<3>) -> Result<Grid<3>> {
+    let longest = bounds.extent().into_iter().fold(0.0, f64::max);
+    let cell = longest / (SAMPLING_CELLS - 2 * SAMPLING_MARGIN) as f64;
+    let padded = bounds.expanded(SAMPLING_MARGIN as f64 * cell);
     Ok(Grid::cell_centered(
-        bounds,
-        zeroset_field_core::grid::cubic_counts(&bounds, SAMPLING_CELLS),
+        padded,
+        zeroset_field_core::grid::cubic_counts(&padded, SAMPLING_CELLS),
     )?)
 }
 

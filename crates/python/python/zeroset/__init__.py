@@ -702,7 +702,7 @@ def svt(matrix: Any, tau: float, *, return_rank: bool = False) -> Any:
 
 #: The bunny's ears in the bundled sample: the box above the head, its bottom face (-y)
 #: where they join it (as ``zeroset demo``).
-EAR_MASK = ((-0.095, 0.145, -0.065), (0.0, 0.2, 0.04))
+EAR_MASK = ((-0.1, 0.145, -0.07), (0.005, 0.2, 0.05))
 
 
 def demo(directory: Optional[PathLike] = None, *, quiet: bool = False) -> Dict[str, Any]:

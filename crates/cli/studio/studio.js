@@ -67,8 +67,12 @@ async function api(method, path, body) {
 
 const getJSON = async (path) => (await api('GET', path)).json();
 const postJSON = async (path, body) => (await api('POST', path, body)).json();
-const fetchMesh = async (method, path, body) =>
-  parseMesh(await (await api(method, path, body)).arrayBuffer());
+/** A binary mesh; `received` is when it arrived (for the round trip's breakdown). */
+const fetchMesh = async (method, path, body) => {
+  const mesh = parseMesh(await (await api(method, path, body)).arrayBuffer());
+  mesh.received = performance.now();
+  return mesh;
+};
 
 function checkMagic(view, magic) {
   const got = String.fromCharCode(...[0, 1, 2, 3].map((i) => view.getUint8(i)));
@@ -129,8 +133,22 @@ const page = {
 // Scene
 
 const canvas = $('view');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
-renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+/**
+ * The WebGL renderer's name, and whether it draws on the CPU (SwiftShader, llvmpipe: headless
+ * browsers, VMs, remote desktops). There multisampling and high-DPI pixels cost several times
+ * the frame, so the studio draws without them to stay live.
+ */
+function probeRenderer() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  gl?.getExtension('WEBGL_lose_context')?.loseContext();
+  return { name, software: /SwiftShader|llvmpipe|softpipe|Software/i.test(name) };
+}
+const gpu = probeRenderer();
+studio.renderer = gpu;
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: !gpu.software });
+renderer.setPixelRatio(gpu.software ? 1 : Math.min(window.devicePixelRatio, 2));
 renderer.setClearColor(0x15181d);
 const scene = new THREE.Scene();
 const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
@@ -218,11 +236,14 @@ new ResizeObserver(resize).observe(canvas);
 let renderQueued = false;
 let framesToRecord = [];
 
+/** Draws the scene in the next animation frame (once, however often it is asked). */
 function requestRender() {
   if (renderQueued) return;
   renderQueued = true;
   requestAnimationFrame(renderFrame);
 }
+
+studio.redraw = requestRender;
 
 function renderFrame() {
   renderQueued = false;
@@ -237,7 +258,14 @@ function renderFrame() {
 let frameSeq = 0;
 function recordFrame({ trigger, t0, mesh }) {
   const ms = performance.now() - t0;
-  studio.frames.push({ seq: ++frameSeq, trigger, ms, vertices: mesh.vertices, triangles: mesh.triangles });
+  // The round trip and its parts: the server's restore + mesh, the whole request (server,
+  // transfer, parsing), and the rest (geometry upload, drawing, the frame that shows it).
+  const report = mesh.report ?? {};
+  studio.frames.push({
+    seq: ++frameSeq, trigger, ms, vertices: mesh.vertices, triangles: mesh.triangles,
+    server_ms: (report.restore_ms ?? 0) + (report.mesh_ms ?? 0),
+    request_ms: mesh.received === undefined ? null : mesh.received - t0,
+  });
   if (trigger !== 'load' && trigger !== 'before-after') page.roundTrip = ms;
   updateInfo();
   resolveReady();

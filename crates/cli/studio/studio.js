@@ -386,6 +386,18 @@ const maskGroup = new THREE.Group();
 maskGroup.add(maskBox, maskEdges, ...handles);
 scene.add(maskGroup);
 
+/**
+ * Where a handle is on the canvas, in CSS pixels of the page ('+x' … '-z', or 'centre'): for
+ * tests and scripts that drag it with a real mouse.
+ */
+studio.handleAt = (name) => {
+  const handle = name === 'centre' ? centreHandle : faceHandles[FACES.indexOf(name)];
+  if (!handle) throw new Error(`no handle ${name}`);
+  const p = handle.getWorldPosition(new THREE.Vector3()).project(camera);
+  const r = canvas.getBoundingClientRect();
+  return [r.left + (p.x + 1) / 2 * r.width, r.top + (1 - p.y) / 2 * r.height];
+};
+
 function updateMaskVisuals() {
   const [lo, hi] = maskCorners().map((p) => p.map((v, a) => v - page.grid.offset[a]));
   const size = new THREE.Vector3(...hi.map((v, a) => Math.max(v - lo[a], 1e-12)));

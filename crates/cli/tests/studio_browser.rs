@@ -62,14 +62,17 @@ struct Trips {
     total: Vec<f64>,
     server: Vec<f64>,
     request: Vec<f64>,
+    /// The last mesh's size.
+    triangles: u64,
 }
 
 impl std::fmt::Display for Trips {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "median of {}: {:.0} ms on screen (min {:.0}, max {:.0}); request {:.0} ms, of \
+            "{} triangles; median of {}: {:.0} ms on screen (min {:.0}, max {:.0}); request {:.0} ms, of \
              which server {:.0} ms",
+            self.triangles,
             self.total.len(),
             median(self.total.clone()),
             self.total.iter().copied().fold(f64::INFINITY, f64::min),
@@ -140,6 +143,33 @@ fn session(exe: &std::path::Path, extra: &[&str], screenshot: bool) -> Trips {
         "{no_ears} triangles with the ears removed, {original} with"
     );
 
+    // Drag the mask's top handle down with the mouse and back up: the mask follows (its corner
+    // input changes) and the surface is restored live while dragging.
+    let top = browser.eval("window.studio.handleAt('+y')").unwrap();
+    let (x, y) = (top[0].as_f64().unwrap(), top[1].as_f64().unwrap());
+    let hi_y = |b: &mut cdp::Browser| {
+        b.eval("Number(document.querySelector('#hi-y').value)")
+            .unwrap()
+            .as_f64()
+            .unwrap()
+    };
+    let before_drag = hi_y(&mut browser);
+    let seen = frames(&mut browser).len();
+    browser.drag((x, y), (x, y + 40.0), 8).unwrap();
+    wait_frame(&mut browser, seen, "mask");
+    let dragged = hi_y(&mut browser);
+    assert!(
+        dragged < before_drag,
+        "dragging the +y handle down moved the mask's top from {before_drag} to {dragged}"
+    );
+    let top = browser.eval("window.studio.handleAt('+y')").unwrap();
+    let (x, y) = (top[0].as_f64().unwrap(), top[1].as_f64().unwrap());
+    let seen = frames(&mut browser).len();
+    browser.drag((x, y), (x, y - 40.0), 8).unwrap();
+    wait_frame(&mut browser, seen, "mask");
+    // Back where it was, give or take a cell of snapping.
+    browser.set_input("#hi-y", "0.2").unwrap();
+
     // Orbit the view (a drag on the canvas, away from the mask's handles).
     let (cx, cy) = browser.center_of("#view").unwrap();
     browser
@@ -164,6 +194,7 @@ fn session(exe: &std::path::Path, extra: &[&str], screenshot: bool) -> Trips {
         trips.total.push(frame["ms"].as_f64().unwrap());
         trips.server.push(frame["server_ms"].as_f64().unwrap());
         trips.request.push(frame["request_ms"].as_f64().unwrap());
+        trips.triangles = frame["triangles"].as_u64().unwrap();
         triangles.push(frame["triangles"].as_u64().unwrap());
     }
     triangles.dedup();

@@ -450,6 +450,44 @@ impl Restoration {
     }
 }
 
+/// Refuses a grid whose `copies` sets of samples (each with its spline coefficients and the
+/// restored samples: [`BYTES_PER_SAMPLE`] per sample) do not fit in the memory available.
+/// `explicit_grid`: the grid came from `--grid` (for the message).
+pub(crate) fn check_grid_memory(
+    grid: &Grid<3>,
+    explicit_grid: bool,
+    copies: u64,
+) -> anyhow::Result<()> {
+    let counts = grid.counts();
+    let samples = sample_count(&counts, "--grid")? as u64;
+    let what = if explicit_grid {
+        format!(
+            "--grid {} ({} cells)",
+            counts_text(&counts),
+            g(samples as f64)
+        )
+    } else {
+        format!(
+            "the grid {} ({} cells)",
+            counts_text(&counts).replace(',', "×"),
+            g(samples as f64)
+        )
+    };
+    ensure_memory(
+        samples
+            .saturating_mul(BYTES_PER_SAMPLE)
+            .saturating_mul(copies),
+        &what,
+        "choose fewer cells per axis with --grid L,M,N",
+    )
+}
+
+/// The bytes one state of a restoration history holds: its samples and its spline's
+/// coefficients.
+pub(crate) fn state_bytes(grid: &Grid<3>) -> u64 {
+    (grid.len() as u64).saturating_mul(16)
+}
+
 /// The quadratic B-spline through the samples of `grid` (the paper's Eqs. 6 and 9): the
 /// restored field.
 pub(crate) fn interpolate(grid: &Grid<3>, samples: Vec<f64>) -> anyhow::Result<BSplineField<3>> {

@@ -34,6 +34,9 @@ Examples:
   # a finer restoration grid (128 cells along each axis)
   zeroset studio field.zsf --grid 128,128,128 -o fixed.zsf";
 
+/// How long requests in progress may finish after Ctrl-C.
+const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// The port tried first, and how many after it when it is taken.
 const DEFAULT_PORT: u16 = 7878;
 const PORTS_TRIED: u16 = 21;
@@ -71,17 +74,16 @@ pub struct StudioArgs {
 pub fn run(args: &StudioArgs) -> anyhow::Result<()> {
     if let Some(output) = &args.output {
         crate::output::check_output(output, &[&args.source.input], args.force, &["zsf"])?;
+        // Save writes the mesh beside the field: never over the input, even with --force.
         let mesh = output.with_extension("ply");
-        if mesh.exists() && !args.force {
-            bail!(
-                "the mesh output {} (beside {}) exists; pass --force to overwrite it",
-                mesh.display(),
-                output.display()
-            );
-        }
+        crate::output::check_output(&mesh, &[&args.source.input], args.force, &["ply"])
+            .with_context(|| format!("the mesh Save writes beside {}", output.display()))?;
     }
     args.source.check_counts()?;
     let loaded = args.source.load()?;
+    // The session holds the samples of two states at least (the input and a restoration) and
+    // a preview: refuse a grid the machine cannot hold before sampling it.
+    crate::restore::check_grid_memory(&loaded.grid, args.source.grid.is_some(), 3)?;
     let description = loaded.description.clone();
     let session = session::Session::new(&args.source, loaded, args.output.clone());
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -146,16 +148,34 @@ async fn serve(
     let app = Arc::new(http::App {
         session: Mutex::new(session),
         token,
-        cookie: format!("zeroset-studio-{port}"),
         hosts,
     });
-    if !args.no_browser {
-        open_browser(&url);
+    let redirect = if args.no_browser {
+        None
+    } else {
+        open_browser(&url)
+    };
+    // Ctrl-C lets requests in progress finish, but not for longer than SHUTDOWN_GRACE: a client
+    // that keeps a connection half-open must not keep the server alive.
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = axum::serve(listener, http::router(app)).with_graceful_shutdown(async move {
+        shutdown().await;
+        let _ = stop.send(());
+    });
+    let deadline = async move {
+        if stopped.await.is_ok() {
+            tokio::time::sleep(SHUTDOWN_GRACE).await;
+        } else {
+            std::future::pending::<()>().await;
+        }
+    };
+    tokio::select! {
+        served = server => served.context("serving")?,
+        () = deadline => {}
     }
-    axum::serve(listener, http::router(app))
-        .with_graceful_shutdown(shutdown())
-        .await
-        .context("serving")?;
+    if let Some(path) = redirect {
+        let _ = std::fs::remove_file(path);
+    }
     println!("zeroset studio stopped");
     Ok(())
 }
@@ -213,8 +233,11 @@ async fn shutdown() {
     }
 }
 
-/// Opens `url` in the desktop's browser; says so when there is none (an SSH session).
-fn open_browser(url: &str) {
+/// Opens `url` in the desktop's browser; says so when there is none (an SSH session). The
+/// browser is given a file that redirects to the address, readable by the user alone, not the
+/// address itself: a browser's command line can be read by every user of the machine, and the
+/// token is what keeps them out. Returns the file, to remove when the studio stops.
+fn open_browser(url: &str) -> Option<PathBuf> {
     let (program, prefix): (&str, &[&str]) = if cfg!(target_os = "macos") {
         ("open", &[])
     } else if cfg!(windows) {
@@ -224,13 +247,20 @@ fn open_browser(url: &str) {
             println!(
                 "no display here: open the address above in a browser (--no-browser hides this)"
             );
-            return;
+            return None;
         }
         ("xdg-open", &[])
     };
+    let redirect = match redirect_file(url) {
+        Ok(path) => path,
+        Err(e) => {
+            println!("could not write the browser's start page ({e}): open the address above");
+            return None;
+        }
+    };
     let opened = std::process::Command::new(program)
         .args(prefix)
-        .arg(url)
+        .arg(&redirect)
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
@@ -238,4 +268,26 @@ fn open_browser(url: &str) {
     if let Err(e) = opened {
         println!("could not start a browser ({program}: {e}): open the address above");
     }
+    Some(redirect)
+}
+
+/// A page that sends the browser to `url`, in the user's runtime directory (or the temporary
+/// one), created with permissions for the user alone.
+fn redirect_file(url: &str) -> std::io::Result<PathBuf> {
+    let dir = std::env::var_os("XDG_RUNTIME_DIR")
+        .map(PathBuf::from)
+        .filter(|d| d.is_dir())
+        .unwrap_or_else(std::env::temp_dir);
+    let path = dir.join(format!("zeroset-studio-{}.html", std::process::id()));
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create_new(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+    let mut file = options.open(&path)?;
+    writeln!(
+        file,
+        "<!doctype html><meta charset=\"utf-8\"><meta http-equiv=\"refresh\" content=\"0;url={url}\">\
+         <title>zeroset studio</title><a href=\"{url}\">zeroset studio</a>"
+    )?;
+    Ok(path)
 }

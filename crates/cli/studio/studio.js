@@ -916,7 +916,9 @@ function updateButtons() {
   const s = page.state;
   $('undo').disabled = !s?.can_undo;
   $('redo').disabled = !s?.can_redo;
-  $('apply').disabled = !s;
+  // Apply commits the live preview; with none (the surface shown is the committed one) there is
+  // nothing to apply, and a second click would add the same step again.
+  $('apply').disabled = !s || !page.dirty;
   const canSave = Boolean(s && s.output !== null && s.output !== undefined);
   $('save').disabled = !canSave;
   $('save-mesh').disabled = !canSave;

@@ -1,5 +1,6 @@
 //! The studio's HTTP API (`docs/studio.md`) on axum: one guard in front of every route (the
-//! `Host` the studio bound, no cross-origin request, the access token, a body limit), JSON in,
+//! `Host` the studio bound, no cross-origin request, the access token but for the page's static
+//! files, a body limit), JSON in,
 //! JSON or binary meshes out, errors as `{"error": "..."}` with a 4xx status. The computations
 //! run on tokio's blocking pool, one at a time, behind the session's mutex.
 
@@ -30,8 +31,6 @@ pub(crate) struct App {
     pub session: Mutex<Session>,
     /// The access token.
     pub token: String,
-    /// The cookie that carries the token for the page's scripts and styles.
-    pub cookie: String,
     /// The `Host` header values accepted; `None` when the studio is bound beyond loopback (then
     /// the token alone admits, and `Origin` must still match `Host`).
     pub hosts: Option<Vec<String>>,
@@ -70,23 +69,14 @@ fn refuse(status: u16, message: impl Into<String>) -> ApiError {
     }
 }
 
-/// Admits a request or says why not; adds the cookie to `GET /?token=…` and the headers that
-/// keep the page out of frames, caches and referrers.
+/// Admits a request or says why not; adds the headers that keep the page out of frames,
+/// caches and referrers.
 async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Response {
     if let Err(e) = admit(&app, request.headers(), request.uri()) {
         return e.into_response();
     }
-    let set_cookie = request.uri().path() == "/";
     let mut response = next.run(request).await;
     let headers = response.headers_mut();
-    if set_cookie
-        && let Ok(value) = HeaderValue::from_str(&format!(
-            "{}={}; Path=/; HttpOnly; SameSite=Strict",
-            app.cookie, app.token
-        ))
-    {
-        headers.insert(header::SET_COOKIE, value);
-    }
     for (name, value) in [
         ("cache-control", "no-store"),
         ("referrer-policy", "no-referrer"),
@@ -105,7 +95,9 @@ async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Res
 }
 
 /// The guard's checks, in order: the `Host` (DNS rebinding), the `Origin` and `Sec-Fetch-Site`
-/// (other web pages), the token, the declared body size.
+/// (other web pages), the token, the declared body size. The page's static files under
+/// `/assets/` (its scripts, styles and three.js: nothing of the user's) need no token, so that no
+/// cookie is needed to load them (a cookie would go to every server on localhost).
 fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
     let text = |name: header::HeaderName| headers.get(name).and_then(|v| v.to_str().ok());
     let host = text(header::HOST).unwrap_or("");
@@ -128,20 +120,31 @@ fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
             format!("cross-origin request refused (Origin {origin:?})"),
         ));
     }
-    if headers
-        .get("sec-fetch-site")
-        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"cross-site"))
+    // A browser says where a request comes from: only the studio's own page (same-origin) or
+    // the user (none: the address typed or opened) may drive it; another port on localhost is
+    // "same-site", and refused too.
+    if let Some(site) = headers.get("sec-fetch-site")
+        && !(site.as_bytes().eq_ignore_ascii_case(b"same-origin")
+            || site.as_bytes().eq_ignore_ascii_case(b"none"))
     {
-        return Err(refuse(403, "cross-site request refused"));
+        return Err(refuse(
+            403,
+            format!(
+                "request from another site refused (Sec-Fetch-Site {:?})",
+                site.to_str().unwrap_or("?")
+            ),
+        ));
     }
-    let given = query_token(uri)
-        .or_else(|| {
-            headers
-                .get("x-zeroset-token")
-                .and_then(|v| v.to_str().ok())
-                .map(str::to_owned)
-        })
-        .or_else(|| cookie_token(headers, &app.cookie));
+    if uri.path().starts_with("/assets/") {
+        return declared_size(headers);
+    }
+    let given = query_token(uri).or_else(|| {
+        headers
+            .get("x-zeroset-token")
+            .and_then(|v| v.to_str().ok())
+            .filter(|v| !v.is_empty())
+            .map(str::to_owned)
+    });
     match given {
         Some(t) if same(t.as_bytes(), app.token.as_bytes()) => {}
         Some(_) => {
@@ -158,7 +161,15 @@ fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
             ));
         }
     }
-    let declared = text(header::CONTENT_LENGTH).and_then(|v| v.parse::<u64>().ok());
+    declared_size(headers)
+}
+
+/// Refuses a request that declares a body over [`BODY_LIMIT`].
+fn declared_size(headers: &HeaderMap) -> Result<(), ApiError> {
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
     if declared.is_some_and(|n| n > BODY_LIMIT as u64) {
         return Err(body_too_large());
     }
@@ -178,19 +189,6 @@ fn query_token(uri: &Uri) -> Option<String> {
         .split('&')
         .find_map(|pair| pair.strip_prefix("token="))
         .map(str::to_owned)
-}
-
-/// The token in the studio's cookie, if any.
-fn cookie_token(headers: &HeaderMap, name: &str) -> Option<String> {
-    headers
-        .get_all(header::COOKIE)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .flat_map(|v| v.split(';'))
-        .find_map(|pair| {
-            let (k, v) = pair.trim().split_once('=')?;
-            (k == name).then(|| v.to_owned())
-        })
 }
 
 /// Compares two tokens in time independent of where they differ.
@@ -289,7 +287,7 @@ async fn points(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
 
 /// A restoration as the API's JSON (`docs/studio.md`).
 #[derive(Debug, Deserialize)]
-#[serde(tag = "mode", rename_all = "lowercase")]
+#[serde(tag = "mode", rename_all = "lowercase", deny_unknown_fields)]
 enum RestorationJson {
     Protrusion {
         mask: [[f64; 3]; 2],
@@ -384,17 +382,20 @@ async fn apply(
 }
 
 async fn undo(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
-    let state = with_session(app, |s| {
-        s.undo()?;
-        Ok(s.state())
-    })
-    .await?;
-    Ok(json_response(state))
+    history(app, Session::undo).await
 }
 
 async fn redo(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
-    let state = with_session(app, |s| {
-        s.redo()?;
+    history(app, Session::redo).await
+}
+
+/// One step of the history (`Session::undo` or `Session::redo`), answered with the state.
+async fn history(
+    app: Arc<App>,
+    step: fn(&mut Session) -> Result<(), ApiError>,
+) -> Result<Response, ApiError> {
+    let state = with_session(app, move |s| {
+        step(s)?;
         Ok(s.state())
     })
     .await?;
@@ -403,6 +404,7 @@ async fn redo(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
 
 /// The body of `POST /api/save`.
 #[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct SaveJson {
     #[serde(default)]
     mesh: bool,
@@ -424,21 +426,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn tokens_come_from_the_query_or_the_cookie() {
+    fn tokens_come_from_the_query_and_compare_exactly() {
         let uri: Uri = "/?a=1&token=abc".parse().unwrap();
         assert_eq!(query_token(&uri).as_deref(), Some("abc"));
         let uri: Uri = "/api/state".parse().unwrap();
         assert_eq!(query_token(&uri), None);
-        let mut headers = HeaderMap::new();
-        headers.insert(
-            header::COOKIE,
-            HeaderValue::from_static("x=1; zeroset-studio-7878=tok"),
-        );
-        assert_eq!(
-            cookie_token(&headers, "zeroset-studio-7878").as_deref(),
-            Some("tok")
-        );
-        assert_eq!(cookie_token(&headers, "zeroset-studio-7879"), None);
         assert!(same(b"abc", b"abc"));
         assert!(!same(b"abc", b"abd"));
         assert!(!same(b"abc", b"ab"));

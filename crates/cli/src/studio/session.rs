@@ -136,8 +136,12 @@ pub(crate) struct Session {
 }
 
 /// The most restorations one session holds (each keeps its grid samples and spline, so that undo
-/// and redo are instant).
+/// and redo are instant) ...
 const MAX_HISTORY: usize = 64;
+
+/// ... and the most memory they may take together: at 128³ cells that is 31 restorations, at
+/// 256³ three. A full history refuses Apply (save, and go on in a new studio on the result).
+const HISTORY_BYTES: u64 = 1 << 30;
 
 impl Session {
     /// A session on the loaded input (`source` says how it was read), saving to `output`.
@@ -278,10 +282,11 @@ impl Session {
     /// Commits `restoration`: the current field restored and interpolated by the quadratic
     /// spline, as `zeroset restore` writes it. Drops the steps that could be redone.
     pub(crate) fn apply(&mut self, restoration: &Restoration) -> Result<(), ApiError> {
-        if self.position >= MAX_HISTORY {
+        let capacity = self.history_capacity();
+        if self.position >= capacity {
             return Err(ApiError::conflict(format!(
-                "the studio keeps at most {MAX_HISTORY} restorations: save, and start a new \
-                 studio on the saved field to go on"
+                "the studio holds {capacity} restorations on this grid: save, and go on in a new \
+                 studio on the saved field"
             )));
         }
         let restored = self.restore(restoration)?;
@@ -307,11 +312,19 @@ impl Session {
         Ok(())
     }
 
+    /// The number of restorations a session holds: [`MAX_HISTORY`], fewer on large grids
+    /// ([`HISTORY_BYTES`] in all), at least one.
+    fn history_capacity(&self) -> usize {
+        let per_state = crate::restore::state_bytes(&self.grid).max(1);
+        ((HISTORY_BYTES / per_state) as usize).clamp(1, MAX_HISTORY)
+    }
+
     /// One step back.
     pub(crate) fn undo(&mut self) -> Result<(), ApiError> {
         if self.position == 0 {
             return Err(ApiError::conflict("nothing to undo"));
         }
+
         self.position -= 1;
         Ok(())
     }

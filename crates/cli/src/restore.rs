@@ -126,6 +126,9 @@ impl RestoreArgs {
                 if self.coarse.is_some() {
                     bail!("--coarse applies to --mode denoise");
                 }
+                if self.alpha.is_some() && self.face.is_none() {
+                    bail!("--alpha is the slope across --face: give --face too");
+                }
                 Ok(Restoration::Protrusion {
                     mask: self.mask,
                     face: self.face,
@@ -387,6 +390,13 @@ impl Restoration {
                 let (samples, report) = params
                     .restore_samples(grid, samples, mask)
                     .context("protrusion removal")?;
+                if let Some(v) = samples.iter().find(|v| !v.is_finite()) {
+                    bail!(
+                        "protrusion removal gave a non-finite value ({v}): α = {} is too large \
+                         for this field",
+                        report.alpha.unwrap_or(f64::NAN)
+                    );
+                }
                 Ok(Restored {
                     samples,
                     report: Report::Protrusion(report),
@@ -490,9 +500,26 @@ pub(crate) fn state_bytes(grid: &Grid<3>) -> u64 {
 
 /// The quadratic B-spline through the samples of `grid` (the paper's Eqs. 6 and 9): the
 /// restored field.
+///
+/// # Errors
+/// The spline's (wrong sample count), and a coefficient that is not finite or whose square
+/// would overflow (beyond `√f64::MAX` ≈ 1.3e154: gradients, norms and sums of squares of the
+/// field would): values that large come from a slope α far beyond the field's own.
 pub(crate) fn interpolate(grid: &Grid<3>, samples: Vec<f64>) -> anyhow::Result<BSplineField<3>> {
-    BSplineField::interpolate(*grid, samples, Degree::Quadratic)
-        .context("interpolating the restored samples")
+    let field = BSplineField::interpolate(*grid, samples, Degree::Quadratic)
+        .context("interpolating the restored samples")?;
+    let limit = f64::MAX.sqrt();
+    if let Some(c) = field
+        .coefficients()
+        .iter()
+        .find(|c| !c.is_finite() || c.abs() > limit)
+    {
+        bail!(
+            "the restored field overflows (a spline coefficient is {c:e}): the restoration's \
+             values are too large, is α far beyond the field's own slope?"
+        );
+    }
+    Ok(field)
 }
 
 /// The input, read: the field to restore, the grid to restore it on, and what it is.

@@ -282,6 +282,7 @@ function drawMesh(mesh, { committed, trigger, t0 }) {
   }
   page.lastReport = mesh.report;
   page.dirty = !committed;
+  page.stale = false;
   framesToRecord.push({ trigger, t0, mesh });
   showSurfaces();
   updateButtons();
@@ -881,7 +882,10 @@ function commandLines() {
 
 function updateCommands() {
   const lines = commandLines();
-  $('commands').textContent = lines.length ? lines.join('\n') : '(no restoration yet)';
+  const text = lines.length ? lines.join('\n') : '(no restoration yet)';
+  $('commands').textContent = page.stale
+    ? `# the last change failed (see the message above): these lines are for the surface shown\n${text}`
+    : text;
 }
 
 $('copy').addEventListener('click', async () => {
@@ -940,6 +944,10 @@ function showError(error) {
   console.warn(error);
   const message = error instanceof ApiError ? error.message : `error: ${error.message}`;
   setStatus(message, 'error');
+  // The surface and the command lines still show the last change that worked, not the
+  // controls: say so where the lines are copied from.
+  page.stale = true;
+  updateCommands();
 }
 
 const fmtMs = (ms) => (Number.isFinite(ms) ? `${ms < 10 ? ms.toFixed(1) : Math.round(ms)} ms` : '—');

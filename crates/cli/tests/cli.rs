@@ -213,7 +213,7 @@ fn restore_refuses_bad_requests_with_a_message() {
         args.extend([OsStr::new("-o"), out.as_os_str()]);
         zeroset(args)
     };
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (
             &[
                 "--mode",
@@ -235,6 +235,10 @@ fn restore_refuses_bad_requests_with_a_message() {
                 "inf",
             ],
             "alpha must be finite",
+        ),
+        (
+            &["--mode", "protrusion", "--mask", EARS, "--alpha", "2"],
+            "--alpha is the slope across --face",
         ),
         (
             &["--mode", "denoise", "--mask", EARS, "--coarse", "100,2,2"],

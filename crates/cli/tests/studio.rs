@@ -98,6 +98,16 @@ fn bad_requests_get_4xx_with_a_message() {
             "unknown variant",
         ),
         (
+            r#"{"mode":"protrusion","mask":[[-0.1,0.145,-0.07],[0.005,0.2,0.05]],"coarse":[2,2,2]}"#,
+            400,
+            "unknown field",
+        ),
+        (
+            r#"{"mode":"protrusion","mask":[[-0.1,0.145,-0.07],[0.005,0.2,0.05]],"alpha":2}"#,
+            400,
+            "give a face",
+        ),
+        (
             r#"{"mode":"protrusion","mask":[[-5,0.145,-0.065],[0,0.2,0.04]],"face":"-y"}"#,
             400,
             "the mask must lie in the field's box",
@@ -127,6 +137,16 @@ fn bad_requests_get_4xx_with_a_message() {
             answer.error()
         );
     }
+    // An α that overflows the restored field: previewed, but not committed.
+    let huge = r#"{"mode":"protrusion","mask":[[-0.1,0.145,-0.07],[0.005,0.2,0.05]],"face":"-y","alpha":1e308}"#;
+    let overflow = studio.post("/api/apply", huge);
+    assert_eq!(overflow.status, 400);
+    assert!(
+        overflow.error().contains("overflows"),
+        "{}",
+        overflow.error()
+    );
+    assert_eq!(studio.get("/api/state").json()["position"], 0);
     // Not JSON, too large, nothing to undo, nothing to save.
     let form = studio.request(
         "POST",

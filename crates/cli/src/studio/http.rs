@@ -323,6 +323,12 @@ impl RestorationJson {
                 if alpha.is_some_and(|a| !a.is_finite()) {
                     return Err(refuse(400, "alpha must be a finite number or null"));
                 }
+                if alpha.is_some() && face.is_none() {
+                    return Err(refuse(
+                        400,
+                        "alpha is the slope across the face: give a face, or alpha null",
+                    ));
+                }
                 Ok(Restoration::Protrusion { mask, face, alpha })
             }
             Self::Denoise {

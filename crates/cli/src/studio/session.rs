@@ -295,7 +295,7 @@ impl Session {
             Report::Denoise { .. } => None,
         };
         let field: BSplineField<3> =
-            interpolate(&self.grid, restored.samples).map_err(|e| ApiError::internal(&e))?;
+            interpolate(&self.grid, restored.samples).map_err(|e| ApiError::bad_request(&e))?;
         // What `zeroset restore` samples when it reads this field back from its file.
         let samples = self.grid.sample(&field);
         self.history.truncate(self.position + 1);

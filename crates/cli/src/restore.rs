@@ -325,7 +325,6 @@ impl Restoration {
         mask: &BoxMask<3>,
         explicit_grid: bool,
     ) -> anyhow::Result<()> {
-        let counts = grid.counts();
         let coarse_cells = match self {
             Self::Denoise { coarse, .. } => {
                 let extent = mask.extent();
@@ -341,28 +340,10 @@ impl Restoration {
             }
             Self::Protrusion { .. } => 0,
         };
-        let samples = sample_count(&counts, "--grid")?;
-        let need = (samples as u64)
-            .saturating_mul(BYTES_PER_SAMPLE)
-            .saturating_add(
-                (mask.len() as u64)
-                    .saturating_add(coarse_cells as u64)
-                    .saturating_mul(BYTES_PER_MASK_CELL),
-            );
-        let what = if explicit_grid {
-            format!(
-                "--grid {} ({} cells)",
-                counts_text(&counts),
-                g(samples as f64)
-            )
-        } else {
-            format!(
-                "the field file's grid {} ({} cells)",
-                counts_text(&counts).replace(',', "×"),
-                g(samples as f64)
-            )
-        };
-        ensure_memory(need, &what, "choose fewer cells per axis with --grid L,M,N")
+        let extra = (mask.len() as u64)
+            .saturating_add(coarse_cells as u64)
+            .saturating_mul(BYTES_PER_MASK_CELL);
+        check_grid_memory(grid, explicit_grid, 1, extra)
     }
 
     /// Restores `samples` (of `field` on `grid`) in `mask`: the same computation, on the same
@@ -461,33 +442,27 @@ impl Restoration {
 }
 
 /// Refuses a grid whose `copies` sets of samples (each with its spline coefficients and the
-/// restored samples: [`BYTES_PER_SAMPLE`] per sample) do not fit in the memory available.
-/// `explicit_grid`: the grid came from `--grid` (for the message).
+/// restored samples: [`BYTES_PER_SAMPLE`] per sample), plus `extra` bytes, do not fit in the
+/// memory available. `explicit_grid`: the grid came from `--grid` (for the message).
 pub(crate) fn check_grid_memory(
     grid: &Grid<3>,
     explicit_grid: bool,
     copies: u64,
+    extra: u64,
 ) -> anyhow::Result<()> {
     let counts = grid.counts();
     let samples = sample_count(&counts, "--grid")? as u64;
     let what = if explicit_grid {
-        format!(
-            "--grid {} ({} cells)",
-            counts_text(&counts),
-            g(samples as f64)
-        )
+        format!("--grid {}", counts_text(&counts))
     } else {
-        format!(
-            "the grid {} ({} cells)",
-            counts_text(&counts).replace(',', "×"),
-            g(samples as f64)
-        )
+        format!("the grid {}", counts_text(&counts).replace(',', "×"))
     };
     ensure_memory(
         samples
             .saturating_mul(BYTES_PER_SAMPLE)
-            .saturating_mul(copies),
-        &what,
+            .saturating_mul(copies)
+            .saturating_add(extra),
+        &format!("{what} ({} cells)", g(samples as f64)),
         "choose fewer cells per axis with --grid L,M,N",
     )
 }

@@ -83,7 +83,7 @@ pub fn run(args: &StudioArgs) -> anyhow::Result<()> {
     let loaded = args.source.load()?;
     // The session holds the samples of two states at least (the input and a restoration) and
     // a preview: refuse a grid the machine cannot hold before sampling it.
-    crate::restore::check_grid_memory(&loaded.grid, args.source.grid.is_some(), 3)?;
+    crate::restore::check_grid_memory(&loaded.grid, args.source.grid.is_some(), 3, 0)?;
     let description = loaded.description.clone();
     let session = session::Session::new(&args.source, loaded, args.output.clone());
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -324,7 +324,6 @@ impl Session {
         if self.position == 0 {
             return Err(ApiError::conflict("nothing to undo"));
         }
-
         self.position -= 1;
         Ok(())
     }

@@ -6,10 +6,12 @@
 //!   every restoration is [`Restoration::restore`](crate::restore::Restoration), the code of
 //!   `zeroset restore`, so a saved field is byte-identical to the CLI's.
 //! - [`http`]: the HTTP API (`docs/studio.md`) and its guard (token, host, origin, size).
-//! - [`wire`]: the binary mesh and point formats; [`assets`]: the embedded page and three.js.
+//! - [`json`]: a restoration's JSON form; [`wire`]: the binary mesh and point formats;
+//!   [`assets`]: the embedded page and three.js.
 
 mod assets;
 mod http;
+mod json;
 mod session;
 mod wire;
 

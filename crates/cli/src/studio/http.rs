@@ -16,9 +16,8 @@ use axum::routing::{get, post};
 use serde::Deserialize;
 use serde_json::{Value, json};
 
-use zeroset_field_core::mask::Face;
-
 use super::assets;
+use super::json::RestorationJson;
 use super::session::{ApiError, Session};
 use crate::restore::Restoration;
 
@@ -283,81 +282,6 @@ async fn points(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
     })
     .await?;
     Ok(binary(bytes))
-}
-
-/// A restoration as the API's JSON (`docs/studio.md`).
-#[derive(Debug, Deserialize)]
-#[serde(tag = "mode", rename_all = "lowercase", deny_unknown_fields)]
-enum RestorationJson {
-    Protrusion {
-        mask: [[f64; 3]; 2],
-        #[serde(default)]
-        face: Option<String>,
-        #[serde(default)]
-        alpha: Option<f64>,
-    },
-    Denoise {
-        mask: [[f64; 3]; 2],
-        coarse: [usize; 3],
-        #[serde(default)]
-        resampling: Option<String>,
-    },
-}
-
-impl RestorationJson {
-    fn check(self) -> Result<Restoration, ApiError> {
-        let finite = |mask: &[[f64; 3]; 2]| {
-            if mask.iter().flatten().all(|v| v.is_finite()) {
-                Ok(())
-            } else {
-                Err(refuse(400, "mask corners must be finite numbers"))
-            }
-        };
-        match self {
-            Self::Protrusion { mask, face, alpha } => {
-                finite(&mask)?;
-                let face = face
-                    .map(|f| f.parse::<Face>())
-                    .transpose()
-                    .map_err(|e| refuse(400, e))?;
-                if alpha.is_some_and(|a| !a.is_finite()) {
-                    return Err(refuse(400, "alpha must be a finite number or null"));
-                }
-                if alpha.is_some() && face.is_none() {
-                    return Err(refuse(
-                        400,
-                        "alpha is the slope across the face: give a face, or alpha null",
-                    ));
-                }
-                Ok(Restoration::Protrusion { mask, face, alpha })
-            }
-            Self::Denoise {
-                mask,
-                coarse,
-                resampling,
-            } => {
-                finite(&mask)?;
-                let point_resampling = match resampling.as_deref() {
-                    None | Some("area") => false,
-                    Some("point") => true,
-                    Some(other) => {
-                        return Err(refuse(
-                            400,
-                            format!("resampling is \"area\" or \"point\", got {other:?}"),
-                        ));
-                    }
-                };
-                if coarse.contains(&0) {
-                    return Err(refuse(400, "coarse cell counts must be at least 1"));
-                }
-                Ok(Restoration::Denoise {
-                    mask,
-                    coarse,
-                    point_resampling,
-                })
-            }
-        }
-    }
 }
 
 async fn restoration(headers: &HeaderMap, body: Body) -> Result<Restoration, ApiError> {

@@ -21,10 +21,10 @@ use zeroset_field_core::geometry::Point;
 use zeroset_field_core::grid::Grid;
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, marching_cubes, mesh_field, write_ply};
-use zeroset_restore::error::face_name;
 
 use crate::restore::{Loaded, Report, Restoration, Source, interpolate};
 
+use super::json::RestorationJson;
 use super::wire;
 
 /// Why a request failed: the HTTP status and a sentence for the user.
@@ -213,15 +213,12 @@ impl Session {
     pub(crate) fn mesh(&self) -> Result<Vec<u8>, ApiError> {
         let start = Instant::now();
         let mesh = self.surface(&self.current().samples)?;
-        let report = json!({
-            "restore_ms": 0.0,
-            "mesh_ms": start.elapsed().as_secs_f64() * 1e3,
-            "alpha_used": null,
-            "default_alpha": null,
-            "alpha_range": null,
-            "commands": self.commands(None),
-        });
-        Ok(wire::mesh(report, &mesh, self.offset))
+        let report = MeshReport {
+            mesh_ms: start.elapsed().as_secs_f64() * 1e3,
+            commands: self.commands(None),
+            ..MeshReport::default()
+        };
+        Ok(report.with(&mesh, self.offset))
     }
 
     /// The surface `restoration` would give, not committed: a binary mesh whose report carries
@@ -235,15 +232,15 @@ impl Session {
         let mesh = self.surface(&restored.samples)?;
         let mesh_ms = start.elapsed().as_secs_f64() * 1e3;
         let alpha_range = default_alpha.map(alpha_range);
-        let report = json!({
-            "restore_ms": restore_ms,
-            "mesh_ms": mesh_ms,
-            "alpha_used": alpha_used,
-            "default_alpha": default_alpha,
-            "alpha_range": alpha_range,
-            "commands": self.commands(Some(restoration)),
-        });
-        Ok(wire::mesh(report, &mesh, self.offset))
+        let report = MeshReport {
+            restore_ms,
+            mesh_ms,
+            alpha_used,
+            default_alpha,
+            alpha_range,
+            commands: self.commands(Some(restoration)),
+        };
+        Ok(report.with(&mesh, self.offset))
     }
 
     /// The α a protrusion removal used and the field's own mean slope across its face (the
@@ -384,7 +381,8 @@ impl Session {
             .steps
             .iter()
             .map(|s| {
-                let mut v = restoration_json(&s.restoration);
+                let mut v =
+                    serde_json::to_value(RestorationJson::from(&s.restoration)).unwrap_or_default();
                 v["alpha_used"] = json!(s.alpha_used);
                 v
             })
@@ -460,25 +458,24 @@ impl Session {
     }
 }
 
-/// The restoration as the API's JSON.
-pub(crate) fn restoration_json(r: &Restoration) -> Value {
-    match r {
-        Restoration::Protrusion { mask, face, alpha } => json!({
-            "mode": "protrusion",
-            "mask": mask,
-            "face": face.map(face_name),
-            "alpha": alpha,
-        }),
-        Restoration::Denoise {
-            mask,
-            coarse,
-            point_resampling,
-        } => json!({
-            "mode": "denoise",
-            "mask": mask,
-            "coarse": coarse,
-            "resampling": if *point_resampling { "point" } else { "area" },
-        }),
+/// The report a binary mesh carries (`docs/studio.md`; [`wire::mesh`] adds the counts).
+#[derive(Debug, Default, serde::Serialize)]
+struct MeshReport {
+    restore_ms: f64,
+    mesh_ms: f64,
+    /// The α of the restoration.
+    alpha_used: Option<f64>,
+    /// The field's mean slope across the face: the slider's mark.
+    default_alpha: Option<f64>,
+    alpha_range: Option<[f64; 2]>,
+    /// The command lines that reproduce the surface.
+    commands: Vec<String>,
+}
+
+impl MeshReport {
+    /// `mesh` with this report, as [`wire::mesh`] lays it out.
+    fn with(self, mesh: &TriMesh, offset: Point<3>) -> Vec<u8> {
+        wire::mesh(serde_json::to_value(self).unwrap_or_default(), mesh, offset)
     }
 }
 

@@ -607,7 +607,7 @@ impl Source {
             field: Box::new(field),
             grid,
             description,
-            points: Some(cloud.positions().to_vec()),
+            points: Some(cloud.into_parts().0),
         })
     }
 }

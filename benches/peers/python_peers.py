@@ -22,7 +22,7 @@ Timing rule of `common.py`: one warm-up, then the median of 5 runs.
 
 Set-up: `bash benches/peers/setup.sh --python` (the pinned peers plus the zeroset wheel built by
 maturin from this checkout). Run: `benches/peers/.venv/bin/python benches/peers/python_peers.py
-[--threads 1|2] [--skip-overhead] [--skip-migration]`.
+[--threads 1|2] [--rounds R] [--only fit,eval,mc,cp,lsqr] [--skip-overhead] [--skip-migration]`.
 """
 
 from __future__ import annotations
@@ -44,6 +44,8 @@ def parse() -> argparse.Namespace:
     p.add_argument("--threads", type=int, default=None, help="RAYON and BLAS threads (default: leave)")
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--rounds", type=int, default=5, help="alternations of Rust and Python per operation")
+    p.add_argument("--only", default=None,
+                   help="overhead of these operations only (comma-separated: fit,eval,mc,cp,lsqr)")
     p.add_argument("--skip-overhead", action="store_true")
     p.add_argument("--skip-migration", action="store_true")
     return p.parse_args()
@@ -130,6 +132,12 @@ def overhead() -> None:
         # Rust and Python alternate, operation by operation, ROUNDS times: the machine's
         # drift falls on both sides; the overhead is the median of the rounds' ratios.
         rust, py, ratio = {}, {}, {}
+        if ARGS.only:
+            wanted = ARGS.only.split(",")
+            unknown = set(wanted) - set(python)
+            if unknown:
+                sys.exit(f"--only: unknown operations {sorted(unknown)}; they are {list(python)}")
+            python = {op: python[op] for op in wanted}
         for op, call in python.items():
             pairs = []
             for _ in range(ARGS.rounds):
@@ -155,7 +163,7 @@ def overhead() -> None:
     print(f"{ARGS.rounds} rounds of Rust then Python, each a warm-up and the median of {ARGS.repeat} runs\n")
     print("| operation | Rust | Python | overhead (median of the rounds' ratios) | range |")
     print("|---|---|---|---|---|")
-    for k in what:
+    for k in ratio:
         mid, lo, hi = ratio[k]
         print(f"| {what[k]} | {rust[k]*1e3:.2f} ms | {py[k]*1e3:.2f} ms | {100*(mid-1):+.1f}% "
               f"| {100*(lo-1):+.1f}% … {100*(hi-1):+.1f}% |")

@@ -167,7 +167,42 @@ pub fn marching_cubes(
     options: &McOptions,
 ) -> Result<TriMesh> {
     samples::check(grid, Some(values), level, SAMPLES)?;
-    Extractor::new(grid, values, level, options).run()
+    Ok(Extractor::new(grid, values, level, options).run()?.0)
+}
+
+/// [`marching_cubes`], and for each vertex of the mesh the largest of the eight samples of the
+/// grid cell it was made in: the cell whose lowest corner is the vertex's edge's (or sample's)
+/// lowest sample, moved inside the grid on each axis where that sample is the last, and for a
+/// centre vertex its own cell: how high the data rises next to each vertex, for colour maps
+/// (what scikit-image's `marching_cubes` returns as `values`, measured its own way). They are
+/// gathered while the extractor reads those samples anyway, which costs far less than a pass
+/// over the vertices afterwards, when the samples are no longer in cache.
+///
+/// # Errors
+/// As [`marching_cubes`].
+///
+/// ```
+/// use zeroset_field_core::{Aabb, Grid};
+/// use zeroset_mesh::cubes::{McOptions, marching_cubes_with_cell_max};
+///
+/// // f = x on [−1, 1]³, 3 samples per axis: the plane x = 0.25 crosses the cells of x ∈ [0, 1].
+/// let grid = Grid::vertex_centered(Aabb::centered_cube(2.0)?, [3, 3, 3])?;
+/// let values: Vec<f64> = (0..27).map(|s| grid.point(grid.multi_index(s))[0]).collect();
+/// let (mesh, cell_max) = marching_cubes_with_cell_max(&grid, &values, 0.25, &McOptions::default())?;
+/// assert_eq!(cell_max.len(), mesh.num_vertices());
+/// assert!(cell_max.iter().all(|&m| m == 1.0));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn marching_cubes_with_cell_max(
+    grid: &Grid<3>,
+    values: &[f64],
+    level: f64,
+    options: &McOptions,
+) -> Result<(TriMesh, Vec<f64>)> {
+    samples::check(grid, Some(values), level, SAMPLES)?;
+    let mut ex = Extractor::new(grid, values, level, options);
+    ex.cell_max = true;
+    ex.run()
 }
 
 /// Samples `field` at every point of `grid` with its batched [`ScalarField::values`] (parallel
@@ -287,6 +322,8 @@ struct SlabOutput {
     triangles: Vec<[u32; 3]>,
     centres: Vec<Point3>,
     centre_normals: Vec<Point3>,
+    /// The largest sample of each centre vertex's cell (when asked for).
+    centre_max: Vec<f64>,
     dropped: bool,
 }
 
@@ -374,7 +411,7 @@ pub(crate) fn marching_cubes_masked(
     let mut ex = Extractor::new(grid, values, level, &options);
     ex.known = Some(known);
     ex.cells = Some(cells);
-    ex.run()
+    Ok(ex.run()?.0)
 }
 
 struct Extractor<'a> {
@@ -383,6 +420,8 @@ struct Extractor<'a> {
     level: f64,
     close: bool,
     normals: bool,
+    /// Record each vertex's cell maximum ([`marching_cubes_with_cell_max`]).
+    cell_max: bool,
     /// Samples whose value may be read (all when `None`); edges with an unknown end carry no
     /// crossing.
     known: Option<&'a [bool]>,
@@ -407,6 +446,7 @@ impl<'a> Extractor<'a> {
             level,
             close: options.close_boundary,
             normals: options.normals,
+            cell_max: false,
             known: None,
             cells: None,
             n,
@@ -415,7 +455,8 @@ impl<'a> Extractor<'a> {
         }
     }
 
-    fn run(&self) -> Result<TriMesh> {
+    /// The mesh, and its vertices' cell maxima when `cell_max` (else empty).
+    fn run(&self) -> Result<(TriMesh, Vec<f64>)> {
         let [n0, n1, n2] = self.n;
         let w = self.w;
         // Pass 1: inside bits (and a finiteness check), row by row.
@@ -495,26 +536,36 @@ impl<'a> Extractor<'a> {
         } else {
             Vec::new()
         };
+        let mut cell_max = if self.cell_max {
+            vec![0.0; nv]
+        } else {
+            Vec::new()
+        };
         {
             let mut vslices = Vec::with_capacity(n0);
             let mut nslices = Vec::with_capacity(n0);
+            let mut mslices = Vec::with_capacity(n0);
             let mut vrest: &mut [Point3] = &mut vertices;
             let mut nrest: &mut [Point3] = &mut normals;
+            let mut mrest: &mut [f64] = &mut cell_max;
             for i in 0..n0 {
                 let len = (base[(i + 1) * n1 * w] - base[i * n1 * w]) as usize;
                 let (v, r) = vrest.split_at_mut(len);
                 vslices.push(v);
                 vrest = r;
-                let nlen = if self.normals { len } else { 0 };
-                let (nn, r) = nrest.split_at_mut(nlen);
+                let (nn, r) = nrest.split_at_mut(if self.normals { len } else { 0 });
                 nslices.push(nn);
                 nrest = r;
+                let (m, r) = mrest.split_at_mut(if self.cell_max { len } else { 0 });
+                mslices.push(m);
+                mrest = r;
             }
             vslices
                 .into_par_iter()
                 .zip(nslices)
+                .zip(mslices)
                 .enumerate()
-                .for_each(|(i, (v, nn))| self.slab_vertices(i, &words, v, nn));
+                .for_each(|(i, ((v, nn), m))| self.slab_vertices(i, &words, v, nn, m));
         }
 
         // Pass 4: triangles, slab of cells by slab of cells, concatenated in order.
@@ -558,19 +609,21 @@ impl<'a> Extractor<'a> {
             }));
             vertices.extend_from_slice(&s.centres);
             normals.extend_from_slice(&s.centre_normals);
+            cell_max.extend_from_slice(&s.centre_max);
         }
         if degenerate {
             triangles = cancel_opposite(triangles);
         }
         if degenerate || self.cells.is_some() {
-            compact(&mut vertices, &mut normals, &mut triangles);
+            compact(&mut vertices, &mut normals, &mut cell_max, &mut triangles);
         }
         let mesh = TriMesh::new(vertices, triangles)?;
-        if self.normals {
-            mesh.with_normals(normals)
+        let mesh = if self.normals {
+            mesh.with_normals(normals)?
         } else {
-            Ok(mesh)
-        }
+            mesh
+        };
+        Ok((mesh, cell_max))
     }
 
     /// The crossings of slab `i` (samples `[i, ·, ·]`) into its words; returns the samples of
@@ -726,8 +779,30 @@ impl<'a> Extractor<'a> {
         })
     }
 
-    /// Positions (and normals) of the vertices of slab `i`, in id order.
-    fn slab_vertices(&self, i: usize, words: &[Word], out: &mut [Point3], normals: &mut [Point3]) {
+    /// The largest of the eight samples of the cell whose lowest corner is sample `idx`, moved
+    /// inside the grid on each axis (the cells of a grid run from 0 to `n − 2`).
+    fn cell_max_at(&self, idx: [isize; 3]) -> f64 {
+        let [_, n1, n2] = self.n;
+        let base: [usize; 3] =
+            std::array::from_fn(|a| idx[a].clamp(0, self.n[a] as isize - 2) as usize);
+        let s = (base[0] * n1 + base[1]) * n2 + base[2];
+        let v = self.values;
+        let mut max = f64::NEG_INFINITY;
+        for row in [s, s + n2, s + n1 * n2, s + n1 * n2 + n2] {
+            max = max.max(v[row]).max(v[row + 1]);
+        }
+        max
+    }
+
+    /// Positions (and normals, and cell maxima) of the vertices of slab `i`, in id order.
+    fn slab_vertices(
+        &self,
+        i: usize,
+        words: &[Word],
+        out: &mut [Point3],
+        normals: &mut [Point3],
+        cell_max: &mut [f64],
+    ) {
         let [_, n1, n2] = self.n;
         let w = self.w;
         let stride = [n1 * n2, n2, 1];
@@ -763,12 +838,18 @@ impl<'a> Extractor<'a> {
                             normals[next] =
                                 unit(std::array::from_fn(|c| (1.0 - t) * g0[c] + t * g1[c]));
                         }
+                        if self.cell_max {
+                            cell_max[next] = self.cell_max_at(idx.map(|x| x as isize));
+                        }
                         next += 1;
                     }
                     if word.sample >> b & 1 != 0 {
                         out[next] = std::array::from_fn(|c| self.coordinate(c, idx[c] as f64));
                         if self.normals {
                             normals[next] = unit(self.sample_gradient(idx));
+                        }
+                        if self.cell_max {
+                            cell_max[next] = self.cell_max_at(idx.map(|x| x as isize));
                         }
                         next += 1;
                     }
@@ -984,6 +1065,10 @@ impl CellRow<'_, '_> {
             if !self.ctx.normals.is_empty() {
                 out.centre_normals.push(unit(mean(self.ctx.normals)));
             }
+            if self.ex.cell_max {
+                out.centre_max
+                    .push(self.ex.cell_max_at([self.ci, self.cj, ck]));
+            }
             k += 1 + len;
             p += 1;
         }
@@ -1072,7 +1157,14 @@ fn cancel_opposite(triangles: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
 }
 
 /// Drops the vertices no triangle uses, keeping the order of the others.
-fn compact(vertices: &mut Vec<Point3>, normals: &mut Vec<Point3>, triangles: &mut [[u32; 3]]) {
+/// Drops the vertices no triangle uses (with their normals and cell maxima, where present)
+/// and renumbers the triangles.
+fn compact(
+    vertices: &mut Vec<Point3>,
+    normals: &mut Vec<Point3>,
+    cell_max: &mut Vec<f64>,
+    triangles: &mut [[u32; 3]],
+) {
     let mut new_id = vec![u32::MAX; vertices.len()];
     for t in triangles.iter() {
         for &v in t {
@@ -1089,16 +1181,19 @@ fn compact(vertices: &mut Vec<Point3>, normals: &mut Vec<Point3>, triangles: &mu
     if next as usize == vertices.len() {
         return;
     }
-    let keep = |v: &mut Vec<Point3>| {
+    fn keep<T>(v: &mut Vec<T>, new_id: &[u32]) {
         let mut k = 0;
         v.retain(|_| {
             k += 1;
             new_id[k - 1] != u32::MAX
         });
-    };
-    keep(vertices);
+    }
+    keep(vertices, &new_id);
     if !normals.is_empty() {
-        keep(normals);
+        keep(normals, &new_id);
+    }
+    if !cell_max.is_empty() {
+        keep(cell_max, &new_id);
     }
     for t in triangles.iter_mut() {
         *t = t.map(|v| new_id[v as usize]);

@@ -92,7 +92,7 @@ pub mod trimesh;
 pub mod voxel;
 
 pub use checks::{MeshReport, boundary_loops, check, components, unsupported_components};
-pub use cubes::{McOptions, marching_cubes, mesh_field};
+pub use cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};
 pub use signed::{

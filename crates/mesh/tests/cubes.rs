@@ -8,7 +8,7 @@ use proptest::prelude::*;
 use zeroset_field_core::analytic::{Cuboid, Sphere, Torus};
 use zeroset_field_core::field::FnField;
 use zeroset_field_core::{Aabb, Centering, Error, Grid, Point3, ScalarField};
-use zeroset_mesh::cubes::{McOptions, marching_cubes, mesh_field};
+use zeroset_mesh::cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 use zeroset_mesh::{MeshError, TriMesh};
 
 /// For each undirected edge `(min, max)`: how often it is used as `(min → max)` and as
@@ -518,8 +518,83 @@ fn eval(field: &(f64, Vec<Wave>, Vec<Bump>), p: &Point3) -> f64 {
     field.0 + waves + bumps
 }
 
+/// Checks `marching_cubes_with_cell_max` against `marching_cubes` (the same mesh) and against
+/// the cell maxima computed from the vertex positions: the largest of the eight samples of the
+/// grid cell holding each vertex (on a cell face, the cell above; moved inside the grid).
+fn check_cell_max(
+    grid: &Grid<3>,
+    values: &[f64],
+    level: f64,
+    options: &McOptions,
+) -> Result<(), String> {
+    let plain = marching_cubes(grid, values, level, options).unwrap();
+    let (mesh, cell_max) = marching_cubes_with_cell_max(grid, values, level, options).unwrap();
+    if mesh != plain {
+        return Err("the mesh differs from marching_cubes'".into());
+    }
+    if cell_max.len() != mesh.num_vertices() {
+        return Err(format!(
+            "{} maxima for {} vertices",
+            cell_max.len(),
+            mesh.num_vertices()
+        ));
+    }
+    let (lo, h, n) = (grid.bounds().min(), grid.spacing(), grid.counts());
+    for (v, (p, &got)) in mesh.vertices().iter().zip(&cell_max).enumerate() {
+        let base: [usize; 3] = std::array::from_fn(|a| {
+            let u = ((p[a] - lo[a]) / h[a] + 1e-9).floor() as isize;
+            u.clamp(0, n[a] as isize - 2) as usize
+        });
+        let mut want = f64::NEG_INFINITY;
+        for c in 0..8 {
+            let idx = [
+                base[0] + (c & 1),
+                base[1] + (c >> 1 & 1),
+                base[2] + (c >> 2),
+            ];
+            want = want.max(values[grid.linear_index(idx)]);
+        }
+        if got != want {
+            return Err(format!(
+                "vertex {v} at {p:?}: cell maximum {got}, want {want}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn cell_maxima_of_a_torus_are_those_of_the_vertices_cells() {
+    let grid = cube_grid(-1.0, 1.0, 40);
+    let values = grid.sample(&Torus::new([0.0; 3], 0.6, 0.25));
+    for options in [
+        McOptions::default(),
+        closed(),
+        McOptions::default().with_normals(false),
+    ] {
+        check_cell_max(&grid, &values, 0.0, &options).unwrap();
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn cell_maxima_match_the_vertices_cells(
+        field in smooth_field(),
+        n in [2usize..10, 2usize..10, 2usize..10],
+        seed in prop::collection::vec(-1i8..=1, 729),
+        close in any::<bool>(),
+    ) {
+        let grid = Grid::vertex_centered(Aabb::new([-1.0; 3], [1.0; 3]).unwrap(), n).unwrap();
+        let options = McOptions::default().with_close_boundary(close);
+        // A smooth field (edge vertices, some centre vertices) and samples on the level
+        // (merged vertices, dropped triangles, compaction).
+        let f = FnField::new(|p: &Point3| eval(&field, p), None);
+        check_cell_max(&grid, &grid.sample(&f), 0.05, &options).map_err(TestCaseError::fail)?;
+        let steps: Vec<f64> = (0..grid.len()).map(|l| f64::from(seed[l])).collect();
+        check_cell_max(&grid, &steps, 0.0, &options).map_err(TestCaseError::fail)?;
+    }
 
     #[test]
     fn random_smooth_fields_give_closed_consistently_wound_meshes(

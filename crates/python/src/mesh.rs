@@ -20,7 +20,8 @@ use zeroset_mesh::signed::{
 };
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{
-    McOptions, PlyFormat, TriMesh, marching_cubes, mesh_field, read_ply_mesh, write_obj, write_ply,
+    McOptions, PlyFormat, TriMesh, marching_cubes_with_cell_max, mesh_field, read_ply_mesh,
+    write_obj, write_ply,
 };
 
 use crate::arrays::{points, rows_array, vector};
@@ -28,41 +29,62 @@ use crate::errors::{to_py, value_error};
 use crate::field::NativeField;
 use crate::progress::Hook;
 
-/// Vertices, triangles and normals of a mesh as numpy arrays.
-type MeshArrays<'py> = (
+/// Vertices, triangles (indices of type `I`) and normals of a mesh as numpy arrays.
+type MeshArrays<'py, I = i64> = (
     Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray2<I>>,
     Bound<'py, PyArray2<f64>>,
 );
 
-/// A mesh taken apart for numpy: vertices, flat `i64` triangle indices, normals.
-struct MeshParts(Vec<[f64; 3]>, Vec<i64>, Vec<[f64; 3]>);
+/// A numpy index type for triangles: `i64` (the package's meshes) or `i32` (marching cubes,
+/// as scikit-image's; its vertex ids stay below 2³¹).
+trait FaceIndex: numpy::Element + Send {
+    fn from_id(id: u32) -> Self;
+}
 
-impl MeshParts {
-    /// `mesh` without copying its vertices; with `flip` the triangles' orientation reversed,
-    /// with `negate` the normals (in parallel: run it with the GIL released).
+impl FaceIndex for i64 {
+    fn from_id(id: u32) -> Self {
+        i64::from(id)
+    }
+}
+
+impl FaceIndex for i32 {
+    fn from_id(id: u32) -> Self {
+        i32::try_from(id).expect("marching cubes numbers its vertices below 2^31")
+    }
+}
+
+/// A mesh taken apart for numpy: vertices, flat triangle indices, normals.
+struct MeshParts<I>(Vec<[f64; 3]>, Vec<I>, Vec<[f64; 3]>);
+
+impl<I: FaceIndex> MeshParts<I> {
+    /// `mesh` without copying its vertices (nor its triangles for `i32`, converted in place);
+    /// with `flip` the triangles' orientation reversed, with `negate` the normals (in
+    /// parallel: run it with the GIL released).
     fn new(mesh: TriMesh, flip: bool, negate: bool) -> Self {
-        let (vertices, triangles, mut normals) = mesh.into_parts();
-        let mut faces = vec![0i64; 3 * triangles.len()];
-        faces
-            .par_chunks_mut(3)
-            .zip(triangles.par_iter())
-            .with_min_len(4096)
-            .for_each(|(out, t)| {
-                let t = t.map(i64::from);
-                out.copy_from_slice(&if flip { [t[0], t[2], t[1]] } else { t });
-            });
+        let (vertices, mut triangles, mut normals) = mesh.into_parts();
+        if flip {
+            triangles
+                .par_iter_mut()
+                .with_min_len(4096)
+                .for_each(|t| t.swap(1, 2));
+        }
         if negate {
             normals
                 .par_iter_mut()
                 .with_min_len(4096)
                 .for_each(|n| *n = n.map(|x| -x));
         }
+        let faces = triangles
+            .into_flattened()
+            .into_iter()
+            .map(I::from_id)
+            .collect();
         Self(vertices, faces, normals)
     }
 
     /// The parts as numpy arrays (the vectors' memory handed over).
-    fn arrays(self, py: Python<'_>) -> MeshArrays<'_> {
+    fn arrays(self, py: Python<'_>) -> MeshArrays<'_, I> {
         let n = self.1.len() / 3;
         let faces = Array2::from_shape_vec((n, 3), self.1)
             .expect("n × 3 indices")
@@ -72,8 +94,8 @@ impl MeshParts {
 }
 
 /// Marching cubes on a C-contiguous 3-D volume, sample `[i, j, k]` at `(i, j, k) · spacing`
-/// (scikit-image's vertex coordinates): vertices, faces, normals and the largest sample of
-/// each vertex's grid cell, oriented as scikit-image's: normals down the gradient whatever
+/// (scikit-image's vertex coordinates): vertices, faces (`int32`, as scikit-image's), normals
+/// and the largest sample of each vertex's grid cell, oriented as scikit-image's: normals down the gradient whatever
 /// `descent` says, triangles wound so that their right-hand normal points up the gradient
 /// with `descent` (scikit-image's default `gradient_direction='descent'`, its "left-hand
 /// rule") and down it without.
@@ -89,7 +111,7 @@ pub(crate) fn marching_cubes_volume<'py>(
     close: bool,
 ) -> PyResult<(
     Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray2<i32>>,
     Bound<'py, PyArray2<f64>>,
     Bound<'py, PyArray1<f64>>,
 )> {
@@ -113,38 +135,14 @@ pub(crate) fn marching_cubes_volume<'py>(
     let (parts, at) = py.detach(|| -> PyResult<_> {
         let grid = Grid::new(bounds, counts, Centering::Vertex).map_err(to_py)?;
         let options = McOptions::default().with_close_boundary(close);
-        let mesh = marching_cubes(&grid, values, level, &options).map_err(to_py)?;
-        let mut at = vec![0.0; mesh.num_vertices()];
-        at.par_iter_mut()
-            .zip(mesh.vertices().par_iter())
-            .with_min_len(4096)
-            .for_each(|(v, p)| *v = cell_max(values, counts, spacing, p));
+        let (mesh, at) =
+            marching_cubes_with_cell_max(&grid, values, level, &options).map_err(to_py)?;
         // Our triangles and normals point up the gradient; scikit-image's normals always
         // point down it, and its 'ascent' flips the triangles only.
         Ok((MeshParts::new(mesh, !descent, true), at))
     })?;
     let (v, f, n) = parts.arrays(py);
     Ok((v, f, n, vector(py, at)))
-}
-
-/// The largest of the 8 samples of the grid cell that holds `p` (grid coordinates
-/// `p / spacing`): how far the data rises near the vertex, for colour maps (scikit-image's
-/// `values` are also the largest data value near each vertex, over its own neighbourhood).
-fn cell_max(values: &[f64], counts: [usize; 3], spacing: [f64; 3], p: &[f64; 3]) -> f64 {
-    let base: [usize; 3] = std::array::from_fn(|a| {
-        let u = (p[a] / spacing[a]).clamp(0.0, (counts[a] - 1) as f64);
-        (u.floor() as usize).min(counts[a] - 2)
-    });
-    let at = |i: usize, j: usize, k: usize| values[(i * counts[1] + j) * counts[2] + k];
-    let mut max = f64::NEG_INFINITY;
-    for di in 0..2 {
-        for dj in 0..2 {
-            for dk in 0..2 {
-                max = max.max(at(base[0] + di, base[1] + dj, base[2] + dk));
-            }
-        }
-    }
-    max
 }
 
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
@@ -213,7 +211,7 @@ pub(crate) fn mesh_native<'py>(
     let grid = field_grid(bounds, detail, resolution, voxel)?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
-    let result = py.detach(|| -> PyResult<MeshParts> {
+    let result = py.detach(|| -> PyResult<MeshParts<i64>> {
         let mesh = match (method, f.as_ref()) {
             ("mc", f) => mesh_field(f, &grid, level, &options).map_err(to_py),
             ("smc", AnyField::Rbf(RbfAny::R(f))) => smc(f, &grid, level, &options, &hook),

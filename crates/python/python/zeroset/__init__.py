@@ -479,8 +479,9 @@ def marching_cubes(
 
     ``volume[i, j, k]`` is the sample at ``(i, j, k) * spacing``; returns ``(verts, faces,
     normals, values)`` with verts in those coordinates and ``values`` the largest sample of
-    the grid cell each vertex lies in (for colour maps; scikit-image's are the largest data
-    value over a neighbourhood of its own, so the numbers differ). Orientation as scikit-image's: the normals point down the
+    the grid cell each vertex lies in (on a cell face, the cell above it), for colour maps as
+    scikit-image's; its own measure of the data's maximum near each vertex gives other
+    numbers. Orientation as scikit-image's: the normals point down the
     gradient (out of a bright object) whatever ``gradient_direction`` says, and the faces are
     wound so that their right-hand normal points up the gradient with ``"descent"`` (the
     default; scikit-image's "left-hand rule" around its normals) and down it with
@@ -489,8 +490,8 @@ def marching_cubes(
     scikit-image. The mesh is topologically consistent (no cracks or holes between cubes),
     which is what ``method="lewiner"`` asks of scikit-image; ``method="lorensen"`` is
     accepted and gives the same mesh. ``step_size`` samples every ``step_size``-th voxel.
-    Differences: arrays are float64 and int64 (scikit-image returns float32 and int32), and
-    ``mask`` is not supported (``ValueError``).
+    Differences: verts, normals and values are float64 (scikit-image returns float32; faces
+    are int32 on both sides), and ``mask`` is not supported (``ValueError``).
 
     ``volume`` may also be a :class:`Field` or a callable ``f(points (n, 3)) -> (n,)``: it is
     sampled at ``resolution`` samples along the longest axis of its box (``bounds=(lo, hi)``,

@@ -11,6 +11,7 @@ __version__: str
 
 _F64 = npt.NDArray[np.float64]
 _I64 = npt.NDArray[np.int64]
+_I32 = npt.NDArray[np.int32]
 _Progress = Optional[Callable[[str, int, int], Any]]
 _Triple = Tuple[float, float, float]
 
@@ -81,7 +82,7 @@ def cp_als(
 def svt(matrix: _F64, tau: float) -> Tuple[_F64, int]: ...
 def marching_cubes_volume(
     volume: _F64, level: float, spacing: _Triple, descent: bool, close: bool
-) -> Tuple[_F64, _I64, _F64, _F64]: ...
+) -> Tuple[_F64, _I32, _F64, _F64]: ...
 def mesh_native(
     field: NativeField,
     level: float,

@@ -160,9 +160,12 @@ keyLight.target.position.set(0, 0, -1);
 camera.add(keyLight, keyLight.target);
 scene.add(new THREE.HemisphereLight(0xdde6f0, 0x30343a, 0.9));
 
-const surfaceMaterial = new THREE.MeshStandardMaterial({
-  color: 0xbcc6d2, roughness: 0.6, metalness: 0.0, side: THREE.DoubleSide,
-});
+// The surface is matte: a physically based material with a broad highlight on a GPU; on a CPU
+// renderer, where its per-pixel lighting costs most of the frame, Lambert shading (the same
+// diffuse light, no highlight).
+const surfaceMaterial = gpu.software
+  ? new THREE.MeshLambertMaterial({ color: 0xbcc6d2, side: THREE.DoubleSide })
+  : new THREE.MeshStandardMaterial({ color: 0xbcc6d2, roughness: 0.6, metalness: 0.0, side: THREE.DoubleSide });
 const committedMesh = new THREE.Mesh(new THREE.BufferGeometry(), surfaceMaterial);
 const liveMesh = new THREE.Mesh(new THREE.BufferGeometry(), surfaceMaterial);
 scene.add(committedMesh, liveMesh);

@@ -30,6 +30,7 @@ def test_marching_cubes_matches_scikit_image():
     sv, sf, sn, _ = theirs
     # every marching-cubes variant puts one vertex on each crossed edge, linearly interpolated
     assert v.shape == sv.shape and f.shape == sf.shape
+    assert f.dtype == sf.dtype == np.int32  # scikit-image's face dtype
     key = lambda a: a[np.lexsort(np.round(a, 9).T[::-1])]  # noqa: E731
     assert np.allclose(key(v), key(sv.astype(np.float64)), atol=1e-5)
     # orientation as scikit-image's: normals down the gradient (out of the bright ball),

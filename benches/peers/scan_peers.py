@@ -85,6 +85,13 @@ What is measured on every mesh (here, untimed, the same functions for all):
     as the distances measured), so (2) "exact" is given beside it: every vertex's exact distance
     to the scan's triangles (`poisson_peers.Measure` with the roles swapped); for `--sphere` the
     exact |‖v‖ − 1| over the vertices / the points' diagonal; otherwise not measured;
+  - surface → scan (data/bunny_points.ply only): the mean distance of the mesh as a surface, not
+    of its vertices: `--surface-samples` (2,000,000) area-weighted samples of the mesh, each
+    sample's exact distance to the scan's triangles (RaycastingScene), mean and median / the
+    scan's diagonal, and the mean away from the scan's holes (samples within 1% of the diagonal
+    of a scan vertex; the rest lie on the caps over the 5 holes in its base, whose area share is
+    given). The vertices' mean also weighs how a mesher spreads its vertices: Open3D's adaptive
+    octree puts few of them on those caps, zeroset's uniform grid as many as anywhere;
   - vertices, triangles; watertight by edge counting (vertices at identical positions welded,
     triangles with a repeated vertex left out; watertight = every edge in exactly two
     triangles) and the connected components (through shared edges).
@@ -119,6 +126,7 @@ BLAS_NOTE = common.pin_blas_threads(force=True)  # before numpy is imported
 import numpy as np  # noqa: E402
 
 DEFAULT_CLOUD = common.REPO / "data" / "bunny_points.ply"
+HOLE_GAP = 0.01  # relative to the scan's diagonal: farther than this from every scan vertex = over a hole
 SCAN = common.REPO / "data" / "bun_zipper.ply"  # the surface bunny_points.ply was taken from
 OFFSET_FRACTION = 0.01  # zeroset's Offset::Auto default: 1% of the bounding-box diagonal
 FALLBACK_MARGIN, FALLBACK_CELLS = 0.05, 128  # grid when zeroset's output does not give one
@@ -152,6 +160,8 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--poisson-repeat", type=int, default=3, help="Poisson timed runs after one warm-up")
     p.add_argument("--scan-samples", type=int, default=6_000_000,
                    help="area-weighted samples of bun_zipper.ply for the mesh → scan distance")  # fmt: skip
+    p.add_argument("--surface-samples", type=int, default=2_000_000,
+                   help="area-weighted samples of each mesh for its surface's mean distance to the scan")  # fmt: skip
     p.add_argument("--no-scipy", action="store_true", help="skip the scipy side")
     p.add_argument("--no-build", action="store_true", help="never run cargo; fail if the zeroset binary is missing")
     p.add_argument("--out", default=str(common.HERE / "out"), help="directory for the reports, meshes and logs")
@@ -591,10 +601,25 @@ class Measurer:
                                  "(no sampled figure)")  # fmt: skip
         elif cloud.resolve() == DEFAULT_CLOUD.resolve() and SCAN.is_file():
             import mesh_distance
+            import open3d as o3d
+            from scipy.spatial import cKDTree
 
             t = time.perf_counter()
             self.tree, self.scan_diag, spacing = mesh_distance.scan_surface(SCAN, args.scan_samples)
             self.scan_v, self.scan_f = mesh_distance.read_ply(SCAN)
+            # The surface's mean distance: each mesh sampled uniformly by area, each sample's exact
+            # distance to the scan's triangles (centred float32, as poisson_peers.Measure). A mesh
+            # is a surface; its vertices' mean also weighs how a mesher spreads its vertices (an
+            # adaptive octree puts few where the scan has no points: on the caps of its holes).
+            used = self.scan_v[np.unique(self.scan_f)]
+            self.scan_centre = (used.min(axis=0) + used.max(axis=0)) / 2
+            self.scan_scene = o3d.t.geometry.RaycastingScene()
+            self.scan_scene.add_triangles(o3d.core.Tensor((self.scan_v - self.scan_centre).astype(np.float32)),
+                                          o3d.core.Tensor(np.ascontiguousarray(self.scan_f, dtype=np.uint32)))  # fmt: skip
+            self.scan_vertices = cKDTree(used)
+            self.surface_samples = args.surface_samples
+            self.mesh_distance = mesh_distance
+            self.o3d = o3d
             self.surface = "scan"
             self.surface_note = (
                 f"mesh vertices → {SCAN.name}'s surface, mean / the scan's diagonal {self.scan_diag:.6g} (the points' "
@@ -602,7 +627,11 @@ class Measurer:
                 f"{args.scan_samples:,} area-weighted samples of the scan, seed 1; sample spacing "
                 f"{spacing / self.scan_diag:.1e} of the diagonal, so the figure is the distance plus up to about half "
                 f"that; k-d tree built in {time.perf_counter() - t:.1f} s); exact = each vertex's exact distance to the "
-                f"scan's triangles (poisson_peers.Measure with the roles swapped: RaycastingScene of the scan, float32)"
+                f"scan's triangles (poisson_peers.Measure with the roles swapped: RaycastingScene of the scan, float32); "
+                f"surface = the mesh's surface: {args.surface_samples:,} area-weighted samples of the mesh (seed 1), each "
+                f"sample's exact distance to the scan's triangles, mean / the scan's diagonal; 'away from holes' leaves "
+                f"out the samples farther than {HOLE_GAP:g} of the diagonal from every scan vertex (the caps over the "
+                f"scan's 5 holes, where no surface was scanned), whose share of the area is given"
             )
 
     def __call__(self, verts: np.ndarray, tris: np.ndarray) -> dict:
@@ -619,6 +648,12 @@ class Measurer:
             res.update(surface_mean_rel=float(d.mean()), surface_max_rel=float(d.max()),
                        surface_exact_mean_rel=exact["mean_abs"] / self.scan_diag,
                        surface_exact_max_rel=exact["max_abs"] / self.scan_diag)  # fmt: skip
+            samples, _ = self.mesh_distance.surface_samples(verts, tris, self.surface_samples)
+            q = self.o3d.core.Tensor((samples - self.scan_centre).astype(np.float32))
+            ds = self.scan_scene.compute_distance(q).numpy().astype(np.float64) / self.scan_diag
+            holes = self.scan_vertices.query(samples)[0] > HOLE_GAP * self.scan_diag
+            res.update(area_mean_rel=float(ds.mean()), area_median_rel=float(np.median(ds)),
+                       area_away_mean_rel=float(ds[~holes].mean()), hole_area_share=float(holes.mean()))  # fmt: skip
         elif self.surface == "sphere" and verts.shape[0]:
             d = np.abs(np.linalg.norm(verts, axis=1) - 1.0) / self.diag
             res.update(surface_exact_mean_rel=float(d.mean()), surface_exact_max_rel=float(d.max()))
@@ -638,7 +673,9 @@ def fmt_mib(v) -> str:
 
 
 MAIN_HEADER = ["method", "setting", "threads", "wall s", "peak MiB", "points→mesh max/diag", "mean/diag",
-               "mesh→scan mean/diag (sampled)", "mesh→surface mean/diag (exact)", "vertices", "triangles", "watertight", "components"]  # fmt: skip
+               "vertices→scan mean/diag (sampled)", "vertices→scan mean/diag (exact)",
+               "surface→scan mean/diag (area samples, exact)", "median", "away from holes (hole area share)",
+               "vertices", "triangles", "watertight", "components"]  # fmt: skip
 
 
 def main_table(rows: list[dict]) -> list[list[str]]:
@@ -646,7 +683,9 @@ def main_table(rows: list[dict]) -> list[list[str]]:
     for r in rows:
         body.append([r["method"], r["setting"], r["threads_label"], fmt_s(r), fmt_mib(r.get("peak_mib")),
                      fmt_e(r.get("max_rel")), fmt_e(r.get("mean_rel")), fmt_e(r.get("surface_mean_rel")),
-                     fmt_e(r.get("surface_exact_mean_rel")),
+                     fmt_e(r.get("surface_exact_mean_rel")), fmt_e(r.get("area_mean_rel")),
+                     fmt_e(r.get("area_median_rel")),
+                     f"{fmt_e(r.get('area_away_mean_rel'))} ({r['hole_area_share']:.2%})" if "hole_area_share" in r else "—",
                      f"{r['vertices']:,}" if "vertices" in r else "—",
                      f"{r['triangles']:,}" if "triangles" in r else "—",
                      ("yes" if r["watertight"] else f"no ({r['boundary_edges']} boundary, "
@@ -714,7 +753,8 @@ def poisson_table(po: list[dict]):
 
 def write_csv(path: Path, rows: list[dict]) -> None:
     cols = ["method", "setting", "threads", "threads_label", "wall_s", "runs", "warmup", "peak_mib", "max_rel",
-            "mean_rel", "surface_mean_rel", "surface_exact_mean_rel", "vertices", "triangles", "watertight", "boundary_edges",
+            "mean_rel", "surface_mean_rel", "surface_exact_mean_rel", "area_mean_rel", "area_median_rel",
+            "area_away_mean_rel", "hole_area_share", "vertices", "triangles", "watertight", "boundary_edges",
             "nonmanifold_edges", "components", "mesh_path"]  # fmt: skip
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -780,7 +820,8 @@ def main() -> None:
         verts, tris = read_mesh(r["mesh_path"])
         r.update(measure(verts, tris))
         print(f"  {r['method']} {r['setting']} {r['threads_label']}: {r['vertices']:,} vertices, max/diag "
-              f"{r['max_rel']:.3e}, mean/diag {r['mean_rel']:.3e}, surface mean {fmt_e(r['surface_mean_rel'])} sampled, {fmt_e(r['surface_exact_mean_rel'])} exact, "
+              f"{r['max_rel']:.3e}, mean/diag {r['mean_rel']:.3e}, vertices→scan mean {fmt_e(r['surface_mean_rel'])} sampled, {fmt_e(r['surface_exact_mean_rel'])} exact, "
+              f"surface→scan mean {fmt_e(r.get('area_mean_rel'))}, "
               f"watertight {r['watertight']}, {r['components']} component(s)", flush=True)  # fmt: skip
     if args.neighbor_list:  # a viewable copy of scipy's meshes
         for r in sp:

@@ -1156,9 +1156,8 @@ fn cancel_opposite(triangles: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
         .collect()
 }
 
-/// Drops the vertices no triangle uses, keeping the order of the others.
-/// Drops the vertices no triangle uses (with their normals and cell maxima, where present)
-/// and renumbers the triangles.
+/// Drops the vertices no triangle uses (with their normals and cell maxima, where present),
+/// keeping the order of the others, and renumbers the triangles.
 fn compact(
     vertices: &mut Vec<Point3>,
     normals: &mut Vec<Point3>,

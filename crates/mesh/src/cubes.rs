@@ -186,7 +186,7 @@ pub fn marching_cubes(
 /// use zeroset_mesh::cubes::{McOptions, marching_cubes_with_cell_max};
 ///
 /// // f = x on [−1, 1]³, 3 samples per axis: the plane x = 0.25 crosses the cells of x ∈ [0, 1].
-/// let grid = Grid::vertex_centered(Aabb::centered_cube(2.0)?, [3, 3, 3])?;
+/// let grid = Grid::vertex_centered(Aabb::centered_cube(1.0)?, [3, 3, 3])?;
 /// let values: Vec<f64> = (0..27).map(|s| grid.point(grid.multi_index(s))[0]).collect();
 /// let (mesh, cell_max) = marching_cubes_with_cell_max(&grid, &values, 0.25, &McOptions::default())?;
 /// assert_eq!(cell_max.len(), mesh.num_vertices());

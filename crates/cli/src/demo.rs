@@ -74,7 +74,7 @@ pub struct DemoArgs {
 /// Runs the demo.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let sample = SampleFile::new()?;
-    println!("== the bundled sample (samples/bunny_2k.xyzn) ==");
+    outln!("== the bundled sample (samples/bunny_2k.xyzn) ==");
     crate::info::run(&crate::info::InfoArgs {
         file: sample.path.clone(),
         format: None,
@@ -123,21 +123,29 @@ fn remove_ears(sample: &std::path::Path) -> anyhow::Result<()> {
     let mask = BoxMask::from_corners(&grid, EAR_MASK.0, EAR_MASK.1)?;
     let h = grid.spacing()[1];
     let base = EAR_MASK.0[1];
-    println!();
-    println!("== restoration: removing the bunny's ears (Ren–Fujita–Nakata protrusion removal) ==");
+    outln!();
+    outln!("== restoration: removing the bunny's ears (Ren–Fujita–Nakata protrusion removal) ==");
     let c = grid.counts();
-    println!(
+    outln!(
         "   tangent-plane field of the sample on {}×{}×{} cells; mask {:?} .. {:?}, face -y",
-        c[0], c[1], c[2], EAR_MASK.0, EAR_MASK.1
+        c[0],
+        c[1],
+        c[2],
+        EAR_MASK.0,
+        EAR_MASK.1
     );
     let top = highest_inside(&field, &grid, &mask);
-    println!(
+    outln!(
         "   before: the surface reaches {:.1} cells above the mask's bottom face",
         (top - base) / h
     );
-    println!(
+    outln!(
         "{:<22} {:>9} {:>9} {:>10} {:>14}",
-        "alpha", "unknowns", "solve_ms", "rel_res", "top (cells)"
+        "alpha",
+        "unknowns",
+        "solve_ms",
+        "rel_res",
+        "top (cells)"
     );
     for alpha in [None, Some(1.0), Some(3.0)] {
         let mut p = Protrusion::new(Face::new(1, Side::Lower));
@@ -149,7 +157,7 @@ fn remove_ears(sample: &std::path::Path) -> anyhow::Result<()> {
             Some(a) => format!("{a}"),
         };
         let top = highest_inside(&out.field, &grid, &mask);
-        println!(
+        outln!(
             "{label:<22} {:>9} {:>9.1} {:>10.2e} {:>14.1}",
             r.unknowns,
             r.solve.elapsed.as_secs_f64() * 1e3,
@@ -157,7 +165,7 @@ fn remove_ears(sample: &std::path::Path) -> anyhow::Result<()> {
             (top - base) / h
         );
     }
-    println!("   (a larger alpha makes the field leave the head faster: a flatter top)");
+    outln!("   (a larger alpha makes the field leave the head faster: a flatter top)");
     Ok(())
 }
 
@@ -187,13 +195,13 @@ fn highest_inside<F: ScalarField<3> + ?Sized>(field: &F, grid: &Grid<3>, mask: &
 fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
     let p = protrusion_problem(k, 1.0);
     let (m, n) = (p.a.nrows(), p.a.ncols());
-    println!();
-    println!("== restoration least squares: {} ==", p.name);
-    println!(
+    outln!();
+    outln!("== restoration least squares: {} ==", p.name);
+    outln!(
         "   grid {}³ cells on [-1,1]³, f = sphere SDF r=0.6, mask = central {k}³ box,",
         2 * k
     );
-    println!(
+    outln!(
         "   {m} equations (Laplace + Neumann rows), {n} unknowns, {} non-zeros",
         p.a.val().len()
     );
@@ -220,10 +228,15 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
         solvers.push(("dense-qr", Box::new(DenseQr::default())));
         solvers.push(("normal-lu", Box::new(NormalLu::default())));
     }
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{:<16} {:>10} {:>7} {:>11} {:>11} {:>13}",
-        "solver", "time_ms", "iters", "rel_res", "rel_normal", "max|x - x_qr|"
+        "solver",
+        "time_ms",
+        "iters",
+        "rel_res",
+        "rel_normal",
+        "max|x - x_qr|"
     );
     let spinner = crate::progress::spinner(quiet);
     let mut reference: Option<Vec<f64>> = None;
@@ -257,15 +270,20 @@ fn solve_all(k: usize, quiet: bool) -> anyhow::Result<()> {
             }
         };
         spinner.suspend(|| {
-            println!(
+            outln!(
                 "{:<16} {:>10.1} {:>7} {:>11.2e} {:>11.2e} {:>13.2e}",
-                label, ms, s.info.iterations, s.info.rel_residual, s.info.rel_normal_residual, diff
+                label,
+                ms,
+                s.info.iterations,
+                s.info.rel_residual,
+                s.info.rel_normal_residual,
+                diff
             )
         });
     }
     spinner.finish_and_clear();
     if n > DENSE_LIMIT {
-        println!("(dense-qr and normal-lu skipped above {DENSE_LIMIT} unknowns; try --k 11)");
+        outln!("(dense-qr and normal-lu skipped above {DENSE_LIMIT} unknowns; try --k 11)");
     }
     let scale = reference
         .as_deref()
@@ -308,7 +326,7 @@ fn check_agreement(k: usize, scale: f64, worst: &Option<(f64, String)>) -> anyho
     let Some((diff, label)) = worst else {
         return Ok(());
     };
-    println!(
+    outln!(
         "agreement: largest max|x - x_qr| {diff:.2e} ({label}); tolerance {tolerance:.2e} = \
          κ² (τ + u) max|x_qr|, κ = {kappa:.1} (the Laplacian's condition number; the normal \
          equations square it), τ = {ITERATIVE_TOLERANCE:.0e} (the iterative solvers' \
@@ -379,15 +397,15 @@ fn mesh_zero_set<F: ScalarField<3> + ?Sized>(field: &F) -> anyhow::Result<(TriMe
 /// `out` (each written atomically).
 fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
     let total = Instant::now();
-    println!();
-    println!(
+    outln!();
+    outln!(
         "== pipeline: fit → restore → mesh → preview, into {} ==",
         out.display()
     );
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut report = String::new();
     let step = |report: &mut String, text: String| {
-        println!("   {text}");
+        outln!("   {text}");
         report.push_str(&text);
         report.push('\n');
     };
@@ -544,8 +562,8 @@ fn pipeline(sample: &Path, out: &Path) -> anyhow::Result<()> {
     let _ = writeln!(report, "pipeline total {}", secs(total.elapsed()));
     zeroset_field_core::io::write_atomic(&txt, |w| w.write_all(report.as_bytes()))
         .with_context(|| format!("writing {}", txt.display()))?;
-    println!("   wrote {}", txt.display());
-    println!("   pipeline total {}", secs(total.elapsed()));
+    outln!("   wrote {}", txt.display());
+    outln!("   pipeline total {}", secs(total.elapsed()));
     Ok(())
 }
 

@@ -282,7 +282,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         )?;
     }
     if let Some(output) = &args.output {
-        println!(
+        outln!(
             "wrote {} ({}) in {:.2} s",
             output.display(),
             if args.sampled {
@@ -1017,12 +1017,12 @@ const LABEL_WIDTH: usize = 13;
 
 pub(crate) fn line(label: &str, value: &str) {
     let label = format!("{label}:");
-    println!("{label:<LABEL_WIDTH$} {value}");
+    outln!("{label:<LABEL_WIDTH$} {value}");
 }
 
 /// A continuation line, aligned under the values.
 pub(crate) fn more(value: &str) {
-    println!("{:<LABEL_WIDTH$} {value}", "");
+    outln!("{:<LABEL_WIDTH$} {value}", "");
 }
 
 fn parse_offset(s: &str) -> Result<OffsetArg, String> {

@@ -213,7 +213,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             &format!("{}: the MRAS field (exact)", output.display()),
         );
         write_mras_field(output, field).with_context(|| format!("writing {}", output.display()))?;
-        println!(
+        outln!(
             "wrote {} (the MRAS field) in {:.2} s",
             output.display(),
             start.elapsed().as_secs_f64()

@@ -214,7 +214,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         None => fit_cloud(args, args.neural.params(CLOUD_LAMBDA)?)?,
     }
     if let Some(output) = &args.output {
-        println!(
+        outln!(
             "wrote {} (the neural field) in {:.2} s",
             output.display(),
             start.elapsed().as_secs_f64()

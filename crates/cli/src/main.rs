@@ -7,6 +7,17 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+/// `println!` for the commands' reports, except that a closed stdout (`zeroset fit … | head`)
+/// stops the printing, not the command: see [`output::say_line`].
+macro_rules! outln {
+    () => {
+        $crate::output::say_line(format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::output::say_line(format_args!($($arg)*))
+    };
+}
+
 mod demo;
 mod fit;
 mod fit_mras;

@@ -24,7 +24,6 @@
 //! level curve is traced by marching squares on square cells (`--resolution` along the longer
 //! axis, default 256, or `--voxel`) and written as an SVG (`-o OUT.svg`).
 
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -202,26 +201,16 @@ enum Format {
     Obj,
 }
 
-/// Writes lines to stdout; once stdout is closed (`zeroset mesh ... | head`), stops printing
-/// but lets the work go on: a broken pipe is not an error, the mesh is still written.
+/// The report's lines ([`say_line`](crate::output::say_line): once stdout is closed,
+/// `zeroset mesh ... | head`, printing stops but the work goes on and the mesh is written).
 #[derive(Debug, Default)]
-struct Say {
-    closed: bool,
-}
+struct Say;
 
 impl Say {
+    #[allow(clippy::unnecessary_wraps)] // `say!(out, …)?` reads like the writes around it
     fn line(&mut self, text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
-        if self.closed {
-            return Ok(());
-        }
-        let mut stdout = std::io::stdout().lock();
-        match writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
-                self.closed = true;
-                Ok(())
-            }
-            r => r.context("cannot write to stdout"),
-        }
+        crate::output::say_line(text);
+        Ok(())
     }
 }
 
@@ -234,7 +223,7 @@ macro_rules! say {
 
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
-    let mut out = Say::default();
+    let mut out = Say;
     if let Ok(2) = read_dimension(&args.field) {
         return curve(args, &mut out);
     }

@@ -1,6 +1,9 @@
-//! The one check every writing subcommand makes on its output path before any work.
+//! The one check every writing subcommand makes on its output path before any work, and the
+//! one way the commands print their reports.
 
+use std::io::Write;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::bail;
 
@@ -59,4 +62,24 @@ pub(crate) fn check_output(
         );
     }
     Ok(())
+}
+
+/// Set once stdout has refused a line: nothing more is printed.
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Writes one line of a command's report to stdout (the `outln!` macro). Where `println!` would
+/// panic — stdout closed by the reader (`zeroset fit … | head`, a broken pipe) or failing — the
+/// printing stops and the command goes on, so that the files it was asked for are still
+/// written and its exit status says whether the work succeeded.
+pub(crate) fn say_line(text: std::fmt::Arguments<'_>) {
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut stdout = std::io::stdout().lock();
+    if writeln!(stdout, "{text}")
+        .and_then(|()| stdout.flush())
+        .is_err()
+    {
+        STDOUT_CLOSED.store(true, Ordering::Relaxed);
+    }
 }

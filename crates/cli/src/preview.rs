@@ -151,7 +151,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
         };
         let image = render_field_2d(&field, bounds, args.width.max(args.height))
             .context("rendering the field")?;
-        println!(
+        outln!(
             "the 2-D {} field {} over its box, zero contour in black",
             field.kind(),
             args.input.display()
@@ -170,7 +170,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
                 let pixels = args.width.max(args.height);
                 let image = render_slice(&field, bounds, slice.axis, position, pixels)
                     .context("rendering the slice")?;
-                println!(
+                outln!(
                     "slice {} = {} of the {} field {}, zero contour in black",
                     ["x", "y", "z"][slice.axis],
                     position,
@@ -196,7 +196,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
                     );
                 }
                 let c = grid.counts();
-                println!(
+                outln!(
                     "zero set of the {} field {}: {} triangles (marching cubes, {}×{}×{} grid, \
                      voxel {h:.4e})",
                     field.kind(),
@@ -217,7 +217,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
             );
         }
         let mesh = read_mesh(&args.input)?;
-        println!(
+        outln!(
             "mesh {}: {} vertices, {} triangles",
             args.input.display(),
             mesh.num_vertices(),
@@ -228,7 +228,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
     image
         .write_png(&args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    println!(
+    outln!(
         "wrote {} ({}×{} PNG) in {}",
         args.output.display(),
         image.width(),

@@ -160,7 +160,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             }
         );
     }
-    println!(
+    outln!(
         "reconstruct:  {} ({points} points) → {}, {fit_method} field{}",
         args.scan.display(),
         args.output.display(),
@@ -194,7 +194,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         }
     };
 
-    println!("\n== 1/3 fit");
+    outln!("\n== 1/3 fit");
     let t = Instant::now();
     let mut argv = vec![
         os("fit"),
@@ -207,7 +207,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));
 
-    println!("\n== 2/3 mesh");
+    outln!("\n== 2/3 mesh");
     let t = Instant::now();
     let mut argv = vec![
         os("mesh"),
@@ -225,7 +225,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     times.push(("mesh", t.elapsed()));
 
     if let Some(png) = &preview {
-        println!("\n== 3/3 preview");
+        outln!("\n== 3/3 preview");
         let t = Instant::now();
         let mut argv = vec![
             os("preview"),
@@ -240,12 +240,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     drop(temporary);
 
-    println!("\n== summary");
+    outln!("\n== summary");
     for (name, d) in &times {
-        println!("{name:<14}{}", seconds(*d));
+        outln!("{name:<14}{}", seconds(*d));
     }
-    println!("{:<14}{}", "total", seconds(start.elapsed()));
-    println!(
+    outln!("{:<14}{}", "total", seconds(start.elapsed()));
+    outln!(
         "{:<14}{}{}",
         "wrote",
         args.output.display(),
@@ -254,7 +254,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             .map_or(String::new(), |p| format!(", {}", p.display()))
     );
     if let Some(f) = &args.field {
-        println!("{:<14}{}", "field", f.display());
+        outln!("{:<14}{}", "field", f.display());
     }
     Ok(())
 }

@@ -175,12 +175,12 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     let restoration = args.restoration()?;
     let start = Instant::now();
     let loaded = args.source.load()?;
-    println!("{}", loaded.description);
+    outln!("{}", loaded.description);
     let grid = loaded.grid;
     let mask = restoration.mask(&grid)?;
     restoration.check_size(&grid, &mask, args.source.grid.is_some())?;
     let counts = grid.counts();
-    println!(
+    outln!(
         "grid {}×{}×{} cells over {:?} .. {:?}; mask cells {:?} ..= {:?} ({} cells)",
         counts[0],
         counts[1],
@@ -192,7 +192,7 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
         mask.len()
     );
     if let Restoration::Protrusion { face: None, .. } = restoration {
-        println!("no --face: filling the mask harmonically from its boundary");
+        outln!("no --face: filling the mask harmonically from its boundary");
     }
     let samples = grid.sample(loaded.field.as_ref());
     let restored = restoration.restore(
@@ -205,7 +205,7 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     match &restored.report {
         Report::Protrusion(r) => {
             if let Some(alpha) = r.alpha {
-                println!(
+                outln!(
                     "alpha {alpha:.4}{}",
                     if args.alpha.is_none() {
                         " (the field's mean slope across the face)"
@@ -214,7 +214,7 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
                     }
                 );
             }
-            println!(
+            outln!(
                 "{} unknowns, {} equations, solver {}: assembly {:.1} ms, solve {:.1} ms; \
                  relative residual {:.3e}",
                 r.unknowns,
@@ -225,20 +225,20 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
                 r.solve.rel_residual
             );
         }
-        Report::Denoise { coarse, resampling } => println!(
+        Report::Denoise { coarse, resampling } => outln!(
             "coarse {coarse:?} ({resampling:?} resampling): {:.1} ms",
             restored.elapsed.as_secs_f64() * 1e3,
         ),
     }
     let spline = Instant::now();
     let field = interpolate(&grid, restored.samples)?;
-    println!(
+    outln!(
         "quadratic spline through the restored samples: {:.1} ms",
         spline.elapsed().as_secs_f64() * 1e3
     );
     write_field(&args.output, &field)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    println!(
+    outln!(
         "wrote {} in {:.2} s",
         args.output.display(),
         start.elapsed().as_secs_f64()

@@ -115,10 +115,10 @@ async fn serve(
     };
     let url = format!("http://{shown_host}:{port}/?token={token}");
     // The first line of output is the address, as Jupyter prints it: scripts read it.
-    println!("zeroset studio: {url}");
+    outln!("zeroset studio: {url}");
     let counts = session.grid().counts();
-    println!("{description}");
-    println!(
+    outln!("{description}");
+    outln!(
         "restoration grid {}×{}×{} cells; {}",
         counts[0],
         counts[1],
@@ -128,7 +128,7 @@ async fn serve(
             None => "Save is disabled (no -o OUT.zsf)".to_owned(),
         }
     );
-    println!("Ctrl-C stops the server.");
+    outln!("Ctrl-C stops the server.");
     std::io::stdout().flush().ok();
     let hosts = if args.host.is_loopback() {
         let mut hosts = vec![
@@ -178,7 +178,7 @@ async fn serve(
     if let Some(path) = redirect {
         let _ = std::fs::remove_file(path);
     }
-    println!("zeroset studio stopped");
+    outln!("zeroset studio stopped");
     Ok(())
 }
 
@@ -246,7 +246,7 @@ fn open_browser(url: &str) -> Option<PathBuf> {
         ("cmd", &["/C", "start", ""])
     } else {
         if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
-            println!(
+            outln!(
                 "no display here: open the address above in a browser (--no-browser hides this)"
             );
             return None;
@@ -256,7 +256,7 @@ fn open_browser(url: &str) -> Option<PathBuf> {
     let redirect = match redirect_file(url) {
         Ok(path) => path,
         Err(e) => {
-            println!("could not write the browser's start page ({e}): open the address above");
+            outln!("could not write the browser's start page ({e}): open the address above");
             return None;
         }
     };
@@ -268,7 +268,7 @@ fn open_browser(url: &str) -> Option<PathBuf> {
         .stderr(std::process::Stdio::null())
         .spawn();
     if let Err(e) = opened {
-        println!("could not start a browser ({program}: {e}): open the address above");
+        outln!("could not start a browser ({program}: {e}): open the address above");
     }
     Some(redirect)
 }

@@ -1049,30 +1049,67 @@ fn info_reports_a_written_mesh_and_keeps_point_clouds() {
 }
 
 #[test]
-fn mesh_survives_a_closed_stdout() {
+fn commands_survive_a_closed_stdout() {
     use std::process::Stdio;
     let (dir, field) = sphere_field();
-    let out = dir.path().join("p.ply");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .args([
-            OsStr::new("mesh"),
-            field.as_os_str(),
-            OsStr::new("-o"),
-            out.as_os_str(),
-            OsStr::new("--quiet"),
-            OsStr::new("--resolution"),
-            OsStr::new("16"),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Close the read end at once, like `| head -0`.
-    drop(child.stdout.take());
-    let o = child.wait_with_output().unwrap();
-    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(out.is_file(), "the mesh was not written");
+    let cloud = dir.path().join("sphere.xyzn");
+    let fitted = dir.path().join("refit.zsf");
+    let mesh = dir.path().join("p.ply");
+    let restored = dir.path().join("no_ears.zsf");
+    let sample = sample();
+    let runs: [(&[&OsStr], &Path); 3] = [
+        (
+            &[
+                OsStr::new("fit"),
+                cloud.as_os_str(),
+                OsStr::new("--method"),
+                OsStr::new("rbf"),
+                OsStr::new("-o"),
+            ],
+            &fitted,
+        ),
+        (
+            &[
+                OsStr::new("mesh"),
+                field.as_os_str(),
+                OsStr::new("--resolution"),
+                OsStr::new("16"),
+                OsStr::new("-o"),
+            ],
+            &mesh,
+        ),
+        (
+            &[
+                OsStr::new("restore"),
+                sample.as_os_str(),
+                OsStr::new("--mode"),
+                OsStr::new("protrusion"),
+                OsStr::new("--mask"),
+                OsStr::new(EARS),
+                OsStr::new("--face"),
+                OsStr::new("-y"),
+                OsStr::new("-o"),
+            ],
+            &restored,
+        ),
+    ];
+    for (args, out) in runs {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_zeroset"))
+            .args(args)
+            .arg(out)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Close the read end at once, like `| head -0`: the report goes nowhere, the work and
+        // its output file are still done.
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        let what = args[0].to_string_lossy();
+        assert!(!stderr(&o).contains("panicked"), "{what}: {}", stderr(&o));
+        assert!(o.status.success(), "{what}: {}", stderr(&o));
+        assert!(out.is_file(), "{what}: {} was not written", out.display());
+    }
 }
 
 #[test]

@@ -1056,39 +1056,22 @@ fn commands_survive_a_closed_stdout() {
     let fitted = dir.path().join("refit.zsf");
     let mesh = dir.path().join("p.ply");
     let restored = dir.path().join("no_ears.zsf");
-    let sample = sample();
-    let runs: [(&[&OsStr], &Path); 3] = [
+    let (cloud, field, sample) = (cloud.to_str().unwrap(), field.to_str().unwrap(), sample());
+    let sample = sample.to_str().unwrap();
+    let runs: [(&[&str], &Path); 3] = [
+        (&["fit", cloud, "--method", "rbf", "-o"], &fitted),
+        (&["mesh", field, "--resolution", "16", "-o"], &mesh),
         (
             &[
-                OsStr::new("fit"),
-                cloud.as_os_str(),
-                OsStr::new("--method"),
-                OsStr::new("rbf"),
-                OsStr::new("-o"),
-            ],
-            &fitted,
-        ),
-        (
-            &[
-                OsStr::new("mesh"),
-                field.as_os_str(),
-                OsStr::new("--resolution"),
-                OsStr::new("16"),
-                OsStr::new("-o"),
-            ],
-            &mesh,
-        ),
-        (
-            &[
-                OsStr::new("restore"),
-                sample.as_os_str(),
-                OsStr::new("--mode"),
-                OsStr::new("protrusion"),
-                OsStr::new("--mask"),
-                OsStr::new(EARS),
-                OsStr::new("--face"),
-                OsStr::new("-y"),
-                OsStr::new("-o"),
+                "restore",
+                sample,
+                "--mode",
+                "protrusion",
+                "--mask",
+                EARS,
+                "--face",
+                "-y",
+                "-o",
             ],
             &restored,
         ),
@@ -1105,7 +1088,7 @@ fn commands_survive_a_closed_stdout() {
         // its output file are still done.
         drop(child.stdout.take());
         let o = child.wait_with_output().unwrap();
-        let what = args[0].to_string_lossy();
+        let what = args[0];
         assert!(!stderr(&o).contains("panicked"), "{what}: {}", stderr(&o));
         assert!(o.status.success(), "{what}: {}", stderr(&o));
         assert!(out.is_file(), "{what}: {} was not written", out.display());

@@ -203,7 +203,7 @@ enum Format {
 
 /// The report's lines ([`say_line`](crate::output::say_line): once stdout is closed,
 /// `zeroset mesh ... | head`, printing stops but the work goes on and the mesh is written).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Say;
 
 impl Say {

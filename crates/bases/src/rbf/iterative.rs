@@ -471,16 +471,35 @@ fn local_cardinal<K: Kernel + ?Sized, const D: usize>(
 ) -> Result<Cardinal, RbfError> {
     let (k, m) = (set.len(), Polynomial::<D>::len());
     let size = k + m;
-    let a = Mat::from_fn(size, size, |r, s| match (r < k, s < k) {
-        (true, true) => system::entry(
-            kernel,
-            (&f.points[set[r]], Functional::Value),
-            (&f.points[set[s]], Functional::Value),
-        ),
-        (true, false) => poly.row(&f.points[set[r]], Functional::Value)[s - k],
-        (false, true) => poly.row(&f.points[set[s]], Functional::Value)[r - k],
-        (false, false) => 0.0,
-    });
+    // The kernel block's lower triangle column by column from the local points' coordinates
+    // by axis (a loop that vectorises), mirrored; the polynomial rows once per point.
+    let coords: [Vec<f64>; D] =
+        std::array::from_fn(|a| set.iter().map(|&j| f.points[j][a]).collect());
+    let mut a = Mat::<f64>::zeros(size, size);
+    let mut r2 = vec![0.0; k];
+    for s in 0..k {
+        r2[s..].fill(0.0);
+        for axis in &coords {
+            let xs = axis[s];
+            for (d2, x) in r2[s..].iter_mut().zip(&axis[s..]) {
+                *d2 += (x - xs) * (x - xs);
+            }
+        }
+        let mut col = a.col_mut(s);
+        for (r, d2) in (s..k).zip(&r2[s..]) {
+            col[r] = kernel.value_of_squared(*d2);
+        }
+        let row = poly.row(&f.points[set[s]], Functional::Value);
+        for t in 0..m {
+            a[(k + t, s)] = row[t];
+            a[(s, k + t)] = row[t];
+        }
+    }
+    for s in 0..k {
+        for r in s + 1..k {
+            a[(s, r)] = a[(r, s)];
+        }
+    }
     let mut rhs = Mat::from_fn(size, 1, |r, _| if r < k && set[r] == i { 1.0 } else { 0.0 });
     PartialPivLu::new(a.as_ref()).solve_in_place(rhs.as_mut());
     if (0..size).any(|r| !rhs[(r, 0)].is_finite()) {
@@ -504,18 +523,41 @@ pub(crate) fn spread<const D: usize>(points: &[[f64; D]], count: usize) -> Vec<u
         return chosen;
     }
     let d2 = |a: &[f64; D], b: &[f64; D]| -> f64 { (0..D).map(|k| (a[k] - b[k]).powi(2)).sum() };
+    // Each round updates the distances to the chosen set and finds the farthest point in one
+    // pass, in parallel over fixed chunks; the largest distance, ties to the lowest index, is
+    // the same however the chunks are spread over threads.
+    const CHUNK: usize = 4096;
     let mut nearest: Vec<f64> = vec![f64::INFINITY; points.len()];
     let mut next = 0;
     for _ in 0..count {
         chosen.push(next);
         let p = points[next];
-        nearest
-            .iter_mut()
-            .zip(points)
-            .for_each(|(d, q)| *d = d.min(d2(&p, q)));
-        next = (0..points.len())
-            .max_by(|&a, &b| nearest[a].total_cmp(&nearest[b]).then(b.cmp(&a)))
-            .unwrap_or(0);
+        next = nearest
+            .par_chunks_mut(CHUNK)
+            .zip(points.par_chunks(CHUNK))
+            .enumerate()
+            .map(|(c, (near, pts))| {
+                let mut best = (f64::NEG_INFINITY, usize::MAX);
+                for (j, (d, q)) in near.iter_mut().zip(pts).enumerate() {
+                    *d = d.min(d2(&p, q));
+                    if *d > best.0 {
+                        best = (*d, c * CHUNK + j);
+                    }
+                }
+                best
+            })
+            .reduce(
+                || (f64::NEG_INFINITY, usize::MAX),
+                |a, b| {
+                    if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
+                        b
+                    } else {
+                        a
+                    }
+                },
+            )
+            .1
+            .min(points.len() - 1);
     }
     chosen
 }

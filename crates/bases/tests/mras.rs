@@ -127,6 +127,23 @@ fn field_file_round_trip_is_bit_exact() {
             assert_eq!(back.value(&x).to_bits(), f.field.value(&x).to_bits());
         }
         assert_eq!(encode_mras(&back), bytes);
+        // The fit records its input points (f32 in the cube), and they come back.
+        let recorded = back.points();
+        assert_eq!(recorded.len(), p.len());
+        for (r, q) in recorded.iter().zip(&p) {
+            for a in 0..3 {
+                assert!((r[a] - q[a]).abs() <= 1e-6 * back.side(), "{r:?} vs {q:?}");
+            }
+        }
+        // A field without recorded points (one built by hand, an older file) round trips too.
+        let bare = f.field.clone().with_points(&[]);
+        let bare_bytes = encode_mras(&bare);
+        assert!(bare_bytes.len() + 12 * p.len() + 8 <= bytes.len());
+        let AnyField::Mras(back) = decode_any::<3>(&bare_bytes, "t.zsf".as_ref()).unwrap() else {
+            panic!("not an MRAS field");
+        };
+        assert_eq!(back, bare);
+        assert!(back.points().is_empty());
         let full = f
             .field
             .levels()

@@ -252,6 +252,20 @@ fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasFiel
             f.uncompressed_storage() as f64 / f.storage().max(1) as f64
         ),
     );
+    let n = f.unit_points().len();
+    line(
+        s,
+        "points",
+        &if n == 0 {
+            "none recorded (mesh --drop-spurious needs them)".to_owned()
+        } else {
+            format!(
+                "{n} input point{} recorded (f32, for mesh's spurious-component check; not in \
+                 the storage count)",
+                plural(n)
+            )
+        },
+    );
 }
 
 /// Whether the PLY header declares a `face` element (a mesh rather than a point cloud).

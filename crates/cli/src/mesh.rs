@@ -24,6 +24,7 @@
 //! level curve is traced by marching squares on square cells (`--resolution` along the longer
 //! axis, default 256, or `--voxel`) and written as an SVG (`-o OUT.svg`).
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -329,9 +330,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
 
     let start = Instant::now();
     let mut report = check(&mesh);
-    // Components far from every input point (only RBF fields record their points).
+    // Components far from every input point (RBF and MRAS fields record their points).
     let points = match &field {
-        AnyField::Rbf(f) => Some(f.centres()),
+        AnyField::Rbf(f) => Some(Cow::Borrowed(f.centres())),
+        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(Cow::Owned(f.points())),
         _ => None,
     };
     let mut mesh = mesh;
@@ -339,7 +341,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         Some(points) if !mesh.is_empty() => {
             let (labels, count) = components(&mesh);
             let radius = SPURIOUS_VOXELS * h;
-            let far = unsupported_components(&mesh, &labels, count, points, radius);
+            let far = unsupported_components(&mesh, &labels, count, &points, radius);
             let spurious = far.iter().filter(|f| **f).count();
             if spurious > 0 {
                 let triangles = labels.iter().filter(|&&l| far[l as usize]).count();
@@ -368,7 +370,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         Some(_) => {}
         None if args.drop_spurious => bail!(
             "--drop-spurious needs the points the field was fitted to; {} holds a {} field, \
-             which does not record them",
+             which does not record them (RBF fields and MRAS fields fitted by this version do)",
             args.field.display(),
             field.kind()
         ),

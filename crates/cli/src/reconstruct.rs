@@ -68,8 +68,8 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "FIELD.zsf")]
     pub field: Option<PathBuf>,
 
-    /// Remove the mesh's components with no input point within 3 voxels (RBF fields only:
-    /// MRAS fields record no points).
+    /// Remove the mesh's components with no input point within 3 voxels (the fitted field
+    /// records the points, RBF and MRAS alike).
     #[arg(long)]
     pub drop_spurious: bool,
 
@@ -150,16 +150,6 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         ReconstructMethod::Mras => ("mras", "mc"),
         _ => ("rbf", "smc"),
     };
-    if args.drop_spurious && method == ReconstructMethod::Mras {
-        bail!(
-            "--drop-spurious needs an RBF field (MRAS fields record no points){}; add --method rbf",
-            if args.method == ReconstructMethod::Auto {
-                format!(" and --method auto chose MRAS for {points} points")
-            } else {
-                String::new()
-            }
-        );
-    }
     outln!(
         "reconstruct:  {} ({points} points) → {}, {fit_method} field{}",
         args.scan.display(),

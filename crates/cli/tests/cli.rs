@@ -2018,7 +2018,7 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("mras field"));
     assert!(field.is_file());
-    // Spurious components are an RBF notion: refused for MRAS before any work.
+    // MRAS fields record their points, so their meshes are checked for spurious components too.
     let out = zeroset([
         "reconstruct",
         s,
@@ -2029,9 +2029,12 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
         "--drop-spurious",
         "--force",
     ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("--drop-spurious needs an RBF field"), "{err}");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("spurious: none"));
     let out = zeroset([
         "reconstruct",
         s,
@@ -2103,8 +2106,8 @@ fn mesh_reports_and_drops_components_no_point_supports() {
             && text.contains("report: closed, Euler characteristic 2, 1 component(s)"),
         "{text}"
     );
-    // A field that records no points cannot say what is spurious.
-    let restored = dir.path().join("sampled.zsf");
+    // An MRAS field records its points: its mesh is checked against them.
+    let mras = dir.path().join("mras.zsf");
     let out = zeroset([
         "fit",
         sample().to_str().unwrap(),
@@ -2113,8 +2116,47 @@ fn mesh_reports_and_drops_components_no_point_supports() {
         "--max-level",
         "2",
         "-o",
-        restored.to_str().unwrap(),
+        mras.to_str().unwrap(),
         "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info = zeroset(["info", mras.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("2000 input points recorded"), "{text}");
+    let out = zeroset([
+        "mesh",
+        mras.to_str().unwrap(),
+        "-o",
+        m,
+        "--force",
+        "--drop-spurious",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("spurious: none"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A field that records no points (restored: a B-spline on a grid) cannot say what is
+    // spurious.
+    let sampled = dir.path().join("sampled.zsf");
+    let out = zeroset([
+        "restore",
+        mras.to_str().unwrap(),
+        "--mode",
+        "protrusion",
+        "--mask",
+        EARS,
+        "--face",
+        "-y",
+        "--grid",
+        "24,24,24",
+        "-o",
+        sampled.to_str().unwrap(),
     ]);
     assert!(
         out.status.success(),
@@ -2123,7 +2165,7 @@ fn mesh_reports_and_drops_components_no_point_supports() {
     );
     let out = zeroset([
         "mesh",
-        restored.to_str().unwrap(),
+        sampled.to_str().unwrap(),
         "-o",
         m,
         "--force",

@@ -14,6 +14,13 @@
 //! | 4 | number of levels `K` (`u32`) |
 //! | … | `K` levels, each: level `k` (`u32`, 1, 2, … in order), B-splines per axis `m` (`u32`), cell count `n` (`u64`), then `n` cells |
 //! | … | a cell: lattice index (`D × u32`, each below `2^{k−1}`), storage (`u32`: 0 = CP factors, 1 = full tensor), then for CP the rank `R` (`u32`, ≥ 1) and `D` factor matrices `m × R` row-major (`f64`), for a full tensor `m^D` coefficients row-major (`f64`) |
+//! | 8 | optional: number of recorded input points `P` (`u64`) |
+//! | 4·D·P | their unit-cube coordinates `(p − origin)/L` (`f32`, finite) |
+//!
+//! The recorded points ([`MrasField::points`]) are what `zeroset mesh` checks the mesh's
+//! components against; a file without them (written before fields recorded them, or a field
+//! built by hand) ends after the last level. A reader from before the points were added
+//! refuses a file that has them ("bytes of payload left over").
 
 use std::path::Path;
 
@@ -58,6 +65,15 @@ pub fn encode_mras<const D: usize>(field: &MrasField<D>) -> Vec<u8> {
             }
         }
     }
+    let points = field.unit_points();
+    if !points.is_empty() {
+        p.extend_from_slice(&(points.len() as u64).to_le_bytes());
+        for u in points {
+            for v in u {
+                p.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
     frame(
         D,
         KIND_MRAS,
@@ -66,6 +82,7 @@ pub fn encode_mras<const D: usize>(field: &MrasField<D>) -> Vec<u8> {
             ("cells", cells.to_string()),
             ("storage", field.storage().to_string()),
             ("uncompressed", field.uncompressed_storage().to_string()),
+            ("points", points.len().to_string()),
         ],
         &p,
     )
@@ -151,5 +168,31 @@ pub(super) fn mras_body<const D: usize>(
         }
         levels.push(MrasLevel::new(level, knots, cells).map_err(malformed)?);
     }
-    MrasField::new(origin, side, alpha, levels).map_err(malformed)
+    let field = MrasField::new(origin, side, alpha, levels).map_err(malformed)?;
+    if c.remaining() == 0 {
+        return Ok(field);
+    }
+    let count = c.u64().ok_or_else(&short)?;
+    let n = counted(
+        c,
+        path,
+        "recorded points",
+        count,
+        4 * D,
+        std::mem::size_of::<[f32; D]>(),
+    )?;
+    let mut points = Vec::with_capacity(n);
+    for index in 0..n {
+        let mut u = [0f32; D];
+        for v in &mut u {
+            *v = f32::from_bits(c.u32().ok_or_else(&short)?);
+        }
+        if u.iter().any(|v| !v.is_finite()) {
+            return Err(malformed(format!(
+                "recorded point {index}: {u:?} is not finite"
+            )));
+        }
+        points.push(u);
+    }
+    Ok(field.with_unit_points(points))
 }

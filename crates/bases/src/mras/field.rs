@@ -319,12 +319,18 @@ pub(crate) fn pu_weight(r: f64, radius: f64) -> (f64, f64) {
 /// Points outside the cube are clamped onto it (the field is constant along the clamped
 /// directions there). Evaluation reads the CP factors directly; the full tensors are never
 /// formed. Single and batched evaluation give the same bits on any number of threads.
+///
+/// A fitted field also records the points it was fitted to ([`MrasField::points`]), in `f32`
+/// unit-cube coordinates: not part of the field's value, but what `zeroset mesh` checks a
+/// mesh's components against (a component far from every point is a spurious sheet).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasField<const D: usize> {
     origin: Point<D>,
     side: f64,
     alpha: f64,
     levels: Vec<MrasLevel<D>>,
+    /// The recorded input points, `(p − origin)/side` rounded to `f32`.
+    points: Vec<[f32; D]>,
 }
 
 /// Points per rayon task in [`MrasField::values`].
@@ -370,7 +376,40 @@ impl<const D: usize> MrasField<D> {
             side,
             alpha,
             levels,
+            points: Vec::new(),
         })
+    }
+
+    /// This field recording `points` (world coordinates) as the points it was fitted to,
+    /// rounded to `f32` in the cube's unit coordinates (a relative precision of 6e-8 of the
+    /// side: ample for telling whether a point lies within a few voxels of a mesh).
+    pub fn with_points(self, points: &[Point<D>]) -> Self {
+        let unit = points
+            .iter()
+            .map(|p| std::array::from_fn(|a| ((p[a] - self.origin[a]) / self.side) as f32))
+            .collect();
+        self.with_unit_points(unit)
+    }
+
+    /// This field recording points already in `f32` unit-cube coordinates (the file's form).
+    pub(crate) fn with_unit_points(mut self, points: Vec<[f32; D]>) -> Self {
+        self.points = points;
+        self
+    }
+
+    /// The recorded points in the cube's unit coordinates (empty if none were recorded).
+    pub fn unit_points(&self) -> &[[f32; D]] {
+        &self.points
+    }
+
+    /// The recorded input points in world coordinates, `origin + side · u` (empty if none
+    /// were recorded: fields built by hand, or read from a file written before fields recorded
+    /// them).
+    pub fn points(&self) -> Vec<Point<D>> {
+        self.points
+            .iter()
+            .map(|u| std::array::from_fn(|a| self.origin[a] + self.side * f64::from(u[a])))
+            .collect()
     }
 
     /// The cube's lowest corner.

@@ -463,8 +463,10 @@ pub fn fit_mras(
         field.push_level(lvl).map_err(MrasError::Field)?;
         to_fit = next;
     }
+    // The distinct input points, recorded for the mesh's spurious-component check.
+    let unit = u.iter().map(|p| p.map(|v| v as f32)).collect();
     Ok(MrasFit {
-        field,
+        field: field.with_unit_points(unit),
         levels: reports,
         diagonal,
         duplicates: cloud.duplicates,

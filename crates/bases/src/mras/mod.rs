@@ -91,8 +91,8 @@
 //! A cell stores `3·m·R` numbers (weights folded into a factor) plus its blending function
 //! (centre and radius, 4 numbers): [`MrasField::storage`]; [`MrasField::uncompressed_storage`]
 //! counts the same cells as full `m³` tensors. A fitted field also records its input points
-(`f32` unit-cube coordinates, [`MrasField::points`]) for the mesh's spurious-component check;
-they are not part of the field and not counted.
+//! (`f32` unit-cube coordinates, [`MrasField::points`]) for the mesh's spurious-component check;
+//! they are not part of the field and not counted.
 //!
 //! ```
 //! use zeroset_bases::mras::{MrasOptions, fit_mras};

@@ -111,6 +111,8 @@ fn parse() -> Res<Args> {
             "--min-knots" => o.min_knots = num()? as usize,
             "--admm-iter" => o.admm_max_iter = num()? as usize,
             "--admm-tol" => o.admm_tol = num()?,
+            "--eta" => o.eta = num()?,
+            "--relaxation" => o.relaxation = num()?,
             "--cp-scale" => o.cp_scale = num()?,
             "--cp-points" => o.cp_points = num()?,
             "--no-compress" => {

@@ -23,7 +23,10 @@
 //!   singular-value thresholding at `λγ_i/η`;
 //! * **dual step**: `α_i += η (P_i c − z_i)`.
 //!
-//! It starts from `z_i = 0`, `α_i = 0`.
+//! It starts from `z_i = 0`, `α_i = 0`. With over-relaxation `ρ ∈ (0, 2)`
+//! ([`AdmmOptions::relaxation`]; Boyd et al. §3.4.3) the z- and dual steps use
+//! `ρ P_i c + (1 − ρ) z_i^{prev}` in place of `P_i c`; `ρ = 1` (the default) is the iteration
+//! above, `ρ ≈ 1.5–1.8` often converges in fewer iterations at the same cost each.
 //!
 //! ## Stopping (Boyd, Parikh, Chu, Peleato & Eckstein 2011, §3.3.1)
 //!
@@ -364,6 +367,8 @@ pub struct AdmmOptions {
     /// A warm start `c⁰` (default none: `z_i = 0`): the iteration starts from `z_i = P_i c⁰`,
     /// `α_i = 0`, so that its first c-step returns `c⁰` itself when `c⁰` minimises the quadratic.
     pub start: Option<Vec<f64>>,
+    /// The over-relaxation `ρ ∈ (0, 2)` (default `1.0`: none; see the module docs).
+    pub relaxation: f64,
 }
 
 impl Default for AdmmOptions {
@@ -374,6 +379,7 @@ impl Default for AdmmOptions {
             eps_abs: 1e-9,
             eps_rel: 1e-7,
             start: None,
+            relaxation: 1.0,
         }
     }
 }
@@ -409,6 +415,12 @@ impl AdmmOptions {
         self
     }
 
+    /// With over-relaxation `relaxation` (`ρ ∈ (0, 2)`).
+    pub fn relaxation(mut self, relaxation: f64) -> Self {
+        self.relaxation = relaxation;
+        self
+    }
+
     fn validate(&self) -> Result<(), AdmmError> {
         if !(self.eta.is_finite() && self.eta > 0.0) {
             return Err(AdmmError::Eta { eta: self.eta });
@@ -417,6 +429,12 @@ impl AdmmOptions {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(AdmmError::InvalidOption { name, value });
             }
+        }
+        if !(self.relaxation > 0.0 && self.relaxation < 2.0) {
+            return Err(AdmmError::InvalidOption {
+                name: "relaxation",
+                value: self.relaxation,
+            });
         }
         if self.max_iter == 0 {
             return Err(AdmmError::InvalidOption {
@@ -557,6 +575,8 @@ pub fn admm_with_progress(
     let mut work: Vec<Vec<f64>> = z.clone();
     let mut dual = vec![0.0; n];
     let mut at_alpha = vec![0.0; n];
+    let mut rhs = vec![0.0; n];
+    let rho = options.relaxation;
 
     let mut stop = AdmmStop::MaxIterations;
     let (mut iterations, mut r, mut s) = (0, f64::INFINITY, f64::INFINITY);
@@ -570,6 +590,7 @@ pub fn admm_with_progress(
             }
             term.apply_transpose_add(&work[i], &mut c);
         }
+        rhs.copy_from_slice(&c);
         solve_in_place(factor.as_ref(), &mut c);
 
         // z-step and dual step, with the residuals' ingredients.
@@ -578,14 +599,16 @@ pub fn admm_with_progress(
         at_alpha.fill(0.0);
         for (i, term) in terms.iter().enumerate() {
             term.apply(&c, &mut pc[i]);
-            for ((w, &v), &a) in work[i].iter_mut().zip(&pc[i]).zip(&alpha[i]) {
-                *w = v + a / eta;
+            // The relaxed P_i c: ρ P_i c + (1 − ρ) z_i^{prev} (exactly P_i c for ρ = 1).
+            let relaxed = |j: usize, z_prev: &[f64]| rho * pc[i][j] + (1.0 - rho) * z_prev[j];
+            for j in 0..dims[i] {
+                work[i][j] = relaxed(j, &z[i]) + alpha[i][j] / eta;
             }
             std::mem::swap(&mut z[i], &mut z_prev[i]);
             term.prox(&work[i], 1.0 / eta, &mut z[i])?;
             for j in 0..dims[i] {
+                alpha[i][j] += eta * (relaxed(j, &z_prev[i]) - z[i][j]);
                 let ri = pc[i][j] - z[i][j];
-                alpha[i][j] += eta * ri;
                 r2 += ri * ri;
                 pc2 += pc[i][j] * pc[i][j];
                 z2 += z[i][j] * z[i][j];
@@ -614,7 +637,14 @@ pub fn admm_with_progress(
             break;
         }
     }
-    let objective = objective(h, b, terms, &c)?;
+    // The last c-step solved (H + kηI) c = rhs: cᵀHc = cᵀ(rhs − kηc), no product with H.
+    let quadratic = c
+        .iter()
+        .zip(&rhs)
+        .zip(b)
+        .map(|((&ci, &ri), &bi)| ci * (0.5 * (ri - k as f64 * eta * ci) - bi))
+        .sum::<f64>();
+    let objective = quadratic + terms_value(terms, &c)?;
     Ok(AdmmSolution {
         c,
         z,
@@ -668,10 +698,15 @@ pub fn objective(
     }
     let mut quadratic = 0.0;
     for (j, &cj) in c.iter().enumerate() {
-        let hc_j: f64 = (0..n).map(|i| h[(i, j)] * c[i]).sum();
+        let hc_j: f64 = with_column(h, j, |col| col.iter().zip(c).map(|(a, x)| a * x).sum());
         quadratic += cj * (0.5 * hc_j - b[j]);
     }
-    let mut total = quadratic;
+    Ok(quadratic + terms_value(terms, c)?)
+}
+
+/// `Σ_i g_i(P_i c)`, in order.
+fn terms_value(terms: &[&dyn ProxTerm], c: &[f64]) -> Result<f64, AdmmError> {
+    let mut total = 0.0;
     for term in terms {
         let mut z = vec![0.0; term.dims().0];
         term.apply(c, &mut z);
@@ -709,10 +744,12 @@ fn check_problem(
         }
     }
     for col in 0..n {
-        for row in 0..n {
-            if !h[(row, col)].is_finite() {
-                return Err(AdmmError::NonFiniteMatrix { row, col });
-            }
+        // A branch-free pass over the column (it vectorises); the position only on failure.
+        let finite = |c: &[f64]| c.iter().fold(true, |ok, v| ok & v.is_finite());
+        if !with_column(h, col, finite)
+            && let Some(row) = with_column(h, col, |c| c.iter().position(|v| !v.is_finite()))
+        {
+            return Err(AdmmError::NonFiniteMatrix { row, col });
         }
     }
     if let Some(index) = b.iter().position(|v| !v.is_finite()) {
@@ -723,19 +760,31 @@ fn check_problem(
 
 fn check_symmetric(h: MatRef<'_, f64>) -> Result<(), AdmmError> {
     let n = h.nrows();
-    let mut scale = 0.0f64;
-    for col in 0..n {
-        for row in 0..n {
-            scale = scale.max(h[(row, col)].abs());
+    let owned;
+    let h = match h.try_as_col_major() {
+        Some(_) => h,
+        None => {
+            owned = h.to_owned();
+            owned.as_ref()
         }
-    }
+    };
+    let column = |j: usize| {
+        h.col(j)
+            .try_as_col_major()
+            .expect("a column-major matrix")
+            .as_slice()
+    };
+    let scale = (0..n)
+        .flat_map(|j| column(j).iter())
+        .fold(0.0f64, |a, v| a.max(v.abs()));
     // In 64 × 64 tiles, so that the transposed reads stay in cache on large matrices.
     const TILE: usize = 64;
     for c0 in (0..n).step_by(TILE) {
         for r0 in (c0..n).step_by(TILE) {
             for col in c0..(c0 + TILE).min(n) {
-                for row in r0.max(col + 1)..(r0 + TILE).min(n) {
-                    if (h[(row, col)] - h[(col, row)]).abs() > 1e-10 * scale {
+                let (first, end) = (r0.max(col + 1), (r0 + TILE).min(n));
+                for (row, &below) in (first..end).zip(&column(col)[first..end]) {
+                    if (below - column(row)[col]).abs() > 1e-10 * scale {
                         return Err(AdmmError::NotSymmetric { row, col });
                     }
                 }
@@ -743,6 +792,14 @@ fn check_symmetric(h: MatRef<'_, f64>) -> Result<(), AdmmError> {
         }
     }
     Ok(())
+}
+
+/// `f` of column `j` of `h` as a slice (copied where `h`'s rows are not contiguous).
+fn with_column<R>(h: MatRef<'_, f64>, j: usize, f: impl FnOnce(&[f64]) -> R) -> R {
+    match h.col(j).try_as_col_major() {
+        Some(col) => f(col.as_slice()),
+        None => f(&h.col(j).iter().copied().collect::<Vec<_>>()),
+    }
 }
 
 /// Checks `PᵀP x = x` on a fixed irregular probe `x`.

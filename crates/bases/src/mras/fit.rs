@@ -59,6 +59,8 @@ pub struct MrasOptions {
     pub n_min: usize,
     /// ADMM's penalty, in units of the c-step matrix's mean diagonal.
     pub eta: f64,
+    /// ADMM's over-relaxation `ρ ∈ (0, 2)` ([`zeroset_solvers::admm::AdmmOptions::relaxation`]).
+    pub relaxation: f64,
     /// ADMM's iteration limit per cell.
     pub admm_max_iter: usize,
     /// ADMM's relative tolerance.
@@ -92,6 +94,7 @@ impl Default for MrasOptions {
             alpha: 0.75,
             n_min: 16,
             eta: 1.0,
+            relaxation: 1.0,
             admm_max_iter: 50,
             admm_tol: 1e-3,
             compress: true,
@@ -211,6 +214,13 @@ impl MrasOptions {
             a,
             a.is_finite() && a > 0.5 && a <= 2.0,
             "must be in (0.5, 2]",
+        )?;
+        let rho = self.relaxation;
+        check(
+            "relaxation",
+            rho,
+            rho > 0.0 && rho < 2.0,
+            "must be in (0, 2)",
         )?;
         check(
             "eta",
@@ -345,6 +355,7 @@ pub fn fit_mras(
             lambda: options.lambda,
             value_scale: eps0,
             eta: options.eta,
+            relaxation: options.relaxation,
             admm_max_iter: options.admm_max_iter,
             admm_tol: options.admm_tol,
             cp_bound: options.compress.then(|| {

@@ -129,6 +129,7 @@ pub(crate) struct LocalSettings {
     /// A value scale (`ε₀`, unit-cube units) for ADMM's absolute tolerance.
     pub value_scale: f64,
     pub eta: f64,
+    pub relaxation: f64,
     pub admm_max_iter: usize,
     pub admm_tol: f64,
     /// How far the CP factors may be from the tensor; `None`: keep the full tensor (the
@@ -296,6 +297,7 @@ pub(crate) fn fit_cell(
     let opts = AdmmOptions::default()
         .start(start)
         .eta(s.eta * mean_diag)
+        .relaxation(s.relaxation)
         .max_iter(s.admm_max_iter)
         .eps_abs(s.admm_tol * s.value_scale)
         .eps_rel(s.admm_tol);
@@ -378,7 +380,10 @@ fn compress(
             .with_tol(CP_TOL)
             .with_max_iter(CP_MAX_ITER)
             .with_line_search(true);
-        let fit = cp_als(&x, &opts, |_| true).map_err(MrasError::Tensor)?;
+        // Every B-spline row sums to 1 with non-negative entries, so `|φ̂ − φ| ≤ ‖C − Ĉ‖_F`
+        // at any point: a sweep whose (tracked) Frobenius error meets ε meets either bound,
+        // and the sweeps stop there (the bound is checked exactly below).
+        let fit = cp_als(&x, &opts, |p| p.rel_error * norm > eps).map_err(MrasError::Tensor)?;
         let error = match bound {
             CpBound::Tensor(_) => fit.abs_error,
             CpBound::Points(_) => {

@@ -28,7 +28,7 @@ use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
 /// | `min_knots` | 6 | — | the coarsest deep-level spline |
 /// | `alpha` | 0.75 | 0.75 | |
 /// | `n_min` | 16 | 16 | |
-/// | `eta` | 1 (× the c-step's mean diagonal) | 1 | |
+/// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
 /// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error |
 #[derive(Debug, Clone, PartialEq)]
@@ -93,8 +93,8 @@ impl Default for MrasOptions {
             min_knots: 6,
             alpha: 0.75,
             n_min: 16,
-            eta: 1.0,
-            relaxation: 1.0,
+            eta: 0.3,
+            relaxation: 1.6,
             admm_max_iter: 50,
             admm_tol: 1e-3,
             compress: true,

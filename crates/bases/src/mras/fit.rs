@@ -23,7 +23,7 @@ use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
 /// | `lambda` | 0.3 | `[0.01, 0.05]` (unnormalised) | bunny storage 1.9× → 3.6× smaller than λ = 0.02 for a 2% larger max error |
 /// | `omega1` | 5e-5 | `[5e-5, 1e-3]` | 1e-3 leaves the kitten at 4.5e-3 (normals fight positions), 5e-5 at 2.7e-3 |
 /// | `omega2` | 1e-8 | not given | 1e-6 doubles the bunny's max error |
-/// | `omega2_root` | 3e-6 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves a spurious sheet (bunny_2k: 2 components), 3e-6 none; sphere rank 6 at 1.1e-3, torus 9 at 2.6e-3 (1e-6: 9 at 8.3e-4, 11 at 1.4e-3; 1e-5 smooths the torus to 7e-3) |
+/// | `omega2_root` | 3e-6 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves a spurious sheet (bunny_2k: 2 components), 3e-6 none; single-level sphere rank 10 at 7.0e-4, torus 10 at 2.1e-3 (1e-5 smooths the torus to 7e-3; Fig. 5's ranks with 1e-8 and λ = 20: `mras_tables -- shapes`) |
 /// | `m0`, `beta` | 12, 1 | `m_k = m₀ − ⌊βk⌋`, `β ∈ [1, 3]` | 13 costs 1.6× the time for the same error |
 /// | `min_knots` | 6 | — | the coarsest deep-level spline |
 /// | `alpha` | 0.75 | 0.75 | |
@@ -73,7 +73,7 @@ pub struct MrasOptions {
     /// Algorithm 2's bound at the data points, `|φ̂ − φ| ≤ cp_points · max(ε₀, e_{k−1}/16)`
     /// with `e_{k−1}` the largest Sampson distance the previous level left (4% of the cube
     /// before the root): loose where later levels correct the error, `cp_points · ε₀` at the
-    /// end.
+    /// end and at `max_level`, which no level follows.
     pub cp_points: f64,
     /// The cube's margin around the bounding box, as a fraction of its largest side (each side).
     pub margin: f64,
@@ -362,7 +362,13 @@ pub fn fit_mras(
                 if options.cp_scale > 0.0 {
                     CpBound::Tensor(options.cp_scale * 10f64.powi(-(level as i32) - 1))
                 } else {
-                    CpBound::Points(options.cp_points * eps0.max(coarse_error / 16.0))
+                    // The last level allowed has no finer one to correct it: ε₀ there.
+                    let corrected = if level < options.max_level {
+                        coarse_error / 16.0
+                    } else {
+                        0.0
+                    };
+                    CpBound::Points(options.cp_points * eps0.max(corrected))
                 }
             }),
         };

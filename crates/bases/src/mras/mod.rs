@@ -72,10 +72,10 @@
 //! — `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
 //! it does not depend on the coefficients' units), then `R += ⌈3 ln(error/ε)⌉`, then a
 //! bisection back between the last rank that failed and the first that held — until the CP
-//! factors change `φ` at
-//! the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`, `e_{k−1}` the largest
-//! error the previous level left ([`MrasOptions::cp_points`]): coarse levels may compress
-//! harder since finer ones correct them, as with the paper's `10^{−k−1}`. The paper's
+//! factors change `φ` at the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`,
+//! `e_{k−1}` the largest error the previous level left ([`MrasOptions::cp_points`]; `0.5 ε₀`
+//! at the level cap, which no level corrects): coarse levels may compress harder since finer
+//! ones correct them, as with the paper's `10^{−k−1}`. The paper's
 //! bound `‖C − Ĉ‖_F ≤ 10^{−k−1}` is available ([`MrasOptions::cp_scale`]) but spends rank on
 //! coefficients no point sees. The rank is capped at `m²/3`, where `3mR` numbers stop being
 //! fewer than `m³` (a cell that needs more is stored full). `f^k` is built from the CP

@@ -66,9 +66,10 @@ pub fn trace_norm(m: MatRef<'_, f64>) -> Result<f64, TensorError> {
 /// Singular-value thresholding `D_τ(M) = U max(Σ − τ, 0) Vᵀ`, the minimiser of
 /// `τ ‖Y‖_* + ½ ‖Y − M‖²_F`, and the rank it keeps. Computed sequentially (the same bits on
 /// every thread count). A matrix at least 4 times longer than wide (an MRAS unfolding,
-/// `m × m²`) is thresholded through the eigendecomposition of its small Gram matrix, 2–3 times
-/// faster than its SVD and within about `10⁻¹⁰ σ₁` of it (the SVD is used where that would
-/// not hold: `τ < 10⁻⁶ σ₁`).
+/// `m × m²`) is thresholded through the eigendecomposition of its small Gram matrix — 1.7 to
+/// 2.5 times faster than through its SVD from `6 × 36` to `11 × 121` (measured, one thread) —
+/// and within about `10⁻¹⁰ σ₁` of it (the SVD is used where that would not hold:
+/// `τ < 10⁻⁶ σ₁`).
 ///
 /// ```
 /// use faer::Mat;

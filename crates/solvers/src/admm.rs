@@ -856,9 +856,7 @@ fn factor_shifted(h: MatRef<'_, f64>, shift: f64, terms: usize) -> Result<Mat<f6
         },
     })?;
     for col in 1..n {
-        for row in 0..col {
-            l[(row, col)] = 0.0;
-        }
+        l.col_as_slice_mut(col)[..col].fill(0.0);
     }
     Ok(l)
 }

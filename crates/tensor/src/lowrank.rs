@@ -102,17 +102,14 @@ fn svt_by_svd(m: MatRef<'_, f64>, tau: f64) -> Result<(Mat<f64>, usize), TensorE
     let ThinSvd { u, s, v } = thin_svd(m)?;
     let rank = s.iter().take_while(|&&x| x > tau).count();
     let us = Mat::from_fn(m.nrows(), rank, |i, r| u[(i, r)] * (s[r] - tau));
-    let mut y = Mat::zeros(m.nrows(), m.ncols());
-    // Sequential, like the SVD: the same bits on every thread count.
-    faer::linalg::matmul::matmul(
-        y.as_mut(),
-        faer::Accum::Replace,
-        us.as_ref(),
-        v.subcols(0, rank).transpose(),
-        1.0,
-        Par::Seq,
-    );
-    Ok((y, rank))
+    Ok((product(us.as_ref(), v.subcols(0, rank).transpose()), rank))
+}
+
+/// `A B`, sequential like the SVD: the same bits on every thread count.
+fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::zeros(a.nrows(), b.ncols());
+    faer::linalg::matmul::matmul(out.as_mut(), faer::Accum::Replace, a, b, 1.0, Par::Seq);
+    out
 }
 
 /// [`svt`] takes the Gram path for matrices at least this many times longer than wide.
@@ -140,15 +137,7 @@ fn svt_by_gram(m: MatRef<'_, f64>, tau: f64) -> Result<Option<(Mat<f64>, usize)>
         return Ok(None);
     }
     let par = Par::Seq;
-    let mut gram = Mat::<f64>::zeros(s, s);
-    faer::linalg::matmul::matmul(
-        gram.as_mut(),
-        faer::Accum::Replace,
-        a,
-        a.transpose(),
-        1.0,
-        par,
-    );
+    let gram = product(a, a.transpose());
     let mut lambda = faer::diag::Diag::<f64>::zeros(s);
     let mut u = Mat::<f64>::zeros(s, s);
     let mut mem =
@@ -179,24 +168,7 @@ fn svt_by_gram(m: MatRef<'_, f64>, tau: f64) -> Result<Option<(Mat<f64>, usize)>
     let w = Mat::from_fn(s, rank, |i, r| {
         uk[(i, r)] * (sigma[kept[r]] - tau) / sigma[kept[r]]
     });
-    let mut proj = Mat::<f64>::zeros(rank, l);
-    faer::linalg::matmul::matmul(
-        proj.as_mut(),
-        faer::Accum::Replace,
-        uk.transpose(),
-        a,
-        1.0,
-        par,
-    );
-    let mut y = Mat::<f64>::zeros(s, l);
-    faer::linalg::matmul::matmul(
-        y.as_mut(),
-        faer::Accum::Replace,
-        w.as_ref(),
-        proj.as_ref(),
-        1.0,
-        par,
-    );
+    let y = product(w.as_ref(), product(uk.transpose(), a).as_ref());
     Ok(Some((
         if wide { y } else { y.transpose().to_owned() },
         rank,

@@ -381,22 +381,23 @@ fn fit_and_report(path: &Path, opts: &MrasOptions) -> Res<MrasFit> {
     let fit = fit_mras(cloud.positions(), &normals, opts, &|_| {})?;
     let secs = t.elapsed().as_secs_f64();
     println!(
-        "{}: {} points, fit {:.2} s, storage {} (uncompressed {})",
+        "{}: {} points, fit {:.2} s, storage {} (the fitted cells uncompressed {})",
         path.display(),
         cloud.len(),
         secs,
         fit.field.storage(),
-        fit.field.uncompressed_storage()
+        fit.levels.iter().map(|l| l.uncompressed).sum::<usize>()
     );
     println!(
-        "level knots cells full rank(min/mean/max) stored uncompr pts admm max_err mean_err split secs"
+        "level knots cells zero full rank(min/mean/max) stored uncompr pts admm max_err mean_err split secs"
     );
     for l in &fit.levels {
         println!(
-            "{:5} {:5} {:5} {:4} {:3}/{:5.1}/{:3} {:8} {:8} {:6.0} {:5.0} {:.3e} {:.3e} {:5} {:.2}",
+            "{:5} {:5} {:5} {:4} {:4} {:3}/{:5.1}/{:3} {:8} {:8} {:6.0} {:5.0} {:.3e} {:.3e} {:5} {:.2}",
             l.level,
             l.knots,
             l.cells,
+            l.dropped,
             l.full_cells,
             l.ranks.0,
             l.ranks.1,

@@ -188,21 +188,25 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             g(l.max_error),
             g(l.mean_error),
             l.split,
-            if l.full_cells > 0 {
-                format!("  ({} cells full)", l.full_cells)
-            } else {
-                String::new()
-            }
+            [
+                (l.full_cells, "stored full"),
+                (l.dropped, "φ = 0, not stored")
+            ]
+            .iter()
+            .filter(|(n, _)| *n > 0)
+            .map(|(n, what)| format!("  ({n} cells {what})"))
+            .collect::<String>()
         ));
     }
     let field = &fit.field;
+    let uncompressed: usize = fit.levels.iter().map(|l| l.uncompressed).sum();
     line(
         "storage",
         &format!(
-            "{} numbers ({:.1}× fewer than the {} of the uncompressed cells)",
+            "{} numbers ({:.1}× fewer than the {} of the fitted cells uncompressed)",
             field.storage(),
-            field.uncompressed_storage() as f64 / field.storage().max(1) as f64,
-            field.uncompressed_storage()
+            uncompressed as f64 / field.storage().max(1) as f64,
+            uncompressed
         ),
     );
     line("time", &format!("{:.2} s", fit.seconds));

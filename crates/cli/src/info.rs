@@ -203,7 +203,9 @@ fn field_report_d<const D: usize>(path: &Path) -> anyhow::Result<String> {
     Ok(s)
 }
 
-/// Per level: cells, CP ranks, numbers stored and the uncompressed count (paper 004 §6.2).
+/// Per level: cells, CP ranks, numbers stored and the uncompressed count (paper 004 §6.2) of
+/// the stored cells (the file does not record the cells a fit left out because `φ = 0` met
+/// its compression bound; `zeroset fit` counts those too).
 fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasField<D>) {
     line(
         s,
@@ -246,7 +248,7 @@ fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasFiel
         s,
         "storage",
         &format!(
-            "{} numbers (uncompressed {}; {:.1}× smaller)",
+            "{} numbers (the stored cells uncompressed: {}; {:.1}× smaller)",
             f.storage(),
             f.uncompressed_storage(),
             f.uncompressed_storage() as f64 / f.storage().max(1) as f64

@@ -842,6 +842,48 @@ mod tests {
     }
 
     #[test]
+    fn a_cell_left_out_blends_as_a_zero_offset() {
+        // A fit stores no cell whose offset φ = 0 meets its compression bound: the blend must
+        // count a missing cell exactly as a stored φ = 0 (its weight stays in Σw).
+        let m = 5;
+        let ramp = |k: u32| CellSpline::<3>::Cp {
+            rank: 1,
+            factors: [
+                (0..m).map(|i| 0.01 * (i as f64 + f64::from(k))).collect(),
+                vec![1.0; m],
+                (0..m).map(|i| 1.0 - 0.1 * i as f64).collect(),
+            ],
+        };
+        let zero = CellSpline::<3>::Cp {
+            rank: 1,
+            factors: [vec![0.0; m], vec![0.0; m], vec![0.0; m]],
+        };
+        let cell = |index, spline| MrasCell { index, spline };
+        let with_zero = vec![
+            cell([0, 0, 0], ramp(1)),
+            cell([1, 0, 0], zero),
+            cell([1, 1, 0], ramp(2)),
+        ];
+        let without: Vec<_> = vec![cell([0, 0, 0], ramp(1)), cell([1, 1, 0], ramp(2))];
+        let root = || MrasLevel::new(1, m, vec![cell([0, 0, 0], ramp(0))]).unwrap();
+        let levels = |cells| vec![root(), MrasLevel::new(2, m, cells).unwrap()];
+        let a = MrasField::new([0.0; 3], 1.0, 0.75, levels(with_zero)).unwrap();
+        let b = MrasField::new([0.0; 3], 1.0, 0.75, levels(without)).unwrap();
+        let mut rng = zeroset_field_core::rng::SplitMix64::new(7);
+        for _ in 0..500 {
+            let p = [rng.unit(), rng.unit(), 0.5 * rng.unit()];
+            let (va, ga) = a.value_and_gradient(&p);
+            let (vb, gb) = b.value_and_gradient(&p);
+            assert_eq!(va, vb, "at {p:?}");
+            assert_eq!(ga, gb, "at {p:?}");
+        }
+        // Not a comparison of zeros: level 2 adds to the root inside the zero cell too.
+        let u = [0.75, 0.25, 0.25];
+        let root_only = MrasField::new([0.0; 3], 1.0, 0.75, vec![root()]).unwrap();
+        assert!((a.value(&u) - root_only.value(&u)).abs() > 1e-4);
+    }
+
+    #[test]
     fn level_checks_its_cells() {
         let cp = |rank: usize, len: usize| CellSpline::<3>::Cp {
             rank,

@@ -30,7 +30,7 @@ use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
 /// | `n_min` | 16 | 16 | |
 /// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
-/// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error |
+/// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 (cells whose `φ = 0` meets the bound are not stored), bunny numbers / max / mean distance: 0.3 → 373k, 4.50e-3, 3.15e-4; 0.4 → 326k, 4.47e-3, 3.31e-4; **0.5 → 287k, 4.47e-3, 3.51e-4**; 0.75 → 207k, 5.43e-3, 4.09e-4; 1 → 178k, 5.03e-3, 4.72e-4 |
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasOptions {
     /// The target largest distance from the points to the surface, as a fraction of the points'
@@ -264,15 +264,18 @@ pub struct LevelReport {
     pub level: u32,
     /// B-splines per axis.
     pub knots: usize,
-    /// Cells fitted.
+    /// Cells stored.
     pub cells: usize,
+    /// Cells fitted but not stored: their offset `φ = 0` met the CP bound (rank 0), and the
+    /// blend counts a cell that is not stored as `φ = 0`.
+    pub dropped: usize,
     /// Cells stored as full tensors (CP would not save storage).
     pub full_cells: usize,
     /// Smallest, mean and largest CP rank.
     pub ranks: (usize, f64, usize),
     /// Numbers stored (splines and blending functions).
     pub stored: usize,
-    /// Numbers the same cells take uncompressed.
+    /// Numbers the fitted cells (stored and dropped) take uncompressed: `m³ + 4` each.
     pub uncompressed: usize,
     /// Mean data points per cell (inside the support).
     pub mean_points: f64,
@@ -374,7 +377,10 @@ pub fn fit_mras(
         };
         let done = AtomicUsize::new(0);
         let total = to_fit.len();
-        let fits: Vec<Option<(MrasCell<3>, usize, usize, f64)>> = to_fit
+        // Per fitted cell: its index, the stored cell (`None`: `φ = 0` met the CP bound), its
+        // data points, ADMM iterations and CP error.
+        type Fitted = ([u64; 3], Option<MrasCell<3>>, usize, usize, f64);
+        let fits: Vec<Option<Fitted>> = to_fit
             .par_iter()
             .map(|&index| {
                 let mut targets = gather(&buckets, &g, index, u, &cloud.normals, &f, &grad);
@@ -385,11 +391,11 @@ pub fn fit_mras(
                     None
                 } else {
                     let lf = fit_cell(&g, index, &targets, &plate, &settings)?;
-                    let cell = MrasCell {
+                    let cell = lf.spline.map(|spline| MrasCell {
                         index: index.map(|i| i as u32),
-                        spline: lf.spline,
-                    };
-                    Some((cell, targets.len(), lf.admm_iterations, lf.cp_error))
+                        spline,
+                    });
+                    Some((index, cell, targets.len(), lf.admm_iterations, lf.cp_error))
                 };
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress(&MrasProgress {
@@ -405,10 +411,12 @@ pub fn fit_mras(
         if fitted.is_empty() {
             break;
         }
-        let mean_points = fitted.iter().map(|c| c.1 as f64).sum::<f64>() / fitted.len() as f64;
-        let mean_iters = fitted.iter().map(|c| c.2 as f64).sum::<f64>() / fitted.len() as f64;
-        let cp_error = fitted.iter().map(|c| c.3).fold(0.0, f64::max);
-        let cells: Vec<MrasCell<3>> = fitted.into_iter().map(|c| c.0).collect();
+        let mean_points = fitted.iter().map(|c| c.2 as f64).sum::<f64>() / fitted.len() as f64;
+        let mean_iters = fitted.iter().map(|c| c.3 as f64).sum::<f64>() / fitted.len() as f64;
+        let cp_error = fitted.iter().map(|c| c.4).fold(0.0, f64::max);
+        let fitted_indices: Vec<[u64; 3]> = fitted.iter().map(|c| c.0).collect();
+        let cells: Vec<MrasCell<3>> = fitted.into_iter().filter_map(|c| c.1).collect();
+        let dropped = fitted_indices.len() - cells.len();
         let lvl = MrasLevel::new(level, m, cells).map_err(MrasError::Field)?;
         // f^k and ∇f^k at every point (unit-cube units).
         u.par_iter()
@@ -421,7 +429,8 @@ pub fn fit_mras(
                     gv[a] += og[a];
                 }
             });
-        // Sampson distance per point; the worst per fitted cell (own points only).
+        // Sampson distance per point; the worst per fitted cell (own points only; a cell not
+        // stored still splits where its points need it).
         let sampson: Vec<f64> = f
             .par_iter()
             .zip(grad.par_iter())
@@ -434,8 +443,7 @@ pub fn fit_mras(
         let mean_error = sampson.iter().sum::<f64>() / np as f64;
         let mut next = Vec::new();
         if level < options.max_level {
-            for cell in lvl.cells() {
-                let index = cell.index.map(u64::from);
+            for &index in &fitted_indices {
                 let own = buckets.points(index);
                 if own.len() <= options.n_min {
                     continue;
@@ -459,6 +467,7 @@ pub fn fit_mras(
             level,
             knots: m,
             cells: lvl.cells().len(),
+            dropped,
             full_cells,
             ranks: (
                 ranks.iter().copied().min().unwrap_or(0),
@@ -466,7 +475,7 @@ pub fn fit_mras(
                 ranks.iter().copied().max().unwrap_or(0),
             ),
             stored: lvl.stored_numbers() + lvl.cells().len() * 4,
-            uncompressed: lvl.uncompressed_numbers() + lvl.cells().len() * 4,
+            uncompressed: (m.pow(3) + 4) * fitted_indices.len(),
             mean_points,
             mean_admm_iterations: mean_iters,
             max_cp_error: cp_error,

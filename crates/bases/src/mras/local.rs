@@ -140,7 +140,9 @@ pub(crate) struct LocalSettings {
 /// What one cell's fit produced.
 #[derive(Debug, Clone)]
 pub(crate) struct LocalFit {
-    pub spline: CellSpline<3>,
+    /// `None`: `φ = 0` meets the CP bound (Algorithm 2 at rank 0), so the cell is not stored —
+    /// the blend counts a cell that is not stored as `φ = 0`, so leaving it out is exact.
+    pub spline: Option<CellSpline<3>>,
     pub admm_iterations: usize,
     /// `‖C − Ĉ‖` of the CP approximation (0 for a full tensor).
     pub cp_error: f64,
@@ -310,7 +312,7 @@ pub(crate) fn fit_cell(
     }
     c.iter_mut().for_each(|v| *v /= terms.len() as f64);
     let (spline, cp_error) = match s.cp_bound {
-        None => (CellSpline::Full { coefficients: c }, 0.0),
+        None => (Some(CellSpline::Full { coefficients: c }), 0.0),
         Some(bound) => compress(c, m, bound, &rows)?,
     };
     Ok(LocalFit {
@@ -346,7 +348,7 @@ struct Row {
 /// - the rank starts at `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` — the paper's `⌈Σ γ_i ‖C_(i)‖_*⌉`
 ///   divided by the tensor's norm, so that it does not depend on the units of the coefficients
 ///   (1 for a rank-1 tensor, `√r` for `r` equal singular values: never above the rank of the
-///   unfoldings);
+///   unfoldings) — after rank 0: where `φ = 0` itself meets `bound`, nothing is stored (`None`);
 /// - it grows by the paper's `⌈3 ln(error/ε)⌉` until `bound` holds (the natural log);
 /// - then it bisects between the last rank that failed and the first that held, so the stored
 ///   rank is the smallest the growth brackets, not the overshoot of its last step;
@@ -357,12 +359,34 @@ fn compress(
     m: usize,
     bound: CpBound,
     rows: &[Row],
-) -> Result<(CellSpline<3>, f64), MrasError> {
+) -> Result<(Option<CellSpline<3>>, f64), MrasError> {
     let x = Tensor3::new([m, m, m], c).map_err(MrasError::Tensor)?;
-    if x.as_slice().iter().all(|&v| v == 0.0) {
-        let zero = vec![0.0; m];
-        let factors = [zero.clone(), zero.clone(), zero];
-        return Ok((CellSpline::Cp { rank: 1, factors }, 0.0));
+    let norm = x.as_slice().iter().map(|v| v * v).sum::<f64>().sqrt();
+    let eps = match bound {
+        CpBound::Tensor(e) | CpBound::Points(e) => e,
+    };
+    // The error of the approximation `approx` (`None`: zero) under `bound`.
+    let error_of = |approx: Option<&[f64]>, frobenius: f64| -> f64 {
+        match bound {
+            CpBound::Tensor(_) => frobenius,
+            CpBound::Points(_) => {
+                let a = x.as_slice();
+                let at = |i: usize| approx.map_or(a[i], |b| a[i] - b[i]);
+                rows.iter()
+                    .map(|r| {
+                        (0..r.len)
+                            .map(|k| r.val[k] * at(r.idx[k]))
+                            .sum::<f64>()
+                            .abs()
+                    })
+                    .fold(0.0, f64::max)
+            }
+        }
+    };
+    // Rank 0.
+    let zero_error = error_of(None, norm);
+    if zero_error <= eps {
+        return Ok((None, zero_error));
     }
     let cap = (m * m / 3).max(1);
     let mut trace = 0.0;
@@ -370,10 +394,6 @@ fn compress(
         let u = x.unfold(mode).map_err(MrasError::Tensor)?;
         trace += trace_norm(u.as_ref()).map_err(MrasError::Tensor)? / 3.0;
     }
-    let norm = x.as_slice().iter().map(|v| v * v).sum::<f64>().sqrt();
-    let eps = match bound {
-        CpBound::Tensor(e) | CpBound::Points(e) => e,
-    };
     // The CP fit of one rank and its error under `bound`.
     let attempt = |rank: usize| -> Result<(Kruskal, f64), MrasError> {
         let opts = CpOptions::new(rank)
@@ -386,18 +406,7 @@ fn compress(
         let fit = cp_als(&x, &opts, |p| p.rel_error * norm > eps).map_err(MrasError::Tensor)?;
         let error = match bound {
             CpBound::Tensor(_) => fit.abs_error,
-            CpBound::Points(_) => {
-                let approx = fit.kruskal.to_tensor();
-                let (a, b) = (x.as_slice(), approx.as_slice());
-                rows.iter()
-                    .map(|r| {
-                        (0..r.len)
-                            .map(|k| r.val[k] * (a[r.idx[k]] - b[r.idx[k]]))
-                            .sum::<f64>()
-                            .abs()
-                    })
-                    .fold(0.0, f64::max)
-            }
+            CpBound::Points(_) => error_of(Some(fit.kruskal.to_tensor().as_slice()), 0.0),
         };
         Ok((fit.kruskal, error))
     };
@@ -412,7 +421,7 @@ fn compress(
             let full = CellSpline::Full {
                 coefficients: x.as_slice().to_vec(),
             };
-            return Ok((full, 0.0));
+            return Ok((Some(full), 0.0));
         }
         failed = rank;
         let step = (3.0 * (error / eps).ln()).ceil().max(1.0) as usize;
@@ -427,7 +436,7 @@ fn compress(
             failed = mid;
         }
     }
-    Ok((factors_of(&best.0, m), best.1))
+    Ok((Some(factors_of(&best.0, m)), best.1))
 }
 
 /// The spline of Kruskal factors, the weights folded into the first axis.
@@ -519,14 +528,32 @@ mod tests {
         row.val[0] = 1.0;
         let rows = std::slice::from_ref(&row);
         let (spline, err) = compress(c.clone(), m, CpBound::Tensor(1e-8), rows).unwrap();
-        let rank = spline.rank().expect("CP factors");
+        let rank = spline.and_then(|s| s.rank()).expect("CP factors");
         assert!(
             (2..=12).contains(&rank) && err <= 1e-8,
             "rank {rank}, error {err}"
         );
-        let (loose, err) = compress(c, m, CpBound::Points(0.05), rows).unwrap();
+        let (loose, err) = compress(c.clone(), m, CpBound::Points(0.05), rows).unwrap();
         // Algorithm 2 starts at R⁰ = ⌈Σ γᵢ‖C₍ᵢ₎‖_*⌉ (2 here) and stops there.
-        assert!(loose.rank().expect("CP factors") <= rank.min(2));
+        assert!(loose.and_then(|s| s.rank()).expect("CP factors") <= rank.min(2));
         assert!(err <= 0.05, "{err}");
+        // φ = c[100] = 0.1 + 0.02 sin 4 ≈ 0.0849 at the one data point: rank 0 (nothing
+        // stored) exactly when the bound allows that much, and then the error is |φ|.
+        let phi = c[100];
+        let (none, err) = compress(c.clone(), m, CpBound::Points(phi * 1.001), rows).unwrap();
+        assert!(none.is_none() && err == phi.abs(), "{err} vs {phi}");
+        let (some, _) = compress(c.clone(), m, CpBound::Points(phi * 0.999), rows).unwrap();
+        assert!(some.is_some());
+        // The tensor bound: rank 0 when ‖C‖_F meets it.
+        let norm = c.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let (none, err) = compress(c.clone(), m, CpBound::Tensor(norm * 1.001), rows).unwrap();
+        assert!(none.is_none() && err == norm);
+        let zeros = vec![0.0; m * m * m];
+        assert!(
+            compress(zeros, m, CpBound::Points(0.0), rows)
+                .unwrap()
+                .0
+                .is_none()
+        );
     }
 }

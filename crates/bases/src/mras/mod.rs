@@ -69,7 +69,9 @@
 //! ADMM (Algorithm 1, [`zeroset_solvers::admm`]) factors the c-step matrix `H + 3ηI` once per
 //! cell; the z-step thresholds the three unfoldings' singular values. The split variables'
 //! mean (exactly low multilinear rank) is compressed by CP-ALS with Algorithm 2's rank schedule
-//! — `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
+//! — rank 0 first (a cell whose `φ = 0` meets the bound is not stored: the blend counts a
+//! missing cell as `φ = 0`, its weight still in `Σw`, so leaving it out is exact), then
+//! `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
 //! it does not depend on the coefficients' units), then `R += ⌈3 ln(error/ε)⌉`, then a
 //! bisection back between the last rank that failed and the first that held — until the CP
 //! factors change `φ` at the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`,

@@ -768,25 +768,38 @@ fn check_symmetric(h: MatRef<'_, f64>) -> Result<(), AdmmError> {
             owned.as_ref()
         }
     };
-    let column = |j: usize| {
-        h.col(j)
-            .try_as_col_major()
-            .expect("a column-major matrix")
-            .as_slice()
-    };
-    let scale = (0..n)
-        .flat_map(|j| column(j).iter())
+    let columns: Vec<&[f64]> = (0..n)
+        .map(|j| {
+            h.col(j)
+                .try_as_col_major()
+                .expect("a column-major matrix")
+                .as_slice()
+        })
+        .collect();
+    let scale = columns
+        .iter()
+        .flat_map(|c| c.iter())
         .fold(0.0f64, |a, v| a.max(v.abs()));
+    let tol = 1e-10 * scale;
     // In 64 × 64 tiles, so that the transposed reads stay in cache on large matrices.
     const TILE: usize = 64;
     for c0 in (0..n).step_by(TILE) {
         for r0 in (c0..n).step_by(TILE) {
             for col in c0..(c0 + TILE).min(n) {
                 let (first, end) = (r0.max(col + 1), (r0 + TILE).min(n));
-                for (row, &below) in (first..end).zip(&column(col)[first..end]) {
-                    if (below - column(row)[col]).abs() > 1e-10 * scale {
-                        return Err(AdmmError::NotSymmetric { row, col });
-                    }
+                let rows = &columns[first..end];
+                // Branch-free over the strip; the position only on failure.
+                let ok = columns[col][first..end]
+                    .iter()
+                    .zip(rows)
+                    .fold(true, |ok, (&below, above)| {
+                        ok & ((below - above[col]).abs() <= tol)
+                    });
+                if !ok {
+                    let row = (first..end)
+                        .find(|&row| (columns[col][row] - columns[row][col]).abs() > tol)
+                        .unwrap_or(first);
+                    return Err(AdmmError::NotSymmetric { row, col });
                 }
             }
         }

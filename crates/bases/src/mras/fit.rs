@@ -279,7 +279,8 @@ pub struct LevelReport {
     pub uncompressed: usize,
     /// Mean data points per cell (inside the support).
     pub mean_points: f64,
-    /// Mean ADMM iterations per cell.
+    /// Mean ADMM iterations per cell (0 for a cell whose offset without the trace norm already
+    /// met the CP bound at rank 0: ADMM does not run there).
     pub mean_admm_iterations: f64,
     /// The largest error Algorithm 2 stopped at in a cell, in the bound's units (unit-cube
     /// field values at the data points, or the tensor's Frobenius norm with `cp_scale`).

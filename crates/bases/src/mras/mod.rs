@@ -70,7 +70,9 @@
 //! cell; the z-step thresholds the three unfoldings' singular values. The split variables'
 //! mean (exactly low multilinear rank) is compressed by CP-ALS with Algorithm 2's rank schedule
 //! — rank 0 first (a cell whose `φ = 0` meets the bound is not stored: the blend counts a
-//! missing cell as `φ = 0`, its weight still in `Σw`, so leaving it out is exact), then
+//! missing cell as `φ = 0`, its weight still in `Σw`, so leaving it out is exact; where the
+//! offset fitted without the trace norm, ADMM's warm start, already meets it, ADMM is not run),
+//! then
 //! `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
 //! it does not depend on the coefficients' units), then `R += ⌈3 ln(error/ε)⌉`, then a
 //! bisection back between the last rank that failed and the first that held — until the CP

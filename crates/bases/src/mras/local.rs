@@ -230,6 +230,7 @@ pub(crate) fn fit_cell(
         for row in block.iter_mut() {
             row.fill(0.0);
         }
+        // The block is symmetric: its upper triangle (q ≥ p) only, mirrored in the scatter.
         while end < order.len() && local[order[end]].0 == key {
             let (_, val, grad) = &local[order[end]];
             for (p, row) in block.iter_mut().enumerate() {
@@ -239,7 +240,7 @@ pub(crate) fn fit_cell(
                     s.omega1 * grad[1][p],
                     s.omega1 * grad[2][p],
                 );
-                for q in 0..27 {
+                for q in p..27 {
                     row[q] += vp * val[q] + g0 * grad[0][q] + g1 * grad[1][q] + g2 * grad[2][q];
                 }
             }
@@ -250,12 +251,12 @@ pub(crate) fn fit_cell(
             let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
             (a < m && bb < m && c < m).then_some((a * m + bb) * m + c)
         };
-        for (p, row) in block.iter().enumerate() {
+        for p in 0..27 {
             let Some(gp) = global(p) else { continue };
             let col = hm.col_as_slice_mut(gp);
-            for (q, v) in row.iter().enumerate() {
+            for q in 0..27 {
                 if let Some(gq) = global(q) {
-                    col[gq] += v;
+                    col[gq] += if q >= p { block[p][q] } else { block[q][p] };
                 }
             }
         }

@@ -525,8 +525,8 @@ pub fn admm_with_progress(
     mut progress: impl FnMut(&AdmmProgress) -> bool,
 ) -> Result<AdmmSolution, AdmmError> {
     options.validate()?;
-    let n = check_problem(h, b, terms)?;
-    check_symmetric(h)?;
+    let (n, scale) = check_problem(h, b, terms)?;
+    check_symmetric(h, scale)?;
     check_orthogonal(terms, n)?;
     let eta = options.eta;
     let k = terms.len();
@@ -685,7 +685,7 @@ pub fn objective(
     terms: &[&dyn ProxTerm],
     c: &[f64],
 ) -> Result<f64, AdmmError> {
-    let n = check_problem(h, b, terms)?;
+    let (n, _) = check_problem(h, b, terms)?;
     if c.len() != n {
         return Err(AdmmError::Length {
             what: "c",
@@ -715,12 +715,13 @@ fn terms_value(terms: &[&dyn ProxTerm], c: &[f64]) -> Result<f64, AdmmError> {
     Ok(total)
 }
 
-/// Checks shapes and finiteness of `H`, `b` and the terms' dimensions; returns `n`.
+/// Checks shapes and finiteness of `H`, `b` and the terms' dimensions; returns `n` and
+/// `max |H_ij|`.
 fn check_problem(
     h: MatRef<'_, f64>,
     b: &[f64],
     terms: &[&dyn ProxTerm],
-) -> Result<usize, AdmmError> {
+) -> Result<(usize, f64), AdmmError> {
     let (rows, cols) = (h.nrows(), h.ncols());
     if rows != cols {
         return Err(AdmmError::NotSquare { rows, cols });
@@ -743,22 +744,31 @@ fn check_problem(
             });
         }
     }
+    let mut scale = 0.0f64;
     for col in 0..n {
-        // A branch-free pass over the column (it vectorises); the position only on failure.
-        let finite = |c: &[f64]| c.iter().fold(true, |ok, v| ok & v.is_finite());
-        if !with_column(h, col, finite)
+        // A branch-free pass over the column (it vectorises), with the largest magnitude; the
+        // position only on failure.
+        let (finite, largest) = with_column(h, col, |c| {
+            c.iter().fold((true, 0.0f64), |(ok, big), v| {
+                let a = v.abs();
+                (ok & v.is_finite(), if a > big { a } else { big })
+            })
+        });
+        if !finite
             && let Some(row) = with_column(h, col, |c| c.iter().position(|v| !v.is_finite()))
         {
             return Err(AdmmError::NonFiniteMatrix { row, col });
         }
+        scale = scale.max(largest);
     }
     if let Some(index) = b.iter().position(|v| !v.is_finite()) {
         return Err(AdmmError::NonFiniteVector { what: "b", index });
     }
-    Ok(n)
+    Ok((n, scale))
 }
 
-fn check_symmetric(h: MatRef<'_, f64>) -> Result<(), AdmmError> {
+/// Checks `|H_ij − H_ji| ≤ 10⁻¹⁰ · scale` (`scale = max |H_ij|`, from [`check_problem`]).
+fn check_symmetric(h: MatRef<'_, f64>, scale: f64) -> Result<(), AdmmError> {
     let n = h.nrows();
     let owned;
     let h = match h.try_as_col_major() {
@@ -776,10 +786,6 @@ fn check_symmetric(h: MatRef<'_, f64>) -> Result<(), AdmmError> {
                 .as_slice()
         })
         .collect();
-    let scale = columns
-        .iter()
-        .flat_map(|c| c.iter())
-        .fold(0.0f64, |a, v| a.max(v.abs()));
     let tol = 1e-10 * scale;
     // In 64 × 64 tiles, so that the transposed reads stay in cache on large matrices.
     const TILE: usize = 64;

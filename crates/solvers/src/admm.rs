@@ -754,8 +754,7 @@ fn check_problem(
                 (ok & v.is_finite(), if a > big { a } else { big })
             })
         });
-        if !finite
-            && let Some(row) = with_column(h, col, |c| c.iter().position(|v| !v.is_finite()))
+        if !finite && let Some(row) = with_column(h, col, |c| c.iter().position(|v| !v.is_finite()))
         {
             return Err(AdmmError::NonFiniteMatrix { row, col });
         }

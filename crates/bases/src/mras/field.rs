@@ -590,12 +590,10 @@ impl<const D: usize> MrasField<D> {
 /// Ranks up to this are evaluated row-wise on the stack ([`cp_rows`]).
 const FAST_RANK: usize = 64;
 
-/// `φ` and its gradient from CP factors of rank `r ≤ FAST_RANK`: per axis, the weighted sum of
-/// the (at most 3) factor rows the point reads, a contiguous loop over the ranks that the
-/// compiler vectorises; then the products over the axes. Same operations in the same order for
-/// every point, so batched and single evaluation agree bit for bit.
+/// [`cp_rows`] with stack buffers of the smallest of 4, 8, 16, 32 and [`FAST_RANK`] ranks that
+/// holds `r` (zeroing a 64-rank buffer for a rank-1 cell was a fifth of an evaluation).
 #[inline]
-fn cp_rows<const D: usize>(
+fn cp_rows_sized<const D: usize>(
     factors: &[Vec<f64>; D],
     r: usize,
     m: usize,
@@ -604,8 +602,32 @@ fn cp_rows<const D: usize>(
     d1: &[[f64; 3]; D],
     with_gradient: bool,
 ) -> (f64, [f64; D]) {
-    let mut gv = [[0.0; FAST_RANK]; D];
-    let mut gd = [[0.0; FAST_RANK]; D];
+    match r {
+        0..=4 => cp_rows::<D, 4>(factors, r, m, first, w, d1, with_gradient),
+        5..=8 => cp_rows::<D, 8>(factors, r, m, first, w, d1, with_gradient),
+        9..=16 => cp_rows::<D, 16>(factors, r, m, first, w, d1, with_gradient),
+        17..=32 => cp_rows::<D, 32>(factors, r, m, first, w, d1, with_gradient),
+        _ => cp_rows::<D, FAST_RANK>(factors, r, m, first, w, d1, with_gradient),
+    }
+}
+
+/// `φ` and its gradient from CP factors of rank `r ≤ N`: per axis, the weighted sum of
+/// the (at most 3) factor rows the point reads, a contiguous loop over the ranks that the
+/// compiler vectorises; then the products over the axes. Same operations in the same order for
+/// every point, so batched and single evaluation agree bit for bit.
+#[inline]
+fn cp_rows<const D: usize, const N: usize>(
+    factors: &[Vec<f64>; D],
+    r: usize,
+    m: usize,
+    first: &[usize; D],
+    w: &[[f64; 3]; D],
+    d1: &[[f64; 3]; D],
+    with_gradient: bool,
+) -> (f64, [f64; D]) {
+    debug_assert!(r <= N);
+    let mut gv = [[0.0; N]; D];
+    let mut gd = [[0.0; N]; D];
     for a in 0..D {
         for q in 0..3 {
             let i = first[a] + q;
@@ -676,7 +698,7 @@ fn spline_at<const D: usize>(
         CellSpline::Cp { rank, factors } => {
             let r = *rank;
             if r <= FAST_RANK {
-                return cp_rows(factors, r, m, &first, &w, &d1, with_gradient);
+                return cp_rows_sized(factors, r, m, &first, &w, &d1, with_gradient);
             }
             let (mut value, mut grad) = (0.0, [0.0; D]);
             for k in 0..r {

@@ -251,12 +251,12 @@ pub(crate) fn fit_cell(
             let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
             (a < m && bb < m && c < m).then_some((a * m + bb) * m + c)
         };
-        for p in 0..27 {
+        for (p, row) in block.iter().enumerate() {
             let Some(gp) = global(p) else { continue };
             let col = hm.col_as_slice_mut(gp);
-            for q in 0..27 {
+            for (q, (&upper, mirror)) in row.iter().zip(&block).enumerate() {
                 if let Some(gq) = global(q) {
-                    col[gq] += if q >= p { block[p][q] } else { block[q][p] };
+                    col[gq] += if q >= p { upper } else { mirror[p] };
                 }
             }
         }

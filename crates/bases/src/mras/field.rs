@@ -590,6 +590,14 @@ impl<const D: usize> MrasField<D> {
 /// Ranks up to this are evaluated row-wise on the stack ([`cp_rows`]).
 const FAST_RANK: usize = 64;
 
+/// The B-splines one point reads in a cell: per axis the first of the (at most 3) indices,
+/// their weights and derivatives (unit-cube units; 0 for the spline past the box).
+struct Stencil<const D: usize> {
+    first: [usize; D],
+    w: [[f64; 3]; D],
+    d1: [[f64; 3]; D],
+}
+
 /// [`cp_rows`] with stack buffers of the smallest of 4, 8, 16, 32 and [`FAST_RANK`] ranks that
 /// holds `r` (zeroing a 64-rank buffer for a rank-1 cell was a fifth of an evaluation).
 #[inline]
@@ -597,17 +605,15 @@ fn cp_rows_sized<const D: usize>(
     factors: &[Vec<f64>; D],
     r: usize,
     m: usize,
-    first: &[usize; D],
-    w: &[[f64; 3]; D],
-    d1: &[[f64; 3]; D],
+    s: &Stencil<D>,
     with_gradient: bool,
 ) -> (f64, [f64; D]) {
     match r {
-        0..=4 => cp_rows::<D, 4>(factors, r, m, first, w, d1, with_gradient),
-        5..=8 => cp_rows::<D, 8>(factors, r, m, first, w, d1, with_gradient),
-        9..=16 => cp_rows::<D, 16>(factors, r, m, first, w, d1, with_gradient),
-        17..=32 => cp_rows::<D, 32>(factors, r, m, first, w, d1, with_gradient),
-        _ => cp_rows::<D, FAST_RANK>(factors, r, m, first, w, d1, with_gradient),
+        0..=4 => cp_rows::<D, 4>(factors, r, m, s, with_gradient),
+        5..=8 => cp_rows::<D, 8>(factors, r, m, s, with_gradient),
+        9..=16 => cp_rows::<D, 16>(factors, r, m, s, with_gradient),
+        17..=32 => cp_rows::<D, 32>(factors, r, m, s, with_gradient),
+        _ => cp_rows::<D, FAST_RANK>(factors, r, m, s, with_gradient),
     }
 }
 
@@ -620,12 +626,11 @@ fn cp_rows<const D: usize, const N: usize>(
     factors: &[Vec<f64>; D],
     r: usize,
     m: usize,
-    first: &[usize; D],
-    w: &[[f64; 3]; D],
-    d1: &[[f64; 3]; D],
+    s: &Stencil<D>,
     with_gradient: bool,
 ) -> (f64, [f64; D]) {
     debug_assert!(r <= N);
+    let (first, w, d1) = (&s.first, &s.w, &s.d1);
     let mut gv = [[0.0; N]; D];
     let mut gd = [[0.0; N]; D];
     for a in 0..D {
@@ -698,7 +703,8 @@ fn spline_at<const D: usize>(
         CellSpline::Cp { rank, factors } => {
             let r = *rank;
             if r <= FAST_RANK {
-                return cp_rows_sized(factors, r, m, &first, &w, &d1, with_gradient);
+                let stencil = Stencil { first, w, d1 };
+                return cp_rows_sized(factors, r, m, &stencil, with_gradient);
             }
             let (mut value, mut grad) = (0.0, [0.0; D]);
             for k in 0..r {

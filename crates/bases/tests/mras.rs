@@ -312,3 +312,41 @@ fn storage_counts_the_paper_way() {
     assert_eq!(f.field.uncompressed_storage(), full);
     assert_eq!(f.levels.iter().map(|l| l.stored).sum::<usize>(), want);
 }
+
+#[test]
+fn grid_rows_give_the_single_point_bits() {
+    // `values` reuses, along points that differ only in z (a grid's rows), each CP cell's
+    // x·y products: the values must keep `value`'s bits — on CP and full cells, rows that
+    // start mid-chunk, rows of one point, and points outside the cube (clamped).
+    let (p, n) = torus(60, 24, 1.0, 0.4);
+    let options = MrasOptions::default().max_level(4).tolerance(1e-4);
+    for compress in [true, false] {
+        let f = fit(&p, &n, &options.clone().compress(compress)).field;
+        let b = f.bounds().expect("a cube");
+        let (lo, side) = (b.min(), b.max()[0] - b.min()[0]);
+        let mut pts: Vec<P> = Vec::new();
+        for i in 0..23 {
+            for j in 0..19 {
+                let len = if (i + j) % 7 == 0 { 1 } else { 31 };
+                for k in 0..len {
+                    pts.push([
+                        lo[0] - 0.05 * side + 1.1 * side * i as f64 / 22.0,
+                        lo[1] + side * j as f64 / 18.0,
+                        lo[2] - 0.05 * side + 1.1 * side * k as f64 / 30.0,
+                    ]);
+                }
+            }
+        }
+        let mut out = vec![0.0; pts.len()];
+        f.values(&pts, &mut out);
+        for (x, v) in pts.iter().zip(&out) {
+            assert_eq!(v.to_bits(), f.value(x).to_bits(), "at {x:?}");
+        }
+        let grid = zeroset_field_core::grid::Grid::vertex_centered(b, [17, 13, 40]).expect("grid");
+        let sampled = grid.sample(&f);
+        for (l, v) in sampled.iter().enumerate() {
+            let x = grid.point(grid.multi_index(l));
+            assert_eq!(v.to_bits(), f.value(&x).to_bits(), "at {x:?}");
+        }
+    }
+}

@@ -221,7 +221,8 @@ impl<const D: usize> MrasLevel<D> {
         }
     }
 
-    fn find(&self, index: &[u64; D]) -> Option<&MrasCell<D>> {
+    /// The position in [`MrasLevel::cells`] of the fitted cell at `index`.
+    fn position(&self, index: &[u64; D]) -> Option<usize> {
         let n = self.lattice();
         let key = index.iter().fold(0u64, |acc, &i| acc * n + i);
         let pos = match &self.lookup {
@@ -234,7 +235,7 @@ impl<const D: usize> MrasLevel<D> {
                 keys[at].1
             }
         };
-        Some(&self.cells[pos as usize])
+        Some(pos as usize)
     }
 }
 
@@ -493,6 +494,22 @@ impl<const D: usize> MrasField<D> {
         with_gradient: bool,
     ) -> (f64, Point<D>) {
         let g = self.geometry(level);
+        self.blend(level, &g, u, with_gradient, |position, index| {
+            spline_at(&level.cells[position].spline, &g, index, u, with_gradient)
+        })
+    }
+
+    /// `o_k(u)` and its gradient, with `spline(position, index)` the offset `φ` (and its
+    /// gradient) of the fitted cell at `position` in the level's cells, lattice index `index`.
+    #[inline]
+    fn blend(
+        &self,
+        level: &MrasLevel<D>,
+        g: &LevelGeometry,
+        u: &Point<D>,
+        with_gradient: bool,
+        mut spline: impl FnMut(usize, &[u64; D]) -> (f64, Point<D>),
+    ) -> (f64, Point<D>) {
         let n = g.lattice;
         let mut home = [0u64; D];
         for a in 0..D {
@@ -541,10 +558,10 @@ impl<const D: usize> MrasField<D> {
                     dwsum[a] += grad_w[a];
                 }
             }
-            let Some(cell) = level.find(&index) else {
+            let Some(position) = level.position(&index) else {
                 continue;
             };
-            let (phi, dphi) = spline_at(&cell.spline, &g, &index, u, with_gradient);
+            let (phi, dphi) = spline(position, &index);
             num += w * phi;
             if with_gradient {
                 for a in 0..D {
@@ -584,6 +601,121 @@ impl<const D: usize> MrasField<D> {
             }
         }
         (v * self.side, g)
+    }
+}
+
+/// What [`MrasField::values`] keeps between consecutive points that differ in the last
+/// coordinate only (a grid's rows, as [`zeroset_field_core::grid::Grid::sample`] passes them):
+/// per CP cell met on the row, the products `Π_{a < D−1} g_{r,a}` of its factors' B-spline sums
+/// over the fixed coordinates, so that each point costs the last axis's sums and `R` products.
+/// The products are formed in [`cp_rows`]'s order, so the values keep its bits.
+struct RowCache<const D: usize> {
+    /// The fixed coordinates' bits (the last entry unused).
+    key: Option<[u64; D]>,
+    /// The row's number: a cell's products are valid when stamped with it.
+    generation: u32,
+    levels: Vec<LevelRows>,
+    /// The last axis's B-spline sums.
+    last: Vec<f64>,
+}
+
+/// [`RowCache`] of one level: per cell (its position in the level) a stamp and an offset into
+/// `products`.
+struct LevelRows {
+    stamp: Vec<u32>,
+    offset: Vec<u32>,
+    products: Vec<f64>,
+}
+
+impl<const D: usize> RowCache<D> {
+    fn new(field: &MrasField<D>) -> Self {
+        Self {
+            key: None,
+            generation: 0,
+            levels: field
+                .levels
+                .iter()
+                .map(|l| LevelRows {
+                    stamp: vec![0; l.cells.len()],
+                    offset: vec![0; l.cells.len()],
+                    products: Vec::new(),
+                })
+                .collect(),
+            last: Vec::new(),
+        }
+    }
+
+    /// Starts a new row unless `u` lies on the current one.
+    fn enter(&mut self, u: &Point<D>) {
+        let key = std::array::from_fn(|a| if a + 1 < D { u[a].to_bits() } else { 0 });
+        if self.key != Some(key) {
+            self.key = Some(key);
+            self.generation += 1;
+            for l in &mut self.levels {
+                l.products.clear();
+            }
+        }
+    }
+}
+
+impl<const D: usize> MrasField<D> {
+    /// [`ScalarField::value`] with the row products of `rows` (the same bits).
+    fn value_along_row(&self, p: &Point<D>, rows: &mut RowCache<D>) -> f64 {
+        let u = self.to_unit(p);
+        rows.enter(&u);
+        let generation = rows.generation;
+        let mut v = 0.0;
+        for (level, cache) in self.levels.iter().zip(&mut rows.levels) {
+            let g = self.geometry(level);
+            let last = &mut rows.last;
+            v += self
+                .blend(level, &g, &u, false, |position, index| {
+                    match &level.cells[position].spline {
+                        CellSpline::Cp { rank, factors } if *rank <= FAST_RANK => {
+                            let (r, m) = (*rank, g.knots);
+                            // One axis's B-spline sums `g_{k,a} = Σ_q N_q F_a[first + q, k]`.
+                            let sums = |a: usize, out: &mut [f64]| {
+                                let aw = weights::<3>(g.spline_index(u[a], g.centre(index[a])));
+                                let first = aw.first as usize;
+                                out.fill(0.0);
+                                for q in 0..3 {
+                                    let i = first + q;
+                                    if i >= m {
+                                        continue;
+                                    }
+                                    let row = &factors[a][i * r..(i + 1) * r];
+                                    for (o, &x) in out.iter_mut().zip(row) {
+                                        *o += aw.w[q] * x;
+                                    }
+                                }
+                            };
+                            last.resize(r, 0.0);
+                            if cache.stamp[position] != generation {
+                                cache.stamp[position] = generation;
+                                let start = cache.products.len();
+                                cache.offset[position] = start as u32;
+                                cache.products.resize(start + r, 1.0);
+                                for a in 0..D - 1 {
+                                    sums(a, &mut last[..r]);
+                                    for (p, &x) in cache.products[start..].iter_mut().zip(&*last) {
+                                        *p *= x;
+                                    }
+                                }
+                            }
+                            sums(D - 1, &mut last[..r]);
+                            let start = cache.offset[position] as usize;
+                            let value = cache.products[start..start + r]
+                                .iter()
+                                .zip(&*last)
+                                .fold(0.0, |v, (&p, &x)| v + p * x);
+                            (value, [0.0; D])
+                        }
+                        other => spline_at(other, &g, index, &u, false),
+                    }
+                })
+                .0;
+        }
+        v * self.side
     }
 }
 
@@ -803,8 +935,9 @@ impl<const D: usize> ScalarField<D> for MrasField<D> {
             .par_chunks(CHUNK)
             .zip(out.par_chunks_mut(CHUNK))
             .for_each(|(ps, os)| {
+                let mut rows = RowCache::new(self);
                 for (p, o) in ps.iter().zip(os) {
-                    *o = self.value(p);
+                    *o = self.value_along_row(p, &mut rows);
                 }
             });
     }

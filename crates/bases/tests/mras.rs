@@ -315,8 +315,9 @@ fn storage_counts_the_paper_way() {
 
 #[test]
 fn grid_rows_give_the_single_point_bits() {
-    // `values` reuses, along points that differ only in z (a grid's rows), each CP cell's
-    // x·y products: the values must keep `value`'s bits — on CP and full cells, rows that
+    // `values` reuses, along points that differ only in z (a grid's rows), each level's x·y
+    // lattice neighbours and each CP cell's z-factor rows contracted with its x·y products:
+    // the values must keep `value`'s bits — on CP and full cells, rows that
     // start mid-chunk, rows of one point, and points outside the cube (clamped).
     let (p, n) = torus(60, 24, 1.0, 0.4);
     let options = MrasOptions::default().max_level(4).tolerance(1e-4);

@@ -508,64 +508,69 @@ impl<const D: usize> MrasField<D> {
         g: &LevelGeometry,
         u: &Point<D>,
         with_gradient: bool,
+        spline: impl FnMut(usize, &[u64; D]) -> (f64, Point<D>),
+    ) -> (f64, Point<D>) {
+        let columns = Columns::new(g, u);
+        self.blend_columns(level, g, &columns, u, with_gradient, spline)
+    }
+
+    /// [`MrasField::blend`] with the lattice neighbours along the first `D − 1` axes given
+    /// (the same for every point of a grid row).
+    #[inline]
+    fn blend_columns(
+        &self,
+        level: &MrasLevel<D>,
+        g: &LevelGeometry,
+        columns: &Columns<D>,
+        u: &Point<D>,
+        with_gradient: bool,
         mut spline: impl FnMut(usize, &[u64; D]) -> (f64, Point<D>),
     ) -> (f64, Point<D>) {
         let n = g.lattice;
-        let mut home = [0u64; D];
-        for a in 0..D {
-            home[a] = ((u[a] * n as f64) as u64).min(n - 1);
-        }
+        let mut home = columns.home;
+        home[D - 1] = ((u[D - 1] * n as f64) as u64).min(n - 1);
         // No fitted cell within reach (ρ < 1.5 s): the level adds nothing here.
         if !level.near(&home) {
             return (0.0, [0.0; D]);
         }
         let (mut wsum, mut num) = (0.0, 0.0);
         let (mut dwsum, mut dnum) = ([0.0; D], [0.0; D]);
-        // The 3^D lattice cells around the home cell (ρ < 1.5 s: no others reach u).
-        for code in 0..3usize.pow(D as u32) {
-            let mut index = [0u64; D];
-            let mut c = code;
-            let mut inside = true;
-            for a in 0..D {
-                let off = (c % 3) as i64 - 1;
-                c /= 3;
-                let i = home[a] as i64 + off;
-                if i < 0 || i >= n as i64 {
-                    inside = false;
-                    break;
-                }
-                index[a] = i as u64;
-            }
-            if !inside {
-                continue;
-            }
-            let mut d = [0.0; D];
-            let mut r2 = 0.0;
-            for a in 0..D {
-                d[a] = u[a] - g.centre(index[a]);
-                r2 += d[a] * d[a];
-            }
-            if r2 >= g.radius * g.radius {
-                continue;
-            }
-            let r = r2.sqrt();
-            let (w, dw) = pu_weight(r, g.radius);
-            wsum += w;
-            let mut grad_w = [0.0; D];
-            if with_gradient && r > 0.0 {
-                for a in 0..D {
-                    grad_w[a] = dw * d[a] / r;
-                    dwsum[a] += grad_w[a];
-                }
-            }
-            let Some(position) = level.position(&index) else {
+        let radius2 = g.radius * g.radius;
+        // The 3^D lattice cells around the home cell (ρ < 1.5 s: no others reach u), the first
+        // axis fastest: the last axis's three, each with the columns.
+        for off in 0..3 {
+            let Some(i) = (home[D - 1] + off).checked_sub(1).filter(|&i| i < n) else {
                 continue;
             };
-            let (phi, dphi) = spline(position, &index);
-            num += w * phi;
-            if with_gradient {
-                for a in 0..D {
-                    dnum[a] += grad_w[a] * phi + w * dphi[a];
+            let dz = u[D - 1] - g.centre(i);
+            for c in &columns.cells[..columns.len] {
+                let r2 = c.r2 + dz * dz;
+                if r2 >= radius2 {
+                    continue;
+                }
+                let mut index = c.index;
+                index[D - 1] = i;
+                let r = r2.sqrt();
+                let (w, dw) = pu_weight(r, g.radius);
+                wsum += w;
+                let mut grad_w = [0.0; D];
+                if with_gradient && r > 0.0 {
+                    let mut d = c.d;
+                    d[D - 1] = dz;
+                    for a in 0..D {
+                        grad_w[a] = dw * d[a] / r;
+                        dwsum[a] += grad_w[a];
+                    }
+                }
+                let Some(position) = level.position(&index) else {
+                    continue;
+                };
+                let (phi, dphi) = spline(position, &index);
+                num += w * phi;
+                if with_gradient {
+                    for a in 0..D {
+                        dnum[a] += grad_w[a] * phi + w * dphi[a];
+                    }
                 }
             }
         }
@@ -604,27 +609,99 @@ impl<const D: usize> MrasField<D> {
     }
 }
 
+/// The lattice cells around a point's home cell along the first `D − 1` axes (the coordinates
+/// a grid row holds fixed) that lie in the lattice and whose partial squared distance leaves
+/// the point within the support radius: what [`MrasField::blend`] pairs with the last axis's
+/// three neighbours. In the order of the 3^D loop, the first axis fastest.
+struct Columns<const D: usize> {
+    /// The home cell along the first `D − 1` axes (the last entry unused).
+    home: [u64; D],
+    len: usize,
+    cells: [Column<D>; MAX_COLUMNS],
+}
+
+/// The most columns, `3^{D−1}` for `D ≤ 4`.
+const MAX_COLUMNS: usize = 27;
+
+/// One of [`Columns`]: a lattice index, the offsets `u_a − centre_a` and `Σ_a (u_a − centre_a)²`
+/// along the first `D − 1` axes (the last entries unused).
+#[derive(Clone, Copy)]
+struct Column<const D: usize> {
+    index: [u64; D],
+    d: [f64; D],
+    r2: f64,
+}
+
+impl<const D: usize> Columns<D> {
+    #[inline]
+    fn new(g: &LevelGeometry, u: &Point<D>) -> Self {
+        const { assert!(D >= 1 && D <= 4, "MRAS fields have 1 to 4 dimensions") };
+        let n = g.lattice;
+        let mut home = [0u64; D];
+        for a in 0..D - 1 {
+            home[a] = ((u[a] * n as f64) as u64).min(n - 1);
+        }
+        let mut columns = Self {
+            home,
+            len: 0,
+            cells: [Column {
+                index: [0; D],
+                d: [0.0; D],
+                r2: 0.0,
+            }; MAX_COLUMNS],
+        };
+        let radius2 = g.radius * g.radius;
+        'codes: for code in 0..3usize.pow(D as u32 - 1) {
+            let mut column = columns.cells[0];
+            let mut c = code;
+            let mut r2 = 0.0;
+            for a in 0..D - 1 {
+                let Some(i) = (home[a] + (c % 3) as u64).checked_sub(1).filter(|&i| i < n) else {
+                    continue 'codes;
+                };
+                c /= 3;
+                column.index[a] = i;
+                column.d[a] = u[a] - g.centre(i);
+                r2 += column.d[a] * column.d[a];
+            }
+            // Adding the last axis's square cannot bring it back within the radius.
+            if r2 >= radius2 {
+                continue;
+            }
+            column.r2 = r2;
+            columns.cells[columns.len] = column;
+            columns.len += 1;
+        }
+        columns
+    }
+}
+
 /// What [`MrasField::values`] keeps between consecutive points that differ in the last
 /// coordinate only (a grid's rows, as [`zeroset_field_core::grid::Grid::sample`] passes them):
-/// per CP cell met on the row, the products `Π_{a < D−1} g_{r,a}` of its factors' B-spline sums
-/// over the fixed coordinates, so that each point costs the last axis's sums and `R` products.
-/// The products are formed in [`cp_rows`]'s order, so the values keep its bits.
+/// per CP cell met on the row, the last factor's rows contracted with the products of the
+/// other axes' B-spline sums, `c_i = F_{D−1}[i,·] · Π_{a<D−1} g_{·,a}` for every `i < m`, so
+/// that a point costs its last-axis B-spline weights and three products. The numbers are the
+/// ones [`cp_rows`] forms, in its order, so the values keep its bits.
 struct RowCache<const D: usize> {
     /// The fixed coordinates' bits (the last entry unused).
     key: Option<[u64; D]>,
-    /// The row's number: a cell's products are valid when stamped with it.
+    /// The row's number: a cell's coefficients are valid when stamped with it.
     generation: u32,
-    levels: Vec<LevelRows>,
-    /// The last axis's B-spline sums.
-    last: Vec<f64>,
+    levels: Vec<LevelRows<D>>,
+    /// Scratch: one fixed axis's B-spline sums `g_{·,a}`.
+    sums: Vec<f64>,
+    /// Scratch: their products over the fixed axes.
+    head: Vec<f64>,
 }
 
 /// [`RowCache`] of one level: per cell (its position in the level) a stamp and an offset into
-/// `products`.
-struct LevelRows {
+/// `coefficients`.
+struct LevelRows<const D: usize> {
+    /// The level's lattice neighbours along the row's fixed axes (set on the row's first point).
+    columns: Option<Columns<D>>,
     stamp: Vec<u32>,
     offset: Vec<u32>,
-    products: Vec<f64>,
+    coefficients: Vec<f64>,
 }
 
 impl<const D: usize> RowCache<D> {
@@ -636,12 +713,14 @@ impl<const D: usize> RowCache<D> {
                 .levels
                 .iter()
                 .map(|l| LevelRows {
+                    columns: None,
                     stamp: vec![0; l.cells.len()],
                     offset: vec![0; l.cells.len()],
-                    products: Vec::new(),
+                    coefficients: Vec::new(),
                 })
                 .collect(),
-            last: Vec::new(),
+            sums: Vec::new(),
+            head: Vec::new(),
         }
     }
 
@@ -652,14 +731,15 @@ impl<const D: usize> RowCache<D> {
             self.key = Some(key);
             self.generation += 1;
             for l in &mut self.levels {
-                l.products.clear();
+                l.columns = None;
+                l.coefficients.clear();
             }
         }
     }
 }
 
 impl<const D: usize> MrasField<D> {
-    /// [`ScalarField::value`] with the row products of `rows` (the same bits).
+    /// [`ScalarField::value`] with the row coefficients of `rows` (the same bits).
     fn value_along_row(&self, p: &Point<D>, rows: &mut RowCache<D>) -> f64 {
         let u = self.to_unit(p);
         rows.enter(&u);
@@ -667,47 +747,55 @@ impl<const D: usize> MrasField<D> {
         let mut v = 0.0;
         for (level, cache) in self.levels.iter().zip(&mut rows.levels) {
             let g = self.geometry(level);
-            let last = &mut rows.last;
+            let (sums, head) = (&mut rows.sums, &mut rows.head);
+            let columns = cache.columns.get_or_insert_with(|| Columns::new(&g, &u));
             v += self
-                .blend(level, &g, &u, false, |position, index| {
+                .blend_columns(level, &g, columns, &u, false, |position, index| {
                     match &level.cells[position].spline {
                         CellSpline::Cp { rank, factors } if *rank <= FAST_RANK => {
                             let (r, m) = (*rank, g.knots);
-                            // One axis's B-spline sums `g_{k,a} = Σ_q N_q F_a[first + q, k]`.
-                            let sums = |a: usize, out: &mut [f64]| {
-                                let aw = weights::<3>(g.spline_index(u[a], g.centre(index[a])));
-                                let first = aw.first as usize;
-                                out.fill(0.0);
-                                for q in 0..3 {
-                                    let i = first + q;
-                                    if i >= m {
-                                        continue;
-                                    }
-                                    let row = &factors[a][i * r..(i + 1) * r];
-                                    for (o, &x) in out.iter_mut().zip(row) {
-                                        *o += aw.w[q] * x;
-                                    }
-                                }
-                            };
-                            last.resize(r, 0.0);
+                            let weights_at =
+                                |a: usize| weights::<3>(g.spline_index(u[a], g.centre(index[a])));
                             if cache.stamp[position] != generation {
                                 cache.stamp[position] = generation;
-                                let start = cache.products.len();
-                                cache.offset[position] = start as u32;
-                                cache.products.resize(start + r, 1.0);
-                                for a in 0..D - 1 {
-                                    sums(a, &mut last[..r]);
-                                    for (p, &x) in cache.products[start..].iter_mut().zip(&*last) {
-                                        *p *= x;
+                                // `head_k = Π_{a<D−1} Σ_q N_q F_a[first + q, k]`, as `cp_rows`.
+                                head.clear();
+                                head.resize(r, 1.0);
+                                sums.resize(r, 0.0);
+                                for (a, factor) in factors[..D - 1].iter().enumerate() {
+                                    let aw = weights_at(a);
+                                    sums.fill(0.0);
+                                    for q in 0..3 {
+                                        let i = aw.first as usize + q;
+                                        if i >= m {
+                                            continue;
+                                        }
+                                        let row = &factor[i * r..(i + 1) * r];
+                                        for (o, &x) in sums.iter_mut().zip(row) {
+                                            *o += aw.w[q] * x;
+                                        }
+                                    }
+                                    for (h, &x) in head.iter_mut().zip(&*sums) {
+                                        *h *= x;
                                     }
                                 }
+                                let start = cache.coefficients.len();
+                                cache.offset[position] = start as u32;
+                                let last = &factors[D - 1];
+                                cache
+                                    .coefficients
+                                    .extend((0..m).map(|i| factor_dot(last, r, i, head)));
                             }
-                            sums(D - 1, &mut last[..r]);
+                            let aw = weights_at(D - 1);
                             let start = cache.offset[position] as usize;
-                            let value = cache.products[start..start + r]
-                                .iter()
-                                .zip(&*last)
-                                .fold(0.0, |v, (&p, &x)| v + p * x);
+                            let c = &cache.coefficients[start..start + m];
+                            let mut value = 0.0;
+                            for q in 0..3 {
+                                let i = aw.first as usize + q;
+                                if i < m {
+                                    value += aw.w[q] * c[i];
+                                }
+                            }
                             (value, [0.0; D])
                         }
                         other => spline_at(other, &g, index, &u, false),
@@ -751,7 +839,8 @@ fn cp_rows_sized<const D: usize>(
 
 /// `φ` and its gradient from CP factors of rank `r ≤ N`: per axis, the weighted sum of
 /// the (at most 3) factor rows the point reads, a contiguous loop over the ranks that the
-/// compiler vectorises; then the products over the axes. Same operations in the same order for
+/// compiler vectorises; then the products over all axes but the last, contracted with the last
+/// axis's rows ([`contract_last_axis`]). Same operations in the same order for
 /// every point, so batched and single evaluation agree bit for bit.
 #[inline]
 fn cp_rows<const D: usize, const N: usize>(
@@ -765,7 +854,9 @@ fn cp_rows<const D: usize, const N: usize>(
     let (first, w, d1) = (&s.first, &s.w, &s.d1);
     let mut gv = [[0.0; N]; D];
     let mut gd = [[0.0; N]; D];
-    for a in 0..D {
+    // The value reads the last axis's rows in `contract_last_axis`; only the gradient needs its sums.
+    let summed = if with_gradient { D } else { D - 1 };
+    for a in 0..summed {
         for q in 0..3 {
             let i = first[a] + q;
             if i >= m {
@@ -783,27 +874,62 @@ fn cp_rows<const D: usize, const N: usize>(
             }
         }
     }
-    let mut value = 0.0;
-    let mut grad = [0.0; D];
-    for k in 0..r {
-        let mut p = 1.0;
-        for g in &gv {
-            p *= g[k];
+    // The value contracts the last axis through its factor rows (`Σ_q N_q (F[i_q,·] · head)`,
+    // with `head_k = Π_{a<D−1} g_{k,a}`): the order [`MrasField::values`] keeps along grid rows.
+    let mut head = [1.0; N];
+    for (k, h) in head[..r].iter_mut().enumerate() {
+        for g in &gv[..D - 1] {
+            *h *= g[k];
         }
-        value += p;
-        if with_gradient {
-            for a in 0..D {
-                let mut p = gd[a][k];
-                for (b, g) in gv.iter().enumerate() {
-                    if b != a {
-                        p *= g[k];
-                    }
+    }
+    let value = contract_last_axis(&factors[D - 1], r, m, first[D - 1], &w[D - 1], &head[..r]);
+    let mut grad = [0.0; D];
+    if !with_gradient {
+        return (value, grad);
+    }
+    for k in 0..r {
+        for a in 0..D {
+            let mut p = gd[a][k];
+            for (b, g) in gv.iter().enumerate() {
+                if b != a {
+                    p *= g[k];
                 }
-                grad[a] += p;
             }
+            grad[a] += p;
         }
     }
     (value, grad)
+}
+
+/// `Σ_q N_q c_{first+q}` with `c_i = F[i,·] · head` the last axis's factor row `i` contracted
+/// with the other axes' products (rows past `m` left out): how every CP value ends, one point
+/// at a time ([`cp_rows`]) or a grid row at a time ([`MrasField::values`]).
+#[inline]
+fn contract_last_axis(
+    factor: &[f64],
+    r: usize,
+    m: usize,
+    first: usize,
+    w: &[f64; 3],
+    head: &[f64],
+) -> f64 {
+    let mut value = 0.0;
+    for (q, &wq) in w.iter().enumerate() {
+        let i = first + q;
+        if i < m {
+            value += wq * factor_dot(factor, r, i, head);
+        }
+    }
+    value
+}
+
+/// `F[i,·] · head` for a factor stored row-major with `r` columns.
+#[inline]
+fn factor_dot(factor: &[f64], r: usize, i: usize, head: &[f64]) -> f64 {
+    factor[i * r..(i + 1) * r]
+        .iter()
+        .zip(head)
+        .fold(0.0, |s, (&x, &h)| s + x * h)
 }
 
 /// `φ(u)` and its unit-cube gradient for one cell.

@@ -1,7 +1,8 @@
 //! Criterion benchmarks of MRAS (`zeroset::bases::mras`, paper 004): the whole fit of a torus
 //! sampled on a 120 × 48 parameter grid (5,760 points, radii 1 and 0.4; default options, 3
-//! levels), and batched evaluation of the fitted field at 100,000 points in its cube (the
-//! meshing hot path). The full-size runs (the bunny, Open3D alongside) are the example
+//! levels), and batched evaluation of the fitted field at 100,000 random points in its cube and
+//! on a 97³ vertex grid over it (the meshing hot path: along a grid row only the last coordinate
+//! changes, and `values` reuses each cell's contraction over the fixed ones). The full-size runs (the bunny, Open3D alongside) are the example
 //! `mras_tables` and `benches/peers/poisson_peers.py`.
 //!
 //! ```text
@@ -16,6 +17,7 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use zeroset::bases::mras::{MrasOptions, fit_mras};
 use zeroset::core::field::ScalarField;
+use zeroset::core::grid::Grid;
 
 fn mras_bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("mras");
@@ -46,6 +48,9 @@ fn mras_bench(c: &mut Criterion) {
             out[0]
         })
     });
+    let bounds = field.bounds().expect("the field's cube");
+    let grid = Grid::vertex_centered(bounds, [97; 3]).expect("grid");
+    group.bench_function("grid 97^3 samples", |b| b.iter(|| grid.sample(&field)[0]));
     group.finish();
 }
 

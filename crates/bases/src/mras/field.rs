@@ -688,17 +688,20 @@ struct RowCache<const D: usize> {
     /// The row's number: a cell's coefficients are valid when stamped with it.
     generation: u32,
     levels: Vec<LevelRows<D>>,
-    /// Scratch: one fixed axis's B-spline sums `g_{·,a}`.
-    sums: Vec<f64>,
-    /// Scratch: their products over the fixed axes.
-    head: Vec<f64>,
+    /// Scratch: one fixed axis's B-spline sums `g_{·,a}`, and their products over the fixed axes.
+    scratch: (Vec<f64>, Vec<f64>),
 }
 
-/// [`RowCache`] of one level: per cell (its position in the level) a stamp and an offset into
-/// `coefficients`.
+/// [`RowCache`] of one level.
 struct LevelRows<const D: usize> {
     /// The level's lattice neighbours along the row's fixed axes (set on the row's first point).
     columns: Option<Columns<D>>,
+    cells: RowCoefficients,
+}
+
+/// The row's `c_i` of a level's CP cells: per cell (its position in the level) a stamp and an
+/// offset into `coefficients`.
+struct RowCoefficients {
     stamp: Vec<u32>,
     offset: Vec<u32>,
     coefficients: Vec<f64>,
@@ -714,13 +717,14 @@ impl<const D: usize> RowCache<D> {
                 .iter()
                 .map(|l| LevelRows {
                     columns: None,
-                    stamp: vec![0; l.cells.len()],
-                    offset: vec![0; l.cells.len()],
-                    coefficients: Vec::new(),
+                    cells: RowCoefficients {
+                        stamp: vec![0; l.cells.len()],
+                        offset: vec![0; l.cells.len()],
+                        coefficients: Vec::new(),
+                    },
                 })
                 .collect(),
-            sums: Vec::new(),
-            head: Vec::new(),
+            scratch: (Vec::new(), Vec::new()),
         }
     }
 
@@ -732,9 +736,53 @@ impl<const D: usize> RowCache<D> {
             self.generation += 1;
             for l in &mut self.levels {
                 l.columns = None;
-                l.coefficients.clear();
+                l.cells.coefficients.clear();
             }
         }
+    }
+}
+
+impl RowCoefficients {
+    /// `φ(u)` of the CP cell at `position` (rank `r`, factors `factors`, lattice index `index`)
+    /// from the row's coefficients, forming them on the cell's first point of the row.
+    #[allow(clippy::too_many_arguments)]
+    fn cp_value<const D: usize>(
+        &mut self,
+        generation: u32,
+        scratch: &mut (Vec<f64>, Vec<f64>),
+        g: &LevelGeometry,
+        position: usize,
+        index: &[u64; D],
+        factors: &[Vec<f64>; D],
+        r: usize,
+        u: &Point<D>,
+    ) -> f64 {
+        let m = g.knots;
+        let weights_at = |a: usize| weights::<3>(g.spline_index(u[a], g.centre(index[a])));
+        if self.stamp[position] != generation {
+            self.stamp[position] = generation;
+            // `head_k = Π_{a<D−1} Σ_q N_q F_a[first + q, k]`, as `cp_rows` forms it.
+            let (sums, head) = scratch;
+            head.clear();
+            head.resize(r, 1.0);
+            sums.resize(r, 0.0);
+            for (a, factor) in factors[..D - 1].iter().enumerate() {
+                let aw = weights_at(a);
+                sums.fill(0.0);
+                add_axis_sums(factor, m, aw.first as usize, &aw.w, sums);
+                for (h, &x) in head.iter_mut().zip(&*sums) {
+                    *h *= x;
+                }
+            }
+            self.offset[position] = self.coefficients.len() as u32;
+            let last = &factors[D - 1];
+            self.coefficients
+                .extend((0..m).map(|i| factor_dot(last, r, i, head)));
+        }
+        let aw = weights_at(D - 1);
+        let start = self.offset[position] as usize;
+        let c = &self.coefficients[start..start + m];
+        stencil_sum(aw.first as usize, &aw.w, m, |i| c[i])
     }
 }
 
@@ -747,60 +795,26 @@ impl<const D: usize> MrasField<D> {
         let mut v = 0.0;
         for (level, cache) in self.levels.iter().zip(&mut rows.levels) {
             let g = self.geometry(level);
-            let (sums, head) = (&mut rows.sums, &mut rows.head);
+            let scratch = &mut rows.scratch;
             let columns = cache.columns.get_or_insert_with(|| Columns::new(&g, &u));
+            let cells = &mut cache.cells;
             v += self
-                .blend_columns(level, &g, columns, &u, false, |position, index| {
-                    match &level.cells[position].spline {
+                .blend_columns(
+                    level,
+                    &g,
+                    columns,
+                    &u,
+                    false,
+                    |position, index| match &level.cells[position].spline {
                         CellSpline::Cp { rank, factors } if *rank <= FAST_RANK => {
-                            let (r, m) = (*rank, g.knots);
-                            let weights_at =
-                                |a: usize| weights::<3>(g.spline_index(u[a], g.centre(index[a])));
-                            if cache.stamp[position] != generation {
-                                cache.stamp[position] = generation;
-                                // `head_k = Π_{a<D−1} Σ_q N_q F_a[first + q, k]`, as `cp_rows`.
-                                head.clear();
-                                head.resize(r, 1.0);
-                                sums.resize(r, 0.0);
-                                for (a, factor) in factors[..D - 1].iter().enumerate() {
-                                    let aw = weights_at(a);
-                                    sums.fill(0.0);
-                                    for q in 0..3 {
-                                        let i = aw.first as usize + q;
-                                        if i >= m {
-                                            continue;
-                                        }
-                                        let row = &factor[i * r..(i + 1) * r];
-                                        for (o, &x) in sums.iter_mut().zip(row) {
-                                            *o += aw.w[q] * x;
-                                        }
-                                    }
-                                    for (h, &x) in head.iter_mut().zip(&*sums) {
-                                        *h *= x;
-                                    }
-                                }
-                                let start = cache.coefficients.len();
-                                cache.offset[position] = start as u32;
-                                let last = &factors[D - 1];
-                                cache
-                                    .coefficients
-                                    .extend((0..m).map(|i| factor_dot(last, r, i, head)));
-                            }
-                            let aw = weights_at(D - 1);
-                            let start = cache.offset[position] as usize;
-                            let c = &cache.coefficients[start..start + m];
-                            let mut value = 0.0;
-                            for q in 0..3 {
-                                let i = aw.first as usize + q;
-                                if i < m {
-                                    value += aw.w[q] * c[i];
-                                }
-                            }
+                            let value = cells.cp_value(
+                                generation, scratch, &g, position, index, factors, *rank, &u,
+                            );
                             (value, [0.0; D])
                         }
                         other => spline_at(other, &g, index, &u, false),
-                    }
-                })
+                    },
+                )
                 .0;
         }
         v * self.side
@@ -840,7 +854,7 @@ fn cp_rows_sized<const D: usize>(
 /// `φ` and its gradient from CP factors of rank `r ≤ N`: per axis, the weighted sum of
 /// the (at most 3) factor rows the point reads, a contiguous loop over the ranks that the
 /// compiler vectorises; then the products over all axes but the last, contracted with the last
-/// axis's rows ([`contract_last_axis`]). Same operations in the same order for
+/// axis's rows ([`stencil_sum`]). Same operations in the same order for
 /// every point, so batched and single evaluation agree bit for bit.
 #[inline]
 fn cp_rows<const D: usize, const N: usize>(
@@ -854,24 +868,12 @@ fn cp_rows<const D: usize, const N: usize>(
     let (first, w, d1) = (&s.first, &s.w, &s.d1);
     let mut gv = [[0.0; N]; D];
     let mut gd = [[0.0; N]; D];
-    // The value reads the last axis's rows in `contract_last_axis`; only the gradient needs its sums.
+    // The value reads the last axis's rows through `stencil_sum`; only the gradient needs its sums.
     let summed = if with_gradient { D } else { D - 1 };
     for a in 0..summed {
-        for q in 0..3 {
-            let i = first[a] + q;
-            if i >= m {
-                continue;
-            }
-            let row = &factors[a][i * r..(i + 1) * r];
-            let (wq, dq) = (w[a][q], d1[a][q]);
-            for (k, &x) in row.iter().enumerate() {
-                gv[a][k] += wq * x;
-            }
-            if with_gradient {
-                for (k, &x) in row.iter().enumerate() {
-                    gd[a][k] += dq * x;
-                }
-            }
+        add_axis_sums(&factors[a], m, first[a], &w[a], &mut gv[a][..r]);
+        if with_gradient {
+            add_axis_sums(&factors[a], m, first[a], &d1[a], &mut gd[a][..r]);
         }
     }
     // The value contracts the last axis through its factor rows (`Σ_q N_q (F[i_q,·] · head)`,
@@ -882,7 +884,10 @@ fn cp_rows<const D: usize, const N: usize>(
             *h *= g[k];
         }
     }
-    let value = contract_last_axis(&factors[D - 1], r, m, first[D - 1], &w[D - 1], &head[..r]);
+    let last = &factors[D - 1];
+    let value = stencil_sum(first[D - 1], &w[D - 1], m, |i| {
+        factor_dot(last, r, i, &head[..r])
+    });
     let mut grad = [0.0; D];
     if !with_gradient {
         return (value, grad);
@@ -901,26 +906,36 @@ fn cp_rows<const D: usize, const N: usize>(
     (value, grad)
 }
 
-/// `Σ_q N_q c_{first+q}` with `c_i = F[i,·] · head` the last axis's factor row `i` contracted
-/// with the other axes' products (rows past `m` left out): how every CP value ends, one point
-/// at a time ([`cp_rows`]) or a grid row at a time ([`MrasField::values`]).
+/// `Σ_q w_q c(first + q)` over the (at most 3) B-splines a point reads on one axis, those past
+/// `m` left out. How every CP value ends, `c_i = F_{D−1}[i,·] · head` being the last factor's
+/// row `i` contracted with the other axes' products: formed on the spot one point at a time
+/// ([`cp_rows`]) or kept for a grid row ([`MrasField::values`]) — the same sum either way.
 #[inline]
-fn contract_last_axis(
-    factor: &[f64],
-    r: usize,
-    m: usize,
-    first: usize,
-    w: &[f64; 3],
-    head: &[f64],
-) -> f64 {
+fn stencil_sum(first: usize, w: &[f64; 3], m: usize, c: impl Fn(usize) -> f64) -> f64 {
     let mut value = 0.0;
     for (q, &wq) in w.iter().enumerate() {
         let i = first + q;
         if i < m {
-            value += wq * factor_dot(factor, r, i, head);
+            value += wq * c(i);
         }
     }
     value
+}
+
+/// `out_k += Σ_q w_q F[first + q, k]`: one axis's B-spline sums of a factor stored row-major
+/// with `out.len()` columns (rows past `m` left out); a contiguous loop the compiler vectorises.
+#[inline]
+fn add_axis_sums(factor: &[f64], m: usize, first: usize, w: &[f64; 3], out: &mut [f64]) {
+    let r = out.len();
+    for (q, &wq) in w.iter().enumerate() {
+        let i = first + q;
+        if i >= m {
+            continue;
+        }
+        for (o, &x) in out.iter_mut().zip(&factor[i * r..(i + 1) * r]) {
+            *o += wq * x;
+        }
+    }
 }
 
 /// `F[i,·] · head` for a factor stored row-major with `r` columns.

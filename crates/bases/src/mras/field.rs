@@ -494,30 +494,18 @@ impl<const D: usize> MrasField<D> {
         with_gradient: bool,
     ) -> (f64, Point<D>) {
         let g = self.geometry(level);
-        self.blend(level, &g, u, with_gradient, |position, index| {
+        let columns = Columns::new(&g, u);
+        self.blend(level, &g, &columns, u, with_gradient, |position, index| {
             spline_at(&level.cells[position].spline, &g, index, u, with_gradient)
         })
     }
 
-    /// `o_k(u)` and its gradient, with `spline(position, index)` the offset `φ` (and its
-    /// gradient) of the fitted cell at `position` in the level's cells, lattice index `index`.
+    /// `o_k(u)` and its gradient, with `columns` the lattice neighbours of `u` along the first
+    /// `D − 1` axes (the same for every point of a grid row) and `spline(position, index)` the
+    /// offset `φ` (and its gradient) of the fitted cell at `position` in the level's cells,
+    /// lattice index `index`.
     #[inline]
     fn blend(
-        &self,
-        level: &MrasLevel<D>,
-        g: &LevelGeometry,
-        u: &Point<D>,
-        with_gradient: bool,
-        spline: impl FnMut(usize, &[u64; D]) -> (f64, Point<D>),
-    ) -> (f64, Point<D>) {
-        let columns = Columns::new(g, u);
-        self.blend_columns(level, g, &columns, u, with_gradient, spline)
-    }
-
-    /// [`MrasField::blend`] with the lattice neighbours along the first `D − 1` axes given
-    /// (the same for every point of a grid row).
-    #[inline]
-    fn blend_columns(
         &self,
         level: &MrasLevel<D>,
         g: &LevelGeometry,
@@ -733,6 +721,13 @@ impl<const D: usize> RowCache<D> {
         let key = std::array::from_fn(|a| if a + 1 < D { u[a].to_bits() } else { 0 });
         if self.key != Some(key) {
             self.key = Some(key);
+            if self.generation == u32::MAX {
+                // Stamps would repeat: start them over.
+                self.generation = 0;
+                for l in &mut self.levels {
+                    l.cells.stamp.fill(0);
+                }
+            }
             self.generation += 1;
             for l in &mut self.levels {
                 l.columns = None;
@@ -799,7 +794,7 @@ impl<const D: usize> MrasField<D> {
             let columns = cache.columns.get_or_insert_with(|| Columns::new(&g, &u));
             let cells = &mut cache.cells;
             v += self
-                .blend_columns(
+                .blend(
                     level,
                     &g,
                     columns,
@@ -1075,12 +1070,15 @@ impl<const D: usize> ScalarField<D> for MrasField<D> {
         points
             .par_chunks(CHUNK)
             .zip(out.par_chunks_mut(CHUNK))
-            .for_each(|(ps, os)| {
-                let mut rows = RowCache::new(self);
-                for (p, o) in ps.iter().zip(os) {
-                    *o = self.value_along_row(p, &mut rows);
-                }
-            });
+            // One row cache per rayon job, not per chunk: its tables grow with the field's cells.
+            .for_each_init(
+                || RowCache::new(self),
+                |rows, (ps, os)| {
+                    for (p, o) in ps.iter().zip(os) {
+                        *o = self.value_along_row(p, rows);
+                    }
+                },
+            );
     }
 
     fn bounds(&self) -> Option<Aabb<D>> {

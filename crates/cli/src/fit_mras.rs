@@ -36,7 +36,8 @@ pub struct MrasArgs {
     /// The same target as a distance in the cloud's own units (instead of --tolerance).
     #[arg(long, value_name = "D", conflicts_with = "tolerance", help_heading = HEADING)]
     pub tolerance_distance: Option<f64>,
-    /// The deepest octree level (the root is 1) [default: 7].
+    /// The deepest octree level (the root is 1) [default: 8; cells holding 16 points or
+    /// fewer are not split, which stops the bunny at level 7].
     #[arg(long, value_name = "L", help_heading = HEADING)]
     pub max_level: Option<u32>,
     /// Keep every cell's full coefficient tensor instead of its CP factors (for comparison).
@@ -145,18 +146,23 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             }
         ),
     );
-    let bar = Mutex::new((0u32, counter(args.quiet, 1, "level 1")));
+    let bar = Mutex::new(((0u32, false), counter(args.quiet, 1, "level 1")));
     let progress = |p: &MrasProgress| {
         let mut b = bar.lock().unwrap_or_else(|e| e.into_inner());
-        if b.0 != p.level {
+        if b.0 != (p.level, p.compressing) {
             b.1.finish_and_clear();
+            let stage = if p.compressing {
+                "compressing"
+            } else {
+                "fitting"
+            };
             let message = match p.error {
-                Some(e) => format!("level {} (max error {})", p.level, g(e)),
-                None => format!("level {}", p.level),
+                Some(e) => format!("level {} {stage} (max error {})", p.level, g(e)),
+                None => format!("level {} {stage}", p.level),
             };
             b.1 = counter(args.quiet, p.cells_total, "");
             b.1.set_message(message);
-            b.0 = p.level;
+            b.0 = (p.level, p.compressing);
         }
         b.1.set_position(p.cells_done as u64);
     };

@@ -26,7 +26,7 @@
 //! ([`distance_to_zero_set`]); the point reached lies on the surface, so the figure is an upper
 //! bound of the true distance. Option overrides: `--tolerance T --max-level L --lambda λ
 //! --omega1 ω₁ --omega2 ω₂ --omega2-root ω₂ --m0 m₀ --beta β --min-knots m --admm-iter N --admm-tol t
-//! --cp-scale s --cp-points p --no-compress`.
+//! --cp-scale s --cp-points p --cp-refined c --n-min N --no-compress`.
 
 #[path = "common/data.rs"]
 mod data;
@@ -109,12 +109,14 @@ fn parse() -> Res<Args> {
             "--m0" => o.m0 = num()? as usize,
             "--beta" => o.beta = num()?,
             "--min-knots" => o.min_knots = num()? as usize,
+            "--n-min" => o.n_min = num()? as usize,
             "--admm-iter" => o.admm_max_iter = num()? as usize,
             "--admm-tol" => o.admm_tol = num()?,
             "--eta" => o.eta = num()?,
             "--relaxation" => o.relaxation = num()?,
             "--cp-scale" => o.cp_scale = num()?,
             "--cp-points" => o.cp_points = num()?,
+            "--cp-refined" => o.cp_refined = num()?,
             "--no-compress" => {
                 o.compress = false;
                 takes = false;

@@ -1,9 +1,11 @@
 //! MRAS (paper 004) against truth: analytic shapes, finite differences, the field file's
-//! exactness, thread-count independence and the errors bad clouds get.
+//! exactness, thread-count independence, the errors bad clouds get, and a real scan (the
+//! bunny in `data/`, or `$ZEROSET_DATA`).
 
 use zeroset_bases::field_file::{AnyField, decode_any, encode_mras};
 use zeroset_bases::mras::{CellSpline, MrasError, MrasFit, MrasOptions, fit_mras};
 use zeroset_field_core::field::{ScalarField, central_difference_gradient, distance_to_zero_set};
+use zeroset_field_core::io::read_point_cloud;
 
 #[path = "../../../examples/common/shapes.rs"]
 mod shapes;
@@ -349,5 +351,59 @@ fn grid_rows_give_the_single_point_bits() {
             let x = grid.point(grid.multi_index(l));
             assert_eq!(v.to_bits(), f.value(&x).to_bits(), "at {x:?}");
         }
+    }
+}
+
+/// The bunny's 34,834 oriented points (`data/bunny_points.ply`, or in `$ZEROSET_DATA`).
+fn bunny() -> (Vec<P>, Vec<P>) {
+    let dir = match std::env::var_os("ZEROSET_DATA") {
+        Some(d) => std::path::PathBuf::from(d),
+        None => std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
+    };
+    let path = dir.join("bunny_points.ply");
+    let cloud = read_point_cloud(&path).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e} (set ZEROSET_DATA to the data folder)",
+            path.display()
+        )
+    });
+    let normals = cloud
+        .normals()
+        .expect("bunny_points.ply has normals")
+        .to_vec();
+    (cloud.positions().to_vec(), normals)
+}
+
+/// Regression: the CP bound of levels 2, 3, … was once a sixteenth of the largest Sampson
+/// distance the previous level left. After the bunny's root with 9 or 10 B-splines per axis
+/// (`m₀` 10 or 11) that distance is 0.79 / 0.31 of the diagonal, at points where `∇f` nearly
+/// vanishes, while `|f|` stays below 1.3e-2 — so the bound exceeded every cell's offset,
+/// each level was dropped whole at rank 0 and the field ended at those errors (0.18 / 0.33
+/// after 7 levels). The bound now follows each refined cell's own residual: every level
+/// stores cells and lowers the error.
+#[test]
+fn compression_never_drops_the_offsets_a_coarse_level_needs() {
+    let (points, normals) = bunny();
+    for m0 in [10, 11] {
+        let fit = fit(
+            &points,
+            &normals,
+            &MrasOptions::default().m0(m0).max_level(4),
+        );
+        let levels = &fit.levels;
+        assert_eq!(levels.len(), 4, "m0 {m0}");
+        for l in levels {
+            assert!(
+                l.cells > 0,
+                "m0 {m0}: level {} stores no cell: {l:?}",
+                l.level
+            );
+        }
+        let last = levels[3].max_error;
+        assert!(
+            last < 0.03 && last < levels[0].max_error / 10.0,
+            "m0 {m0}: largest Sampson distance {} after the root, {last} after level 4",
+            levels[0].max_error
+        );
     }
 }

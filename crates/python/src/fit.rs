@@ -314,8 +314,13 @@ pub(crate) fn fit_mras_cloud<'py>(
     let hook = Hook::new(progress);
     let result = py.detach(|| -> PyResult<_> {
         let report_cell = |p: &MrasProgress| {
+            let stage = if p.compressing {
+                "compressing"
+            } else {
+                "fitting"
+            };
             hook.report(
-                &format!("mras level {}", p.level),
+                &format!("mras level {} {stage}", p.level),
                 p.cells_done,
                 p.cells_total,
             );

@@ -9,8 +9,11 @@ use zeroset_field_core::geometry::Point;
 use zeroset_tensor::thin_svd;
 
 use super::MrasError;
+use super::field::CellSpline;
 use super::field::{LevelGeometry, MAX_LEVEL, MrasCell, MrasField, MrasLevel};
-use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
+use super::local::{
+    CellSolve, CpBound, LocalSettings, Target, ThinPlate, compress_cell, solve_cell,
+};
 
 /// Options of [`fit_mras`]. The paper's values where it gives one; the others measured on
 /// `bunny_points.ply` and `kitten.xyz` (the issue note has the runs), in the normalised energy of
@@ -30,7 +33,8 @@ use super::local::{CpBound, LocalSettings, Target, ThinPlate, fit_cell};
 /// | `n_min` | 16 | 16 | |
 /// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
-/// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 (cells whose `φ = 0` meets the bound are not stored), bunny numbers / max / mean distance: 0.3 → 373k, 4.50e-3, 3.15e-4; 0.4 → 326k, 4.47e-3, 3.31e-4; **0.5 → 287k, 4.47e-3, 3.51e-4**; 0.75 → 207k, 5.43e-3, 4.09e-4; 1 → 178k, 5.03e-3, 4.72e-4 |
+/// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 and `cp_refined` = 1, bunny numbers / max / mean distance: 0.4 → 333k, 4.47e-3, 3.29e-4; **0.5 → 294k, 4.50e-3, 3.50e-4**; 0.75 → 222k, 5.12e-3, 4.09e-4; 1 → 174k, 5.78e-3, 4.74e-4 |
+/// | `cp_refined` | 1 | (`10^{−k−1}` loosens the coarse levels) | bunny numbers / max / mean: 0 → 318k, 4.50e-3, 3.48e-4; 0.5 → 312k, 4.49e-3, 3.49e-4; **1 → 294k, 4.50e-3, 3.50e-4**; kitten 0.5 → 107k, 1 → 104k at the same errors. The bound it replaced (`cp_points · max(ε₀, e/16)` at every point, `e` the previous level's largest Sampson distance) stored 3–8% less where it worked, and dropped whole levels where it did not (bunny with `m₀` 10 or 11: 0.18 / 0.33 of the diagonal; now 4.5e-3 / 4.7e-3) |
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasOptions {
     /// The target largest distance from the points to the surface, as a fraction of the points'
@@ -70,11 +74,14 @@ pub struct MrasOptions {
     /// Scale of Algorithm 2's bound as the paper words it, `‖C − Ĉ‖ ≤ cp_scale · 10^{−k−1}`;
     /// 0: bound the error at the data points instead (`cp_points`).
     pub cp_scale: f64,
-    /// Algorithm 2's bound at the data points, `|φ̂ − φ| ≤ cp_points · max(ε₀, e_{k−1}/16)`
-    /// with `e_{k−1}` the largest Sampson distance the previous level left (4% of the cube
-    /// before the root): loose where later levels correct the error, `cp_points · ε₀` at the
-    /// end and at `max_level`, which no level follows.
+    /// Algorithm 2's bound at the data points, `|φ̂ − φ| ≤ cp_points · ε₀ · slack` (`slack`
+    /// 1 except where [`MrasOptions::cp_refined`] loosens it).
     pub cp_points: f64,
+    /// Where the next level refines a cell (decided on the level before compression), its
+    /// points' `slack` is `max(1, cp_refined · r/ε₀)`, `r` the largest residual `|f^k|` the
+    /// cell's own points keep: the next level fits those points again, so only the points the
+    /// field ends on need the tight bound. 0: the same bound everywhere.
+    pub cp_refined: f64,
     /// The cube's margin around the bounding box, as a fraction of its largest side (each side).
     pub margin: f64,
 }
@@ -100,6 +107,7 @@ impl Default for MrasOptions {
             compress: true,
             cp_scale: 0.0,
             cp_points: 0.5,
+            cp_refined: 1.0,
             margin: 0.05,
         }
     }
@@ -232,6 +240,13 @@ impl MrasOptions {
         check("admm_max_iter", it, self.admm_max_iter > 0, "must be > 0")?;
         let tol = self.admm_tol;
         check("admm_tol", tol, tol.is_finite() && tol > 0.0, "must be > 0")?;
+        let cr = self.cp_refined;
+        check(
+            "cp_refined",
+            cr,
+            cr.is_finite() && cr >= 0.0,
+            "must be finite and ≥ 0",
+        )?;
         let mg = self.margin;
         check(
             "margin",
@@ -248,7 +263,10 @@ impl MrasOptions {
 pub struct MrasProgress {
     /// The level being fitted (from 1).
     pub level: u32,
-    /// Cells of this level fitted so far.
+    /// `false` while the level's cells are fitted (ADMM), `true` while they are compressed
+    /// (CP): each cell passes both stages, the second after every cell finished the first.
+    pub compressing: bool,
+    /// Cells of this level through the current stage so far.
     pub cells_done: usize,
     /// Cells of this level to fit.
     pub cells_total: usize,
@@ -283,7 +301,8 @@ pub struct LevelReport {
     /// met the CP bound at rank 0: ADMM does not run there).
     pub mean_admm_iterations: f64,
     /// The largest error Algorithm 2 stopped at in a cell, in the bound's units (unit-cube
-    /// field values at the data points, or the tensor's Frobenius norm with `cp_scale`).
+    /// field values at the data points, each divided by its slack, or the tensor's Frobenius
+    /// norm with `cp_scale`).
     pub max_cp_error: f64,
     /// The largest Sampson distance `|f^k|/|∇f^k|` over all points after this level, relative to
     /// the box diagonal.
@@ -339,11 +358,8 @@ pub fn fit_mras(
     let mut reports = Vec::new();
     let mut to_fit: Vec<[u64; 3]> = vec![[0, 0, 0]];
     let mut last_error = None;
-    // The largest Sampson distance left by the previous level (unit-cube units; the root's
-    // guess: 4% of the cube). A level's compression error need only be small against what the
-    // next levels will correct: the CP bound scales with a sixteenth of it, down to ε₀ (the
-    // paper's ε_cp^k = 10^{−k−1} also loosens the coarse levels).
-    let mut coarse_error = 0.04f64;
+    // No slack: the screen before ADMM and the levels that nothing refines.
+    let tight = vec![1.0; np];
     for level in 1..=options.max_level {
         if to_fit.is_empty() {
             break;
@@ -366,91 +382,148 @@ pub fn fit_mras(
                 if options.cp_scale > 0.0 {
                     CpBound::Tensor(options.cp_scale * 10f64.powi(-(level as i32) - 1))
                 } else {
-                    // The last level allowed has no finer one to correct it: ε₀ there.
-                    let corrected = if level < options.max_level {
-                        coarse_error / 16.0
-                    } else {
-                        0.0
-                    };
-                    CpBound::Points(options.cp_points * eps0.max(corrected))
+                    CpBound::Points(options.cp_points * eps0)
                 }
             }),
         };
-        let done = AtomicUsize::new(0);
+        // The targets of one cell; `slack` per point (see `MrasOptions::cp_refined`).
+        let targets_of = |index: [u64; 3], slack: &[f64]| {
+            let mut targets = gather(&buckets, &g, index, &cloud, &f, &grad, slack);
+            if level == 1 {
+                targets.extend(far_field(&cloud.u));
+            }
+            targets
+        };
         let total = to_fit.len();
-        // Per fitted cell: its index, the stored cell (`None`: `φ = 0` met the CP bound), its
-        // data points, ADMM iterations and CP error.
-        type Fitted = ([u64; 3], Option<MrasCell<3>>, usize, usize, f64);
-        let fits: Vec<Option<Fitted>> = to_fit
+        let done = AtomicUsize::new(0);
+        let report = |compressing: bool| {
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(&MrasProgress {
+                level,
+                compressing,
+                cells_done: d,
+                cells_total: total,
+                error: last_error,
+            });
+        };
+        // 1. Every cell's minimiser of eq. 14 (ADMM), the screen holding every point to the CP
+        //    bound itself: its index, solution and number of targets.
+        let solved: Vec<Option<([u64; 3], CellSolve, usize)>> = to_fit
             .par_iter()
             .map(|&index| {
-                let mut targets = gather(&buckets, &g, index, u, &cloud.normals, &f, &grad);
-                if level == 1 {
-                    targets.extend(far_field(&cloud.u));
-                }
+                let targets = targets_of(index, &tight);
                 let out = if targets.is_empty() {
                     None
                 } else {
-                    let lf = fit_cell(&g, index, &targets, &plate, &settings)?;
-                    let cell = lf.spline.map(|spline| MrasCell {
-                        index: index.map(|i| i as u32),
-                        spline,
-                    });
-                    Some((index, cell, targets.len(), lf.admm_iterations, lf.cp_error))
+                    let solution = solve_cell(&g, index, &targets, &plate, &settings)?;
+                    Some((index, solution, targets.len()))
                 };
-                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(&MrasProgress {
-                    level,
-                    cells_done: d,
-                    cells_total: total,
-                    error: last_error,
-                });
+                report(false);
                 Ok(out)
             })
             .collect::<Result<_, MrasError>>()?;
-        let fitted: Vec<_> = fits.into_iter().flatten().collect();
-        if fitted.is_empty() {
+        let solved: Vec<_> = solved.into_iter().flatten().collect();
+        if solved.is_empty() {
             break;
         }
-        let mean_points = fitted.iter().map(|c| c.2 as f64).sum::<f64>() / fitted.len() as f64;
-        let mean_iters = fitted.iter().map(|c| c.3 as f64).sum::<f64>() / fitted.len() as f64;
-        let cp_error = fitted.iter().map(|c| c.4).fold(0.0, f64::max);
-        let fitted_indices: Vec<[u64; 3]> = fitted.iter().map(|c| c.0).collect();
-        let cells: Vec<MrasCell<3>> = fitted.into_iter().filter_map(|c| c.1).collect();
+        let mean_points = solved.iter().map(|c| c.2 as f64).sum::<f64>() / solved.len() as f64;
+        let mean_iters = solved
+            .iter()
+            .map(|c| c.1.admm_iterations as f64)
+            .sum::<f64>()
+            / solved.len() as f64;
+        let fitted_indices: Vec<[u64; 3]> = solved.iter().map(|c| c.0).collect();
+        let may_refine = level < options.max_level;
+        // 2. The cells the next level refines, judged on the uncompressed level: the next level
+        //    fits their points again, so there the CP error may reach `cp_refined` times the
+        //    largest residual `|f^k|` the cell's own points keep (not less than the bound).
+        let mut refined_early = vec![false; solved.len()];
+        let slack = if matches!(settings.cp_bound, Some(CpBound::Points(_)))
+            && may_refine
+            && options.cp_refined > 0.0
+        {
+            let cells = solved
+                .iter()
+                .filter_map(|(index, solution, _)| {
+                    let c = solution.coefficients.clone()?;
+                    Some(MrasCell {
+                        index: index.map(|i| i as u32),
+                        spline: CellSpline::Full { coefficients: c },
+                    })
+                })
+                .collect();
+            let full = MrasLevel::new(level, m, cells).map_err(MrasError::Field)?;
+            // Only the own points of the cells fitted here decide (at the deep levels most
+            // points lie in none of them): their residual |f^k| and Sampson distance.
+            let own: Vec<u32> = fitted_indices
+                .iter()
+                .flat_map(|&index| buckets.points(index))
+                .copied()
+                .collect();
+            let at: Vec<(f64, f64)> = own
+                .par_iter()
+                .map(|&i| {
+                    let i = i as usize;
+                    let (o, og) = field.level_offset(&full, &u[i], true);
+                    let v = f[i] + o;
+                    let g: Point<3> = std::array::from_fn(|a| grad[i][a] + og[a]);
+                    (v.abs(), sampson_distance(v, &g))
+                })
+                .collect();
+            let (mut residual, mut distance) = (vec![0.0; np], vec![0.0; np]);
+            for (&i, &(r, d)) in own.iter().zip(&at) {
+                (residual[i as usize], distance[i as usize]) = (r, d);
+            }
+            refined_early = refined(&buckets, &fitted_indices, &distance, eps0, options);
+            let mut slack = tight.clone();
+            for (index, _) in fitted_indices.iter().zip(&refined_early).filter(|r| *r.1) {
+                let own = buckets.points(*index);
+                let residual = own.iter().fold(0.0f64, |a, &i| a.max(residual[i as usize]));
+                let cell_slack = (options.cp_refined * residual / eps0).max(1.0);
+                for &i in own {
+                    slack[i as usize] = cell_slack;
+                }
+            }
+            slack
+        } else {
+            tight.clone()
+        };
+        // 3. Each cell's CP factors within the bound (times its points' slack).
+        done.store(0, Ordering::Relaxed);
+        let compressed: Vec<(Option<MrasCell<3>>, f64)> = solved
+            .into_par_iter()
+            .map(|(index, solution, _)| {
+                let (spline, error) = match solution.coefficients {
+                    None => (None, solution.screen_error),
+                    Some(c) => {
+                        let targets = targets_of(index, &slack);
+                        compress_cell(&g, index, &targets, c, settings.cp_bound)?
+                    }
+                };
+                report(true);
+                let cell = spline.map(|spline| MrasCell {
+                    index: index.map(|i| i as u32),
+                    spline,
+                });
+                Ok((cell, error))
+            })
+            .collect::<Result<_, MrasError>>()?;
+        let cp_error = compressed.iter().map(|c| c.1).fold(0.0, f64::max);
+        let cells: Vec<MrasCell<3>> = compressed.into_iter().filter_map(|c| c.0).collect();
         let dropped = fitted_indices.len() - cells.len();
         let lvl = MrasLevel::new(level, m, cells).map_err(MrasError::Field)?;
-        // f^k and ∇f^k at every point (unit-cube units).
-        u.par_iter()
-            .zip(f.par_iter_mut())
-            .zip(grad.par_iter_mut())
-            .for_each(|((p, fv), gv)| {
-                let (o, og) = field.level_offset(&lvl, p, true);
-                *fv += o;
-                for a in 0..3 {
-                    gv[a] += og[a];
-                }
-            });
-        // Sampson distance per point; the worst per fitted cell (own points only; a cell not
-        // stored still splits where its points need it).
-        let sampson: Vec<f64> = f
-            .par_iter()
-            .zip(grad.par_iter())
-            .map(|(v, g)| {
-                let n = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-                if n > 0.0 { v.abs() / n } else { f64::INFINITY }
-            })
-            .collect();
+        // f^k and ∇f^k at every point (unit-cube units), and the Sampson distances.
+        add_level(&field, &lvl, u, &mut f, &mut grad);
+        let sampson = sampson_distances(&f, &grad);
         let max_error = sampson.iter().fold(0.0f64, |a, &b| a.max(b));
         let mean_error = sampson.iter().sum::<f64>() / np as f64;
+        // A cell splits where its own points need it after compression, or where step 2
+        // promised the next level to its points (a cell not stored splits too).
         let mut next = Vec::new();
-        if level < options.max_level {
-            for &index in &fitted_indices {
-                let own = buckets.points(index);
-                if own.len() <= options.n_min {
-                    continue;
-                }
-                let worst = own.iter().fold(0.0f64, |a, &i| a.max(sampson[i as usize]));
-                if worst > eps0 {
+        if may_refine {
+            let late = refined(&buckets, &fitted_indices, &sampson, eps0, options);
+            for ((index, early), late) in fitted_indices.iter().zip(refined_early).zip(late) {
+                if early || late {
                     for child in 0..8u64 {
                         next.push([
                             2 * index[0] + (child >> 2),
@@ -486,7 +559,6 @@ pub fn fit_mras(
             seconds: t0.elapsed().as_secs_f64(),
         });
         last_error = Some(max_error * to_rel);
-        coarse_error = max_error;
         field.push_level(lvl).map_err(MrasError::Field)?;
         to_fit = next;
     }
@@ -499,6 +571,59 @@ pub fn fit_mras(
         duplicates: cloud.duplicates,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Adds level `lvl`'s offset and its gradient to `f` and `grad` at the points `u`.
+fn add_level(
+    field: &MrasField<3>,
+    lvl: &MrasLevel<3>,
+    u: &[Point<3>],
+    f: &mut [f64],
+    grad: &mut [Point<3>],
+) {
+    u.par_iter()
+        .zip(f.par_iter_mut())
+        .zip(grad.par_iter_mut())
+        .for_each(|((p, fv), gv)| {
+            let (o, og) = field.level_offset(lvl, p, true);
+            *fv += o;
+            for a in 0..3 {
+                gv[a] += og[a];
+            }
+        });
+}
+
+/// The Sampson distance `|f| / |∇f|` at every point (unit-cube units).
+fn sampson_distances(f: &[f64], grad: &[Point<3>]) -> Vec<f64> {
+    f.par_iter()
+        .zip(grad.par_iter())
+        .map(|(&v, g)| sampson_distance(v, g))
+        .collect()
+}
+
+/// The Sampson distance `|f| / |∇f|` of value `f` and gradient `g` (infinite where `∇f = 0`).
+fn sampson_distance(f: f64, g: &Point<3>) -> f64 {
+    let n = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+    if n > 0.0 { f.abs() / n } else { f64::INFINITY }
+}
+
+/// §5.1's rule per fitted cell: split where it holds more than `N_min` points of its own and
+/// the largest Sampson distance among them exceeds `ε₀`.
+fn refined(
+    buckets: &Buckets,
+    cells: &[[u64; 3]],
+    sampson: &[f64],
+    eps0: f64,
+    options: &MrasOptions,
+) -> Vec<bool> {
+    cells
+        .iter()
+        .map(|&index| {
+            let own = buckets.points(index);
+            own.len() > options.n_min
+                && own.iter().fold(0.0f64, |a, &i| a.max(sampson[i as usize])) > eps0
+        })
+        .collect()
 }
 
 /// The checked, de-duplicated cloud in unit-cube coordinates.
@@ -748,6 +873,7 @@ fn far_field(u: &[Point<3>]) -> Vec<Target> {
                         u: p,
                         value: len,
                         gradient: best.1.map(|v| v / len),
+                        slack: 1.0,
                     });
                 }
             }
@@ -756,16 +882,16 @@ fn far_field(u: &[Point<3>]) -> Vec<Target> {
     out
 }
 
-/// The targets of one cell: the points inside its support, with `−f^{k−1}` and
-/// `n − ∇f^{k−1}`, in a fixed order (lattice cells in order, points by index inside each).
+/// The targets of one cell: the points inside its support, with `−f^{k−1}`, `n − ∇f^{k−1}`
+/// and their `slack`, in a fixed order (lattice cells in order, points by index inside each).
 fn gather(
     buckets: &Buckets,
     g: &LevelGeometry,
     index: [u64; 3],
-    u: &[Point<3>],
-    normals: &[Point<3>],
+    cloud: &Cloud,
     f: &[f64],
     grad: &[Point<3>],
+    slack: &[f64],
 ) -> Vec<Target> {
     let centre = index.map(|i| g.centre(i));
     let r2 = g.radius * g.radius;
@@ -784,13 +910,14 @@ fn gather(
                 }
                 for &i in buckets.points(j.map(|v| v as u64)) {
                     let i = i as usize;
-                    let p = u[i];
+                    let p = cloud.u[i];
                     let d2: f64 = (0..3).map(|a| (p[a] - centre[a]).powi(2)).sum();
                     if d2 < r2 {
                         out.push(Target {
                             u: p,
                             value: -f[i],
-                            gradient: std::array::from_fn(|a| normals[i][a] - grad[i][a]),
+                            gradient: std::array::from_fn(|a| cloud.normals[i][a] - grad[i][a]),
+                            slack: slack[i],
                         });
                     }
                 }

@@ -111,12 +111,15 @@ impl ThinPlate {
 }
 
 /// One data point of a local fit: unit-cube position, the value the offset must reach
-/// (`−f^{k−1}(p)`) and the gradient it must reach (`n − ∇f^{k−1}(p)`).
+/// (`−f^{k−1}(p)`) and the gradient it must reach (`n − ∇f^{k−1}(p)`), and how many times
+/// [`CpBound::Points`]' `ε` the compression may change the offset there (`slack ≥ 1`: more
+/// where a finer level will fit the point again).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Target {
     pub u: Point<3>,
     pub value: f64,
     pub gradient: Point<3>,
+    pub slack: f64,
 }
 
 /// The weights of the local energy and its solver.
@@ -138,6 +141,7 @@ pub(crate) struct LocalSettings {
 }
 
 /// What one cell's fit produced.
+#[cfg(test)]
 #[derive(Debug, Clone)]
 pub(crate) struct LocalFit {
     /// `None`: `φ = 0` meets the CP bound (Algorithm 2 at rank 0), so the cell is not stored —
@@ -148,7 +152,20 @@ pub(crate) struct LocalFit {
     pub cp_error: f64,
 }
 
-/// Fits one cell (centre index `index` on the level of geometry `g`) to `targets`.
+/// One cell's minimiser of eq. 14, before compression.
+#[derive(Debug, Clone)]
+pub(crate) struct CellSolve {
+    /// The coefficient tensor; `None` where the screen found `φ = 0` within the CP bound at
+    /// every point before ADMM (rank 0: not stored).
+    pub coefficients: Option<Vec<f64>>,
+    pub admm_iterations: usize,
+    /// The screen's error (the largest `|φ| / slack` of the fit without the trace norm at the
+    /// points) for a screened cell, 0 otherwise.
+    pub screen_error: f64,
+}
+
+/// Fits and compresses one cell: [`solve_cell`] then [`compress_cell`].
+#[cfg(test)]
 pub(crate) fn fit_cell(
     g: &LevelGeometry,
     index: [u64; 3],
@@ -156,24 +173,34 @@ pub(crate) fn fit_cell(
     plate: &ThinPlate,
     s: &LocalSettings,
 ) -> Result<LocalFit, MrasError> {
-    let m = g.knots;
-    debug_assert_eq!(plate.m, m);
-    let n = m * m * m;
-    let centre = [g.centre(index[0]), g.centre(index[1]), g.centre(index[2])];
-    // Normal equations of Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²: H' c = b'. Points in the same knot
-    // interval read the same 27 coefficients: their 27 × 27 blocks are summed in a small dense
-    // buffer and added to H once per interval (a scattered add per point into the m³ × m³
-    // matrix was the fit's largest cost).
-    let mut hm = Mat::<f64>::zeros(n, n);
-    let mut b = vec![0.0; n];
-    let mut rows: Vec<Row> = Vec::with_capacity(targets.len());
-    let mut local: Vec<(usize, [f64; 27], [[f64; 27]; 3])> = Vec::with_capacity(targets.len());
-    for t in targets {
+    let solved = solve_cell(g, index, targets, plate, s)?;
+    let (spline, cp_error) = match solved.coefficients {
+        None => (None, solved.screen_error),
+        Some(c) => compress_cell(g, index, targets, c, s.cp_bound)?,
+    };
+    Ok(LocalFit {
+        spline,
+        admm_iterations: solved.admm_iterations,
+        cp_error,
+    })
+}
+
+/// A data point's 27 quadratic B-spline values and gradients (unit-cube units) in a cell's
+/// support box: the tensor products over its knot interval, which starts at B-spline `first`.
+struct PointBasis {
+    first: [usize; 3],
+    val: [f64; 27],
+    grad: [[f64; 27]; 3],
+}
+
+impl PointBasis {
+    fn new(g: &LevelGeometry, centre: &Point<3>, u: &Point<3>) -> Self {
+        let m = g.knots;
         let mut first = [0usize; 3];
         let mut w = [[0.0; 3]; 3];
         let mut d1 = [[0.0; 3]; 3];
         for a in 0..3 {
-            let aw = weights::<3>(g.spline_index(t.u[a], centre[a]));
+            let aw = weights::<3>(g.spline_index(u[a], centre[a]));
             first[a] = aw.first as usize;
             for q in 0..3 {
                 if first[a] + q < m {
@@ -184,11 +211,6 @@ pub(crate) fn fit_cell(
         }
         let mut val = [0.0; 27];
         let mut grad = [[0.0; 27]; 3];
-        let mut row = Row {
-            len: 0,
-            idx: [0; 27],
-            val: [0.0; 27],
-        };
         for i in 0..3 {
             for j in 0..3 {
                 for l in 0..3 {
@@ -197,42 +219,92 @@ pub(crate) fn fit_cell(
                     grad[0][k] = d1[0][i] * w[1][j] * w[2][l];
                     grad[1][k] = w[0][i] * d1[1][j] * w[2][l];
                     grad[2][k] = w[0][i] * w[1][j] * d1[2][l];
-                    let (a, bb, c) = (first[0] + i, first[1] + j, first[2] + l);
-                    if a < m && bb < m && c < m {
-                        row.idx[row.len] = (a * m + bb) * m + c;
-                        row.val[row.len] = val[k];
-                        row.len += 1;
-                    }
                 }
             }
         }
-        let key = (first[0] * m + first[1]) * m + first[2];
-        let o1 = s.omega1;
+        Self { first, val, grad }
+    }
+
+    /// The knot interval, as the flat index of its first coefficient.
+    fn key(&self, m: usize) -> usize {
+        (self.first[0] * m + self.first[1]) * m + self.first[2]
+    }
+
+    /// The flat index of local basis function `k` (of 27), if it is inside the `m³` tensor.
+    fn global(&self, m: usize, k: usize) -> Option<usize> {
+        let f = self.first;
+        let (a, b, c) = (f[0] + k / 9, f[1] + (k / 3) % 3, f[2] + k % 3);
+        (a < m && b < m && c < m).then_some((a * m + b) * m + c)
+    }
+
+    /// The point's row of the evaluation matrix, with its target's `slack`.
+    fn row(&self, m: usize, slack: f64) -> Row {
+        let mut row = Row {
+            len: 0,
+            idx: [0; 27],
+            val: [0.0; 27],
+            inv_slack: 1.0 / slack,
+        };
         for k in 0..27 {
-            let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
-            if a < m && bb < m && c < m {
-                b[(a * m + bb) * m + c] += val[k] * t.value
-                    + o1 * (grad[0][k] * t.gradient[0]
-                        + grad[1][k] * t.gradient[1]
-                        + grad[2][k] * t.gradient[2]);
+            if let Some(i) = self.global(m, k) {
+                row.idx[row.len] = i;
+                row.val[row.len] = self.val[k];
+                row.len += 1;
             }
         }
-        rows.push(row);
-        local.push((key, val, grad));
+        row
     }
-    let mut order: Vec<usize> = (0..local.len()).collect();
-    order.sort_by_key(|&i| local[i].0);
+}
+
+/// Minimises eq. 14 over one cell's coefficients (centre index `index` on the level of
+/// geometry `g`) for `targets`: the fit without the trace norm, then ADMM from it — unless the
+/// screen finds `φ = 0` within `s.cp_bound` at every point.
+pub(crate) fn solve_cell(
+    g: &LevelGeometry,
+    index: [u64; 3],
+    targets: &[Target],
+    plate: &ThinPlate,
+    s: &LocalSettings,
+) -> Result<CellSolve, MrasError> {
+    let m = g.knots;
+    debug_assert_eq!(plate.m, m);
+    let n = m * m * m;
+    let centre = [g.centre(index[0]), g.centre(index[1]), g.centre(index[2])];
+    // Normal equations of Σ (φ − y)² + ω₁ Σ ‖∇φ − t‖²: H' c = b'. Points in the same knot
+    // interval read the same 27 coefficients: their 27 × 27 blocks are summed in a small dense
+    // buffer and added to H once per interval (a scattered add per point into the m³ × m³
+    // matrix was the fit's largest cost).
+    let mut hm = Mat::<f64>::zeros(n, n);
+    let mut b = vec![0.0; n];
+    let bases: Vec<PointBasis> = targets
+        .iter()
+        .map(|t| PointBasis::new(g, &centre, &t.u))
+        .collect();
+    let o1 = s.omega1;
+    for (p, t) in bases.iter().zip(targets) {
+        for k in 0..27 {
+            if let Some(i) = p.global(m, k) {
+                b[i] += p.val[k] * t.value
+                    + o1 * (p.grad[0][k] * t.gradient[0]
+                        + p.grad[1][k] * t.gradient[1]
+                        + p.grad[2][k] * t.gradient[2]);
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..bases.len()).collect();
+    order.sort_by_key(|&i| bases[i].key(m));
     let mut block = [[0.0f64; 27]; 27];
     let mut start = 0;
     while start < order.len() {
-        let key = local[order[start]].0;
+        let interval = &bases[order[start]];
+        let key = interval.key(m);
         let mut end = start;
         for row in block.iter_mut() {
             row.fill(0.0);
         }
         // The block is symmetric: its upper triangle (q ≥ p) only, mirrored in the scatter.
-        while end < order.len() && local[order[end]].0 == key {
-            let (_, val, grad) = &local[order[end]];
+        while end < order.len() && bases[order[end]].key(m) == key {
+            let PointBasis { val, grad, .. } = &bases[order[end]];
             for (p, row) in block.iter_mut().enumerate() {
                 let (vp, g0, g1, g2) = (
                     val[p],
@@ -246,11 +318,7 @@ pub(crate) fn fit_cell(
             }
             end += 1;
         }
-        let first = [key / (m * m), (key / m) % m, key % m];
-        let global = |k: usize| -> Option<usize> {
-            let (a, bb, c) = (first[0] + k / 9, first[1] + (k / 3) % 3, first[2] + k % 3);
-            (a < m && bb < m && c < m).then_some((a * m + bb) * m + c)
-        };
+        let global = |k: usize| interval.global(m, k);
         for (p, row) in block.iter().enumerate() {
             let Some(gp) = global(p) else { continue };
             let col = hm.col_as_slice_mut(gp);
@@ -288,16 +356,22 @@ pub(crate) fn fit_cell(
     let shape = [m, m, m];
     let start = ridge_solution(hm.as_ref(), &b, 1e-12 * mean_diag)?;
     // A screen: where even the offset the data asks for without the trace norm stays within the
-    // CP bound at every point, `φ = 0` will do (rank 0) and ADMM need not run. (On the bunny
-    // the ADMM offset then met the bound too in all but 1 of 728 cells; 1,932 cells of 6,552
-    // end at rank 0 in all.)
+    // CP bound at every point, `φ = 0` will do (rank 0) and ADMM need not run. (On the bunny,
+    // when the screen came, the ADMM offset then met the bound too in all but 1 of 728 cells.
+    // The fit screens with every slack at 1, the tightest bound compression may get, so a
+    // screened cell is one the compression would drop too.)
     if let Some(bound) = s.cp_bound {
+        let rows: Vec<Row> = bases
+            .iter()
+            .zip(targets)
+            .map(|(p, t)| p.row(m, t.slack))
+            .collect();
         let error = zero_error(&start, bound, &rows);
         if error <= bound.epsilon() {
-            return Ok(LocalFit {
-                spline: None,
+            return Ok(CellSolve {
+                coefficients: None,
                 admm_iterations: 0,
-                cp_error: error,
+                screen_error: error,
             });
         }
     }
@@ -326,15 +400,34 @@ pub(crate) fn fit_cell(
         t.apply_transpose_add(z, &mut c);
     }
     c.iter_mut().for_each(|v| *v /= terms.len() as f64);
-    let (spline, cp_error) = match s.cp_bound {
-        None => (Some(CellSpline::Full { coefficients: c }), 0.0),
-        Some(bound) => compress(c, m, bound, &rows)?,
-    };
-    Ok(LocalFit {
-        spline,
+    Ok(CellSolve {
+        coefficients: Some(c),
         admm_iterations: sol.iterations,
-        cp_error,
+        screen_error: 0.0,
     })
+}
+
+/// Stores one cell's coefficients `c` (from [`solve_cell`] on the same cell and targets): as
+/// CP factors of the smallest rank Algorithm 2 finds within `bound` at the targets (each
+/// allowed its `slack`), `None` where `φ = 0` already is; the full tensor without a bound.
+/// Returns the spline and the error it stopped at.
+pub(crate) fn compress_cell(
+    g: &LevelGeometry,
+    index: [u64; 3],
+    targets: &[Target],
+    c: Vec<f64>,
+    bound: Option<CpBound>,
+) -> Result<(Option<CellSpline<3>>, f64), MrasError> {
+    let m = g.knots;
+    let Some(bound) = bound else {
+        return Ok((Some(CellSpline::Full { coefficients: c }), 0.0));
+    };
+    let centre = [g.centre(index[0]), g.centre(index[1]), g.centre(index[2])];
+    let rows: Vec<Row> = targets
+        .iter()
+        .map(|t| PointBasis::new(g, &centre, &t.u).row(m, t.slack))
+        .collect();
+    compress(c, m, bound, &rows)
 }
 
 /// CP-ALS stops when its relative error changes by less than this between sweeps …
@@ -369,7 +462,7 @@ fn zero_error(c: &[f64], bound: CpBound, rows: &[Row]) -> f64 {
     }
 }
 
-/// `max_p |Σ_k row_p[k] · coefficient(idx_p[k])|` over the data points' rows.
+/// `max_p |Σ_k row_p[k] · coefficient(idx_p[k])| / slack_p` over the data points' rows.
 fn max_at_points(rows: &[Row], coefficient: impl Fn(usize) -> f64) -> f64 {
     rows.iter()
         .map(|r| {
@@ -377,15 +470,17 @@ fn max_at_points(rows: &[Row], coefficient: impl Fn(usize) -> f64) -> f64 {
                 .map(|k| r.val[k] * coefficient(r.idx[k]))
                 .sum::<f64>()
                 .abs()
+                * r.inv_slack
         })
         .fold(0.0, f64::max)
 }
 
-/// One data point's basis row (up to 27 entries).
+/// One data point's basis row (up to 27 entries) and `1 / slack` of its target.
 struct Row {
     len: usize,
     idx: [usize; 27],
     val: [f64; 27],
+    inv_slack: f64,
 }
 
 /// CP factors of the `m³` tensor `c` by Algorithm 2, made scale-free and tightened:
@@ -551,6 +646,7 @@ mod tests {
                         u: [0.25, y, z],
                         value: a * (y - 0.25),
                         gradient: [0.0; 3],
+                        slack: 1.0,
                     }
                 })
                 .collect()
@@ -597,6 +693,7 @@ mod tests {
             len: 1,
             idx: [0; 27],
             val: [0.0; 27],
+            inv_slack: 1.0,
         };
         row.idx[0] = 100;
         row.val[0] = 1.0;

@@ -76,10 +76,18 @@
 //! `R⁰ = ⌈Σ γ_i ‖C_(i)‖_* / ‖C‖_F⌉` (the paper's start divided by the tensor's norm, so that
 //! it does not depend on the coefficients' units), then `R += ⌈3 ln(error/ε)⌉`, then a
 //! bisection back between the last rank that failed and the first that held — until the CP
-//! factors change `φ` at the cell's data points by at most `ε = 0.5 · max(ε₀, e_{k−1}/16)`,
-//! `e_{k−1}` the largest error the previous level left ([`MrasOptions::cp_points`]; `0.5 ε₀`
-//! at the level cap, which no level corrects): coarse levels may compress harder since finer
-//! ones correct them, as with the paper's `10^{−k−1}`. The paper's
+//! factors change `φ` at each of the cell's data points by at most `0.5 · ε₀ · slack`
+//! ([`MrasOptions::cp_points`]). `slack = 1` where the field ends; where the next level refines
+//! a cell (decided on the level before compression, by the rule below), its points allow
+//! `slack = max(1, r_j/ε₀)` ([`MrasOptions::cp_refined`]), `r_j` the largest residual
+//! `|f^k|` its own points keep: the next level fits those points again, so coarse levels may
+//! compress harder, as with the paper's `10^{−k−1}`, yet the residual a point hands on grows
+//! by at most half of the largest one in its cell (the blend is a convex combination of the
+//! cells' errors there, each within the point's own bound). (A bound
+//! from the previous level's largest Sampson distance, tried first, was inflated at points
+//! where `∇f` nearly vanished and then let every cell of a level go at rank 0, and the next
+//! level, seeing the same error, too: the bunny with `m₀ = 11` ended at 0.33 of the
+//! diagonal.) The paper's
 //! bound `‖C − Ĉ‖_F ≤ 10^{−k−1}` is available ([`MrasOptions::cp_scale`]) but spends rank on
 //! coefficients no point sees. The rank is capped at `m²/3`, where `3mR` numbers stop being
 //! fewer than `m³` (a cell that needs more is stored full). `f^k` is built from the CP

@@ -157,10 +157,11 @@ pub struct MeshArgs {
     pub level: f64,
 
     /// Voxel edge by the l0 rule of the field's box: coarse 5·l0, general l0, fine 0.3·l0, with
-    /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length.
-    #[arg(long, value_enum, default_value_t = DetailArg::General,
-          conflicts_with_all = ["resolution", "voxel"])]
-    pub detail: DetailArg,
+    /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length [default: general;
+    /// fine for MRAS fields, fitted to scans within 1e-3 of their diagonal, which general
+    /// voxels would not resolve].
+    #[arg(long, value_enum, conflicts_with_all = ["resolution", "voxel"])]
+    pub detail: Option<DetailArg>,
 
     /// N cubic voxels along the longest axis of the field's box (at least 2).
     #[arg(long, value_name = "N", conflicts_with = "voxel")]
@@ -269,7 +270,12 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             (h, "--voxel".to_string())
         }
         (None, None) => {
-            let detail = Detail::from(args.detail);
+            let default = if field.wants_fine_mesh() {
+                DetailArg::Fine
+            } else {
+                DetailArg::General
+            };
+            let detail = Detail::from(args.detail.unwrap_or(default));
             (
                 voxel::voxel_size(&bounds, detail),
                 format!(

@@ -1878,6 +1878,8 @@ fn mras_fit_info_mesh_and_restore() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).contains("closed"), "{}", stdout(&o));
+    // at fine detail by default (the field is fitted within 1e-3 of the diagonal).
+    assert!(stdout(&o).contains("Fine detail"), "{}", stdout(&o));
     // --method smc refuses it with a reason.
     let o = zeroset([
         OsStr::new("mesh"),

@@ -146,10 +146,12 @@ pub(crate) fn marching_cubes_volume<'py>(
 }
 
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
-/// `voxel` edge, or the `detail` class of the l0 rule.
+/// `voxel` edge, or the `detail` class of the l0 rule (`None`: fine for a field that
+/// [`AnyField::wants_fine_mesh`], general otherwise).
 fn field_grid(
+    field: &AnyField<3>,
     bounds: Aabb<3>,
-    detail: &str,
+    detail: Option<&str>,
     resolution: Option<usize>,
     voxel_edge: Option<f64>,
 ) -> PyResult<Grid<3>> {
@@ -165,7 +167,12 @@ fn field_grid(
         }
         (None, Some(h)) => h,
         (None, None) => {
-            let detail = match detail {
+            let default = if field.wants_fine_mesh() {
+                "fine"
+            } else {
+                "general"
+            };
+            let detail = match detail.unwrap_or(default) {
                 "coarse" => Detail::Coarse,
                 "general" => Detail::General,
                 "fine" => Detail::Fine,
@@ -194,7 +201,7 @@ pub(crate) fn mesh_native<'py>(
     py: Python<'py>,
     field: &NativeField,
     level: f64,
-    detail: &str,
+    detail: Option<&str>,
     resolution: Option<usize>,
     voxel: Option<f64>,
     method: &str,
@@ -208,7 +215,7 @@ pub(crate) fn mesh_native<'py>(
     let bounds = f
         .bounds()
         .ok_or_else(|| value_error("the field has no bounds to mesh in"))?;
-    let grid = field_grid(bounds, detail, resolution, voxel)?;
+    let grid = field_grid(f, bounds, detail, resolution, voxel)?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
     let result = py.detach(|| -> PyResult<MeshParts<i64>> {

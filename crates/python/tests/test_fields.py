@@ -150,6 +150,10 @@ def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
     path = tmp_path / "m.zsf"
     f.save(path)
     assert np.array_equal(zeroset.load(path)(points), v)
+    # an MRAS field is meshed at fine detail by default, as `zeroset mesh` does
+    default, fine = zeroset.mesh(f)[0], zeroset.mesh(f, detail="fine")[0]
+    assert np.array_equal(default, fine)
+    assert len(zeroset.mesh(f, detail="general")[0]) < len(fine) / 4
 
 
 @pytest.mark.parametrize(

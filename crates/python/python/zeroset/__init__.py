@@ -565,7 +565,7 @@ def mesh(
     field: FieldLike,
     level: float = 0.0,
     *,
-    detail: str = "general",
+    detail: Optional[str] = None,
     resolution: Optional[int] = None,
     voxel: Optional[float] = None,
     method: str = "mc",
@@ -579,7 +579,9 @@ def mesh(
     normals ``∇f/‖∇f‖`` (outward for a zeroset field), as ``zeroset mesh`` makes it.
 
     The voxel edge follows the ``detail`` class (``"coarse"``, ``"general"``, ``"fine"``:
-    5, 1 or 0.3 times the box's reference length), or ``resolution`` voxels along the
+    5, 1 or 0.3 times the box's reference length; by default ``"fine"`` for MRAS fields,
+    fitted to scans within 1e-3 of their diagonal, and ``"general"`` for the others), or
+    ``resolution`` voxels along the
     longest axis, or the edge ``voxel``. ``method="mc"`` samples the field on the grid and
     runs marching cubes; ``method="smc"`` (RBF fields) runs the two-step signed marching
     cubes with fast multipole expansions of orders 5 and 10, which evaluates the exact

@@ -86,7 +86,7 @@ def marching_cubes_volume(
 def mesh_native(
     field: NativeField,
     level: float,
-    detail: str,
+    detail: Optional[str],
     resolution: Optional[int],
     voxel: Optional[float],
     method: str,

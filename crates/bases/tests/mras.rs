@@ -376,11 +376,11 @@ fn bunny() -> (Vec<P>, Vec<P>) {
 
 /// Regression: the CP bound of levels 2, 3, … was once a sixteenth of the largest Sampson
 /// distance the previous level left. After the bunny's root with 9 or 10 B-splines per axis
-/// (`m₀` 10 or 11) that distance is 0.79 / 0.31 of the diagonal, at points where `∇f` nearly
-/// vanishes, while `|f|` stays below 1.3e-2 — so the bound exceeded every cell's offset,
-/// each level was dropped whole at rank 0 and the field ended at those errors (0.18 / 0.33
-/// after 7 levels). The bound now follows each refined cell's own residual: every level
-/// stores cells and lowers the error.
+/// (`m₀` 10 or 11) that distance is 0.79 / 0.35 of the diagonal, at points where `∇f` nearly
+/// vanishes, while `|f|` stays below 1.3e-2 of the cube (`m₀` 11) — so the bound exceeded
+/// every cell's offset, each level was dropped whole at rank 0 and the field ended at those
+/// errors (0.18 / 0.33 after 7 levels). The bound now follows each refined cell's own
+/// residual: every level stores cells and lowers the error.
 #[test]
 fn compression_never_drops_the_offsets_a_coarse_level_needs() {
     let (points, normals) = bunny();

@@ -147,14 +147,16 @@ pub(crate) fn marching_cubes_volume<'py>(
 
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
 /// `voxel` edge, or the `detail` class of the l0 rule (`None`: fine for a field that
-/// [`AnyField::wants_fine_mesh`], general otherwise).
+/// [`AnyField::wants_fine_mesh`], general otherwise), over the field's box.
 fn field_grid(
     field: &AnyField<3>,
-    bounds: Aabb<3>,
     detail: Option<&str>,
     resolution: Option<usize>,
     voxel_edge: Option<f64>,
 ) -> PyResult<Grid<3>> {
+    let bounds = field
+        .bounds()
+        .ok_or_else(|| value_error("the field has no bounds to mesh in"))?;
     let h = match (resolution, voxel_edge) {
         (Some(_), Some(_)) => return Err(value_error("give resolution= or voxel=, not both")),
         (Some(n), None) => {
@@ -212,10 +214,7 @@ pub(crate) fn mesh_native<'py>(
         return Err(value_error(format!("level must be finite, got {level}")));
     }
     let f = &field.inner;
-    let bounds = f
-        .bounds()
-        .ok_or_else(|| value_error("the field has no bounds to mesh in"))?;
-    let grid = field_grid(f, bounds, detail, resolution, voxel)?;
+    let grid = field_grid(f, detail, resolution, voxel)?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
     let result = py.detach(|| -> PyResult<MeshParts<i64>> {

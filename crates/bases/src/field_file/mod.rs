@@ -328,7 +328,7 @@ impl<const D: usize> AnyField<D> {
     /// of its diagonal by default, and the bunny's meshed at general detail (4.3 mm voxels)
     /// leaves the points 2.9× farther from the mesh on average (mean 1.1e-3 of the diagonal,
     /// max 1.3e-2) than at fine (1.3 mm: 3.8e-4, max 4.5e-3, about as close as the field
-    /// itself), at about a second to mesh.
+    /// itself), at about a second to mesh on 2 threads.
     pub fn wants_fine_mesh(&self) -> bool {
         matches!(self, AnyField::Mras(_))
     }

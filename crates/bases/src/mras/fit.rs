@@ -484,10 +484,11 @@ pub fn fit_mras(
                     slack[i as usize] = cell_slack;
                 }
             }
-            slack
+            Some(slack)
         } else {
-            tight.clone()
+            None
         };
+        let slack = slack.as_deref().unwrap_or(&tight);
         // 3. Each cell's CP factors within the bound (times its points' slack).
         done.store(0, Ordering::Relaxed);
         let compressed: Vec<(Option<MrasCell<3>>, f64)> = solved
@@ -496,7 +497,7 @@ pub fn fit_mras(
                 let (spline, error) = match solution.coefficients {
                     None => (None, solution.screen_error),
                     Some(c) => {
-                        let targets = targets_of(index, &slack);
+                        let targets = targets_of(index, slack);
                         compress_cell(&g, index, &targets, c, settings.cp_bound)?
                     }
                 };

@@ -19,6 +19,8 @@
 //! - [`mras`] — multilevel rational algebraic splines (Pan–Tong–Chen): an octree of quadratic
 //!   B-spline offsets blended by a partition of unity, fitted by ADMM with a trace-norm term and
 //!   stored as CP factors of adaptive rank.
+//! - [`outliers`] — the stray samples of an oriented scan (isolated from the surface the rest
+//!   samples), set aside before a fit so that they do not become surface.
 
 #![warn(missing_docs)]
 
@@ -26,5 +28,6 @@ pub mod bspline;
 pub mod field_file;
 pub mod mras;
 pub mod neural;
+pub mod outliers;
 pub mod rbf;
 pub mod tangent_plane;

@@ -260,6 +260,9 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     let start = Instant::now();
     if let Some(dim) = value_file_dimension(&args.points) {
+        if args.mras.outlier_ratio.is_some() {
+            bail!("--outlier-ratio applies to oriented point clouds, not to value files");
+        }
         let kernel = check_value_request(args, dim)?;
         if dim == 2 {
             fit_values::<2>(args, kernel)?;
@@ -270,6 +273,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         let kernel = check_request(args)?;
         let cloud = load(args)?;
         print_input(args, &cloud);
+        let cloud = set_aside_outliers(args, cloud)?;
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
         with_kernel(
             kernel,
@@ -294,6 +298,43 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The cloud without the stray points [`zeroset_bases::outliers`] finds at `--outlier-ratio`
+/// (default 3), reported: an RBF interpolant would make each of them surface. (MRAS sets
+/// them aside itself.)
+fn set_aside_outliers(args: &FitArgs, cloud: PointCloud3) -> anyhow::Result<PointCloud3> {
+    let ratio = args
+        .mras
+        .outlier_ratio
+        .unwrap_or(zeroset_bases::outliers::DEFAULT_OUTLIER_RATIO);
+    if !zeroset_bases::outliers::valid_ratio(ratio) {
+        bail!(
+            "--outlier-ratio {ratio}: give 0 (off) or a ratio ≥ 1.5 (below, most of a surface's \
+             points would be isolated)"
+        );
+    }
+    let Some(normals) = cloud.normals() else {
+        return Ok(cloud);
+    };
+    let found = zeroset_bases::outliers::find_outliers(cloud.positions(), normals, ratio);
+    crate::fit_mras::print_outliers_of(&found.indices, found.kept_sparse, cloud.positions(), ratio);
+    if found.indices.is_empty() {
+        return Ok(cloud);
+    }
+    let mut keep = vec![true; cloud.len()];
+    for &i in &found.indices {
+        keep[i] = false;
+    }
+    let (positions, normals): (Vec<Point<3>>, Vec<Point<3>>) = cloud
+        .positions()
+        .iter()
+        .zip(normals)
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|((p, n), _)| (*p, *n))
+        .unzip();
+    PointCloud3::with_normals(positions, normals).context("the cloud without its outliers")
 }
 
 /// A fit to run with whichever kernel `--kernel` names ([`with_kernel`]).

@@ -16,7 +16,7 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 
 use zeroset_bases::field_file::write_mras_field;
-use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
+use zeroset_bases::mras::{MrasFit, MrasOptions, MrasProgress, fit_mras};
 
 use crate::fit::{FitArgs, line, load, more, print_check, print_input};
 use crate::info::g;
@@ -43,6 +43,11 @@ pub struct MrasArgs {
     /// Keep every cell's full coefficient tensor instead of its CP factors (for comparison).
     #[arg(long, help_heading = HEADING)]
     pub no_compress: bool,
+    /// Set aside stray points before fitting (--method mras and rbf, oriented clouds): those
+    /// whose spacing (mean distance to their 8 nearest) exceeds R times the median and that do
+    /// not lie on a surface with their neighbours; 0 fits every point [default: 3].
+    #[arg(long, value_name = "R", help_heading = HEADING)]
+    pub outlier_ratio: Option<f64>,
 }
 
 impl MrasArgs {
@@ -85,6 +90,7 @@ impl MrasArgs {
         [
             (self.tolerance.is_some(), "--tolerance"),
             (self.tolerance_distance.is_some(), "--tolerance-distance"),
+            (self.outlier_ratio.is_some(), "--outlier-ratio"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -116,8 +122,67 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     if let Some(l) = args.neural.lambda {
         o.lambda = l;
     }
+    if let Some(r) = args.mras.outlier_ratio {
+        o.outlier_ratio = r;
+    }
     o.compress = !args.mras.no_compress;
     Ok(o)
+}
+
+/// Reports the points set aside as outliers (and the isolated ones kept as sparse surface).
+fn print_outliers(fit: &MrasFit, positions: &[[f64; 3]], options: &MrasOptions) {
+    print_outliers_of(
+        &fit.outliers,
+        fit.kept_sparse,
+        positions,
+        options.outlier_ratio,
+    );
+}
+
+/// Reports `outliers` (input indices into `positions`) set aside at `ratio`, and the
+/// `kept_sparse` isolated points kept.
+pub(crate) fn print_outliers_of(
+    outliers: &[usize],
+    kept_sparse: usize,
+    positions: &[[f64; 3]],
+    ratio: f64,
+) {
+    if ratio == 0.0 {
+        line(
+            "outliers",
+            "not looked for (--outlier-ratio 0): every point fitted",
+        );
+        return;
+    }
+    let sparse = match kept_sparse {
+        0 => String::new(),
+        k => format!("; {k} isolated but kept: on a surface with their neighbours"),
+    };
+    if outliers.is_empty() {
+        line("outliers", &format!("none{sparse}"));
+        return;
+    }
+    const SHOWN: usize = 3;
+    let examples: Vec<String> = outliers
+        .iter()
+        .take(SHOWN)
+        .map(|&i| format!("#{i} {}", crate::info::point(positions[i])))
+        .collect();
+    line(
+        "outliers",
+        &format!(
+            "{} stray point{} set aside, not fitted (spacing > {}× the median, off their \
+             neighbours' surface){sparse}; --outlier-ratio 0 fits every point",
+            outliers.len(),
+            if outliers.len() == 1 { "" } else { "s" },
+            g(ratio),
+        ),
+    );
+    more(&format!(
+        "{}{}",
+        examples.join(", "),
+        if outliers.len() > SHOWN { ", …" } else { "" }
+    ));
 }
 
 /// Runs `zeroset fit --method mras`.
@@ -178,6 +243,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             &format!("{} exact duplicate positions merged", fit.duplicates),
         );
     }
+    print_outliers(&fit, cloud.positions(), &options);
     line(
         "levels",
         "level  m  cells  ranks min/mean/max  stored  uncompressed  max error  mean error  split",

@@ -73,6 +73,12 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
+    /// Stray points set aside before the fit: spacing (mean distance to the 8 nearest) above R
+    /// times the median and not on a surface with their neighbours; 0 fits every point
+    /// [default: 3] (as `zeroset fit --outlier-ratio`).
+    #[arg(long, value_name = "R")]
+    pub outlier_ratio: Option<f64>,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -193,6 +199,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         os(fit_method),
     ];
     argv.extend([os("-o"), field.as_os_str()]);
+    let ratio = args.outlier_ratio.map(|r| r.to_string());
+    if let Some(r) = &ratio {
+        argv.extend([os("--outlier-ratio"), std::ffi::OsStr::new(r)]);
+    }
     common(&mut argv, true);
     crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));

@@ -1944,6 +1944,66 @@ fn mras_refuses_bad_clouds_with_reasons() {
 }
 
 #[test]
+fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
+    // The fit tests' sphere (2,000 points) and 8 points well off it, inside and out, with
+    // normals at random: both methods report and set aside exactly those 8 (input lines 2001–
+    // 2008, indices 2000–2007); `--outlier-ratio 0` fits every point.
+    let mut text = sphere_xyzn(2000);
+    let stray = [
+        [0.1, -0.2, 0.3],
+        [0.35, -0.05, 0.4],
+        [-0.3, -0.9, 0.3],
+        [0.9, 0.5, -0.4],
+        [0.8, -0.9, 1.0],
+        [-0.6, 0.5, 0.9],
+        [0.1, 0.6, -0.5],
+        [-0.7, -0.4, -0.4],
+    ];
+    for (k, p) in stray.iter().enumerate() {
+        let n = [(k as f64).cos(), (k as f64 * 1.7).sin(), 0.3];
+        text.push_str(&format!(
+            "{} {} {} {} {} {}\n",
+            p[0], p[1], p[2], n[0], n[1], n[2]
+        ));
+    }
+    let (_d, path) = temp_file("stray.xyzn", &text);
+    for method in ["rbf", "mras"] {
+        let argv = |extra: &[&'static str]| {
+            let mut a = vec![
+                "fit",
+                path.to_str().unwrap(),
+                "--method",
+                method,
+                "--max-level",
+                "2",
+            ];
+            if method == "rbf" {
+                a.truncate(4);
+            }
+            a.extend_from_slice(extra);
+            a
+        };
+        let o = zeroset(argv(&[]));
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let out = stdout(&o);
+        assert!(
+            out.contains("outliers:     8 stray points set aside") && out.contains("#2000 "),
+            "{method}: {out}"
+        );
+        let o = zeroset(argv(&["--outlier-ratio", "0"]));
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        assert!(stdout(&o).contains("every point fitted"), "{}", stdout(&o));
+        let o = zeroset(argv(&["--outlier-ratio", "1"]));
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains("outlier"), "{}", stderr(&o));
+    }
+    // The clean sphere: none.
+    let (_d, clean) = temp_file("clean.xyzn", &sphere_xyzn(2000));
+    let out = stdout(&fit(&clean, &[]));
+    assert!(out.contains("outliers:     none"), "{out}");
+}
+
+#[test]
 fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("bunny.ply");

@@ -110,6 +110,7 @@ fn fit_kernel<K: StoredKernel>(
 /// A report entry, built without the GIL and turned into Python objects after.
 pub(crate) enum ReportValue {
     Int(usize),
+    Ints(Vec<usize>),
     Float(f64),
     Bool(bool),
     Str(String),
@@ -131,6 +132,7 @@ pub(crate) fn report_dict<'py>(
             ReportValue::Str(x) => d.set_item(k, x)?,
             ReportValue::Strs(x) => d.set_item(k, x)?,
             ReportValue::Floats(x) => d.set_item(k, x)?,
+            ReportValue::Ints(x) => d.set_item(k, x)?,
         }
     }
     Ok(d)
@@ -290,7 +292,8 @@ pub(crate) fn fit_neural<'py>(
 
 /// Fits an MRAS field (see `zeroset.fit`).
 #[pyfunction]
-#[pyo3(signature = (points, normals, tolerance, max_level, compress, progress))]
+#[pyo3(signature = (points, normals, tolerance, max_level, compress, outlier_ratio, progress))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fit_mras_cloud<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
@@ -298,6 +301,7 @@ pub(crate) fn fit_mras_cloud<'py>(
     tolerance: Option<f64>,
     max_level: Option<u32>,
     compress: bool,
+    outlier_ratio: Option<f64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(NativeField, Bound<'py, PyDict>)> {
     let cloud = cloud(&points, &normals)?;
@@ -310,6 +314,9 @@ pub(crate) fn fit_mras_cloud<'py>(
     }
     if let Some(l) = max_level {
         options.max_level = l;
+    }
+    if let Some(r) = outlier_ratio {
+        options.outlier_ratio = r;
     }
     let hook = Hook::new(progress);
     let result = py.detach(|| -> PyResult<_> {
@@ -342,6 +349,8 @@ pub(crate) fn fit_mras_cloud<'py>(
             ),
             ("max_error", ReportValue::Float(max_error)),
             ("duplicates", ReportValue::Int(fit.duplicates)),
+            ("outliers", ReportValue::Ints(fit.outliers.clone())),
+            ("kept_sparse", ReportValue::Int(fit.kept_sparse)),
             ("tolerance", ReportValue::Float(options.tolerance)),
             ("seconds", ReportValue::Float(fit.seconds)),
         ];

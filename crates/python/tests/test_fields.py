@@ -156,6 +156,31 @@ def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
     assert len(zeroset.mesh(f, detail="general")[0]) < len(fine) / 4
 
 
+def test_mras_sets_stray_points_aside():
+    # 2,000 points on the unit sphere and 10 scattered well off it with random normals: the
+    # report lists exactly those 10 and the field keeps them off its zero set;
+    # outlier_ratio=0 fits them (they become surface)
+    points, normals = sphere_cloud(2000)
+    rng = np.random.default_rng(3)
+    stray = []
+    while len(stray) < 10:
+        q = rng.uniform(-1.25, 1.25, 3)
+        if abs(np.linalg.norm(q) - 1) > 0.35:
+            stray.append(q)
+    p = np.vstack([points, stray])
+    n = np.vstack([normals, rng.uniform(-1, 1, (10, 3))])
+    f = zeroset.fit(p, n, method="mras", max_level=2)
+    assert f.report.outliers == list(range(2000, 2010))
+    assert np.abs(f(np.array(stray))).min() > 0.1
+    g = zeroset.fit(p, n, method="mras", max_level=2, outlier_ratio=0)
+    assert g.report.outliers == []
+    assert np.abs(g(np.array(stray))).max() < 0.05
+    with pytest.raises(ValueError, match="outlier_ratio"):
+        zeroset.fit(p, n, method="mras", outlier_ratio=1.0)
+    with pytest.raises(ValueError, match="apply to method='mras'"):
+        zeroset.fit(p, n, outlier_ratio=3)
+
+
 @pytest.mark.parametrize(
     "points, normals, message",
     [

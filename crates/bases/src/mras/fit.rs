@@ -34,6 +34,7 @@ use super::local::{
 /// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
 /// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 and `cp_refined` = 1, bunny numbers / max / mean distance: 0.4 → 333k, 4.47e-3, 3.29e-4; **0.5 → 294k, 4.50e-3, 3.50e-4**; 0.75 → 222k, 5.12e-3, 4.09e-4; 1 → 174k, 5.78e-3, 4.74e-4 |
+/// | `outlier_ratio` | 3 | — (the paper's scans are clean) | see [`crate::outliers`]: the bunny with 2% stray points in its box (random normals) broke into 21 components with open sheets; with the 599 outliers this finds set aside, one bunny and a few small blobs. None found on the bunny, kitten and `bunny_2k` samples; 2 would cut a flattened ellipsoid's rim |
 /// | `cp_refined` | 1 | (`10^{−k−1}` loosens the coarse levels) | bunny numbers / max / mean: 0 → 318k, 4.50e-3, 3.48e-4; 0.5 → 312k, 4.49e-3, 3.49e-4; **1 → 294k, 4.50e-3, 3.50e-4**; kitten 0.5 → 107k, 1 → 104k at the same errors. The bound it replaced (`cp_points · max(ε₀, e/16)` at every point, `e` the previous level's largest Sampson distance) stored 3–8% less where it worked, and dropped whole levels where it did not (bunny with `m₀` 10 or 11: 0.18 / 0.33 of the diagonal; now 4.5e-3 / 4.7e-3) |
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasOptions {
@@ -84,6 +85,11 @@ pub struct MrasOptions {
     pub cp_refined: f64,
     /// The cube's margin around the bounding box, as a fraction of its largest side (each side).
     pub margin: f64,
+    /// Points whose spacing (mean distance to their 8 nearest) exceeds this many times the
+    /// median, and that do not lie on a surface with their neighbours, are outliers: set aside
+    /// before fitting ([`crate::outliers`]; [`MrasFit::outliers`] lists them). 0: fit every
+    /// point.
+    pub outlier_ratio: f64,
 }
 
 impl Default for MrasOptions {
@@ -109,6 +115,7 @@ impl Default for MrasOptions {
             cp_points: 0.5,
             cp_refined: 1.0,
             margin: 0.05,
+            outlier_ratio: crate::outliers::DEFAULT_OUTLIER_RATIO,
         }
     }
 }
@@ -145,6 +152,8 @@ setter! {
     compress: bool,
     /// With ADMM iteration limit `admm_max_iter`.
     admm_max_iter: usize,
+    /// With outlier ratio `outlier_ratio` (0: no points set aside).
+    outlier_ratio: f64,
 }
 
 impl MrasOptions {
@@ -247,6 +256,13 @@ impl MrasOptions {
             cr.is_finite() && cr >= 0.0,
             "must be finite and ≥ 0",
         )?;
+        let or = self.outlier_ratio;
+        check(
+            "outlier_ratio",
+            or,
+            crate::outliers::valid_ratio(or),
+            "must be 0 (off) or ≥ 1.5 (below, most of a surface's points would be isolated)",
+        )?;
         let mg = self.margin;
         check(
             "margin",
@@ -326,6 +342,11 @@ pub struct MrasFit {
     pub diagonal: f64,
     /// Exact duplicate positions merged before fitting.
     pub duplicates: usize,
+    /// The input points set aside as outliers ([`MrasOptions::outlier_ratio`]), by index,
+    /// increasing; the field is not fitted to them.
+    pub outliers: Vec<usize>,
+    /// Points isolated by their spacing but kept as a sparse patch of surface.
+    pub kept_sparse: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -346,7 +367,7 @@ pub fn fit_mras(
 ) -> Result<MrasFit, MrasError> {
     let start = Instant::now();
     options.validate()?;
-    let cloud = Cloud::new(positions, normals, options.n_min, options.margin)?;
+    let cloud = Cloud::new(positions, normals, options)?;
     let diagonal = cloud.diagonal;
     let eps0 = options.tolerance * diagonal / cloud.side;
     let u = &cloud.u;
@@ -570,6 +591,8 @@ pub fn fit_mras(
         levels: reports,
         diagonal,
         duplicates: cloud.duplicates,
+        outliers: cloud.outliers,
+        kept_sparse: cloud.kept_sparse,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
@@ -635,15 +658,19 @@ struct Cloud {
     side: f64,
     diagonal: f64,
     duplicates: usize,
+    /// Input indices set aside as outliers.
+    outliers: Vec<usize>,
+    kept_sparse: usize,
 }
 
 impl Cloud {
+    /// The distinct, finite points with unit normals, outliers set aside, in the unit cube.
     fn new(
         positions: &[Point<3>],
         normals: &[Point<3>],
-        n_min: usize,
-        margin: f64,
+        options: &MrasOptions,
     ) -> Result<Self, MrasError> {
+        let (n_min, margin) = (options.n_min, options.margin);
         if normals.len() != positions.len() {
             return Err(MrasError::Normals {
                 points: positions.len(),
@@ -704,12 +731,24 @@ impl Cloud {
                 run = w;
             }
         }
-        let idx: Vec<usize> = (0..positions.len()).filter(|&i| keep[i]).collect();
+        let mut idx: Vec<usize> = (0..positions.len()).filter(|&i| keep[i]).collect();
+        // Outliers: before the box, which they would stretch.
+        let found = {
+            let p: Vec<Point<3>> = idx.iter().map(|&i| positions[i]).collect();
+            let n: Vec<Point<3>> = idx.iter().map(|&i| normals[i]).collect();
+            crate::outliers::find_outliers(&p, &n, options.outlier_ratio)
+        };
+        let outliers: Vec<usize> = found.indices.iter().map(|&k| idx[k]).collect();
+        for &i in &outliers {
+            keep[i] = false;
+        }
+        idx.retain(|&i| keep[i]);
         if idx.len() < n_min.max(1) {
             return Err(MrasError::TooFewPoints {
                 needed: n_min.max(1),
                 got: idx.len(),
                 duplicates,
+                outliers: outliers.len(),
             });
         }
         let mut lo = [f64::INFINITY; 3];
@@ -737,6 +776,8 @@ impl Cloud {
             side,
             diagonal,
             duplicates,
+            outliers,
+            kept_sparse: found.kept_sparse,
         })
     }
 }

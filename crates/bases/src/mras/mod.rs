@@ -146,8 +146,13 @@ use zeroset_tensor::TensorError;
 pub enum MrasError {
     /// Fewer points than a fit needs.
     #[error(
-        "MRAS needs at least {needed} distinct points with normals, got {got}{}",
-        if *duplicates > 0 { format!(" ({duplicates} duplicates merged)") } else { String::new() }
+        "MRAS needs at least {needed} distinct points with normals, got {got}{}{}",
+        if *duplicates > 0 { format!(" ({duplicates} duplicates merged)") } else { String::new() },
+        if *outliers > 0 {
+            format!(" ({outliers} outliers set aside; outlier_ratio 0 fits them)")
+        } else {
+            String::new()
+        }
     )]
     TooFewPoints {
         /// The minimum (`N_min`).
@@ -156,6 +161,8 @@ pub enum MrasError {
         got: usize,
         /// Exact duplicates merged before counting.
         duplicates: usize,
+        /// Outliers set aside before counting ([`MrasOptions::outlier_ratio`]).
+        outliers: usize,
     },
     /// Positions and normals of different lengths, or no normals.
     #[error("MRAS needs one normal per point: {points} points, {normals} normals")]

@@ -348,6 +348,7 @@ def fit(
     seed: int = 0,
     max_level: Optional[int] = None,
     compress: bool = True,
+    outlier_ratio: Optional[float] = None,
     progress: Progress = None,
 ) -> Field:
     """Fits a field to an oriented point cloud (normals point out of the solid).
@@ -367,7 +368,10 @@ def fit(
 
     ``method="mras"``: multilevel low-rank spline offsets (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
-    ``compress=False`` keeps full coefficient tensors.
+    ``compress=False`` keeps full coefficient tensors. Stray points (spacing to their 8
+    nearest more than ``outlier_ratio`` times the median, default 3, and not on a surface
+    with them) are set aside before the fit: ``report["outliers"]`` lists their indices;
+    ``outlier_ratio=0`` fits every point.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit
@@ -376,8 +380,8 @@ def fit(
     p = _rows(points, "points")
     n = _rows(normals, "normals")
     if method == "rbf":
-        if any(x is not None for x in (max_level,)) or not compress:
-            raise ValueError("max_level= and compress= apply to method='mras'")
+        if any(x is not None for x in (max_level, outlier_ratio)) or not compress:
+            raise ValueError("max_level=, outlier_ratio= and compress= apply to method='mras'")
         native, report = _run(
             progress,
             lambda cb: _native.fit_rbf(
@@ -402,7 +406,9 @@ def fit(
             )
         native, report = _run(
             progress,
-            lambda cb: _native.fit_mras_cloud(p, n, tolerance, max_level, bool(compress), cb),
+            lambda cb: _native.fit_mras_cloud(
+                p, n, tolerance, max_level, bool(compress), outlier_ratio, cb
+            ),
         )
     else:
         raise ValueError(f"method must be 'rbf', 'neural' or 'mras', got {method!r}")

@@ -56,6 +56,7 @@ def fit_mras_cloud(
     tolerance: Optional[float],
     max_level: Optional[int],
     compress: bool,
+    outlier_ratio: Optional[float],
     progress: _Progress,
 ) -> Tuple[NativeField, Dict[str, Any]]: ...
 def read_points(path: str) -> Tuple[_F64, Optional[_F64]]: ...

@@ -46,6 +46,7 @@ use kiddo::leaf_strategies::FlatVec;
 use kiddo::stem_strategies::Eytzinger;
 use rayon::prelude::*;
 use zeroset_field_core::geometry::Point;
+use zeroset_field_core::{PointCloud, Result};
 
 /// Neighbours a point's spacing is measured over (`k`).
 pub const OUTLIER_NEIGHBOURS: usize = 8;
@@ -150,6 +151,45 @@ pub fn find_outliers(positions: &[Point<3>], normals: &[Point<3>], ratio: f64) -
         indices,
         median_spacing: median,
     }
+}
+
+/// `cloud` without the outliers [`find_outliers`] finds in it at `ratio`, and what it found
+/// (indices into `cloud`). A cloud without normals, or with a coordinate or normal that is
+/// not finite (for the fit's own checks to report), is returned whole.
+///
+/// # Errors
+/// Only those of [`PointCloud::from_raw`] for the points kept, which cannot arise for a cloud
+/// whose normals match its positions.
+pub fn remove_outliers(cloud: &PointCloud<3>, ratio: f64) -> Result<(PointCloud<3>, Outliers)> {
+    let whole = || Outliers {
+        indices: Vec::new(),
+        kept_sparse: 0,
+        median_spacing: 0.0,
+    };
+    let Some(normals) = cloud.normals() else {
+        return Ok((cloud.clone(), whole()));
+    };
+    let finite = |v: &[Point<3>]| v.iter().flatten().all(|x| x.is_finite());
+    if !(finite(cloud.positions()) && finite(normals)) {
+        return Ok((cloud.clone(), whole()));
+    }
+    let found = find_outliers(cloud.positions(), normals, ratio);
+    if found.indices.is_empty() {
+        return Ok((cloud.clone(), found));
+    }
+    let mut keep = vec![true; cloud.len()];
+    for &i in &found.indices {
+        keep[i] = false;
+    }
+    let (positions, normals): (Vec<Point<3>>, Vec<Point<3>>) = cloud
+        .positions()
+        .iter()
+        .zip(normals)
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|((p, n), _)| (*p, *n))
+        .unzip();
+    Ok((PointCloud::from_raw(positions, Some(normals))?, found))
 }
 
 /// The surface test of the module docs: whether point `p` (unit normal `normal`, spacing

@@ -314,27 +314,13 @@ fn set_aside_outliers(args: &FitArgs, cloud: PointCloud3) -> anyhow::Result<Poin
              points would be isolated)"
         );
     }
-    let Some(normals) = cloud.normals() else {
+    if cloud.normals().is_none() {
         return Ok(cloud);
-    };
-    let found = zeroset_bases::outliers::find_outliers(cloud.positions(), normals, ratio);
+    }
+    let (kept, found) = zeroset_bases::outliers::remove_outliers(&cloud, ratio)
+        .context("the cloud without its outliers")?;
     crate::fit_mras::print_outliers_of(&found.indices, found.kept_sparse, cloud.positions(), ratio);
-    if found.indices.is_empty() {
-        return Ok(cloud);
-    }
-    let mut keep = vec![true; cloud.len()];
-    for &i in &found.indices {
-        keep[i] = false;
-    }
-    let (positions, normals): (Vec<Point<3>>, Vec<Point<3>>) = cloud
-        .positions()
-        .iter()
-        .zip(normals)
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|((p, n), _)| (*p, *n))
-        .unzip();
-    PointCloud3::with_normals(positions, normals).context("the cloud without its outliers")
+    Ok(kept)
 }
 
 /// A fit to run with whichever kernel `--kernel` names ([`with_kernel`]).

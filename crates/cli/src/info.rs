@@ -12,7 +12,9 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::field_file::{
     AnyField, is_field_file, read_any_field, read_dimension, read_metadata,
 };
+use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, find_outliers};
 use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::Point;
 use zeroset_field_core::io::gempy::{self, GeoModelData};
 use zeroset_field_core::io::{self, Format, ReadOptions};
 use zeroset_field_core::{CloudStats, Error, PointCloud3};
@@ -145,12 +147,46 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
             format!("{dup} point{} repeat an earlier position", plural(dup))
         },
     );
+    if let Some(normals) = cloud.normals()
+        && stats.non_finite_positions + stats.non_finite_normals == 0
+    {
+        write_outliers(&mut s, cloud.positions(), normals);
+    }
     match geology {
         None => {}
         Some(Ok(data)) => write_formations(&mut s, &data),
         Some(Err(e)) => line(&mut s, "formations", &format!("not listed: {e}")),
     }
     Ok(s)
+}
+
+/// The stray points `zeroset fit` would set aside at the default `--outlier-ratio`.
+fn write_outliers(s: &mut String, positions: &[Point<3>], normals: &[Point<3>]) {
+    let ratio = DEFAULT_OUTLIER_RATIO;
+    let found = find_outliers(positions, normals, ratio);
+    if found.median_spacing == 0.0 {
+        line(s, "outliers", "not looked for (fewer than 64 points)");
+        return;
+    }
+    let spacing = format!(
+        "median spacing {} (mean distance to the 8 nearest)",
+        g(found.median_spacing)
+    );
+    let k = found.indices.len();
+    line(
+        s,
+        "outliers",
+        &if k == 0 {
+            format!("none; {spacing}")
+        } else {
+            format!(
+                "{k} stray point{} (spacing > {}× the median, off their neighbours' surface), \
+                 which zeroset fit sets aside; {spacing}",
+                plural(k),
+                g(ratio)
+            )
+        },
+    );
 }
 
 /// The report of a field file: kind, dimension, box, and the kind's particulars.

@@ -1967,6 +1967,11 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
         ));
     }
     let (_d, path) = temp_file("stray.xyzn", &text);
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("outliers:    8 stray points"),
+        "{described}"
+    );
     for method in ["rbf", "mras"] {
         let argv = |extra: &[&'static str]| {
             let mut a = vec![

@@ -12,6 +12,7 @@ use pyo3::types::PyDict;
 use zeroset_bases::field_file::{AnyField, StoredKernel};
 use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 use zeroset_bases::neural::{Activation, Architecture, NeuralFit, NeuralParams};
+use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, remove_outliers, valid_ratio};
 use zeroset_bases::rbf::{
     Biharmonic, Constraints, GreedyOptions, IterativeParams, Offset, RbfFit, Solver, ThinPlate,
     Triharmonic, Wendland,
@@ -140,7 +141,9 @@ pub(crate) fn report_dict<'py>(
 
 /// Fits an RBF field (see `zeroset.fit`).
 #[pyfunction]
-#[pyo3(signature = (points, normals, kernel, offset, hermite, solver, tolerance, radius, progress))]
+#[pyo3(signature = (
+    points, normals, kernel, offset, hermite, solver, tolerance, radius, outlier_ratio, progress
+))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit_rbf<'py>(
     py: Python<'py>,
@@ -152,9 +155,16 @@ pub(crate) fn fit_rbf<'py>(
     solver: &str,
     tolerance: Option<f64>,
     radius: Option<f64>,
+    outlier_ratio: Option<f64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(NativeField, Bound<'py, PyDict>)> {
-    let cloud = cloud(&points, &normals)?;
+    let ratio = outlier_ratio.unwrap_or(DEFAULT_OUTLIER_RATIO);
+    if !valid_ratio(ratio) {
+        return Err(value_error(format!(
+            "outlier_ratio must be 0 (off) or at least 1.5, got {ratio}"
+        )));
+    }
+    let (cloud, outliers) = remove_outliers(&cloud(&points, &normals)?, ratio).map_err(to_py)?;
     let solver = match solver {
         "auto" => Solver::Auto,
         "dense" => Solver::Dense,
@@ -177,7 +187,11 @@ pub(crate) fn fit_rbf<'py>(
     };
     let kernel = kernel.to_owned();
     let result = py.detach(|| -> PyResult<_> {
-        let mut report = vec![("method", ReportValue::Str("rbf".into()))];
+        let mut report = vec![
+            ("method", ReportValue::Str("rbf".into())),
+            ("outliers", ReportValue::Ints(outliers.indices)),
+            ("kept_sparse", ReportValue::Int(outliers.kept_sparse)),
+        ];
         let constraints = if hermite {
             Constraints::hermite(&cloud).map_err(to_py)?
         } else {

@@ -156,9 +156,9 @@ def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
     assert len(zeroset.mesh(f, detail="general")[0]) < len(fine) / 4
 
 
-def test_mras_sets_stray_points_aside():
+def test_rbf_and_mras_set_stray_points_aside():
     # 2,000 points on the unit sphere and 10 scattered well off it with random normals: the
-    # report lists exactly those 10 and the field keeps them off its zero set;
+    # MRAS report lists exactly those 10 and the field keeps them off its zero set;
     # outlier_ratio=0 fits them (they become surface)
     points, normals = sphere_cloud(2000)
     rng = np.random.default_rng(3)
@@ -177,8 +177,14 @@ def test_mras_sets_stray_points_aside():
     assert np.abs(g(np.array(stray))).max() < 0.05
     with pytest.raises(ValueError, match="outlier_ratio"):
         zeroset.fit(p, n, method="mras", outlier_ratio=1.0)
-    with pytest.raises(ValueError, match="apply to method='mras'"):
-        zeroset.fit(p, n, outlier_ratio=3)
+    # RBF sets the same points aside
+    r = zeroset.fit(p, n, outlier_ratio=None)
+    assert r.report.outliers == list(range(2000, 2010))
+    assert len(r.centres) == 3 * 2000
+    with pytest.raises(ValueError, match="outlier_ratio"):
+        zeroset.fit(p, n, outlier_ratio=0.5)
+    with pytest.raises(ValueError, match="applies to method='rbf' and 'mras'"):
+        zeroset.fit(p, n, method="neural", outlier_ratio=3)
 
 
 @pytest.mark.parametrize(

@@ -368,10 +368,12 @@ def fit(
 
     ``method="mras"``: multilevel low-rank spline offsets (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
-    ``compress=False`` keeps full coefficient tensors. Stray points (spacing to their 8
-    nearest more than ``outlier_ratio`` times the median, default 3, and not on a surface
-    with them) are set aside before the fit: ``report["outliers"]`` lists their indices;
-    ``outlier_ratio=0`` fits every point.
+    ``compress=False`` keeps full coefficient tensors.
+
+    ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
+    blob or a sheet of surface): those whose mean distance to their 8 nearest exceeds
+    ``outlier_ratio`` times the median (default 3) and that do not lie on a surface with
+    them. ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit
@@ -380,17 +382,20 @@ def fit(
     p = _rows(points, "points")
     n = _rows(normals, "normals")
     if method == "rbf":
-        if any(x is not None for x in (max_level, outlier_ratio)) or not compress:
-            raise ValueError("max_level=, outlier_ratio= and compress= apply to method='mras'")
+        if any(x is not None for x in (max_level,)) or not compress:
+            raise ValueError("max_level= and compress= apply to method='mras'")
         native, report = _run(
             progress,
             lambda cb: _native.fit_rbf(
-                p, n, kernel or "r", offset, bool(hermite), solver, tolerance, radius, cb
+                p, n, kernel or "r", offset, bool(hermite), solver, tolerance, radius,
+                outlier_ratio, cb,
             ),
         )
     elif method == "neural":
         if kernel is not None or tolerance is not None or hermite or radius is not None:
             raise ValueError("kernel=, tolerance=, hermite= and radius= apply to method='rbf'")
+        if outlier_ratio is not None:
+            raise ValueError("outlier_ratio= applies to method='rbf' and 'mras'")
         native, report = _run(
             progress,
             lambda cb: _native.fit_neural(

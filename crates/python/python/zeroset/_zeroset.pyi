@@ -37,6 +37,7 @@ def fit_rbf(
     solver: str,
     tolerance: Optional[float],
     radius: Optional[float],
+    outlier_ratio: Optional[float],
     progress: _Progress,
 ) -> Tuple[NativeField, Dict[str, Any]]: ...
 def fit_neural(

@@ -174,22 +174,32 @@ pub fn remove_outliers(cloud: &PointCloud<3>, ratio: f64) -> Result<(PointCloud<
         return Ok((cloud.clone(), whole()));
     }
     let found = find_outliers(cloud.positions(), normals, ratio);
-    if found.indices.is_empty() {
-        return Ok((cloud.clone(), found));
+    Ok((without(cloud, &found.indices)?, found))
+}
+
+/// `cloud` without the points at `indices` (its normals, if any, follow their points).
+///
+/// # Errors
+/// Only those of [`PointCloud::from_raw`], which cannot arise for a cloud whose normals match
+/// its positions.
+pub fn without<const D: usize>(cloud: &PointCloud<D>, indices: &[usize]) -> Result<PointCloud<D>> {
+    if indices.is_empty() {
+        return Ok(cloud.clone());
     }
     let mut keep = vec![true; cloud.len()];
-    for &i in &found.indices {
-        keep[i] = false;
+    for &i in indices {
+        if let Some(k) = keep.get_mut(i) {
+            *k = false;
+        }
     }
-    let (positions, normals): (Vec<Point<3>>, Vec<Point<3>>) = cloud
-        .positions()
-        .iter()
-        .zip(normals)
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|((p, n), _)| (*p, *n))
-        .unzip();
-    Ok((PointCloud::from_raw(positions, Some(normals))?, found))
+    let kept = |v: &[Point<D>]| -> Vec<Point<D>> {
+        v.iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(p, _)| *p)
+            .collect()
+    };
+    PointCloud::from_raw(kept(cloud.positions()), cloud.normals().map(kept))
 }
 
 /// The surface test of the module docs: whether point `p` (unit normal `normal`, spacing

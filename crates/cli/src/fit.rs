@@ -260,8 +260,11 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     let start = Instant::now();
     if let Some(dim) = value_file_dimension(&args.points) {
-        if args.mras.outlier_ratio.is_some() {
-            bail!("--outlier-ratio applies to oriented point clouds, not to value files");
+        if args.mras.outlier_ratio.is_some() || args.mras.outliers_out.is_some() {
+            bail!(
+                "--outlier-ratio and --outliers-out apply to oriented point clouds, not to value \
+                 files"
+            );
         }
         let kernel = check_value_request(args, dim)?;
         if dim == 2 {
@@ -271,9 +274,10 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         }
     } else {
         let kernel = check_request(args)?;
-        let cloud = load(args)?;
-        print_input(args, &cloud);
-        let cloud = set_aside_outliers(args, cloud)?;
+        crate::fit_mras::check_outliers_out(args)?;
+        let input = load(args)?;
+        print_input(args, &input);
+        let (cloud, outliers) = set_aside_outliers(args, &input)?;
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
         with_kernel(
             kernel,
@@ -282,6 +286,8 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             CloudFit {
                 args,
                 cloud: &cloud,
+                input: &input,
+                outliers: &outliers,
             },
         )?;
     }
@@ -301,9 +307,12 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 }
 
 /// The cloud without the stray points [`zeroset_bases::outliers`] finds at `--outlier-ratio`
-/// (default 3), reported: an RBF interpolant would make each of them surface. (MRAS sets
-/// them aside itself.)
-fn set_aside_outliers(args: &FitArgs, cloud: PointCloud3) -> anyhow::Result<PointCloud3> {
+/// (default 3), and their indices, reported: an RBF interpolant would make each of them
+/// surface. (MRAS sets them aside itself.)
+fn set_aside_outliers(
+    args: &FitArgs,
+    cloud: &PointCloud3,
+) -> anyhow::Result<(PointCloud3, Vec<usize>)> {
     let ratio = args
         .mras
         .outlier_ratio
@@ -315,12 +324,13 @@ fn set_aside_outliers(args: &FitArgs, cloud: PointCloud3) -> anyhow::Result<Poin
         );
     }
     if cloud.normals().is_none() {
-        return Ok(cloud);
+        return Ok((cloud.clone(), Vec::new()));
     }
-    let (kept, found) = zeroset_bases::outliers::remove_outliers(&cloud, ratio)
+    let (kept, found) = zeroset_bases::outliers::remove_outliers(cloud, ratio)
         .context("the cloud without its outliers")?;
     crate::fit_mras::print_outliers_of(&found.indices, found.kept_sparse, cloud.positions(), ratio);
-    Ok(kept)
+    crate::fit_mras::write_outliers(args, cloud, &found.indices)?;
+    Ok((kept, found.indices))
 }
 
 /// A fit to run with whichever kernel `--kernel` names ([`with_kernel`]).
@@ -565,12 +575,16 @@ impl<const D: usize> KernelJob for ValueFit<'_, D> {
 /// The RBF fit of an oriented point cloud ([`fit_with`]).
 struct CloudFit<'a> {
     args: &'a FitArgs,
+    /// The points fitted.
     cloud: &'a PointCloud3,
+    /// The input, and the indices of the stray points not fitted.
+    input: &'a PointCloud3,
+    outliers: &'a [usize],
 }
 
 impl KernelJob for CloudFit<'_> {
     fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()> {
-        fit_with(kernel, self.args, self.cloud)
+        fit_with(kernel, self)
     }
 }
 
@@ -675,7 +689,8 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
 }
 
 /// Builds the constraints, fits with `kernel`, reports, and writes `-o`.
-fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> anyhow::Result<()> {
+fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()> {
+    let (args, cloud) = (job.args, job.cloud);
     let n = cloud.len();
     let constraints = if args.hermite {
         let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
@@ -710,7 +725,7 @@ fn fit_with<K: StoredKernel>(kernel: K, args: &FitArgs, cloud: &PointCloud3) -> 
         c
     };
     let field = solve(kernel, args, &constraints)?;
-    print_check(&field, cloud);
+    print_check(&field, job.input, job.outliers);
     if let Some(output) = &args.output {
         if args.sampled {
             save_sampled(&field, cloud, args, output)?;
@@ -913,11 +928,31 @@ fn print_report(r: &FitReport) {
 
 /// The field at a few input points: the value should be ~0, the gradient ~unit length and
 /// along the normal.
-pub(crate) fn print_check<F: ScalarField<3> + ?Sized>(field: &F, cloud: &PointCloud3) {
-    let n = cloud.len();
+pub(crate) fn print_check<F: ScalarField<3> + ?Sized>(
+    field: &F,
+    cloud: &PointCloud3,
+    set_aside: &[usize],
+) {
+    // Spread over the points fitted (`set_aside`, increasing, were not), named by their
+    // index in the input.
+    let mut aside = set_aside.iter().peekable();
+    let fitted: Vec<usize> = (0..cloud.len())
+        .filter(|&i| {
+            let skip = aside.peek() == Some(&&i);
+            if skip {
+                aside.next();
+            }
+            !skip
+        })
+        .collect();
+    let n = fitted.len();
     let normals = cloud.normals().unwrap_or_default();
     let mut picks: Vec<usize> = (0..CHECK_POINTS)
-        .map(|k| k * n.saturating_sub(1) / (CHECK_POINTS - 1))
+        .filter_map(|k| {
+            fitted
+                .get(k * n.saturating_sub(1) / (CHECK_POINTS - 1))
+                .copied()
+        })
         .collect();
     picks.dedup();
     line(

@@ -48,6 +48,10 @@ pub struct MrasArgs {
     /// not lie on a surface with their neighbours; 0 fits every point [default: 3].
     #[arg(long, value_name = "R", help_heading = HEADING)]
     pub outlier_ratio: Option<f64>,
+    /// Write the stray points set aside to this .xyzn file (x y z nx ny nz per line, in input
+    /// order; empty if there are none), written atomically.
+    #[arg(long, value_name = "FILE.xyzn", help_heading = HEADING)]
+    pub outliers_out: Option<std::path::PathBuf>,
 }
 
 impl MrasArgs {
@@ -91,6 +95,7 @@ impl MrasArgs {
             (self.tolerance.is_some(), "--tolerance"),
             (self.tolerance_distance.is_some(), "--tolerance-distance"),
             (self.outlier_ratio.is_some(), "--outlier-ratio"),
+            (self.outliers_out.is_some(), "--outliers-out"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -112,6 +117,7 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     if let Some(output) = &args.output {
         crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
     }
+    check_outliers_out(args)?;
     let mut o = MrasOptions::default();
     if let Some(t) = args.mras.tolerance {
         o.tolerance = t;
@@ -127,6 +133,45 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     }
     o.compress = !args.mras.no_compress;
     Ok(o)
+}
+
+/// Checks `--outliers-out` (an .xyzn file that is not an input or the field, unless --force).
+pub(crate) fn check_outliers_out(args: &FitArgs) -> anyhow::Result<()> {
+    let Some(path) = &args.mras.outliers_out else {
+        return Ok(());
+    };
+    let mut inputs: Vec<&std::path::Path> = vec![&args.points];
+    // Not the field either (check_output refuses its inputs' paths).
+    inputs.extend(args.output.as_deref());
+    crate::output::check_output(path, &inputs, args.force, &["xyzn"])
+}
+
+/// Writes `--outliers-out`, if given: the points of `cloud` at `indices`.
+pub(crate) fn write_outliers(
+    args: &FitArgs,
+    cloud: &zeroset_field_core::PointCloud3,
+    indices: &[usize],
+) -> anyhow::Result<()> {
+    let Some(path) = &args.mras.outliers_out else {
+        return Ok(());
+    };
+    let normals = cloud.normals().unwrap_or_default();
+    zeroset_field_core::io::write_atomic(path, |w| {
+        for &i in indices {
+            let p = cloud.positions()[i];
+            let n = normals.get(i).copied().unwrap_or([0.0; 3]);
+            writeln!(w, "{} {} {} {} {} {}", p[0], p[1], p[2], n[0], n[1], n[2])?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", path.display()))?;
+    outln!(
+        "wrote {} ({} stray point{} set aside)",
+        path.display(),
+        indices.len(),
+        if indices.len() == 1 { "" } else { "s" }
+    );
+    Ok(())
 }
 
 /// Reports the points set aside as outliers (and the isolated ones kept as sparse surface).
@@ -244,6 +289,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         );
     }
     print_outliers(&fit, cloud.positions(), &options);
+    write_outliers(args, &cloud, &fit.outliers)?;
     line(
         "levels",
         "level  m  cells  ranks min/mean/max  stored  uncompressed  max error  mean error  split",
@@ -282,7 +328,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         ),
     );
     line("time", &format!("{:.2} s", fit.seconds));
-    print_check(field, &cloud);
+    print_check(field, &cloud, &fit.outliers);
     if let Some(output) = &args.output {
         line(
             "output",

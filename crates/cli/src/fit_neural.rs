@@ -271,7 +271,7 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let field = field
         .transformed(centre, scale, unit)
         .context("moving the field back to the cloud's coordinates")?;
-    print_check(&field, &cloud);
+    print_check(&field, &cloud, &[]);
     if let Some(output) = &args.output {
         save(&field, output)?;
     }

@@ -79,6 +79,10 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "R")]
     pub outlier_ratio: Option<f64>,
 
+    /// Write the stray points set aside to this .xyzn file (as `zeroset fit --outliers-out`).
+    #[arg(long, value_name = "FILE.xyzn")]
+    pub outliers_out: Option<PathBuf>,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -121,10 +125,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let preview = (!args.no_preview).then(|| args.output.with_extension("png"));
     // Every output is checked before any work: its extension, its directory, and --force.
-    let outputs: [(Option<&PathBuf>, &[&str]); 3] = [
+    let outputs: [(Option<&PathBuf>, &[&str]); 4] = [
         (Some(&args.output), &["ply", "obj"]),
         (preview.as_ref(), &["png"]),
         (args.field.as_ref(), &["zsf"]),
+        (args.outliers_out.as_ref(), &["xyzn"]),
     ];
     for (path, extensions) in outputs {
         if let Some(path) = path {
@@ -202,6 +207,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let ratio = args.outlier_ratio.map(|r| r.to_string());
     if let Some(r) = &ratio {
         argv.extend([os("--outlier-ratio"), std::ffi::OsStr::new(r)]);
+    }
+    if let Some(path) = &args.outliers_out {
+        argv.extend([os("--outliers-out"), path.as_os_str()]);
     }
     common(&mut argv, true);
     crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;

@@ -1973,20 +1973,13 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
         "{described}"
     );
     for method in ["rbf", "mras"] {
-        let argv = |extra: &[&'static str]| {
-            let mut a = vec![
-                "fit",
-                path.to_str().unwrap(),
-                "--method",
-                method,
-                "--max-level",
-                "2",
-            ];
-            if method == "rbf" {
-                a.truncate(4);
+        let argv = |extra: &[&str]| -> Vec<String> {
+            let mut a = vec!["fit", path.to_str().unwrap(), "--method", method];
+            if method == "mras" {
+                a.extend(["--max-level", "2"]);
             }
             a.extend_from_slice(extra);
-            a
+            a.into_iter().map(str::to_owned).collect()
         };
         let o = zeroset(argv(&[]));
         assert!(o.status.success(), "{method}: {}", stderr(&o));
@@ -1995,6 +1988,23 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
             out.contains("outliers:     8 stray points set aside") && out.contains("#2000 "),
             "{method}: {out}"
         );
+        // --outliers-out: the 8 points, as given; an existing file needs --force.
+        let aside = path.with_file_name(format!("aside_{method}.xyzn"));
+        let a = aside.to_str().unwrap();
+        let o = zeroset(argv(&["--outliers-out", a]));
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let written: Vec<Vec<f64>> = std::fs::read_to_string(&aside)
+            .unwrap()
+            .lines()
+            .map(|l| l.split(' ').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(written.len(), 8);
+        for (w, p) in written.iter().zip(&stray) {
+            assert_eq!(&w[..3], &p[..]);
+        }
+        let o = zeroset(argv(&["--outliers-out", a]));
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
         let o = zeroset(argv(&["--outlier-ratio", "0"]));
         assert!(o.status.success(), "{method}: {}", stderr(&o));
         assert!(stdout(&o).contains("every point fitted"), "{}", stdout(&o));

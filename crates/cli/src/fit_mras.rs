@@ -216,8 +216,9 @@ pub(crate) fn print_outliers_of(
     line(
         "outliers",
         &format!(
-            "{} stray point{} set aside, not fitted (spacing > {}× the median, off their \
-             neighbours' surface){sparse}; --outlier-ratio 0 fits every point",
+            "{} stray point{} set aside, not fitted (isolated: spacing > {}× the median; or \
+             off a clean patch of surface with a normal of their own){sparse}; --outlier-ratio 0 \
+             fits every point",
             outliers.len(),
             if outliers.len() == 1 { "" } else { "s" },
             g(ratio),

@@ -180,10 +180,13 @@ fn write_outliers(s: &mut String, positions: &[Point<3>], normals: &[Point<3>]) 
             format!("none; {spacing}")
         } else {
             format!(
-                "{k} stray point{} (spacing > {}× the median, off their neighbours' surface), \
-                 which zeroset fit sets aside; {spacing}",
+                "{k} stray point{}, which zeroset fit sets aside: {} isolated (spacing > {}× \
+                 the median, not on a surface with their neighbours), {} off a clean patch of \
+                 surface with a normal of their own; {spacing}",
                 plural(k),
-                g(ratio)
+                found.isolated,
+                g(ratio),
+                found.floating
             )
         },
     );

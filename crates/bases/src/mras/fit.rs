@@ -34,7 +34,7 @@ use super::local::{
 /// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
 /// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 and `cp_refined` = 1, bunny numbers / max / mean distance: 0.4 → 333k, 4.47e-3, 3.29e-4; **0.5 → 294k, 4.50e-3, 3.50e-4**; 0.75 → 222k, 5.12e-3, 4.09e-4; 1 → 174k, 5.78e-3, 4.74e-4 |
-/// | `outlier_ratio` | 3 | — (the paper's scans are clean) | see [`crate::outliers`]: the bunny with 2% stray points in its box (random normals) broke into 21 components with open sheets; with the 599 outliers this finds set aside, one bunny and a few small blobs. None found on the bunny, kitten and `bunny_2k` samples; 2 would cut a flattened ellipsoid's rim |
+/// | `outlier_ratio` | 3 | — (the paper's scans are clean) | see [`crate::outliers`]: the bunny with 2% stray points in its box (random normals) broke into 23 components with open sheets; with the outliers this finds set aside, one closed bunny (`benches/peers/stray_peers.py`). None found on the bunny, kitten and `bunny_2k` samples; 2 would cut a flattened ellipsoid's rim |
 /// | `cp_refined` | 1 | (`10^{−k−1}` loosens the coarse levels) | bunny numbers / max / mean: 0 → 318k, 4.50e-3, 3.48e-4; 0.5 → 312k, 4.49e-3, 3.49e-4; **1 → 294k, 4.50e-3, 3.50e-4**; kitten 0.5 → 107k, 1 → 104k at the same errors. The bound it replaced (`cp_points · max(ε₀, e/16)` at every point, `e` the previous level's largest Sampson distance) stored 3–8% less where it worked, and dropped whole levels where it did not (bunny with `m₀` 10 or 11: 0.18 / 0.33 of the diagonal; now 4.5e-3 / 4.7e-3) |
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasOptions {
@@ -86,9 +86,9 @@ pub struct MrasOptions {
     /// The cube's margin around the bounding box, as a fraction of its largest side (each side).
     pub margin: f64,
     /// Points whose spacing (mean distance to their 8 nearest) exceeds this many times the
-    /// median, and that do not lie on a surface with their neighbours, are outliers: set aside
-    /// before fitting ([`crate::outliers`]; [`MrasFit::outliers`] lists them). 0: fit every
-    /// point.
+    /// median, and that do not lie on a surface with their neighbours, are outliers, as are
+    /// points off a clean patch of surface with a normal of their own: set aside before fitting
+    /// ([`crate::outliers`]; [`MrasFit::outliers`] lists them). 0: fit every point.
     pub outlier_ratio: f64,
 }
 

@@ -97,11 +97,13 @@ pub struct Outliers {
 }
 
 /// The outliers of an oriented cloud (see the [module docs](self)): points whose spacing exceeds
-/// `ratio` times the median and that do not lie on a surface with their neighbours.
+/// `ratio` times the median and that do not lie on a surface with their neighbours, and points
+/// off a clean patch of surface with a normal of their own.
 ///
-/// `positions` must be finite and distinct (merge exact duplicates first: they have spacing 0),
-/// `normals` finite and non-zero (any length), one per point. `ratio ≤ 0`, fewer than
-/// [`MIN_POINTS_FOR_OUTLIERS`] points, or normals of another length: nothing is found.
+/// `positions` must be finite, `normals` finite and non-zero (any length), one per point.
+/// Exact duplicates count as neighbours at distance 0 (merge them first for the spacing of
+/// distinct samples). `ratio ≤ 0`, fewer than [`MIN_POINTS_FOR_OUTLIERS`] points, or normals of
+/// another length: nothing is found.
 pub fn find_outliers(positions: &[Point<3>], normals: &[Point<3>], ratio: f64) -> Outliers {
     let n = positions.len();
     if ratio.is_nan() || ratio <= 0.0 || n < MIN_POINTS_FOR_OUTLIERS || normals.len() != n {

@@ -45,7 +45,8 @@ pub struct MrasArgs {
     pub no_compress: bool,
     /// Set aside stray points before fitting (--method mras and rbf, oriented clouds): those
     /// whose spacing (mean distance to their 8 nearest) exceeds R times the median and that do
-    /// not lie on a surface with their neighbours; 0 fits every point [default: 3].
+    /// not lie on a surface with their neighbours, and those off a clean patch of surface with
+    /// a normal of their own; 0 fits every point [default: 3].
     #[arg(long, value_name = "R", help_heading = HEADING)]
     pub outlier_ratio: Option<f64>,
     /// Write the stray points set aside to this .xyzn file (x y z nx ny nz per line, in input

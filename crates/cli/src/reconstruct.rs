@@ -74,8 +74,9 @@ pub struct ReconstructArgs {
     pub drop_spurious: bool,
 
     /// Stray points set aside before the fit: spacing (mean distance to the 8 nearest) above R
-    /// times the median and not on a surface with their neighbours; 0 fits every point
-    /// [default: 3] (as `zeroset fit --outlier-ratio`).
+    /// times the median and not on a surface with their neighbours, or off a clean patch of
+    /// surface with a normal of their own; 0 fits every point [default: 3] (as `zeroset fit
+    /// --outlier-ratio`).
     #[arg(long, value_name = "R")]
     pub outlier_ratio: Option<f64>,
 

@@ -373,7 +373,8 @@ def fit(
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
     blob or a sheet of surface): those whose mean distance to their 8 nearest exceeds
     ``outlier_ratio`` times the median (default 3) and that do not lie on a surface with
-    them. ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
+    them, and those off a clean patch of surface with a normal of their own.
+    ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit

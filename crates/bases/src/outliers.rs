@@ -54,7 +54,7 @@ use kiddo::kd_tree::KdTree;
 use kiddo::leaf_strategies::FlatVec;
 use kiddo::stem_strategies::Eytzinger;
 use rayon::prelude::*;
-use zeroset_field_core::geometry::Point;
+use zeroset_field_core::geometry::{self, Point, add, dot, norm, scale, sub};
 use zeroset_field_core::{PointCloud, Result};
 
 /// Neighbours a point's spacing is measured over (`k`).
@@ -187,35 +187,28 @@ impl Neighbourhood {
     ) -> Self {
         let (mut sum, mut centroid, mut distance, mut count) = ([0.0; 3], [0.0; 3], 0.0, 0usize);
         for (q, nq) in neighbours {
-            for a in 0..3 {
-                sum[a] += nq[a];
-                centroid[a] += q[a];
-            }
-            distance += norm(&std::array::from_fn(|a| q[a] - p[a]));
+            sum = add(&sum, &nq);
+            centroid = add(&centroid, q);
+            distance += geometry::distance(p, q);
             count += 1;
         }
+        let spacing = distance / count.max(1) as f64;
         let length = norm(&sum);
-        if count == 0 || length == 0.0 {
+        if length == 0.0 {
+            // No neighbours, or normals that cancel: nothing agrees, nothing is on a plane.
             return Self {
-                spacing: if count == 0 {
-                    0.0
-                } else {
-                    distance / count as f64
-                },
+                spacing,
                 resultant: 0.0,
                 agreement: 0.0,
                 on_plane: false,
             };
         }
-        let spacing = distance / count as f64;
-        let mean = sum.map(|v| v / length);
-        let offset: f64 = (0..3)
-            .map(|a| (p[a] - centroid[a] / count as f64) * mean[a])
-            .sum();
+        let mean = scale(1.0 / length, &sum);
+        let offset = dot(&sub(p, &scale(1.0 / count as f64, &centroid)), &mean);
         Self {
             spacing,
             resultant: length / count as f64,
-            agreement: (0..3).map(|a| normal[a] * mean[a]).sum(),
+            agreement: dot(normal, &mean),
             on_plane: offset.abs() <= PLANE_OFFSET * spacing,
         }
     }
@@ -264,10 +257,6 @@ pub fn without<const D: usize>(cloud: &PointCloud<D>, indices: &[usize]) -> Resu
             .collect()
     };
     PointCloud::from_raw(kept(cloud.positions()), cloud.normals().map(kept))
-}
-
-fn norm(v: &Point<3>) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 /// `v / |v|` (`v` itself where it is zero).

@@ -243,6 +243,9 @@ pub struct FitArgs {
 
     #[command(flatten)]
     pub mras: crate::fit_mras::MrasArgs,
+
+    #[command(flatten)]
+    pub outliers: crate::outliers::OutlierArgs,
 }
 
 /// Runs `zeroset fit`.
@@ -260,11 +263,8 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     let start = Instant::now();
     if let Some(dim) = value_file_dimension(&args.points) {
-        if args.mras.outlier_ratio.is_some() || args.mras.outliers_out.is_some() {
-            bail!(
-                "--outlier-ratio and --outliers-out apply to oriented point clouds, not to value \
-                 files"
-            );
+        if let Some(flag) = args.outliers.given() {
+            bail!("{flag} applies to oriented point clouds, not to value files");
         }
         let kernel = check_value_request(args, dim)?;
         if dim == 2 {
@@ -274,10 +274,11 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         }
     } else {
         let kernel = check_request(args)?;
-        crate::fit_mras::check_outliers_out(args)?;
+        args.outliers
+            .check(&args.points, args.output.as_deref(), args.force)?;
         let input = load(args)?;
         print_input(args, &input);
-        let (cloud, outliers) = set_aside_outliers(args, &input)?;
+        let (cloud, outliers) = crate::outliers::set_aside(&args.outliers, &input)?;
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
         with_kernel(
             kernel,
@@ -304,33 +305,6 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// The cloud without the stray points [`zeroset_bases::outliers`] finds at `--outlier-ratio`
-/// (default 3), and their indices, reported: an RBF interpolant would make each of them
-/// surface. (MRAS sets them aside itself.)
-fn set_aside_outliers(
-    args: &FitArgs,
-    cloud: &PointCloud3,
-) -> anyhow::Result<(PointCloud3, Vec<usize>)> {
-    let ratio = args
-        .mras
-        .outlier_ratio
-        .unwrap_or(zeroset_bases::outliers::DEFAULT_OUTLIER_RATIO);
-    if !zeroset_bases::outliers::valid_ratio(ratio) {
-        bail!(
-            "--outlier-ratio {ratio}: give 0 (off) or a ratio ≥ 1.5 (below, most of a surface's \
-             points would be isolated)"
-        );
-    }
-    if cloud.normals().is_none() {
-        return Ok((cloud.clone(), Vec::new()));
-    }
-    let (kept, found) = zeroset_bases::outliers::remove_outliers(cloud, ratio)
-        .context("the cloud without its outliers")?;
-    crate::fit_mras::print_outliers_of(&found.indices, found.kept_sparse, cloud.positions(), ratio);
-    crate::fit_mras::write_outliers(args, cloud, &found.indices)?;
-    Ok((kept, found.indices))
 }
 
 /// A fit to run with whichever kernel `--kernel` names ([`with_kernel`]).

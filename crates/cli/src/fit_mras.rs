@@ -16,7 +16,7 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 
 use zeroset_bases::field_file::write_mras_field;
-use zeroset_bases::mras::{MrasFit, MrasOptions, MrasProgress, fit_mras};
+use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 
 use crate::fit::{FitArgs, line, load, more, print_check, print_input};
 use crate::info::g;
@@ -43,16 +43,6 @@ pub struct MrasArgs {
     /// Keep every cell's full coefficient tensor instead of its CP factors (for comparison).
     #[arg(long, help_heading = HEADING)]
     pub no_compress: bool,
-    /// Set aside stray points before fitting (--method mras and rbf, oriented clouds): those
-    /// whose spacing (mean distance to their 8 nearest) exceeds R times the median and that do
-    /// not lie on a surface with their neighbours, and those off a clean patch of surface with
-    /// a normal of their own; 0 fits every point [default: 3].
-    #[arg(long, value_name = "R", help_heading = HEADING)]
-    pub outlier_ratio: Option<f64>,
-    /// Write the stray points set aside to this .xyzn file (x y z nx ny nz per line, in input
-    /// order; empty if there are none), written atomically.
-    #[arg(long, value_name = "FILE.xyzn", help_heading = HEADING)]
-    pub outliers_out: Option<std::path::PathBuf>,
 }
 
 impl MrasArgs {
@@ -95,8 +85,6 @@ impl MrasArgs {
         [
             (self.tolerance.is_some(), "--tolerance"),
             (self.tolerance_distance.is_some(), "--tolerance-distance"),
-            (self.outlier_ratio.is_some(), "--outlier-ratio"),
-            (self.outliers_out.is_some(), "--outliers-out"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
@@ -118,7 +106,8 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     if let Some(output) = &args.output {
         crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
     }
-    check_outliers_out(args)?;
+    args.outliers
+        .check(&args.points, args.output.as_deref(), args.force)?;
     let mut o = MrasOptions::default();
     if let Some(t) = args.mras.tolerance {
         o.tolerance = t;
@@ -129,107 +118,9 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     if let Some(l) = args.neural.lambda {
         o.lambda = l;
     }
-    if let Some(r) = args.mras.outlier_ratio {
-        o.outlier_ratio = r;
-    }
+    o.outlier_ratio = args.outliers.ratio()?;
     o.compress = !args.mras.no_compress;
     Ok(o)
-}
-
-/// Checks `--outliers-out` (an .xyzn file that is not an input or the field, unless --force).
-pub(crate) fn check_outliers_out(args: &FitArgs) -> anyhow::Result<()> {
-    let Some(path) = &args.mras.outliers_out else {
-        return Ok(());
-    };
-    let mut inputs: Vec<&std::path::Path> = vec![&args.points];
-    // Not the field either (check_output refuses its inputs' paths).
-    inputs.extend(args.output.as_deref());
-    crate::output::check_output(path, &inputs, args.force, &["xyzn"])
-}
-
-/// Writes `--outliers-out`, if given: the points of `cloud` at `indices`.
-pub(crate) fn write_outliers(
-    args: &FitArgs,
-    cloud: &zeroset_field_core::PointCloud3,
-    indices: &[usize],
-) -> anyhow::Result<()> {
-    let Some(path) = &args.mras.outliers_out else {
-        return Ok(());
-    };
-    let normals = cloud.normals().unwrap_or_default();
-    zeroset_field_core::io::write_atomic(path, |w| {
-        for &i in indices {
-            let p = cloud.positions()[i];
-            let n = normals.get(i).copied().unwrap_or([0.0; 3]);
-            writeln!(w, "{} {} {} {} {} {}", p[0], p[1], p[2], n[0], n[1], n[2])?;
-        }
-        Ok(())
-    })
-    .with_context(|| format!("writing {}", path.display()))?;
-    outln!(
-        "wrote {} ({} stray point{} set aside)",
-        path.display(),
-        indices.len(),
-        if indices.len() == 1 { "" } else { "s" }
-    );
-    Ok(())
-}
-
-/// Reports the points set aside as outliers (and the isolated ones kept as sparse surface).
-fn print_outliers(fit: &MrasFit, positions: &[[f64; 3]], options: &MrasOptions) {
-    print_outliers_of(
-        &fit.outliers,
-        fit.kept_sparse,
-        positions,
-        options.outlier_ratio,
-    );
-}
-
-/// Reports `outliers` (input indices into `positions`) set aside at `ratio`, and the
-/// `kept_sparse` isolated points kept.
-pub(crate) fn print_outliers_of(
-    outliers: &[usize],
-    kept_sparse: usize,
-    positions: &[[f64; 3]],
-    ratio: f64,
-) {
-    if ratio == 0.0 {
-        line(
-            "outliers",
-            "not looked for (--outlier-ratio 0): every point fitted",
-        );
-        return;
-    }
-    let sparse = match kept_sparse {
-        0 => String::new(),
-        k => format!("; {k} isolated but kept: on a surface with their neighbours"),
-    };
-    if outliers.is_empty() {
-        line("outliers", &format!("none{sparse}"));
-        return;
-    }
-    const SHOWN: usize = 3;
-    let examples: Vec<String> = outliers
-        .iter()
-        .take(SHOWN)
-        .map(|&i| format!("#{i} {}", crate::info::point(positions[i])))
-        .collect();
-    line(
-        "outliers",
-        &format!(
-            "{} stray point{} set aside, not fitted (isolated: spacing > {}× the median; or \
-             off a clean patch of surface with a normal of their own){sparse}; --outlier-ratio 0 \
-             fits every point",
-            outliers.len(),
-            if outliers.len() == 1 { "" } else { "s" },
-            g(ratio),
-        ),
-    );
-    more(&format!(
-        "{}{}",
-        examples.join(", "),
-        if outliers.len() > SHOWN { ", …" } else { "" }
-    ));
 }
 
 /// Runs `zeroset fit --method mras`.
@@ -290,8 +181,12 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             &format!("{} exact duplicate positions merged", fit.duplicates),
         );
     }
-    print_outliers(&fit, cloud.positions(), &options);
-    write_outliers(args, &cloud, &fit.outliers)?;
+    args.outliers.report(
+        &cloud,
+        &fit.outliers,
+        fit.kept_sparse,
+        options.outlier_ratio,
+    )?;
     line(
         "levels",
         "level  m  cells  ranks min/mean/max  stored  uncompressed  max error  mean error  split",

@@ -195,6 +195,9 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     if let Some(flag) = args.mras.given() {
         bail!("{flag} is an option of --method mras, not of --method neural");
     }
+    if let Some(flag) = args.outliers.given() {
+        bail!("{flag} applies to --method rbf and mras, not to --method neural");
+    }
     check_request(args)?;
     let start = Instant::now();
     match value_file_dimension(&args.points) {

@@ -12,7 +12,7 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::field_file::{
     AnyField, is_field_file, read_any_field, read_dimension, read_metadata,
 };
-use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, find_outliers};
+use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, MIN_POINTS_FOR_OUTLIERS, find_outliers};
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Point;
 use zeroset_field_core::io::gempy::{self, GeoModelData};
@@ -162,12 +162,16 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
 
 /// The stray points `zeroset fit` would set aside at the default `--outlier-ratio`.
 fn write_outliers(s: &mut String, positions: &[Point<3>], normals: &[Point<3>]) {
-    let ratio = DEFAULT_OUTLIER_RATIO;
-    let found = find_outliers(positions, normals, ratio);
-    if found.median_spacing == 0.0 {
-        line(s, "outliers", "not looked for (fewer than 64 points)");
+    if positions.len() < MIN_POINTS_FOR_OUTLIERS {
+        line(
+            s,
+            "outliers",
+            &format!("not looked for (fewer than {MIN_POINTS_FOR_OUTLIERS} points)"),
+        );
         return;
     }
+    let ratio = DEFAULT_OUTLIER_RATIO;
+    let found = find_outliers(positions, normals, ratio);
     let spacing = format!(
         "median spacing {} (mean distance to the 8 nearest)",
         g(found.median_spacing)

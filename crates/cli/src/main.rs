@@ -25,6 +25,7 @@ mod fit_neural;
 mod info;
 mod machine;
 mod mesh;
+mod outliers;
 mod output;
 mod preview;
 mod progress;

@@ -73,16 +73,9 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
-    /// Stray points set aside before the fit: spacing (mean distance to the 8 nearest) above R
-    /// times the median and not on a surface with their neighbours, or off a clean patch of
-    /// surface with a normal of their own; 0 fits every point [default: 3] (as `zeroset fit
-    /// --outlier-ratio`).
-    #[arg(long, value_name = "R")]
-    pub outlier_ratio: Option<f64>,
-
-    /// Write the stray points set aside to this .xyzn file (as `zeroset fit --outliers-out`).
-    #[arg(long, value_name = "FILE.xyzn")]
-    pub outliers_out: Option<PathBuf>,
+    /// The fit's stray-point options (as `zeroset fit`'s).
+    #[command(flatten)]
+    pub outliers: crate::outliers::OutlierArgs,
 
     /// Write no PNG preview.
     #[arg(long)]
@@ -126,11 +119,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let preview = (!args.no_preview).then(|| args.output.with_extension("png"));
     // Every output is checked before any work: its extension, its directory, and --force.
-    let outputs: [(Option<&PathBuf>, &[&str]); 4] = [
+    let outputs: [(Option<&PathBuf>, &[&str]); 3] = [
         (Some(&args.output), &["ply", "obj"]),
         (preview.as_ref(), &["png"]),
         (args.field.as_ref(), &["zsf"]),
-        (args.outliers_out.as_ref(), &["xyzn"]),
     ];
     for (path, extensions) in outputs {
         if let Some(path) = path {
@@ -140,6 +132,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if args.field.as_deref() == Some(args.output.as_path()) {
         bail!("--field and -o name the same file");
     }
+    args.outliers.ratio()?;
+    args.outliers.check(&args.scan, None, args.force)?;
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let cloud = read_point_cloud(&args.scan).map_err(|e| {
@@ -205,11 +199,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         os(fit_method),
     ];
     argv.extend([os("-o"), field.as_os_str()]);
-    let ratio = args.outlier_ratio.map(|r| r.to_string());
+    let ratio = args.outliers.outlier_ratio.map(|r| r.to_string());
     if let Some(r) = &ratio {
         argv.extend([os("--outlier-ratio"), std::ffi::OsStr::new(r)]);
     }
-    if let Some(path) = &args.outliers_out {
+    if let Some(path) = &args.outliers.outliers_out {
         argv.extend([os("--outliers-out"), path.as_os_str()]);
     }
     common(&mut argv, true);

@@ -25,7 +25,7 @@
 //! Distances: each point is projected onto the zero set along the gradient
 //! ([`distance_to_zero_set`]); the point reached lies on the surface, so the figure is an upper
 //! bound of the true distance. Option overrides: `--tolerance T --max-level L --lambda λ
-//! --omega1 ω₁ --omega2 ω₂ --omega2-root ω₂ --m0 m₀ --beta β --min-knots m --admm-iter N --admm-tol t
+//! --omega1 ω₁ --omega2 ω₂ --omega2-root ω₂ --omega2-decay d --m0 m₀ --beta β --min-knots m --admm-iter N --admm-tol t
 //! --cp-scale s --cp-points p --cp-refined c --n-min N --no-compress`.
 
 #[path = "common/data.rs"]
@@ -106,6 +106,7 @@ fn parse() -> Res<Args> {
             "--omega1" => o.omega1 = num()?,
             "--omega2" => o.omega2 = num()?,
             "--omega2-root" => o.omega2_root = num()?,
+            "--omega2-decay" => o.omega2_decay = num()?,
             "--m0" => o.m0 = num()? as usize,
             "--beta" => o.beta = num()?,
             "--min-knots" => o.min_knots = num()? as usize,

@@ -172,7 +172,8 @@ def test_rbf_and_mras_set_stray_points_aside():
     f = zeroset.fit(p, n, method="mras", max_level=2)
     assert f.report.outliers == list(range(2000, 2010))
     assert np.abs(f(np.array(stray))).min() > 0.1
-    g = zeroset.fit(p, n, method="mras", max_level=2, outlier_ratio=0)
+    # (three levels: the cells of the second alone leave the strays within 0.06 of zero)
+    g = zeroset.fit(p, n, method="mras", max_level=3, outlier_ratio=0)
     assert g.report.outliers == []
     assert np.abs(g(np.array(stray))).max() < 0.05
     with pytest.raises(ValueError, match="outlier_ratio"):

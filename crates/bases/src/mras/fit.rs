@@ -27,6 +27,7 @@ use super::local::{
 /// | `omega1` | 5e-5 | `[5e-5, 1e-3]` | 1e-3 leaves the kitten at 4.5e-3 (normals fight positions), 5e-5 at 2.7e-3 |
 /// | `omega2` | 1e-8 | not given | 1e-6 doubles the bunny's max error |
 /// | `omega2_root` | 3e-6 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves a spurious sheet (bunny_2k: 2 components), 3e-6 none; single-level sphere rank 10 at 7.0e-4, torus 10 at 2.1e-3 (1e-5 smooths the torus to 7e-3; Fig. 5's ranks with 1e-8 and λ = 20: `mras_tables -- shapes`) |
+/// | `omega2_decay` | 10 | — | per level, from `omega2_root` to `omega2` (3e-7 at level 2, 3e-8 at 3, then 1e-8). 100 (3e-8 at level 2, then 1e-8) left the coarse levels' cells free where their support has no points: on the bunny with Gaussian position noise of 0.5% of the diagonal, a sheet at the cube's corner (2 components, open), on the kitten with 0.75% two components; 10 removes both and changes no clean fit's outcome (bunny numbers / max / mean 294k, 4.498e-3, 3.497e-4 → 290k, 4.504e-3, 3.513e-4; kitten 104k → 101k, max 4.14e-3 → 4.10e-3; the sweep of `benches/peers/noise_peers.py` and the synthetic shapes of the stray-point sweep: never more components) |
 /// | `m0`, `beta` | 12, 1 | `m_k = m₀ − ⌊βk⌋`, `β ∈ [1, 3]` | 13 costs 1.6× the time for the same error |
 /// | `min_knots` | 6 | — | the coarsest deep-level spline |
 /// | `alpha` | 0.75 | 0.75 | |
@@ -52,6 +53,9 @@ pub struct MrasOptions {
     /// The thin-plate weight of the root level, which alone decides the field far from the
     /// points: stronger, so that no spurious sheet appears there.
     pub omega2_root: f64,
+    /// The factor the thin-plate weight falls by from one level to the next, from `omega2_root`
+    /// down to `omega2` ([`MrasOptions::omega2_at`]); at least 1.
+    pub omega2_decay: f64,
     /// `m₀` of `m_k = m₀ − ⌊βk⌋`.
     pub m0: usize,
     /// `β` of `m_k = m₀ − ⌊βk⌋`.
@@ -101,6 +105,7 @@ impl Default for MrasOptions {
             omega1: 5e-5,
             omega2: 1e-8,
             omega2_root: 3e-6,
+            omega2_decay: 10.0,
             m0: 12,
             beta: 1.0,
             min_knots: 6,
@@ -144,6 +149,8 @@ setter! {
     omega2: f64,
     /// With root-level thin-plate weight `omega2_root`.
     omega2_root: f64,
+    /// With the thin-plate weight falling by `omega2_decay` per level.
+    omega2_decay: f64,
     /// With `m₀ = m0` B-splines per axis at level 0.
     m0: usize,
     /// With `β = beta`.
@@ -157,11 +164,11 @@ setter! {
 }
 
 impl MrasOptions {
-    /// The thin-plate weight at level `k`: `max(ω₂_root · 10^{−2(k−1)}, ω₂)` — strong at the
+    /// The thin-plate weight at level `k`: `max(ω₂_root / decay^{k−1}, ω₂)` — strong at the
     /// coarse levels, whose large cells decide the field far from the points, weak at the fine
     /// ones, which must follow the points.
     pub fn omega2_at(&self, level: u32) -> f64 {
-        (self.omega2_root * 10f64.powi(-2 * (level as i32 - 1))).max(self.omega2)
+        (self.omega2_root / self.omega2_decay.powi(level as i32 - 1)).max(self.omega2)
     }
 
     /// B-splines per axis at level `k`: `max(m₀ − ⌊βk⌋, min_knots)`.
@@ -209,6 +216,12 @@ impl MrasOptions {
             self.omega1,
             self.omega1 > 0.0,
             "must be > 0 (the normals fix the scale)",
+        )?;
+        check(
+            "omega2_decay",
+            self.omega2_decay,
+            self.omega2_decay.is_finite() && self.omega2_decay >= 1.0,
+            "must be finite and ≥ 1",
         )?;
         check(
             "beta",

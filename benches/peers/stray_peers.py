@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +90,9 @@ def zeroset_mesh(binary: Path, cloud: Path, mesh: Path, method: str, off: bool,
 def poisson_mesh(points: np.ndarray, normals: np.ndarray, depth: int, path: Path) -> dict:
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     pcd.normals = o3d.utility.Vector3dVector(normals)
+    start = time.perf_counter()
     mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
+    seconds = time.perf_counter() - start
     o3d.io.write_triangle_mesh(str(path), mesh)
     labels, _, _ = mesh.cluster_connected_triangles()
     return {
@@ -98,6 +101,7 @@ def poisson_mesh(points: np.ndarray, normals: np.ndarray, depth: int, path: Path
         "area": mesh.get_surface_area(),
         "set aside": 0,
         "scan points aside": 0,
+        "seconds": seconds,
     }
 
 

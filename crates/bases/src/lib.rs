@@ -19,6 +19,8 @@
 //! - [`mras`] — multilevel rational algebraic splines (Pan–Tong–Chen): an octree of quadratic
 //!   B-spline offsets blended by a partition of unity, fitted by ADMM with a trace-norm term and
 //!   stored as CP factors of adaptive rank.
+//! - [`noise`] — how noisy a scan is: its points' scatter about a local quadric, against their
+//!   spacing (noisy scans are approximated, not interpolated).
 //! - [`outliers`] — the stray samples of an oriented scan (isolated from the surface the rest
 //!   samples), set aside before a fit so that they do not become surface.
 
@@ -28,6 +30,7 @@ pub mod bspline;
 pub mod field_file;
 pub mod mras;
 pub mod neural;
+pub mod noise;
 pub mod outliers;
 pub mod rbf;
 pub mod tangent_plane;

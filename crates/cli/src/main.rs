@@ -25,6 +25,7 @@ mod fit_neural;
 mod info;
 mod machine;
 mod mesh;
+mod noise;
 mod outliers;
 mod output;
 mod preview;
@@ -97,7 +98,7 @@ fn parse_threads(text: &str) -> Result<usize, String> {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Describe a point-cloud file: format, point count, bounding box, normals, duplicates,
-    /// non-finite values, and GemPy formations.
+    /// non-finite values, stray points, noise, and GemPy formations.
     #[command(after_help = info::EXAMPLES)]
     Info(info::InfoArgs),
     /// Run the main job on built-in sample data: describe the bundled point cloud, solve a
@@ -124,9 +125,9 @@ enum Command {
     /// shaded, or with --slice the field on an axis-aligned plane with its zero contour.
     #[command(after_help = preview::EXAMPLES)]
     Preview(preview::PreviewArgs),
-    /// From a scan to a mesh in one command: fit a field (RBF for small clouds, MRAS for large
-    /// ones, or --method), mesh its zero set (signed marching cubes for RBF), write the mesh
-    /// and a PNG preview beside it, and summarise the stages' times.
+    /// From a scan to a mesh in one command: fit a field (RBF for small clean clouds, MRAS for
+    /// large or noisy ones, or --method), mesh its zero set (signed marching cubes for RBF),
+    /// write the mesh and a PNG preview beside it, and summarise the stages' times.
     #[command(after_help = reconstruct::EXAMPLES)]
     Reconstruct(reconstruct::ReconstructArgs),
     /// The interactive restoration studio: a local web page (served by this binary on

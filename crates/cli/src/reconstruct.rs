@@ -27,13 +27,15 @@ Examples:
 /// bunny by RBF in ~21 s (fit ~18 s: 13 GMRES steps on FMM products; the points' distance to
 /// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~17 s (3.7e-4,
 /// 4.4e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~53 s to fit and 1.7 GB, where
-/// MRAS's time grows with the detail rather than the count.
+/// MRAS's time grows with the detail rather than the count. Noisy clouds go to MRAS at any
+/// size ([`zeroset_bases::noise`]: RBF interpolation makes bubbles of the noise).
 pub const AUTO_RBF_POINTS: usize = 50_000;
 
 /// The field `--method` fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ReconstructMethod {
-    /// RBF up to 50,000 points, MRAS above.
+    /// RBF up to 50,000 points unless the scan is noisy (its points scatter about their local
+    /// surface by more than 0.2 of their spacing: `zeroset info` measures it), MRAS otherwise.
     Auto,
     /// Radial basis functions (kernel r, off-surface points), meshed by the signed marching
     /// cubes.
@@ -146,10 +148,28 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         )
     })?;
     let points = cloud.len();
-    let method = match args.method {
-        ReconstructMethod::Auto if points <= AUTO_RBF_POINTS => ReconstructMethod::Rbf,
-        ReconstructMethod::Auto => ReconstructMethod::Mras,
-        m => m,
+    let (method, why) = match args.method {
+        ReconstructMethod::Auto if points > AUTO_RBF_POINTS => (
+            ReconstructMethod::Mras,
+            format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
+        ),
+        ReconstructMethod::Auto => {
+            let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+            match crate::noise::measure(cloud.positions(), diagonal) {
+                Some(m) if m.noise.is_noisy() => (
+                    ReconstructMethod::Mras,
+                    format!(
+                        " (auto: a noisy scan, {}; RBF would interpolate the noise)",
+                        m.describe()
+                    ),
+                ),
+                _ => (
+                    ReconstructMethod::Rbf,
+                    format!(" (auto: RBF up to {AUTO_RBF_POINTS} points unless noisy)"),
+                ),
+            }
+        }
+        m => (m, String::new()),
     };
     drop(cloud);
     let (fit_method, mesh_method) = match method {
@@ -157,14 +177,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         _ => ("rbf", "smc"),
     };
     outln!(
-        "reconstruct:  {} ({points} points) → {}, {fit_method} field{}",
+        "reconstruct:  {} ({points} points) → {}, {fit_method} field{why}",
         args.scan.display(),
         args.output.display(),
-        if args.method == ReconstructMethod::Auto {
-            format!(" (auto: RBF up to {AUTO_RBF_POINTS} points)")
-        } else {
-            String::new()
-        }
     );
     // The field file: the user's, or a temporary one removed however the command ends.
     let (field, temporary) = match &args.field {

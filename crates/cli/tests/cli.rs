@@ -2019,6 +2019,68 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
 }
 
 #[test]
+fn a_noisy_scan_is_measured_warned_of_and_fitted_by_mras() {
+    // The fit tests' sphere (2,000 points, spacing ≈ 0.09 of its radius) with every point moved
+    // ±0.03 of the radius along its normal, the sign pseudo-random: noisy (scatter about 0.3 of the
+    // spacing). Interpolating it would make bubbles: info says so, an RBF fit warns, and
+    // reconstruct's automatic choice is MRAS. The clean sphere: none of it.
+    let noisy: String = sphere_points(2000)
+        .iter()
+        .enumerate()
+        .map(|(i, (p, n))| {
+            // The sign: the top bit of a mixed hash of the index (SplitMix64's finaliser; a
+            // bare golden-ratio hash would follow the lattice's own golden-angle azimuth).
+            let mut x = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            let up = (x ^ (x >> 31)) >> 63 == 1;
+            let h = if up { 0.03 } else { -0.03 } * RADIUS;
+            let q: [f64; 3] = std::array::from_fn(|a| p[a] + h * n[a]);
+            format!("{} {} {} {} {} {}\n", q[0], q[1], q[2], n[0], n[1], n[2])
+        })
+        .collect();
+    let (dir, path) = temp_file("noisy.xyzn", &noisy);
+    let (_c, clean) = temp_file("clean.xyzn", &sphere_xyzn(2000));
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("of the point spacing: noisy"),
+        "{described}"
+    );
+    let described = stdout(&info(&clean, &[]));
+    assert!(
+        described.contains("clean enough to interpolate"),
+        "{described}"
+    );
+    let o = fit(&path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("RBF interpolates every point"),
+        "{}",
+        stdout(&o)
+    );
+    let o = fit(&clean, &[]);
+    assert!(!stdout(&o).contains("noise:"), "{}", stdout(&o));
+    let mesh = dir.path().join("noisy.ply");
+    let out = zeroset([
+        "reconstruct",
+        path.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+        "--detail",
+        "coarse",
+        "--no-preview",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(text.contains("mras field (auto: a noisy scan"), "{text}");
+    assert!(
+        text.contains("closed") && text.contains(" 1 component"),
+        "{text}"
+    );
+}
+
+#[test]
 fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("bunny.ply");
@@ -2048,7 +2110,7 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
     let text = String::from_utf8_lossy(&out.stdout);
     for phrase in [
         "2000 points",
-        "rbf field (auto: RBF up to 50000 points)",
+        "rbf field (auto: RBF up to 50000 points unless noisy)",
         "== 1/3 fit",
         "== 2/3 mesh",
         "report: closed, Euler characteristic 2, 1 component(s)",

@@ -12,6 +12,7 @@ use pyo3::types::PyDict;
 use zeroset_bases::field_file::{AnyField, StoredKernel};
 use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 use zeroset_bases::neural::{Activation, Architecture, NeuralFit, NeuralParams};
+use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, remove_outliers, valid_ratio};
 use zeroset_bases::rbf::{
     Biharmonic, Constraints, GreedyOptions, IterativeParams, Offset, RbfFit, Solver, ThinPlate,
@@ -192,6 +193,12 @@ pub(crate) fn fit_rbf<'py>(
             ("outliers", ReportValue::Ints(outliers.indices)),
             ("kept_sparse", ReportValue::Int(outliers.kept_sparse)),
         ];
+        if let Some(noise) = estimate_noise(cloud.positions()) {
+            report.extend([
+                ("scatter", ReportValue::Float(noise.relative())),
+                ("noisy", ReportValue::Bool(noise.is_noisy())),
+            ]);
+        }
         let constraints = if hermite {
             Constraints::hermite(&cloud).map_err(to_py)?
         } else {

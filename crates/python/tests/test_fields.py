@@ -188,6 +188,22 @@ def test_rbf_and_mras_set_stray_points_aside():
         zeroset.fit(p, n, method="neural", outlier_ratio=3)
 
 
+def test_rbf_measures_noise_and_warns_of_it():
+    # The unit sphere's 2,000 points (spacing about 0.09) moved +-0.03 along their normals (random
+    # signs): noisy. The clean sphere: scatter near 0, no warning
+    points, normals = sphere_cloud(2000)
+    import warnings as w
+
+    with w.catch_warnings():
+        w.simplefilter("error")
+        clean = zeroset.fit(points, normals)
+    assert clean.report.noisy is False and clean.report.scatter < 0.05
+    h = np.where(np.random.default_rng(5).random(2000) < 0.5, 0.03, -0.03)
+    with pytest.warns(UserWarning, match="method='mras' fits them by least squares"):
+        noisy = zeroset.fit(points + h[:, None] * normals, normals)
+    assert noisy.report.noisy is True and noisy.report.scatter > 0.2
+
+
 @pytest.mark.parametrize(
     "points, normals, message",
     [

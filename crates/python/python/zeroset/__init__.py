@@ -27,6 +27,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
 
@@ -375,6 +376,9 @@ def fit(
     ``outlier_ratio`` times the median (default 3) and that do not lie on a surface with
     them, and those off a clean patch of surface with a normal of their own.
     ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
+    ``"rbf"`` also measures how noisy the points are, ``report["scatter"]`` (their scatter
+    about a local quadric over their spacing), and warns when it exceeds 0.2
+    (``report["noisy"]``): interpolating noise grows bubbles, ``"mras"`` averages it.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit
@@ -392,6 +396,13 @@ def fit(
                 outlier_ratio, cb,
             ),
         )
+        if report.get("noisy"):
+            warnings.warn(
+                f"the points scatter {report['scatter']:.2f} of their spacing about their local "
+                "surface (noisy above 0.2): RBF interpolates every point and folds between noisy "
+                "ones, so the surface grows bubbles; method='mras' fits them by least squares",
+                stacklevel=2,
+            )
     elif method == "neural":
         if kernel is not None or tolerance is not None or hermite or radius is not None:
             raise ValueError("kernel=, tolerance=, hermite= and radius= apply to method='rbf'")

@@ -1,0 +1,66 @@
+//! The noise check ([`zeroset_bases::noise`]) as the commands report it: `zeroset info` on a
+//! cloud, the warning of `zeroset fit --method rbf` on a noisy one, and the reason
+//! `zeroset reconstruct --method auto` gives for fitting MRAS to it.
+
+use zeroset_bases::noise::{NOISY_SCATTER, Noise, estimate_noise};
+use zeroset_field_core::geometry::Point;
+
+use crate::info::g;
+
+/// The estimate for `positions`, with the cloud's bounding-box diagonal.
+pub fn measure(positions: &[Point<3>], diagonal: f64) -> Option<Measured> {
+    estimate_noise(positions).map(|noise| Measured { noise, diagonal })
+}
+
+/// An estimate and the diagonal it is reported against.
+#[derive(Debug, Clone, Copy)]
+pub struct Measured {
+    /// The estimate.
+    pub noise: Noise,
+    /// The cloud's bounding-box diagonal.
+    pub diagonal: f64,
+}
+
+impl Measured {
+    /// `scatter σ ≈ …` (of the diagonal) and its ratio to the spacing.
+    pub fn describe(&self) -> String {
+        let of_diagonal = if self.diagonal > 0.0 {
+            format!(" ({} of the diagonal)", g(self.noise.sigma / self.diagonal))
+        } else {
+            String::new()
+        };
+        format!(
+            "scatter about the local surface σ ≈ {}{of_diagonal}, {:.3} of the point spacing",
+            g(self.noise.sigma),
+            self.noise.relative()
+        )
+    }
+
+    /// `zeroset info`'s line: the figures and what they mean for a fit.
+    pub fn verdict(&self) -> String {
+        if self.noise.is_noisy() {
+            format!(
+                "{}: noisy (above {NOISY_SCATTER}); RBF interpolation would fold between the \
+                 points into bubbles, so zeroset reconstruct fits MRAS, which averages them",
+                self.describe()
+            )
+        } else {
+            format!(
+                "{}: clean enough to interpolate (noisy above {NOISY_SCATTER})",
+                self.describe()
+            )
+        }
+    }
+
+    /// The warning of an RBF fit, on a noisy cloud only.
+    pub fn rbf_warning(&self) -> Option<String> {
+        self.noise.is_noisy().then(|| {
+            format!(
+                "warning: {} (noisy above {NOISY_SCATTER}): RBF interpolates every point and \
+                 folds between noisy ones, so the surface grows bubbles; --method mras fits \
+                 them by least squares",
+                self.describe()
+            )
+        })
+    }
+}

@@ -40,15 +40,9 @@ from pathlib import Path
 import numpy as np
 
 import common
-
-try:
-    import open3d as o3d
-except ImportError as e:  # pragma: no cover - set-up message
-    sys.exit(f"open3d is missing ({e}): bash benches/peers/setup.sh --open3d")
+from stray_peers import binary_and_out, distances, o3d, poisson_mesh, read_cloud  # exits without open3d
 
 from scipy.spatial import cKDTree  # noqa: E402
-
-from stray_peers import distances, poisson_mesh  # noqa: E402
 
 REPO = common.REPO
 
@@ -66,21 +60,6 @@ def parse_args() -> argparse.Namespace:
     a = p.parse_args()
     a.sigma_list = [float(s) for s in a.sigmas.split(",") if s.strip()]
     return a
-
-
-def read_cloud(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and unit normals: PLY through Open3D, text files as x y z nx ny nz columns."""
-    if path.suffix.lower() == ".ply":
-        pcd = o3d.io.read_point_cloud(str(path))
-        if not pcd.has_normals():
-            sys.exit(f"{path}: no normals")
-        p, n = np.asarray(pcd.points, dtype=np.float64), np.asarray(pcd.normals, dtype=np.float64)
-    else:
-        a = np.loadtxt(path, ndmin=2)
-        if a.shape[1] < 6:
-            sys.exit(f"{path}: want x y z nx ny nz per line")
-        p, n = a[:, :3], a[:, 3:6]
-    return p, n / np.linalg.norm(n, axis=1)[:, None]
 
 
 def zeroset_run(binary: Path, cloud: Path, mesh: Path, method: str | None) -> dict:
@@ -126,11 +105,7 @@ class Truth:
 
 def main() -> None:
     args = parse_args()
-    binary = REPO / "target" / "release" / "zeroset"
-    if not binary.exists():
-        sys.exit(f"{binary} is missing: cargo build --release -p zeroset-cli")
-    out = args.out / "noise_peers"
-    out.mkdir(parents=True, exist_ok=True)
+    binary, out = binary_and_out(args, "noise_peers")
     p, n = read_cloud(args.cloud)
     diagonal = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
     truth = Truth(args.truth, p)

@@ -57,10 +57,18 @@ def parse_args() -> argparse.Namespace:
 
 
 def read_cloud(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    pcd = o3d.io.read_point_cloud(str(path))
-    if not pcd.has_normals():
-        sys.exit(f"{path}: no normals")
-    return np.asarray(pcd.points, dtype=np.float64), np.asarray(pcd.normals, dtype=np.float64)
+    """Positions and unit normals: PLY through Open3D, text files as x y z nx ny nz columns."""
+    if path.suffix.lower() == ".ply":
+        pcd = o3d.io.read_point_cloud(str(path))
+        if not pcd.has_normals():
+            sys.exit(f"{path}: no normals")
+        p, n = np.asarray(pcd.points, dtype=np.float64), np.asarray(pcd.normals, dtype=np.float64)
+    else:
+        a = np.loadtxt(path, ndmin=2)
+        if a.shape[1] < 6:
+            sys.exit(f"{path}: want x y z nx ny nz per line")
+        p, n = a[:, :3], a[:, 3:6]
+    return p, n / np.linalg.norm(n, axis=1)[:, None]
 
 
 def zeroset_mesh(binary: Path, cloud: Path, mesh: Path, method: str, off: bool,
@@ -113,15 +121,20 @@ def distances(mesh_path: Path, points: np.ndarray, diagonal: float) -> tuple[flo
     return float(d.mean() / diagonal), float(d.max() / diagonal)
 
 
-def main() -> None:
-    args = parse_args()
+def binary_and_out(args: argparse.Namespace, name: str) -> tuple[Path, Path]:
+    """The release `zeroset` binary (exits if it is not built) and the folder OUT/`name`."""
     binary = REPO / "target" / "release" / "zeroset"
     if not binary.exists():
         sys.exit(f"{binary} is missing: cargo build --release -p zeroset-cli")
-    out = args.out / "stray_peers"
+    out = args.out / name
     out.mkdir(parents=True, exist_ok=True)
+    return binary, out
+
+
+def main() -> None:
+    args = parse_args()
+    binary, out = binary_and_out(args, "stray_peers")
     p, n = read_cloud(args.cloud)
-    n = n / np.linalg.norm(n, axis=1)[:, None]
     rng = np.random.default_rng(args.seed)
     k = int(round(args.fraction * len(p)))
     lo, hi = p.min(axis=0), p.max(axis=0)

@@ -10,11 +10,12 @@ Run by hand, not by CI (see benches/peers/README.md):
     cargo build --release -p zeroset-cli        # target/release/zeroset
     benches/peers/.venv/bin/python benches/peers/noise_peers.py                   # the bunny
     benches/peers/.venv/bin/python benches/peers/noise_peers.py --cloud data/kitten.xyz \\
-        --truth none --sigmas 0,0.0025,0.005
+        --sigmas 0,0.0025,0.005,0.0075
 
 The noisy clouds: `--cloud`'s positions plus independent Gaussian noise of standard deviation
-σ · (its bounding-box diagonal) on each axis (numpy's default_rng(seed)), normals unchanged;
-written with 17 significant digits to OUT/noise_peers/noisy_{σ}.xyzn, the file every side
+σ · (its bounding-box diagonal) on each axis (numpy's default_rng(seed), seeded afresh for each
+σ: the same pattern, scaled), normals left exact; written with 17 significant digits to
+OUT/noise_peers/{cloud}_{σ}.xyzn, the file every side
 reads. `zeroset info` gives the scatter it measures (`zeroset_bases::noise`: σ̂ and its ratio to
 the point spacing; noisy above 0.2). Each zeroset run is the whole process
 `zeroset reconstruct noisy.xyzn -o MESH.ply [--method M] --no-preview --force --quiet`, timed
@@ -50,8 +51,9 @@ REPO = common.REPO
 def parse_args() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cloud", type=Path, default=REPO / "data" / "bunny_points.ply")
-    p.add_argument("--truth", default=str(REPO / "data" / "bun_zipper.ply"),
-                   help="the clean scan's mesh for the vertices' distance, or 'none'")
+    p.add_argument("--truth", default="auto",
+                   help="the clean scan's mesh for the vertices' distance, or 'none' (auto: "
+                        "data/bun_zipper.ply for data/bunny_points.ply, none otherwise)")
     p.add_argument("--sigmas", default="0,0.001,0.0025,0.005",
                    help="noise standard deviations as fractions of the diagonal, comma-separated")
     p.add_argument("--seed", type=int, default=7)
@@ -59,6 +61,9 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--out", type=Path, default=REPO / "benches" / "peers" / "out")
     a = p.parse_args()
     a.sigma_list = [float(s) for s in a.sigmas.split(",") if s.strip()]
+    if a.truth == "auto":
+        bunny = a.cloud.resolve() == (REPO / "data" / "bunny_points.ply").resolve()
+        a.truth = str(REPO / "data" / "bun_zipper.ply") if bunny else "none"
     return a
 
 
@@ -118,16 +123,16 @@ def main() -> None:
     for sigma in args.sigma_list:
         rng = np.random.default_rng(args.seed)
         q = p + rng.normal(size=p.shape) * sigma * diagonal
-        cloud = out / f"noisy_{sigma:g}.xyzn"
+        cloud = out / f"{args.cloud.stem}_{sigma:g}.xyzn"
         np.savetxt(cloud, np.hstack([q, n]), fmt="%.17g")
         q = np.loadtxt(cloud)[:, :3]  # the coordinates as every side reads them
         measured = scatter(binary, cloud)
         rows = []
         for method in (None, "rbf", "mras"):
-            mesh = out / f"noisy_{sigma:g}_{method or 'auto'}.ply"
+            mesh = out / f"{args.cloud.stem}_{sigma:g}_{method or 'auto'}.ply"
             r = zeroset_run(binary, cloud, mesh, method)
             rows.append((f"zeroset {method or 'auto → ' + r['method']}", r, mesh))
-        mesh = out / f"noisy_{sigma:g}_poisson.ply"
+        mesh = out / f"{args.cloud.stem}_{sigma:g}_poisson.ply"
         r = poisson_mesh(q, n, args.depth, mesh)
         rows.append((f"Open3D Poisson depth {args.depth}", r, mesh))
         for name, r, mesh in rows:

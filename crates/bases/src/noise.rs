@@ -2,43 +2,52 @@
 //! against their spacing.
 //!
 //! Around each point `p_i`, its `k = 16` nearest other points and itself (`m = 17` points)
-//! sample a small patch of surface. Their centroid `c` and covariance give a frame: the
-//! eigenvector of the smallest eigenvalue is the patch's normal `n`, the other two span its
-//! tangent plane (`u`, `v`). In that frame the patch is a height field, and a quadric
+//! sample a small patch of surface. Where the cloud has normals, the patch takes the nearest
+//! whose normal faces the same way as the point's (`n_i · n_j > 0`, among the 32 nearest), so
+//! that a thin part's two sheets, or a sharp edge's two faces, are not mixed. The patch's
+//! centroid and covariance give a frame: the eigenvector of the smallest eigenvalue is its
+//! normal, the other two span its tangent plane (`u`, `v`). In that frame the patch is a height
+//! field, and a quadric
 //!
 //! ```text
 //! h(u, v) = a + b u + c v + d u² + e u v + f v²
 //! ```
 //!
 //! fitted by least squares takes up its position, tilt and curvature, so what is left is
-//! what no smooth surface explains: with independent noise of standard deviation `σ` along the
-//! normal, the residual sum of squares `RSS_i` over the patch has expectation `(m − 6) σ²`. The
-//! estimate is the median over the points,
+//! what no smooth surface explains: with independent Gaussian noise of standard deviation `σ`
+//! along the normal, `RSS_i / σ²` follows a χ² law with `m − 6 = 11` degrees of freedom. The
+//! estimate reads the lower quartile over the patches and scales it by that law's,
 //!
 //! ```text
-//! σ̂² = median_i RSS_i / (m − 6),
+//! σ̂² = Q₀.₂₅(RSS_i) / q₀.₂₅(χ²₁₁),    q₀.₂₅(χ²₁₁) = 7.5841…,
 //! ```
 //!
-//! robust to the few patches that straddle an edge, a thin part seen from both sides or a
-//! stray point. It is compared with the **spacing** `s` (the median over the points of the
-//! mean distance to their 8 nearest others, as [`crate::outliers`] measures it): the
-//! **relative scatter** `σ̂ / s` is scale-free.
+//! consistent for Gaussian noise and robust to the patches no quadric fits whatever the noise
+//! (an edge, a fold, a stray point) even where they are half the cloud: on noisy clouds the
+//! median gives the same figure within 1%, but it read a sparse cube's edges as noise (200
+//! random points on its faces, no normals: 0.21 of the spacing, above the threshold; the lower
+//! quartile 0.15; with the faces' normals 0).
+//!
+//! It is compared with the **spacing** `s` (the median over the points of the mean distance to
+//! their 8 nearest others, as [`crate::outliers`] measures it): the **relative scatter**
+//! `σ̂ / s` is scale-free.
 //!
 //! Why it matters: RBF interpolation (papers 002 and 003) makes every sample a zero of the
 //! field, with off-surface points along its normal. Where neighbouring samples lie at different
 //! heights by more than the off-surface offset allows, the interpolant folds between them and
 //! the zero set grows bubbles: on the bunny scan (34,834 points) with Gaussian position noise,
 //! `zeroset reconstruct --method rbf` gives one closed surface at σ = 0.15% of the diagonal
-//! (relative scatter 0.23), 3 components at 0.2% (0.29), 23 at 0.25% (0.35), 418 at 0.5%
-//! (0.50); on the kitten (5,210 points) one at 0.25% (0.15), 10 at 0.5% (0.28), 49 at 0.75%.
+//! (relative scatter 0.24), 3 components at 0.2% (0.30), 23 at 0.25% (0.36), 418 at 0.5%
+//! (0.52); on the kitten (5,210 points) one at 0.25% (0.15), 10 at 0.5% (0.29), 49 at 0.75%.
 //! MRAS (paper 004) fits each cell by least squares and averages the noise instead: one closed
 //! component at every one of these levels, its mesh closer to the clean scan than RBF's. Clean
-//! scans measure far below the threshold [`NOISY_SCATTER`] = 0.2: the bunny 0.030, the kitten
-//! 0.017, the 2,000-point bunny sample 0.080, 600 random points on a cube's faces 0.117 (its
-//! edges) — `benches/peers/noise_peers.py` has the runs.
+//! scans measure far below the threshold [`NOISY_SCATTER`] = 0.2: the bunny 0.025, the kitten
+//! 0.009, the 2,000-point bunny sample 0.049, a 1 : 1 : 0.02 ellipsoid 0 (0.20 without its
+//! normals: most patches straddle both sheets) — `benches/peers/noise_peers.py` has the runs.
 //!
-//! The estimate is deterministic (exact nearest neighbours, a per-point fit, the median of
-//! all) and `O(n log n)`; it needs no normals.
+//! The estimate is deterministic (exact nearest neighbours, a per-point fit, quantiles of
+//! all) and `O(n log n)`. Clouds of more than [`MAX_PATCHES`] points are measured at every
+//! `⌈n / MAX_PATCHES⌉`-th point.
 //!
 //! ```
 //! use zeroset_bases::noise::{estimate_noise, NOISY_SCATTER};
@@ -49,10 +58,10 @@
 //! let grid = |height: &dyn Fn(usize) -> f64| -> Vec<[f64; 3]> {
 //!     (0..1600).map(|i| [(i % 40) as f64 * 0.01, (i / 40) as f64 * 0.01, height(i)]).collect()
 //! };
-//! let clean = estimate_noise(&grid(&|_| 0.0)).unwrap();
+//! let clean = estimate_noise(&grid(&|_| 0.0), None).unwrap();
 //! assert!(clean.sigma < 1e-12 && !clean.is_noisy());
 //! let sign = |i: usize| if (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63 == 1 { 1.0 } else { -1.0 };
-//! let noisy = estimate_noise(&grid(&|i| 0.004 * sign(i))).unwrap();
+//! let noisy = estimate_noise(&grid(&|i| 0.004 * sign(i)), None).unwrap();
 //! assert!((0.002..0.006).contains(&noisy.sigma), "{noisy:?}");
 //! assert!(noisy.relative() > NOISY_SCATTER && noisy.is_noisy(), "{noisy:?}");
 //! ```
@@ -78,11 +87,27 @@ pub const NOISY_SCATTER: f64 = 0.2;
 /// The fewest points an estimate is made from.
 pub const MIN_POINTS_FOR_NOISE: usize = 64;
 
+/// The most patches fitted: larger clouds are measured at every `⌈n / MAX_PATCHES⌉`-th point
+/// (their neighbours taken from the whole cloud).
+pub const MAX_PATCHES: usize = 100_000;
+
+/// A quadric whose least-squares matrix has a pivot below this fraction of its largest (points
+/// on a conic, or on two or three scan lines) has a coefficient the patch does not determine,
+/// which would soak up a residual: the patch is left out.
+const RANK_TOLERANCE: f64 = 1e-8;
+
 /// The neighbours the spacing averages over (as [`crate::outliers::OUTLIER_NEIGHBOURS`]).
 const SPACING_NEIGHBOURS: usize = crate::outliers::OUTLIER_NEIGHBOURS;
 
 /// The quadric's coefficients.
 const QUADRIC_TERMS: usize = 6;
+
+/// The quantile of the patches' residual variances the estimate reads.
+const QUANTILE: f64 = 0.25;
+
+/// The same quantile of the χ² law with `NOISE_NEIGHBOURS + 1 − QUADRIC_TERMS = 11` degrees of
+/// freedom (scipy.stats.chi2.ppf(0.25, 11)).
+const CHI2_QUANTILE: f64 = 7.584_142_785_441_285;
 
 /// A patch whose second tangent direction spreads less than this fraction of its first (in
 /// variance) is a line of points, on which no quadric is determined: it is left out.
@@ -97,12 +122,13 @@ pub struct Noise {
     pub sigma: f64,
     /// `s`: the median of the points' mean distance to their 8 nearest others.
     pub spacing: f64,
-    /// The patches the median was taken over (those not degenerate).
+    /// The patches the quantile was taken over (those not degenerate).
     pub patches: usize,
 }
 
 impl Noise {
-    /// The relative scatter `σ̂ / s` (0 when the spacing is 0).
+    /// The relative scatter `σ̂ / s` (0 when the spacing is 0, which [`estimate_noise`] never
+    /// returns).
     pub fn relative(&self) -> f64 {
         if self.spacing > 0.0 {
             self.sigma / self.spacing
@@ -117,51 +143,82 @@ impl Noise {
     }
 }
 
-/// The noise of a scan's positions (see the [module docs](self)): `None` for fewer than
-/// [`MIN_POINTS_FOR_NOISE`] points, a coordinate that is not finite, or a cloud where fewer
-/// than half the patches span a surface (points on a line, or all coincident).
-pub fn estimate_noise(positions: &[Point<3>]) -> Option<Noise> {
+/// The noise of a scan's positions (see the [module docs](self)), its patches made of the
+/// neighbours whose normal faces the same way as the point's where `normals` are given (one per
+/// point, finite; otherwise they are not used). `None` for fewer than
+/// [`MIN_POINTS_FOR_NOISE`] points, a coordinate that is not finite, a cloud where fewer
+/// than half the patches span a surface (points on a line, or all coincident), or a median
+/// spacing of 0 (most points repeated 8 or more times).
+pub fn estimate_noise(positions: &[Point<3>], normals: Option<&[Point<3>]>) -> Option<Noise> {
+    estimate_noise_over(positions, normals, MAX_PATCHES)
+}
+
+/// [`estimate_noise`] fitting at most `max_patches` patches.
+fn estimate_noise_over(
+    positions: &[Point<3>],
+    normals: Option<&[Point<3>]>,
+    max_patches: usize,
+) -> Option<Noise> {
     let n = positions.len();
-    if n < MIN_POINTS_FOR_NOISE || !positions.iter().flatten().all(|x| x.is_finite()) {
+    let finite = |v: &[Point<3>]| v.iter().flatten().all(|x| x.is_finite());
+    if n < MIN_POINTS_FOR_NOISE || !finite(positions) {
         return None;
     }
+    // Normals that are not one per point, or not finite, are not used.
+    let normals = normals.filter(|v| v.len() == n && finite(v));
     let tree = Tree::new_from_slice(positions).ok()?;
-    let k = NonZero::new(NOISE_NEIGHBOURS + 1)?;
-    let local: Vec<(f64, Option<f64>)> = (0..n)
-        .into_par_iter()
-        .map(|i| {
+    // With normals, twice the neighbours to choose the patch's from.
+    let wanted = if normals.is_some() { 2 } else { 1 } * NOISE_NEIGHBOURS + 1;
+    let k = NonZero::new(wanted)?;
+    // Every `stride`-th point's patch (all of them up to MAX_PATCHES points): a quantile needs
+    // no more, and `zeroset info` stays quick on clouds of millions.
+    let stride = n.div_ceil(max_patches.max(1));
+    let queries: Vec<usize> = (0..n).step_by(stride).collect();
+    let local: Vec<(f64, Option<f64>)> = queries
+        .par_iter()
+        .map(|&i| {
             let mut found = tree
                 .query(&positions[i])
                 .nearest_n::<SquaredEuclidean<f64>>(k)
                 .execute();
-            // Nearest first, ties by index: the same patch whatever the tree's order.
+            // Nearest first, ties by index. (Which of the points tied at the last distance come
+            // back is kiddo's choice; the tree, built serially, makes it the same every run.)
             found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-            let mut patch = vec![positions[i]];
-            patch.extend(
-                found
-                    .iter()
-                    .filter(|f| f.item as usize != i)
-                    .take(NOISE_NEIGHBOURS)
-                    .map(|f| positions[f.item as usize]),
-            );
-            let others = &patch[1..];
+            let others: Vec<usize> = found
+                .iter()
+                .map(|f| f.item as usize)
+                .filter(|&j| j != i)
+                .collect();
             let spacing = others
                 .iter()
                 .take(SPACING_NEIGHBOURS)
-                .map(|q| geometry::distance(&positions[i], q))
+                .map(|&j| geometry::distance(&positions[i], &positions[j]))
                 .sum::<f64>()
                 / others.len().clamp(1, SPACING_NEIGHBOURS) as f64;
-            (spacing, patch_variance(&patch))
+            // The patch: the nearest that face the same way (the same sheet of a thin part).
+            let facing = |j: &usize| normals.is_none_or(|v| geometry::dot(&v[i], &v[*j]) > 0.0);
+            let mut patch = vec![positions[i]];
+            patch.extend(
+                others
+                    .iter()
+                    .filter(|j| facing(j))
+                    .take(NOISE_NEIGHBOURS)
+                    .map(|&j| positions[j]),
+            );
+            let full = patch.len() == NOISE_NEIGHBOURS + 1;
+            (spacing, full.then(|| patch_variance(&patch)).flatten())
         })
         .collect();
     let spacing = median(local.iter().map(|l| l.0).collect())?;
     let variances: Vec<f64> = local.iter().filter_map(|l| l.1).collect();
-    if 2 * variances.len() < n {
+    // Half the points on 8 or more copies of themselves leave no spacing to compare with.
+    if 2 * variances.len() < local.len() || spacing <= 0.0 {
         return None;
     }
     let patches = variances.len();
+    let dof = (NOISE_NEIGHBOURS + 1 - QUADRIC_TERMS) as f64;
     Some(Noise {
-        sigma: median(variances)?.sqrt(),
+        sigma: (quantile(variances, QUANTILE)? * dof / CHI2_QUANTILE).sqrt(),
         spacing,
         patches,
     })
@@ -197,20 +254,36 @@ fn patch_variance(patch: &[Point<3>]) -> Option<f64> {
         [1.0, u, v, u * u, u * v, v * v][c]
     });
     let heights = Mat::<f64>::from_fn(m, 1, |r, _| axis(&centred[r], 0));
-    let coefficients = design.col_piv_qr().solve_lstsq(&heights);
+    let qr = design.col_piv_qr();
+    let pivots: Vec<f64> = (0..QUADRIC_TERMS).map(|j| qr.R()[(j, j)].abs()).collect();
+    let largest = pivots.iter().copied().fold(0.0, f64::max);
+    if pivots
+        .iter()
+        .any(|&p| p.is_nan() || p <= RANK_TOLERANCE * largest)
+    {
+        return None;
+    }
+    let coefficients = qr.solve_lstsq(&heights);
     let residual = &heights - &design * &coefficients;
     let rss = residual.col(0).iter().map(|r| r * r).sum::<f64>() * wide;
     rss.is_finite().then_some(rss / (m - QUADRIC_TERMS) as f64)
 }
 
 /// The median (the mean of the two middle values for an even count); `None` when empty.
-fn median(mut values: Vec<f64>) -> Option<f64> {
+fn median(values: Vec<f64>) -> Option<f64> {
+    quantile(values, 0.5)
+}
+
+/// The `p`-quantile, linear between the sorted values at positions `p (n − 1)` (the median's
+/// rule for `p = ½`); `None` when empty.
+fn quantile(mut values: Vec<f64>, p: f64) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
     values.sort_by(f64::total_cmp);
-    let n = values.len();
-    Some(0.5 * (values[(n - 1) / 2] + values[n / 2]))
+    let at = p * (values.len() - 1) as f64;
+    let (low, high) = (at.floor() as usize, at.ceil() as usize);
+    Some(values[low] + (at - low as f64) * (values[high] - values[low]))
 }
 
 #[cfg(test)]
@@ -249,7 +322,7 @@ mod tests {
     #[test]
     fn a_clean_curved_surface_measures_almost_no_scatter() {
         // The quadric takes up the sphere's curvature: what is left is its quartic term.
-        let noise = estimate_noise(&sphere(4000, 1.0)).unwrap();
+        let noise = estimate_noise(&sphere(4000, 1.0), None).unwrap();
         assert!(noise.relative() < 0.01, "{noise:?}");
         assert_eq!(noise.patches, 4000);
         // The lattice's step √(4π/n) ≈ 0.056; 8 neighbours' mean lies a little beyond it.
@@ -261,7 +334,7 @@ mod tests {
         // Noise along the normal has the standard deviation of one axis; the tangential part
         // hardly moves the heights.
         for sigma in [0.002, 0.005, 0.01] {
-            let noise = estimate_noise(&jitter(&sphere(8000, 1.0), sigma, 3)).unwrap();
+            let noise = estimate_noise(&jitter(&sphere(8000, 1.0), sigma, 3), None).unwrap();
             let error = (noise.sigma - sigma).abs() / sigma;
             assert!(error < 0.15, "σ = {sigma}: {noise:?}");
         }
@@ -278,8 +351,8 @@ mod tests {
                     .collect()
             };
             let (a, b) = (
-                estimate_noise(&shrink(&clean)).unwrap(),
-                estimate_noise(&shrink(&noisy)).unwrap(),
+                estimate_noise(&shrink(&clean), None).unwrap(),
+                estimate_noise(&shrink(&noisy), None).unwrap(),
             );
             assert!(!a.is_noisy() && b.is_noisy(), "scale {scale}: {a:?} {b:?}");
             assert!(
@@ -290,15 +363,70 @@ mod tests {
     }
 
     #[test]
+    fn with_normals_a_thin_part_is_measured_one_sheet_at_a_time() {
+        // A 1 : 1 : 0.02 ellipsoid (8,000 points): its two sheets lie closer than a patch is
+        // wide, so patches of the nearest points straddle both and look like noise; patches of
+        // the neighbours facing the same way see one smooth sheet.
+        let c = 0.02;
+        let points: Vec<Point<3>> = sphere(8000, 1.0)
+            .iter()
+            .map(|p| [p[0], p[1], c * p[2]])
+            .collect();
+        let normals: Vec<Point<3>> = points
+            .iter()
+            .map(|p| [p[0], p[1], p[2] / (c * c)])
+            .collect();
+        let blind = estimate_noise(&points, None).unwrap();
+        let facing = estimate_noise(&points, Some(&normals)).unwrap();
+        assert!(blind.relative() > 0.1, "{blind:?}");
+        assert!(facing.relative() < 0.01, "{facing:?}");
+        // Normals of another length, or not finite, are not used.
+        assert_eq!(estimate_noise(&points, Some(&normals[1..])), Some(blind));
+    }
+
+    #[test]
     fn degenerate_clouds_have_no_estimate() {
         // Too few points, a point that is not finite, all on a line, all the same.
-        assert!(estimate_noise(&sphere(40, 1.0)).is_none());
+        assert!(estimate_noise(&sphere(40, 1.0), None).is_none());
         let mut bad = sphere(200, 1.0);
         bad[7][1] = f64::NAN;
-        assert!(estimate_noise(&bad).is_none());
+        assert!(estimate_noise(&bad, None).is_none());
         let line: Vec<Point<3>> = (0..200).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect();
-        assert!(estimate_noise(&line).is_none());
-        assert!(estimate_noise(&vec![[1.0, 2.0, 3.0]; 100]).is_none());
+        assert!(estimate_noise(&line, None).is_none());
+        assert!(estimate_noise(&vec![[1.0, 2.0, 3.0]; 100], None).is_none());
+    }
+
+    #[test]
+    fn a_large_cloud_measured_at_every_kth_point_agrees_with_all_of_it() {
+        let points = jitter(&sphere(12_000, 1.0), 0.01, 4);
+        let all = estimate_noise_over(&points, None, usize::MAX).unwrap();
+        let some = estimate_noise_over(&points, None, 1_500).unwrap();
+        assert_eq!((all.patches, some.patches), (12_000, 1_500));
+        assert!(
+            (some.sigma / all.sigma - 1.0).abs() < 0.1,
+            "{all:?} {some:?}"
+        );
+        assert!(
+            (some.spacing / all.spacing - 1.0).abs() < 0.05,
+            "{all:?} {some:?}"
+        );
+    }
+
+    #[test]
+    fn patches_across_two_scan_lines_still_measure_the_noise() {
+        // Two parallel rows of 100 points, 0.001 apart along x, 0.004 apart in y, with Gaussian
+        // heights of standard deviation 0.0005: every patch holds points of both rows only, on
+        // which the v² column nearly repeats 1 and v. The estimate is still the heights'.
+        let rows: Vec<Point<3>> = (0..200)
+            .map(|i| [(i % 100) as f64 * 0.001, (i / 100) as f64 * 0.004, 0.0])
+            .collect();
+        let noisy: Vec<Point<3>> = jitter(&rows, 0.0005, 11)
+            .iter()
+            .zip(&rows)
+            .map(|(j, p)| [p[0], p[1], j[2]])
+            .collect();
+        let noise = estimate_noise(&noisy, None).unwrap();
+        assert!((noise.sigma / 0.0005 - 1.0).abs() < 0.25, "{noise:?}");
     }
 
     #[test]
@@ -309,7 +437,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| estimate_noise(&points))
+                .install(|| estimate_noise(&points, None))
         };
         assert_eq!(on(1), on(3));
     }

@@ -280,9 +280,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         print_input(args, &input);
         let (cloud, outliers) = crate::outliers::set_aside(&args.outliers, &input)?;
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-        if let Some(warning) =
-            crate::noise::measure(cloud.positions(), diagonal).and_then(|m| m.rbf_warning())
-        {
+        if let Some(warning) = crate::noise::measure(&cloud).and_then(|m| m.rbf_warning()) {
             line("noise", &warning);
         }
         with_kernel(

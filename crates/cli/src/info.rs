@@ -153,12 +153,11 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         write_outliers(&mut s, cloud.positions(), normals);
     }
     if stats.non_finite_positions == 0 {
-        let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
         line(
             &mut s,
             "noise",
-            &crate::noise::measure(cloud.positions(), diagonal).map_or_else(
-                || "not measured (too few points, or they span no surface)".to_owned(),
+            &crate::noise::measure(&cloud).map_or_else(
+                || "not measured (fewer than 64 points, or too few neighbourhoods of 17 on one side of a surface)".to_owned(),
                 |m| m.verdict(),
             ),
         );

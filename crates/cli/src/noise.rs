@@ -3,13 +3,15 @@
 //! `zeroset reconstruct --method auto` gives for fitting MRAS to it.
 
 use zeroset_bases::noise::{NOISY_SCATTER, Noise, estimate_noise};
-use zeroset_field_core::geometry::Point;
+use zeroset_field_core::PointCloud3;
 
 use crate::info::g;
 
-/// The estimate for `positions`, with the cloud's bounding-box diagonal.
-pub fn measure(positions: &[Point<3>], diagonal: f64) -> Option<Measured> {
-    estimate_noise(positions).map(|noise| Measured { noise, diagonal })
+/// The estimate for `cloud` (its normals used where it has them), with its bounding-box
+/// diagonal.
+pub fn measure(cloud: &PointCloud3) -> Option<Measured> {
+    let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+    estimate_noise(cloud.positions(), cloud.normals()).map(|noise| Measured { noise, diagonal })
 }
 
 /// An estimate and the diagonal it is reported against.

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Parser, ValueEnum};
+use zeroset_bases::outliers::remove_outliers;
 use zeroset_field_core::io::read_point_cloud;
 
 use crate::fit::FitArgs;
@@ -154,8 +155,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
         ),
         ReconstructMethod::Auto => {
-            let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-            match crate::noise::measure(cloud.positions(), diagonal) {
+            // Measured on the points the fit will take, as the RBF fit's own warning is.
+            let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
+            match crate::noise::measure(&kept) {
                 Some(m) if m.noise.is_noisy() => (
                     ReconstructMethod::Mras,
                     format!(

@@ -193,7 +193,7 @@ pub(crate) fn fit_rbf<'py>(
             ("outliers", ReportValue::Ints(outliers.indices)),
             ("kept_sparse", ReportValue::Int(outliers.kept_sparse)),
         ];
-        if let Some(noise) = estimate_noise(cloud.positions()) {
+        if let Some(noise) = estimate_noise(cloud.positions(), cloud.normals()) {
             report.extend([
                 ("scatter", ReportValue::Float(noise.relative())),
                 ("noisy", ReportValue::Bool(noise.is_noisy())),

@@ -189,7 +189,7 @@ def test_rbf_and_mras_set_stray_points_aside():
 
 
 def test_rbf_measures_noise_and_warns_of_it():
-    # The unit sphere's 2,000 points (spacing about 0.09) moved +-0.03 along their normals (random
+    # The unit sphere's 2,000 points (spacing about 0.1) moved +-0.03 along their normals (random
     # signs): noisy. The clean sphere: scatter near 0, no warning
     points, normals = sphere_cloud(2000)
     import warnings as w

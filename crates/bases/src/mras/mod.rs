@@ -48,9 +48,10 @@
 //!   level's gradient to `n` again, so the sum's gradient would grow with the depth;
 //! - the energy is **per point** and the thin-plate term is the box's **mean** curvature, so
 //!   that the weights balance the same way at every level and sampling density;
-//! - `ω₂(k) = max(ω₂_root · 10^{−2(k−1)}, ω₂)`: the coarse levels' large cells decide the field
-//!   far from the points and need a strong thin-plate term there (a weak one leaves spurious
-//!   sheets: bunny_2k meshed with 2–5 components), the fine levels must follow the points;
+//! - `ω₂(k) = max(ω₂_root / d^{k−1}, ω₂)` (`d` = [`MrasOptions::omega2_decay`], 10): the coarse
+//!   levels' large cells decide the field far from the points and need a strong thin-plate term
+//!   there (a weak one leaves spurious sheets: bunny_2k meshed with 2–5 components; with `d` =
+//!   100 a noisy bunny kept a sheet at the cube's corner), the fine levels must follow the points;
 //! - the root level also gets **outside constraints** on the cube's boundary (value: the
 //!   distance to the nearest point, gradient: away from it — what a signed distance takes
 //!   there, which the normal term makes the field resemble), so that the far field's sign is

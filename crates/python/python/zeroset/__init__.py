@@ -378,7 +378,8 @@ def fit(
     ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
     ``"rbf"`` also measures how noisy the points are, ``report["scatter"]`` (their scatter
     about a local quadric over their spacing), and warns when it exceeds 0.2
-    (``report["noisy"]``): interpolating noise grows bubbles, ``"mras"`` averages it.
+    (``report["noisy"]``): interpolating noise grows bubbles, ``"mras"`` averages it. Both
+    keys are absent below 64 points or where the points span no surface.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit

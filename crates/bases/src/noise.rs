@@ -102,7 +102,7 @@ const SPACING_NEIGHBOURS: usize = crate::outliers::OUTLIER_NEIGHBOURS;
 /// The quadric's coefficients.
 const QUADRIC_TERMS: usize = 6;
 
-/// The quantile of the patches' residual variances the estimate reads.
+/// The quantile of the patches' residual sums of squares the estimate reads.
 const QUANTILE: f64 = 0.25;
 
 /// The same quantile of the χ² law with `NOISE_NEIGHBOURS + 1 − QUADRIC_TERMS = 11` degrees of
@@ -206,31 +206,27 @@ fn estimate_noise_over(
                     .map(|&j| positions[j]),
             );
             let full = patch.len() == NOISE_NEIGHBOURS + 1;
-            (spacing, full.then(|| patch_variance(&patch)).flatten())
+            (spacing, full.then(|| patch_rss(&patch)).flatten())
         })
         .collect();
     let spacing = median(local.iter().map(|l| l.0).collect())?;
-    let variances: Vec<f64> = local.iter().filter_map(|l| l.1).collect();
+    let sums: Vec<f64> = local.iter().filter_map(|l| l.1).collect();
     // Half the points on 8 or more copies of themselves leave no spacing to compare with.
-    if 2 * variances.len() < local.len() || spacing <= 0.0 {
+    if 2 * sums.len() < local.len() || spacing <= 0.0 {
         return None;
     }
-    let patches = variances.len();
-    let dof = (NOISE_NEIGHBOURS + 1 - QUADRIC_TERMS) as f64;
+    let patches = sums.len();
     Some(Noise {
-        sigma: (quantile(variances, QUANTILE)? * dof / CHI2_QUANTILE).sqrt(),
+        sigma: (quantile(sums, QUANTILE)? / CHI2_QUANTILE).sqrt(),
         spacing,
         patches,
     })
 }
 
-/// `RSS / (m − 6)` of the quadric height field fitted to `patch` in its principal frame, or
-/// `None` for a patch that does not span a surface.
-fn patch_variance(patch: &[Point<3>]) -> Option<f64> {
+/// The residual sum of squares `RSS` of the quadric height field fitted to `patch` in its
+/// principal frame, or `None` for a patch that does not span a surface.
+fn patch_rss(patch: &[Point<3>]) -> Option<f64> {
     let m = patch.len();
-    if m <= QUADRIC_TERMS {
-        return None;
-    }
     let centroid = patch
         .iter()
         .fold([0.0; 3], |s, p| geometry::add(&s, p))
@@ -266,7 +262,7 @@ fn patch_variance(patch: &[Point<3>]) -> Option<f64> {
     let coefficients = qr.solve_lstsq(&heights);
     let residual = &heights - &design * &coefficients;
     let rss = residual.col(0).iter().map(|r| r * r).sum::<f64>() * wide;
-    rss.is_finite().then_some(rss / (m - QUADRIC_TERMS) as f64)
+    rss.is_finite().then_some(rss)
 }
 
 /// The median (the mean of the two middle values for an even count); `None` when empty.

@@ -912,15 +912,8 @@ pub(crate) fn print_check<F: ScalarField<3> + ?Sized>(
 ) {
     // Spread over the points fitted (`set_aside`, increasing, were not), named by their
     // index in the input.
-    let mut aside = set_aside.iter().peekable();
     let fitted: Vec<usize> = (0..cloud.len())
-        .filter(|&i| {
-            let skip = aside.peek() == Some(&&i);
-            if skip {
-                aside.next();
-            }
-            !skip
-        })
+        .filter(|i| set_aside.binary_search(i).is_err())
         .collect();
     let n = fitted.len();
     let normals = cloud.normals().unwrap_or_default();

@@ -157,7 +157,11 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
             &mut s,
             "noise",
             &crate::noise::measure(&cloud).map_or_else(
-                || "not measured (fewer than 64 points, or too few neighbourhoods of 17 on one side of a surface)".to_owned(),
+                || {
+                    "not measured (fewer than 64 points, or too few neighbourhoods of 17 on one \
+                     side of a surface)"
+                        .to_owned()
+                },
                 |m| m.verdict(),
             ),
         );

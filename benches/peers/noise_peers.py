@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Robustness to position noise: `zeroset reconstruct` (its automatic choice, RBF and MRAS)
-against Open3D's screened Poisson on a scan whose points are moved by Gaussian noise. What each
+"""Robustness to position noise: `zeroset reconstruct` (its automatic choice, RBF interpolating,
+RBF smoothed by `--smoothing auto`, and MRAS) against Open3D's screened Poisson on a scan whose points are moved by Gaussian noise. What each
 mesh looks like — components, whether it is closed, how far it is from the clean scan — and
 the whole command's wall time.
 
@@ -18,7 +18,8 @@ The noisy clouds: `--cloud`'s positions plus independent Gaussian noise of stand
 OUT/noise_peers/{cloud}_{σ}.xyzn, the file every side
 reads. `zeroset info` gives the scatter it measures (`zeroset_bases::noise`: σ̂ and its ratio to
 the point spacing; noisy above 0.2). Each zeroset run is the whole process
-`zeroset reconstruct noisy.xyzn -o MESH.ply [--method M] --no-preview --force --quiet`, timed
+`zeroset reconstruct noisy.xyzn -o MESH.ply [--method M [--smoothing auto]] --no-preview --force
+--quiet`, timed
 from outside; the method `auto` chose is read from its output. Open3D:
 `create_from_point_cloud_poisson(depth)` on the same points and normals, no density trimming,
 its default threads, timed around that call alone (reading the cloud excluded). Distances, over
@@ -67,10 +68,11 @@ def parse_args() -> argparse.Namespace:
     return a
 
 
-def zeroset_run(binary: Path, cloud: Path, mesh: Path, method: str | None) -> dict:
+def zeroset_run(binary: Path, cloud: Path, mesh: Path, method: str | None, extra: list[str]) -> dict:
     cmd = [str(binary), "reconstruct", str(cloud), "-o", str(mesh), "--no-preview", "--force", "--quiet"]
     if method:
         cmd += ["--method", method]
+    cmd += extra
     t = time.perf_counter()
     run = subprocess.run(cmd, capture_output=True, text=True)
     seconds = time.perf_counter() - t
@@ -128,10 +130,13 @@ def main() -> None:
         q = np.loadtxt(cloud)[:, :3]  # the coordinates as every side reads them
         measured = scatter(binary, cloud)
         rows = []
-        for method in (None, "rbf", "mras"):
-            mesh = out / f"{args.cloud.stem}_{sigma:g}_{method or 'auto'}.ply"
-            r = zeroset_run(binary, cloud, mesh, method)
-            rows.append((f"zeroset {method or 'auto → ' + r['method']}", r, mesh))
+        for method, extra, label in ((None, [], ""), ("rbf", [], ""),
+                                     ("rbf", ["--smoothing", "auto"], " --smoothing auto"),
+                                     ("mras", [], "")):
+            name = f"{method or 'auto'}{'_smoothed' if extra else ''}"
+            mesh = out / f"{args.cloud.stem}_{sigma:g}_{name}.ply"
+            r = zeroset_run(binary, cloud, mesh, method, extra)
+            rows.append((f"zeroset {method or 'auto → ' + r['method']}{label}", r, mesh))
         mesh = out / f"{args.cloud.stem}_{sigma:g}_poisson.ply"
         r = poisson_mesh(q, n, args.depth, mesh)
         rows.append((f"Open3D Poisson depth {args.depth}", r, mesh))

@@ -40,7 +40,8 @@
 //! (relative scatter 0.24), 3 components at 0.2% (0.30), 23 at 0.25% (0.36), 418 at 0.5%
 //! (0.52); on the kitten (5,210 points) one at 0.25% (0.15), 10 at 0.5% (0.29), 49 at 0.75%.
 //! MRAS (paper 004) fits each cell by least squares and averages the noise instead: one closed
-//! component at every one of these levels, its mesh closer to the clean scan than RBF's. Clean
+//! component at every one of these levels, its mesh closer to the clean scan than RBF's; so
+//! does RBF's smoothing spline with `μ` from this estimate ([`Noise::rbf_smoothing`]). Clean
 //! scans measure far below the threshold [`NOISY_SCATTER`] = 0.2: the bunny 0.025, the kitten
 //! 0.009, the 2,000-point bunny sample 0.049, a 1 : 1 : 0.02 ellipsoid 0 (0.20 without its
 //! normals: most patches straddle both sheets) — `benches/peers/noise_peers.py` has the runs.
@@ -115,6 +116,16 @@ const FLAT_PATCH: f64 = 1e-4;
 
 type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
 
+/// The constant of [`Noise::rbf_smoothing`]. Measured by sweeping `μ` over 0.003…3 on three
+/// scans with Gaussian position noise (σ per axis, a fraction of the diagonal) and taking the
+/// `μ` whose mesh lies nearest the clean surface (median vertex distance; the bunny's to
+/// `bun_zipper.ply`, the kitten's to the mesh of its clean points): the best `μ` over
+/// `(σ̂/s)² · diagonal` was 0.9 (bunny, 0.25%), 1.4 (bunny, 0.5%), 1.2–3.4 (bunny, 1%), 0.8–2.3
+/// (its 2,000-point sample, 0.5%), 2.7 (kitten, 0.5%), 2.9 (kitten, 0.75%). The optimum is flat:
+/// 2 puts every one of these within 10% of its best median distance, and one closed component
+/// where interpolation made 10 to 904.
+pub const RBF_SMOOTHING_SCALE: f64 = 2.0;
+
 /// What [`estimate_noise`] measured.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Noise {
@@ -140,6 +151,22 @@ impl Noise {
     /// Whether the relative scatter exceeds [`NOISY_SCATTER`]: too noisy to interpolate.
     pub fn is_noisy(&self) -> bool {
         self.relative() > NOISY_SCATTER
+    }
+
+    /// The smoothing `μ` of a biharmonic (`r`) RBF fit
+    /// ([`RbfFit::with_smoothing`](crate::rbf::RbfFit::with_smoothing)) of a scan with this
+    /// noise whose bounding box has diagonal `extent`:
+    ///
+    /// ```text
+    /// μ = RBF_SMOOTHING_SCALE · (σ̂ / s)² · extent.
+    /// ```
+    ///
+    /// `μ` is a length, so it scales with the scan; constant terms of the kernel matrix do not
+    /// matter (the weights sum to 0), its spread does, and that is set by the object's size.
+    /// The square of the relative scatter is the noise power against the sampling. See
+    /// [`RBF_SMOOTHING_SCALE`] for the measurements behind it.
+    pub fn rbf_smoothing(&self, extent: f64) -> f64 {
+        RBF_SMOOTHING_SCALE * self.relative().powi(2) * extent
     }
 }
 

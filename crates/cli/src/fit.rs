@@ -11,6 +11,12 @@
 //! `zeroset restore` and `zeroset info` read. `--sampled` keeps the older output: the RBF field
 //! sampled on a grid over the cloud and interpolated by a quadratic B-spline.
 //!
+//! `--smoothing auto|μ` approximates the values instead of interpolating them (the smoothing
+//! spline, `μ` on the kernel matrix's diagonal: `RbfFit::with_smoothing`), for noisy scans,
+//! whose interpolant folds between the points into bubbles. `auto` takes `μ` from the noise
+//! the cloud measures (`zeroset_bases::noise`: `2 · (σ̂/s)² · diagonal`); on value files and
+//! with other kernels `μ` is given.
+//!
 //! A value-constraint file (`.xyv`: `x y value`, a 2-D curve; `.xyzv`: `x y z value`) is
 //! interpolated as it is (Jiang–Turk, paper 003 §2: on-curve points 0, inside points negative,
 //! outside points positive), by default with the thin-plate spline `r² ln r` in 2-D (as
@@ -152,6 +158,15 @@ pub enum OffsetArg {
     Fixed(f64),
 }
 
+/// `--smoothing auto` or a fixed `μ`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SmoothingArg {
+    /// From the cloud's measured noise (the discrepancy principle).
+    Auto,
+    /// `μ ≥ 0` in the kernel's units (SciPy's `RBFInterpolator(smoothing=μ)`).
+    Fixed(f64),
+}
+
 /// The starting offset of `--offset auto`, as a fraction of the bounding-box diagonal.
 pub(crate) const AUTO_FRACTION: f64 = 0.01;
 
@@ -200,6 +215,13 @@ pub struct FitArgs {
     /// units (an error if it reaches another part of the surface). [default: auto]
     #[arg(long, value_name = "auto|EPS", value_parser = parse_offset, allow_hyphen_values = true)]
     pub offset: Option<OffsetArg>,
+
+    /// Approximate instead of interpolate, for noisy scans: auto (the smoothing that lets the
+    /// surface miss the points by the noise `zeroset info` measures, root mean square), or
+    /// MU ≥ 0 added to the kernel matrix's diagonal (SciPy RBFInterpolator's `smoothing`;
+    /// in the kernel's units). [default: 0, interpolation]
+    #[arg(long, value_name = "auto|MU", value_parser = parse_smoothing, allow_hyphen_values = true)]
+    pub smoothing: Option<SmoothingArg>,
 
     /// Hermite constraints: value 0 and the unit normal as the gradient at every point,
     /// instead of off-surface points. Needs --kernel r3 (the default with --hermite) or
@@ -280,9 +302,20 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         print_input(args, &input);
         let (cloud, outliers) = crate::outliers::set_aside(&args.outliers, &input)?;
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-        if let Some(warning) = crate::noise::measure(&cloud).and_then(|m| m.rbf_warning()) {
-            line("noise", &warning);
-        }
+        let noise = crate::noise::measure(&cloud);
+        let smoothing = match args.smoothing {
+            Some(SmoothingArg::Fixed(mu)) => {
+                line("smoothing", &format!("μ = {} (--smoothing)", g(mu)));
+                mu
+            }
+            Some(SmoothingArg::Auto) => auto_smoothing(noise.as_ref()),
+            None => {
+                if let Some(warning) = noise.and_then(|m| m.rbf_warning()) {
+                    line("noise", &warning);
+                }
+                0.0
+            }
+        };
         with_kernel(
             kernel,
             args,
@@ -292,6 +325,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                 cloud: &cloud,
                 input: &input,
                 outliers: &outliers,
+                smoothing,
             },
         )?;
     }
@@ -413,6 +447,7 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
             );
         }
     }
+    check_smoothing(args, kernel)?;
     if let Some(OffsetArg::Fixed(eps)) = args.offset
         && !(eps.is_finite() && eps > 0.0)
     {
@@ -441,6 +476,27 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
         check_sampled_memory(&counts)?;
     }
     Ok(kernel)
+}
+
+/// Refuses a `--smoothing` that is negative or not finite, and `auto` with a kernel other than
+/// `r` (its rule is calibrated for `r`, whose `μ` is a length).
+fn check_smoothing(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
+    match args.smoothing {
+        Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
+            "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
+             0 interpolates), got {mu}"
+        ),
+        Some(SmoothingArg::Auto) if kernel != KernelArg::R => bail!(
+            "--smoothing auto is calibrated for --kernel r (its μ is a length); with --kernel \
+             {} give --smoothing MU in that kernel's units",
+            kernel.name()
+        ),
+        Some(_) if args.hermite => bail!(
+            "--smoothing approximates value constraints; --hermite fits gradients exactly too, \
+             so use off-surface constraints (drop --hermite) for a noisy scan"
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// Refuses a `--sampled` grid whose samples and spline cannot fit in memory (or whose sample
@@ -482,6 +538,14 @@ fn check_value_request(args: &FitArgs, dim: usize) -> anyhow::Result<KernelArg> 
         KernelArg::R
     };
     let kernel = check_kernel(args, default, dim, "holds 3-D value constraints")?;
+    if args.smoothing == Some(SmoothingArg::Auto) {
+        bail!(
+            "--smoothing auto measures a scan's noise, and {file} holds value constraints: give \
+             --smoothing MU (added to the kernel matrix's diagonal, as SciPy's \
+             RBFInterpolator smoothing)"
+        );
+    }
+    check_smoothing(args, kernel)?;
     if let Some(output) = &args.output {
         crate::output::check_output(output, &[&args.points], args.force, &["zsf"])?;
     }
@@ -541,7 +605,11 @@ struct ValueFit<'a, const D: usize> {
 
 impl<const D: usize> KernelJob for ValueFit<'_, D> {
     fn run<K: StoredKernel>(self, kernel: K) -> anyhow::Result<()> {
-        let field = solve(kernel, self.args, self.constraints)?;
+        let smoothing = match self.args.smoothing {
+            Some(SmoothingArg::Fixed(mu)) => mu,
+            _ => 0.0,
+        };
+        let field = solve(kernel, self.args, self.constraints, smoothing)?;
         if let Some(output) = &self.args.output {
             save_rbf(&field, output)?;
         }
@@ -557,6 +625,8 @@ struct CloudFit<'a> {
     /// The input, and the indices of the stray points not fitted.
     input: &'a PointCloud3,
     outliers: &'a [usize],
+    /// The smoothing `μ` (0: interpolation).
+    smoothing: f64,
 }
 
 impl KernelJob for CloudFit<'_> {
@@ -638,6 +708,7 @@ impl FitArgs {
         [
             (self.kernel.is_some(), "--kernel"),
             (self.radius.is_some(), "--radius"),
+            (self.smoothing.is_some(), "--smoothing"),
             (self.hermite, "--hermite"),
             (self.solver != SolverArg::Auto, "--solver"),
             (self.sampled, "--sampled"),
@@ -663,6 +734,34 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
         more(&format!("max {}", point(b.max())));
         more(&format!("diagonal {}", g(b.diagonal())));
     }
+}
+
+/// `--smoothing auto`: the smoothing [`Noise::rbf_smoothing`] gives the measured noise, or
+/// none (interpolation) where the noise cannot be measured; says which.
+///
+/// [`Noise::rbf_smoothing`]: zeroset_bases::noise::Noise::rbf_smoothing
+fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> f64 {
+    let Some(m) = noise else {
+        line(
+            "smoothing",
+            "none (auto: the noise cannot be measured on so few or so degenerate points; \
+             --smoothing MU sets it)",
+        );
+        return 0.0;
+    };
+    let mu = m.noise.rbf_smoothing(m.diagonal);
+    line(
+        "smoothing",
+        &format!(
+            "μ = {} (auto: {} × {:.3}² × the diagonal {}, from the noise: {})",
+            g(mu),
+            g(zeroset_bases::noise::RBF_SMOOTHING_SCALE),
+            m.noise.relative(),
+            g(m.diagonal),
+            m.describe()
+        ),
+    );
+    mu
 }
 
 /// Builds the constraints, fits with `kernel`, reports, and writes `-o`.
@@ -701,7 +800,7 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
         print_offset(args.offset.is_none(), &report);
         c
     };
-    let field = solve(kernel, args, &constraints)?;
+    let field = solve(kernel, args, &constraints, job.smoothing)?;
     print_check(&field, job.input, job.outliers);
     if let Some(output) = &args.output {
         if args.sampled {
@@ -719,6 +818,7 @@ fn solve<K: StoredKernel, const D: usize>(
     kernel: K,
     args: &FitArgs,
     constraints: &Constraints<D>,
+    smoothing: f64,
 ) -> anyhow::Result<RbfField<K, D>> {
     line(
         "kernel",
@@ -751,7 +851,8 @@ fn solve<K: StoredKernel, const D: usize>(
     });
     let fit = RbfFit::new(kernel)
         .with_solver(solver)
-        .with_monitor(monitor);
+        .with_monitor(monitor)
+        .with_smoothing(smoothing);
     let context = if args.solver == SolverArg::Iterative {
         "fitting the RBF field (--solver dense is exact, at O(n³) time)"
     } else {
@@ -886,6 +987,16 @@ fn print_report(r: &FitReport) {
             by = if r.residual_exact { "" } else { ", by the FMM" }
         ),
     );
+    if r.misfit_max > 0.0 {
+        line(
+            "misfit",
+            &format!(
+                "rms {:.2e}, max {:.2e} (how far the smoothed field misses the constraint values \
+                 on purpose)",
+                r.misfit_rms, r.misfit_max
+            ),
+        );
+    }
     let condition = if r.condition_estimate.is_nan() {
         "n/a (the iterative solve forms no matrix)".to_owned()
     } else {
@@ -1057,6 +1168,16 @@ pub(crate) fn more(value: &str) {
     outln!("{:<LABEL_WIDTH$} {value}", "");
 }
 
+fn parse_smoothing(s: &str) -> Result<SmoothingArg, String> {
+    let s = s.trim();
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(SmoothingArg::Auto);
+    }
+    s.parse::<f64>()
+        .map(SmoothingArg::Fixed)
+        .map_err(|_| format!("the smoothing is auto or a number μ ≥ 0, got {s:?}"))
+}
+
 fn parse_offset(s: &str) -> Result<OffsetArg, String> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("auto") {
@@ -1079,6 +1200,15 @@ mod tests {
         // Checked (with a message) when the command runs, not by the parser.
         assert_eq!(parse_offset("-1").unwrap(), OffsetArg::Fixed(-1.0));
         assert!(parse_offset("small").is_err());
+    }
+
+    #[test]
+    fn parses_smoothings() {
+        assert_eq!(parse_smoothing(" Auto ").unwrap(), SmoothingArg::Auto);
+        assert_eq!(parse_smoothing("0.5").unwrap(), SmoothingArg::Fixed(0.5));
+        // Checked (with a message) when the command runs, not by the parser.
+        assert_eq!(parse_smoothing("-1").unwrap(), SmoothingArg::Fixed(-1.0));
+        assert!(parse_smoothing("lots").is_err());
     }
 
     #[test]

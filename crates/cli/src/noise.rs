@@ -43,7 +43,8 @@ impl Measured {
         if self.noise.is_noisy() {
             format!(
                 "{}: noisy (above {NOISY_SCATTER}); RBF interpolation would fold between the \
-                 points into bubbles, so zeroset reconstruct fits MRAS, which averages them",
+                 points into bubbles, so zeroset reconstruct fits MRAS, which averages them \
+                 (or RBF with --smoothing auto, which approximates them)",
                 self.describe()
             )
         } else {
@@ -59,8 +60,8 @@ impl Measured {
         self.noise.is_noisy().then(|| {
             format!(
                 "warning: {} (noisy above {NOISY_SCATTER}): RBF interpolates every point and \
-                 folds between noisy ones, so the surface grows bubbles; --method mras fits \
-                 them by least squares",
+                 folds between noisy ones, so the surface grows bubbles; --smoothing auto \
+                 approximates them instead, or --method mras fits them by least squares",
                 self.describe()
             )
         })

@@ -36,7 +36,8 @@ pub const AUTO_RBF_POINTS: usize = 50_000;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ReconstructMethod {
     /// RBF up to 50,000 points unless the scan is noisy (its points scatter about their local
-    /// surface by more than 0.2 of their spacing: `zeroset info` measures it), MRAS otherwise.
+    /// surface by more than 0.2 of their spacing: `zeroset info` measures it) and no
+    /// --smoothing is given, MRAS otherwise.
     Auto,
     /// Radial basis functions (kernel r, off-surface points), meshed by the signed marching
     /// cubes.
@@ -75,6 +76,11 @@ pub struct ReconstructArgs {
     /// records the points, RBF and MRAS alike).
     #[arg(long)]
     pub drop_spurious: bool,
+
+    /// RBF fits: approximate instead of interpolate (as `zeroset fit --smoothing`): auto (from
+    /// the measured noise) or MU ≥ 0.
+    #[arg(long, value_name = "auto|MU")]
+    pub smoothing: Option<String>,
 
     /// The fit's stray-point options (as `zeroset fit`'s).
     #[command(flatten)]
@@ -154,6 +160,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             ReconstructMethod::Mras,
             format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
         ),
+        ReconstructMethod::Auto if args.smoothing.is_some() => (
+            ReconstructMethod::Rbf,
+            format!(" (auto: RBF up to {AUTO_RBF_POINTS} points, smoothed as --smoothing asks)"),
+        ),
         ReconstructMethod::Auto => {
             // Measured on the points the fit will take, as the RBF fit's own warning is.
             let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
@@ -174,6 +184,13 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         m => (m, String::new()),
     };
     drop(cloud);
+    if args.smoothing.is_some() && method == ReconstructMethod::Mras {
+        bail!(
+            "--smoothing applies to RBF fits, and this reconstruction fits MRAS{why}, which \
+             fits by least squares already: drop --smoothing, or give --method rbf"
+        );
+    }
+    let smoothing = args.smoothing.clone();
     let (fit_method, mesh_method) = match method {
         ReconstructMethod::Mras => ("mras", "mc"),
         _ => ("rbf", "smc"),
@@ -222,6 +239,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.outliers.outliers_out {
         argv.extend([os("--outliers-out"), path.as_os_str()]);
+    }
+    if let Some(mu) = &smoothing {
+        argv.extend([os("--smoothing"), std::ffi::OsStr::new(mu)]);
     }
     common(&mut argv, true);
     crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;

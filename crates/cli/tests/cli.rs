@@ -2018,13 +2018,11 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
     assert!(out.contains("outliers:     none"), "{out}");
 }
 
-#[test]
-fn a_noisy_scan_is_measured_warned_of_and_fitted_by_mras() {
-    // The fit tests' sphere (2,000 points, spacing ≈ 0.1 of its radius) with every point moved
-    // ±0.03 of the radius along its normal, the sign pseudo-random: noisy (scatter about 0.3 of the
-    // spacing). Interpolating it would make bubbles: info says so, an RBF fit warns, and
-    // reconstruct's automatic choice is MRAS. The clean sphere: none of it.
-    let noisy: String = sphere_points(2000)
+/// The fit tests' sphere (2,000 points, spacing ≈ 0.1 of its radius) with every point moved
+/// ±`amplitude` of the radius along its normal, the sign pseudo-random (0.03: noisy, a scatter
+/// about 0.3 of the spacing).
+fn noisy_sphere_xyzn(amplitude: f64) -> String {
+    sphere_points(2000)
         .iter()
         .enumerate()
         .map(|(i, (p, n))| {
@@ -2034,12 +2032,99 @@ fn a_noisy_scan_is_measured_warned_of_and_fitted_by_mras() {
             x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
             x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             let up = (x ^ (x >> 31)) >> 63 == 1;
-            let h = if up { 0.03 } else { -0.03 } * RADIUS;
+            let h = if up { amplitude } else { -amplitude } * RADIUS;
             let q: [f64; 3] = std::array::from_fn(|a| p[a] + h * n[a]);
             format!("{} {} {} {} {} {}\n", q[0], q[1], q[2], n[0], n[1], n[2])
         })
-        .collect();
-    let (dir, path) = temp_file("noisy.xyzn", &noisy);
+        .collect()
+}
+
+#[test]
+fn smoothing_approximates_a_noisy_scan_into_one_surface() {
+    // Twice the noise of the test below: interpolated, 15 components (measured); smoothed, the
+    // sphere, its area within 2% (measured 1.5%).
+    let (dir, path) = temp_file("noisy.xyzn", &noisy_sphere_xyzn(0.06));
+    let surface = |extra: &[&str]| {
+        let field = dir.path().join("f.zsf");
+        let mut args = vec!["-o", field.to_str().unwrap(), "--force"];
+        args.extend(extra);
+        let o = fit(&path, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = dir.path().join("f.ply");
+        let m = mesh(&field, &out, &["--force"]);
+        assert!(m.status.success(), "{}", stderr(&m));
+        (stdout(&o), stdout(&m))
+    };
+    let (_, interpolated) = surface(&[]);
+    let (text, smoothed) = surface(&["--smoothing", "auto"]);
+    assert!(text.contains("smoothing:    μ = "), "{text}");
+    assert!(text.contains("(auto: 2 ×"), "{text}");
+    assert!(text.contains("misfit:       rms"), "{text}");
+    assert!(
+        !text.contains("warning:"),
+        "no warning once smoothed: {text}"
+    );
+    assert!(
+        !interpolated.contains(" 1 component(s)"),
+        "interpolated: {interpolated}"
+    );
+    assert!(
+        smoothed.contains("Euler characteristic 2, 1 component(s)"),
+        "smoothed: {smoothed}"
+    );
+    let area: f64 = smoothed
+        .split("area ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no area in {smoothed}"));
+    let sphere = 4.0 * std::f64::consts::PI * RADIUS * RADIUS;
+    assert!(
+        (area / sphere - 1.0).abs() < 0.02,
+        "area {area} against {sphere}"
+    );
+    // A given μ is used as it is; bad ones are refused before any fit.
+    let (text, _) = surface(&["--smoothing", "0.01"]);
+    assert!(text.contains("μ = 0.01 (--smoothing)"), "{text}");
+    for (extra, message) in [
+        (&["--smoothing", "-1"][..], "finite μ ≥ 0"),
+        (&["--smoothing", "nan"][..], "finite μ ≥ 0"),
+        (&["--smoothing", "big"][..], "auto or a number"),
+        (
+            &["--smoothing", "auto", "--kernel", "r3"][..],
+            "calibrated for --kernel r",
+        ),
+        (&["--smoothing", "0.1", "--hermite"][..], "drop --hermite"),
+    ] {
+        let o = fit(&path, extra);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(message), "{extra:?}: {}", stderr(&o));
+    }
+    let mesh = dir.path().join("m.ply");
+    let o = zeroset([
+        "reconstruct",
+        path.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+        "--method",
+        "mras",
+        "--smoothing",
+        "auto",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("--smoothing applies to RBF fits"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!mesh.exists());
+}
+
+#[test]
+fn a_noisy_scan_is_measured_warned_of_and_fitted_by_mras() {
+    // Interpolating the noisy sphere would make bubbles: info says so, an RBF fit warns, and
+    // reconstruct's automatic choice is MRAS. The clean sphere: none of it.
+    let (dir, path) = temp_file("noisy.xyzn", &noisy_sphere_xyzn(0.03));
     let (_c, clean) = temp_file("clean.xyzn", &sphere_xyzn(2000));
     let described = stdout(&info(&path, &[]));
     assert!(

@@ -52,6 +52,8 @@ fn diagonal(cloud: &PointCloud3) -> f64 {
 struct RbfRequest {
     solver: Solver,
     tolerance: Option<f64>,
+    /// The smoothing `μ` (0: interpolation).
+    smoothing: f64,
     hook: Arc<Hook>,
 }
 
@@ -74,7 +76,8 @@ fn fit_kernel<K: StoredKernel>(
     });
     let fit = RbfFit::new(kernel)
         .with_solver(request.solver)
-        .with_monitor(monitor);
+        .with_monitor(monitor)
+        .with_smoothing(request.smoothing);
     let fitted = match request.tolerance {
         None => fit.fit(constraints).map_err(to_py)?,
         Some(t) => {
@@ -103,6 +106,9 @@ fn fit_kernel<K: StoredKernel>(
         ("centres", ReportValue::Int(fitted.field.num_centres())),
         ("max_residual", ReportValue::Float(r.max_residual)),
         ("residual_exact", ReportValue::Bool(r.residual_exact)),
+        ("smoothing", ReportValue::Float(request.smoothing)),
+        ("misfit_rms", ReportValue::Float(r.misfit_rms)),
+        ("misfit_max", ReportValue::Float(r.misfit_max)),
         ("seconds", ReportValue::Float(r.elapsed.as_secs_f64())),
         ("warnings", ReportValue::Strs(r.warnings.clone())),
     ]);
@@ -143,7 +149,8 @@ pub(crate) fn report_dict<'py>(
 /// Fits an RBF field (see `zeroset.fit`).
 #[pyfunction]
 #[pyo3(signature = (
-    points, normals, kernel, offset, hermite, solver, tolerance, radius, outlier_ratio, progress
+    points, normals, kernel, offset, hermite, solver, tolerance, radius, outlier_ratio, smoothing,
+    smoothing_auto, progress
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit_rbf<'py>(
@@ -157,8 +164,30 @@ pub(crate) fn fit_rbf<'py>(
     tolerance: Option<f64>,
     radius: Option<f64>,
     outlier_ratio: Option<f64>,
+    smoothing: Option<f64>,
+    smoothing_auto: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(NativeField, Bound<'py, PyDict>)> {
+    if let Some(mu) = smoothing
+        && !(mu.is_finite() && mu >= 0.0)
+    {
+        return Err(value_error(format!(
+            "smoothing must be 'auto' or a finite number >= 0 (added to the kernel matrix's \
+             diagonal; 0 interpolates), got {mu}"
+        )));
+    }
+    if (smoothing.is_some() || smoothing_auto) && hermite {
+        return Err(value_error(
+            "smoothing= approximates value constraints; hermite=True fits the gradients exactly \
+             too: drop hermite= for a noisy scan",
+        ));
+    }
+    if smoothing_auto && kernel != "r" {
+        return Err(value_error(format!(
+            "smoothing='auto' is calibrated for kernel='r' (its μ is a length); with kernel=\
+             {kernel:?} give smoothing as a number in that kernel's units"
+        )));
+    }
     let ratio = outlier_ratio.unwrap_or(DEFAULT_OUTLIER_RATIO);
     if !valid_ratio(ratio) {
         return Err(value_error(format!(
@@ -181,9 +210,10 @@ pub(crate) fn fit_rbf<'py>(
         return Err(value_error("radius applies to kernel='wendland'"));
     }
     let hook = Arc::new(Hook::new(progress));
-    let request = RbfRequest {
+    let mut request = RbfRequest {
         solver,
         tolerance,
+        smoothing: smoothing.unwrap_or(0.0),
         hook: Arc::clone(&hook),
     };
     let kernel = kernel.to_owned();
@@ -198,6 +228,9 @@ pub(crate) fn fit_rbf<'py>(
                 ("scatter", ReportValue::Float(noise.relative())),
                 ("noisy", ReportValue::Bool(noise.is_noisy())),
             ]);
+            if smoothing_auto {
+                request.smoothing = noise.rbf_smoothing(diagonal(&cloud));
+            }
         }
         let constraints = if hermite {
             Constraints::hermite(&cloud).map_err(to_py)?

@@ -199,9 +199,59 @@ def test_rbf_measures_noise_and_warns_of_it():
         clean = zeroset.fit(points, normals)
     assert clean.report.noisy is False and clean.report.scatter < 0.05
     h = np.where(np.random.default_rng(5).random(2000) < 0.5, 0.03, -0.03)
-    with pytest.warns(UserWarning, match="method='mras' fits them by least squares"):
+    with pytest.warns(UserWarning, match="smoothing='auto' approximates them"):
         noisy = zeroset.fit(points + h[:, None] * normals, normals)
     assert noisy.report.noisy is True and noisy.report.scatter > 0.2
+    assert noisy.report.smoothing == 0 and noisy.report.misfit_rms == 0
+    # Smoothed: no warning, mu = 2 scatter^2 diagonal, and the field's zero set nearer the
+    # true sphere than the interpolant's (its values on the sphere ~ the distance to it).
+    with w.catch_warnings():
+        w.simplefilter("error")
+        smoothed = zeroset.fit(points + h[:, None] * normals, normals, smoothing="auto")
+    r = smoothed.report
+    diagonal = np.linalg.norm(np.ptp(points + h[:, None] * normals, axis=0))
+    assert r.smoothing == pytest.approx(2 * r.scatter**2 * diagonal, rel=1e-12)
+    assert 0 < r.misfit_rms < 0.03
+    probes, _ = sphere_cloud(500)
+    assert np.sqrt(np.mean(smoothed(probes) ** 2)) < 0.5 * np.sqrt(np.mean(noisy(probes) ** 2))
+
+
+def test_rbf_smoothing_agrees_with_scipy():
+    # The same off-surface constraints (fixed offset, every point kept) through SciPy's
+    # RBFInterpolator with the kernel -r and the same smoothing: the same function.
+    from scipy.interpolate import RBFInterpolator
+
+    points, normals = sphere_cloud(300)
+    h = np.random.default_rng(3).normal(0.0, 0.02, 300)
+    points = points + h[:, None] * normals
+    eps, mu = 0.05, 0.02
+    probes = np.random.default_rng(4).uniform(-1.2, 1.2, (200, 3))
+    x = np.vstack([points, points + eps * normals, points - eps * normals])
+    y = np.concatenate([np.zeros(300), np.full(300, eps), np.full(300, -eps)])
+    want = RBFInterpolator(x, y, kernel="linear", degree=1, smoothing=mu)(probes)
+    for solver in ("dense", "iterative"):
+        got = zeroset.fit(
+            points, normals, offset=eps, smoothing=mu, outlier_ratio=0, solver=solver
+        )
+        assert got.report.smoothing == mu
+        np.testing.assert_allclose(got(probes), want, rtol=0, atol=1e-8 * np.abs(want).max())
+
+
+def test_rbf_smoothing_options_are_checked(sphere):
+    points, normals = sphere
+    for bad, message in [
+        ("some", "'auto' or a number"),
+        (-1.0, "finite number >= 0"),
+        (float("nan"), "finite number >= 0"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            zeroset.fit(points, normals, smoothing=bad)
+    with pytest.raises(ValueError, match="drop hermite"):
+        zeroset.fit(points, normals, smoothing=0.1, hermite=True)
+    with pytest.raises(ValueError, match="calibrated for kernel='r'"):
+        zeroset.fit(points, normals, smoothing="auto", kernel="r3")
+    with pytest.raises(ValueError, match="applies to method='rbf'"):
+        zeroset.fit(points, normals, method="mras", smoothing=0.1)
 
 
 @pytest.mark.parametrize(

@@ -45,6 +45,7 @@ impl<K: Kernel, const D: usize> RbfField<K, D> {
                 kinds,
                 targets,
                 soa,
+                diagonal: 0.0,
             },
             weights,
             poly,

@@ -18,7 +18,7 @@ use faer::Mat;
 use faer::linalg::solvers::{PartialPivLu, Solve};
 
 use super::dense::DenseFactor;
-use super::system::{self, Functionals, Polynomial};
+use super::system::{self, Functional, Functionals, Polynomial};
 use super::{Constraints, Kernel, RbfError, RbfField, RbfFit};
 
 /// A batch of added constraints: its functionals' count, `C`, `A⁻¹ Cᵀ` and `S`'s LU.
@@ -85,7 +85,8 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
             return Err(RbfError::Empty);
         }
         let kernel = self.fit.kernel();
-        let new = Functionals::new(kernel, constraints.as_slice())?;
+        let mut new = Functionals::new(kernel, constraints.as_slice())?;
+        new.diagonal = self.functionals.diagonal;
         let mut all = self.functionals.clone();
         all.extend(&new);
         all.check_duplicates()?;
@@ -104,11 +105,16 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
             }
         });
         let d = Mat::from_fn(mm, mm, |i, j| {
+            let smoothing = if i == j && new.kinds[i] == Functional::Value {
+                new.diagonal
+            } else {
+                0.0
+            };
             system::entry(
                 kernel,
                 (&new.points[i], new.kinds[i]),
                 (&new.points[j], new.kinds[j]),
-            )
+            ) + smoothing
         });
         let mut a_inv_ct = Mat::<f64>::zeros(p, mm);
         for k in 0..mm {
@@ -154,6 +160,7 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
             kinds: Vec::new(),
             targets: Vec::new(),
             soa: std::array::from_fn(|_| Vec::new()),
+            diagonal: self.functionals.diagonal,
         };
         for i in 0..keep {
             kept.points.push(self.functionals.points[i]);

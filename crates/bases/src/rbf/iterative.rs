@@ -180,6 +180,7 @@ impl<const D: usize> Coarse<D> {
             points: points.clone(),
             kinds: vec![Functional::Value; k],
             targets: vec![0.0; k],
+            diagonal: f.diagonal,
         };
         let a = system::assemble(kernel, &subset, poly);
         let factor = DenseFactor::new(
@@ -254,7 +255,10 @@ impl<K: Kernel + ?Sized, const D: usize> CardinalBasis<'_, K, D> {
                 .index
                 .iter()
                 .zip(coarse.points.iter().zip(&sums))
-                .map(|(&i, (x, s))| mu[i as usize] - s - self.poly.value(&c, x))
+                .map(|(&i, (x, s))| {
+                    let smoothing = self.f.diagonal * w[i as usize];
+                    mu[i as usize] - s - smoothing - self.poly.value(&c, x)
+                })
                 .collect();
             let m = Polynomial::<D>::len();
             let s = coarse.solve(&missed, &vec![0.0; m]);
@@ -282,9 +286,11 @@ impl<K: Kernel + ?Sized, const D: usize> LinearOperator for CardinalBasis<'_, K,
         let (w, c) = self.coefficients(mu);
         if let Some(product) = self.product {
             product(&w, y);
+            let diagonal = self.f.diagonal;
             y.par_iter_mut()
                 .zip(&self.f.points)
-                .for_each(|(yi, x)| *yi += self.poly.value(&c, x));
+                .zip(&w)
+                .for_each(|((yi, x), wi)| *yi += self.poly.value(&c, x) + diagonal * wi);
             return;
         }
         let mut x = w;
@@ -301,6 +307,9 @@ impl<K: Kernel + ?Sized, const D: usize> LinearOperator for CardinalBasis<'_, K,
         let mut full = vec![0.0; n + m];
         if let Some(product) = self.product {
             product(y, &mut full[..n]);
+            for (fj, yj) in full[..n].iter_mut().zip(y) {
+                *fj += self.f.diagonal * yj;
+            }
             for (yj, x) in y.iter().zip(&self.f.points) {
                 let row = self.poly.row(x, system::Functional::Value);
                 for k in 0..m {
@@ -324,12 +333,15 @@ impl<K: Kernel + ?Sized, const D: usize> LinearOperator for CardinalBasis<'_, K,
             out[i as usize] += g[t];
         }
         // − Lᵀ Âᵀ R_Cᵀ g: Âᵀ of a vector that lives on C.
-        let hw = system::kernel_sums_at(
+        let mut hw = system::kernel_sums_at(
             self.kernel,
             std::array::from_fn(|a| &coarse.soa[a][..]),
             g,
             &self.f.points,
         );
+        for (t, &i) in coarse.index.iter().enumerate() {
+            hw[i as usize] += self.f.diagonal * g[t];
+        }
         let mut hc = vec![0.0; m];
         for (gt, x) in g.iter().zip(&coarse.points) {
             let row = self.poly.row(x, system::Functional::Value);
@@ -496,6 +508,7 @@ fn local_cardinal<K: Kernel + ?Sized, const D: usize>(
         }
     }
     for s in 0..k {
+        a[(s, s)] += f.diagonal;
         for r in s + 1..k {
             a[(s, r)] = a[(r, s)];
         }

@@ -21,6 +21,11 @@
 //!   machine has ([`RbfError::Memory`] names the amount). Every [`FitReport`] has the largest
 //!   constraint residual by direct sums, the steps taken and a condition estimate; a
 //!   [`Monitor`] sees every GMRES step ([`RbfFit::with_monitor`]).
+//! - **Smoothing** ([`RbfFit::with_smoothing`]): for noisy data, the smoothing spline instead
+//!   of the interpolant (Carr et al. 2001 §4.2, Wahba 1990): `σμ` on `Φ`'s diagonal, in every
+//!   solver (dense, mixed precision, the local cardinal functions, the coarse level and the
+//!   FMM products), the same as SciPy's `RBFInterpolator(smoothing=μ)` with the same kernel;
+//!   [`crate::noise::Noise::rbf_smoothing`] chooses `μ` for a scan from its measured noise.
 //! - [`RbfFit::fit_greedy`] ([`greedy`]): Carr et al.'s centre reduction — fit a subset, add
 //!   the constraints over the tolerance, refit — for a field that keeps only the centres it
 //!   needs.
@@ -148,6 +153,12 @@ pub struct FitReport {
     /// Whether `max_residual` comes from exact direct sums (`false`: from the FMM of the
     /// products, relative error about 1e-9 of the field's scale).
     pub residual_exact: bool,
+    /// With smoothing ([`RbfFit::with_smoothing`]): the largest `|s(xᵢ) − tᵢ| = μ |wᵢ|` over
+    /// the value constraints, by how much the field misses them on purpose (0 without
+    /// smoothing; `max_residual` is then the residual of the smoothed system).
+    pub misfit_max: f64,
+    /// The root mean square of the same misfits.
+    pub misfit_rms: f64,
     /// A lower bound on the condition number of the projected system (NaN for the iterative
     /// solve, which forms no matrix).
     pub condition_estimate: f64,
@@ -188,6 +199,8 @@ pub struct RbfFit<K> {
     /// Called every step of an iterative solve (GMRES in the cardinal basis, or the
     /// mixed-precision refinement).
     monitor: Option<Monitor>,
+    /// The smoothing `μ ≥ 0` ([`RbfFit::with_smoothing`]; 0: interpolation).
+    smoothing: f64,
 }
 
 impl<K: Kernel + Clone> RbfFit<K> {
@@ -198,6 +211,7 @@ impl<K: Kernel + Clone> RbfFit<K> {
             solver: Solver::Auto,
             memory_limit: None,
             monitor: None,
+            smoothing: 0.0,
         }
     }
 
@@ -215,6 +229,33 @@ impl<K: Kernel + Clone> RbfFit<K> {
     pub fn with_monitor(mut self, monitor: Monitor) -> Self {
         self.monitor = Some(monitor);
         self
+    }
+
+    /// Approximates the value constraints instead of interpolating them: the weights solve
+    /// `[σΦ + μI, P; Pᵀ, 0]`, `σ` the kernel's sign ([`Kernel::sign`]), so that the field is
+    /// the smoothing spline that minimises `Σᵢ (s(xᵢ) − tᵢ)² + μ'·J(s)`, `J` the kernel's
+    /// semi-norm and `μ'` proportional to `μ` (Carr et al. 2001 §4.2; Wahba 1990). The field
+    /// misses each value by `s(xᵢ) − tᵢ = −σμ wᵢ` ([`FitReport::misfit_rms`]); gradient
+    /// constraints are still interpolated. `μ` is in the kernel's units (a length for `r`, a
+    /// length cubed for `r³`) and means what `smoothing` means to SciPy's
+    /// `RBFInterpolator` with the same kernel (its `-r` is `σ r`); 0 (the default) interpolates.
+    /// Every solver takes it: the diagonal also enters the local cardinal functions, the
+    /// coarse level and the FMM products of the iterative fit.
+    ///
+    /// # Panics
+    /// If `mu` is negative or not finite (a programming error: validate user input first).
+    pub fn with_smoothing(mut self, mu: f64) -> Self {
+        assert!(
+            mu.is_finite() && mu >= 0.0,
+            "the RBF smoothing must be finite and ≥ 0, not {mu}"
+        );
+        self.smoothing = mu;
+        self
+    }
+
+    /// The smoothing `μ` ([`RbfFit::with_smoothing`]).
+    pub fn smoothing(&self) -> f64 {
+        self.smoothing
     }
 
     /// Chooses the solver.
@@ -352,16 +393,21 @@ impl<K: Kernel + Clone> RbfFit<K> {
             Some(product) => {
                 let mut ax = vec![0.0; n];
                 product.apply(&solved.x[..n], &mut ax);
-                let c = &solved.x[n..];
+                let (w, c) = solved.x.split_at(n);
+                let diagonal = functionals.diagonal;
                 ax.iter()
                     .zip(&functionals.points)
                     .zip(&rhs)
-                    .map(|((a, x), b)| b - a - poly.value(c, x))
+                    .zip(w)
+                    .map(|(((a, x), b), wi)| b - a - diagonal * wi - poly.value(c, x))
                     .collect()
             }
             None => self.residual(&functionals, &poly, &solved.x, &rhs),
         };
+        let (misfit_max, misfit_rms) = misfits(&functionals, &solved.x[..n]);
         let report = FitReport {
+            misfit_max,
+            misfit_rms,
             residual_exact: by_fmm.is_none(),
             solver: solved.solver,
             iterations: solved.iterations,
@@ -464,8 +510,9 @@ impl<K: Kernel + Clone> RbfFit<K> {
         if constraints.is_empty() {
             return Err(RbfError::Empty);
         }
-        let functionals = Functionals::new(&self.kernel, constraints)?;
+        let mut functionals = Functionals::new(&self.kernel, constraints)?;
         functionals.check_duplicates()?;
+        functionals.diagonal = self.kernel.sign() * self.smoothing;
         let poly = Polynomial::fit(&functionals.points);
         Ok((functionals, poly))
     }
@@ -538,10 +585,13 @@ impl<K: Kernel + Clone> RbfFit<K> {
     /// The field of the solution `x = [w; c]`.
     fn field<const D: usize>(
         &self,
-        functionals: Functionals<D>,
+        mut functionals: Functionals<D>,
         poly: Polynomial<D>,
         x: &[f64],
     ) -> RbfField<K, D> {
+        // The smoothing shaped the weights; the field is evaluated without it (and so equals
+        // its copy read back from a field file).
+        functionals.diagonal = 0.0;
         let n = functionals.len();
         let bounds = Aabb::from_points(&functionals.points)
             .map(|b| b.expanded(0.05 * b.diagonal().max(1e-12)))
@@ -605,6 +655,21 @@ impl Preconditioner for FactorPreconditioner<'_> {
     fn apply_inverse(&self, v: &[f64], out: &mut [f64]) {
         out.copy_from_slice(&self.0.solve(v));
     }
+}
+
+/// The largest and root-mean-square `|σμ wᵢ|` over the value functionals: how far a smoothed
+/// field misses its values (both 0 without smoothing).
+fn misfits<const D: usize>(f: &Functionals<D>, w: &[f64]) -> (f64, f64) {
+    let (mut max, mut sum, mut count) = (0.0f64, 0.0, 0usize);
+    for (kind, wi) in f.kinds.iter().zip(w) {
+        if *kind == system::Functional::Value {
+            let m = (f.diagonal * wi).abs();
+            max = max.max(m);
+            sum += m * m;
+            count += 1;
+        }
+    }
+    (max, (sum / count.max(1) as f64).sqrt())
 }
 
 fn max_abs(v: &[f64]) -> f64 {

@@ -39,6 +39,10 @@ pub(crate) struct Functionals<const D: usize> {
     pub targets: Vec<f64>,
     /// `points[i]` coordinates as structure of arrays, for the vectorised value-only sums.
     pub soa: [Vec<f64>; D],
+    /// Added to `Φᵢᵢ` of every value functional: the smoothing `σμ` of a fit that
+    /// approximates its values (0: interpolation). It changes the weights, not how the field
+    /// is evaluated: `s(xᵢ) = tᵢ − σμ wᵢ`.
+    pub diagonal: f64,
 }
 
 impl<const D: usize> Functionals<D> {
@@ -52,6 +56,7 @@ impl<const D: usize> Functionals<D> {
             kinds: Vec::new(),
             targets: Vec::new(),
             soa: std::array::from_fn(|_| Vec::new()),
+            diagonal: 0.0,
         };
         for (index, c) in constraints.iter().enumerate() {
             if let Some(&value) = c.point.iter().find(|v| !v.is_finite()) {
@@ -228,8 +233,9 @@ pub(crate) fn entry<K: Kernel + ?Sized, const D: usize>(
     }
 }
 
-/// The dense symmetric `(n + m) × (n + m)` matrix `[Φ P; Pᵀ 0]`, column-major, filled in
-/// parallel by columns.
+/// The dense symmetric `(n + m) × (n + m)` matrix `[Φ P; Pᵀ 0]` (with
+/// [`Functionals::diagonal`] on `Φ`'s value diagonal), column-major, filled in parallel by
+/// columns.
 pub(crate) fn assemble<K: Kernel + ?Sized, const D: usize>(
     kernel: &K,
     f: &Functionals<D>,
@@ -249,12 +255,16 @@ pub(crate) fn assemble<K: Kernel + ?Sized, const D: usize>(
                 j,
                 col: &mut col[..n],
             });
+            col[j] += f.diagonal;
             let row = poly.row(&f.points[j], Functional::Value);
             col[n..].copy_from_slice(&row[..m]);
         } else if j < n {
             let (xj, lj) = (&f.points[j], f.kinds[j]);
             for (i, out) in col[..n].iter_mut().enumerate() {
                 *out = entry(kernel, (&f.points[i], f.kinds[i]), (xj, lj));
+            }
+            if lj == Functional::Value {
+                col[j] += f.diagonal;
             }
             let row = poly.row(xj, lj);
             col[n..].copy_from_slice(&row[..m]);
@@ -267,8 +277,8 @@ pub(crate) fn assemble<K: Kernel + ?Sized, const D: usize>(
     a
 }
 
-/// `y ← [Φ P; Pᵀ 0] [w; c]` by direct sums, in parallel over rows (fixed order per row, so
-/// the result does not depend on the thread count).
+/// `y ← [Φ P; Pᵀ 0] [w; c]` (with [`Functionals::diagonal`]) by direct sums, in parallel over
+/// rows (fixed order per row, so the result does not depend on the thread count).
 pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
     kernel: &K,
     f: &Functionals<D>,
@@ -291,7 +301,7 @@ pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
                 weights: w,
                 x: xi,
             });
-            *out = sum + poly.value(c, xi);
+            *out = sum + poly.value(c, xi) + f.diagonal * w[i];
             return;
         }
         let s: f64 = w
@@ -300,7 +310,12 @@ pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
             .map(|(j, wj)| entry(kernel, (xi, li), (&f.points[j], f.kinds[j])) * wj)
             .sum();
         let row = poly.row(xi, li);
-        *out = s + (0..m).map(|k| row[k] * c[k]).sum::<f64>();
+        let smoothing = if li == Functional::Value {
+            f.diagonal * w[i]
+        } else {
+            0.0
+        };
+        *out = s + (0..m).map(|k| row[k] * c[k]).sum::<f64>() + smoothing;
     });
     bottom.fill(0.0);
     for (j, wj) in w.iter().enumerate() {

@@ -350,6 +350,7 @@ def fit(
     max_level: Optional[int] = None,
     compress: bool = True,
     outlier_ratio: Optional[float] = None,
+    smoothing: Union[None, float, str] = None,
     progress: Progress = None,
 ) -> Field:
     """Fits a field to an oriented point cloud (normals point out of the solid).
@@ -362,6 +363,11 @@ def fit(
     diagonal); ``solver`` ``"auto"``, ``"dense"``, ``"mixed"`` or ``"iterative"`` (GMRES with
     the fast multipole method: large clouds). ``tolerance`` (a fraction of the diagonal)
     keeps only the centres needed to meet it at every constraint (Carr's greedy fit).
+    ``smoothing`` approximates the values instead of interpolating them, for noisy scans:
+    ``"auto"`` (kernel ``"r"``) takes μ from the measured noise, ``2 × scatter² × diagonal``;
+    a number μ ≥ 0 is added to the kernel matrix's diagonal, as SciPy's ``RBFInterpolator``
+    ``smoothing`` (``report["smoothing"]`` is the μ used, ``report["misfit_rms"]`` how far the
+    field misses the values on purpose).
 
     ``method="neural"``: a small MLP (``widths``, ``activation``) trained by Adam for
     ``steps`` steps on the off-surface points with the thin-plate curvature weight ``lam``
@@ -378,7 +384,8 @@ def fit(
     ``report["outliers"]`` lists their indices; ``outlier_ratio=0`` fits every point.
     ``"rbf"`` also measures how noisy the points are, ``report["scatter"]`` (their scatter
     about a local quadric over their spacing), and warns when it exceeds 0.2
-    (``report["noisy"]``): interpolating noise grows bubbles, ``"mras"`` averages it. Both
+    (``report["noisy"]``) unless smoothed: interpolating noise grows bubbles,
+    ``smoothing="auto"`` or ``"mras"`` averages it. Both
     keys are absent below 64 points or where the points span no surface.
 
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
@@ -390,23 +397,30 @@ def fit(
     if method == "rbf":
         if any(x is not None for x in (max_level,)) or not compress:
             raise ValueError("max_level= and compress= apply to method='mras'")
+        auto = isinstance(smoothing, str)
+        if auto and smoothing != "auto":
+            raise ValueError(f"smoothing must be 'auto' or a number >= 0, got {smoothing!r}")
+        mu = None if smoothing is None or auto else float(smoothing)
         native, report = _run(
             progress,
             lambda cb: _native.fit_rbf(
                 p, n, kernel or "r", offset, bool(hermite), solver, tolerance, radius,
-                outlier_ratio, cb,
+                outlier_ratio, mu, auto, cb,
             ),
         )
-        if report.get("noisy"):
+        if report.get("noisy") and smoothing is None:
             warnings.warn(
                 f"the points scatter {report['scatter']:.2f} of their spacing about their local "
                 "surface (noisy above 0.2): RBF interpolates every point and folds between noisy "
-                "ones, so the surface grows bubbles; method='mras' fits them by least squares",
+                "ones, so the surface grows bubbles; smoothing='auto' approximates them instead, "
+                "or method='mras' fits them by least squares",
                 stacklevel=2,
             )
     elif method == "neural":
         if kernel is not None or tolerance is not None or hermite or radius is not None:
             raise ValueError("kernel=, tolerance=, hermite= and radius= apply to method='rbf'")
+        if smoothing is not None:
+            raise ValueError("smoothing= applies to method='rbf'")
         if outlier_ratio is not None:
             raise ValueError("outlier_ratio= applies to method='rbf' and 'mras'")
         native, report = _run(
@@ -417,6 +431,8 @@ def fit(
             ),
         )
     elif method == "mras":
+        if smoothing is not None:
+            raise ValueError("smoothing= applies to method='rbf' (MRAS fits by least squares)")
         if kernel is not None or hermite or radius is not None or offset is not None:
             raise ValueError(
                 "kernel=, hermite=, radius= and offset= apply to method='rbf' (and offset= "

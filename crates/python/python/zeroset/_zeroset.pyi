@@ -38,6 +38,8 @@ def fit_rbf(
     tolerance: Optional[float],
     radius: Optional[float],
     outlier_ratio: Optional[float],
+    smoothing: Optional[float],
+    smoothing_auto: bool,
     progress: _Progress,
 ) -> Tuple[NativeField, Dict[str, Any]]: ...
 def fit_neural(

@@ -161,9 +161,9 @@ pub enum OffsetArg {
 /// `--smoothing auto` or a fixed `μ`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SmoothingArg {
-    /// From the cloud's measured noise (the discrepancy principle).
+    /// From the cloud's measured noise ([`zeroset_bases::noise::Noise::rbf_smoothing`]).
     Auto,
-    /// `μ ≥ 0` in the kernel's units (SciPy's `RBFInterpolator(smoothing=μ)`).
+    /// `μ ≥ 0` in the kernel's units (SciPy's `RBFInterpolator(smoothing=μ, degree=1)`).
     Fixed(f64),
 }
 
@@ -216,10 +216,10 @@ pub struct FitArgs {
     #[arg(long, value_name = "auto|EPS", value_parser = parse_offset, allow_hyphen_values = true)]
     pub offset: Option<OffsetArg>,
 
-    /// Approximate instead of interpolate, for noisy scans: auto (the smoothing that lets the
-    /// surface miss the points by the noise `zeroset info` measures, root mean square), or
-    /// MU ≥ 0 added to the kernel matrix's diagonal (SciPy RBFInterpolator's `smoothing`;
-    /// in the kernel's units). [default: 0, interpolation]
+    /// Approximate instead of interpolate, for noisy scans: auto (μ = 2 × (σ̂/s)² × the
+    /// diagonal, from the noise σ̂ and spacing s `zeroset info` measures; kernel r), or MU ≥ 0
+    /// added to the kernel matrix's diagonal (SciPy RBFInterpolator's `smoothing` with
+    /// degree=1; in the kernel's units). [default: 0, interpolation]
     #[arg(long, value_name = "auto|MU", value_parser = parse_smoothing, allow_hyphen_values = true)]
     pub smoothing: Option<SmoothingArg>,
 
@@ -308,14 +308,14 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                 line("smoothing", &format!("μ = {} (--smoothing)", g(mu)));
                 mu
             }
-            Some(SmoothingArg::Auto) => auto_smoothing(noise.as_ref()),
-            None => {
-                if let Some(warning) = noise.and_then(|m| m.rbf_warning()) {
-                    line("noise", &warning);
-                }
-                0.0
-            }
+            Some(SmoothingArg::Auto) => auto_smoothing(noise.as_ref())?,
+            None => 0.0,
         };
+        if smoothing == 0.0
+            && let Some(warning) = noise.and_then(|m| m.rbf_warning())
+        {
+            line("noise", &warning);
+        }
         with_kernel(
             kernel,
             args,
@@ -481,6 +481,20 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
 /// Refuses a `--smoothing` that is negative or not finite, and `auto` with a kernel other than
 /// `r` (its rule is calibrated for `r`, whose `μ` is a length).
 fn check_smoothing(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
+    if args.smoothing.is_some() && args.hermite {
+        bail!(
+            "--smoothing approximates value constraints; --hermite fits gradients exactly too, \
+             so use off-surface constraints (drop --hermite) for a noisy scan"
+        );
+    }
+    if args.smoothing.is_some()
+        && (args.mras.tolerance.is_some() || args.mras.tolerance_distance.is_some())
+    {
+        bail!(
+            "--tolerance with --method rbf keeps the centres whose constraints the field misses \
+             by more than it, and a smoothed field misses them on purpose: use one or the other"
+        );
+    }
     match args.smoothing {
         Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
             "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
@@ -490,10 +504,6 @@ fn check_smoothing(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
             "--smoothing auto is calibrated for --kernel r (its μ is a length); with --kernel \
              {} give --smoothing MU in that kernel's units",
             kernel.name()
-        ),
-        Some(_) if args.hermite => bail!(
-            "--smoothing approximates value constraints; --hermite fits gradients exactly too, \
-             so use off-surface constraints (drop --hermite) for a noisy scan"
         ),
         _ => Ok(()),
     }
@@ -740,16 +750,23 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
 /// none (interpolation) where the noise cannot be measured; says which.
 ///
 /// [`Noise::rbf_smoothing`]: zeroset_bases::noise::Noise::rbf_smoothing
-fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> f64 {
+fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> anyhow::Result<f64> {
     let Some(m) = noise else {
         line(
             "smoothing",
             "none (auto: the noise cannot be measured on so few or so degenerate points; \
              --smoothing MU sets it)",
         );
-        return 0.0;
+        return Ok(0.0);
     };
     let mu = m.noise.rbf_smoothing(m.diagonal);
+    if !mu.is_finite() {
+        bail!(
+            "--smoothing auto: μ from the noise is not finite (the cloud's box diagonal {} \
+             overflows): give --smoothing MU, or move the cloud nearer the origin",
+            g(m.diagonal)
+        );
+    }
     line(
         "smoothing",
         &format!(
@@ -761,7 +778,7 @@ fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> f64 {
             m.describe()
         ),
     );
-    mu
+    Ok(mu)
 }
 
 /// Builds the constraints, fits with `kernel`, reports, and writes `-o`.
@@ -982,8 +999,13 @@ fn print_report(r: &FitReport) {
     line(
         "max residual",
         &format!(
-            "{:.2e} (the largest |target − field| over the constraints{refined}{by})",
+            "{:.2e} (the largest |target − field| over the constraints{smoothed}{refined}{by})",
             r.max_residual,
+            smoothed = if r.misfit_max > 0.0 {
+                ", of the smoothed system: its targets less the misfit below"
+            } else {
+                ""
+            },
             by = if r.residual_exact { "" } else { ", by the FMM" }
         ),
     );
@@ -1168,7 +1190,7 @@ pub(crate) fn more(value: &str) {
     outln!("{:<LABEL_WIDTH$} {value}", "");
 }
 
-fn parse_smoothing(s: &str) -> Result<SmoothingArg, String> {
+pub(crate) fn parse_smoothing(s: &str) -> Result<SmoothingArg, String> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("auto") {
         return Ok(SmoothingArg::Auto);

@@ -10,7 +10,7 @@ use clap::{Args, Parser, ValueEnum};
 use zeroset_bases::outliers::remove_outliers;
 use zeroset_field_core::io::read_point_cloud;
 
-use crate::fit::FitArgs;
+use crate::fit::{FitArgs, SmoothingArg};
 use crate::mesh::{DetailArg, MeshArgs};
 use crate::preview::PreviewArgs;
 use crate::progress::seconds;
@@ -79,8 +79,9 @@ pub struct ReconstructArgs {
 
     /// RBF fits: approximate instead of interpolate (as `zeroset fit --smoothing`): auto (from
     /// the measured noise) or MU ≥ 0.
-    #[arg(long, value_name = "auto|MU")]
-    pub smoothing: Option<String>,
+    #[arg(long, value_name = "auto|MU", value_parser = crate::fit::parse_smoothing,
+          allow_hyphen_values = true)]
+    pub smoothing: Option<SmoothingArg>,
 
     /// The fit's stray-point options (as `zeroset fit`'s).
     #[command(flatten)]
@@ -143,6 +144,16 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     args.outliers.ratio()?;
     args.outliers.check(&args.scan, None, args.force)?;
+    // `--smoothing 0` interpolates: it does not ask for an RBF fit.
+    let smoothed = match args.smoothing {
+        Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
+            "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
+             0 interpolates), got {mu}"
+        ),
+        Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
+        Some(SmoothingArg::Auto) => true,
+        None => false,
+    };
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let cloud = read_point_cloud(&args.scan).map_err(|e| {
@@ -160,7 +171,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             ReconstructMethod::Mras,
             format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
         ),
-        ReconstructMethod::Auto if args.smoothing.is_some() => (
+        ReconstructMethod::Auto if smoothed => (
             ReconstructMethod::Rbf,
             format!(" (auto: RBF up to {AUTO_RBF_POINTS} points, smoothed as --smoothing asks)"),
         ),
@@ -184,13 +195,16 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         m => (m, String::new()),
     };
     drop(cloud);
-    if args.smoothing.is_some() && method == ReconstructMethod::Mras {
+    if smoothed && method == ReconstructMethod::Mras {
         bail!(
             "--smoothing applies to RBF fits, and this reconstruction fits MRAS{why}, which \
              fits by least squares already: drop --smoothing, or give --method rbf"
         );
     }
-    let smoothing = args.smoothing.clone();
+    let smoothing = args.smoothing.map(|s| match s {
+        SmoothingArg::Auto => "auto".to_owned(),
+        SmoothingArg::Fixed(mu) => mu.to_string(),
+    });
     let (fit_method, mesh_method) = match method {
         ReconstructMethod::Mras => ("mras", "mc"),
         _ => ("rbf", "smc"),
@@ -240,7 +254,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.outliers.outliers_out {
         argv.extend([os("--outliers-out"), path.as_os_str()]);
     }
-    if let Some(mu) = &smoothing {
+    if let Some(mu) = smoothing.as_ref().filter(|_| fit_method == "rbf") {
         argv.extend([os("--smoothing"), std::ffi::OsStr::new(mu)]);
     }
     common(&mut argv, true);

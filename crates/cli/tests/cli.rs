@@ -2095,29 +2095,32 @@ fn smoothing_approximates_a_noisy_scan_into_one_surface() {
             "calibrated for --kernel r",
         ),
         (&["--smoothing", "0.1", "--hermite"][..], "drop --hermite"),
+        (&["--smoothing", "auto", "--hermite"][..], "drop --hermite"),
+        (
+            &["--smoothing", "0.1", "--tolerance", "0.01"][..],
+            "one or the other",
+        ),
     ] {
         let o = fit(&path, extra);
         assert!(!o.status.success());
         assert!(stderr(&o).contains(message), "{extra:?}: {}", stderr(&o));
     }
     let mesh = dir.path().join("m.ply");
-    let o = zeroset([
-        "reconstruct",
-        path.to_str().unwrap(),
-        "-o",
-        mesh.to_str().unwrap(),
-        "--method",
-        "mras",
-        "--smoothing",
-        "auto",
-    ]);
-    assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("--smoothing applies to RBF fits"),
-        "{}",
-        stderr(&o)
-    );
-    assert!(!mesh.exists());
+    for (extra, message) in [
+        (
+            ["--method", "mras", "--smoothing", "auto"],
+            "--smoothing applies to RBF fits",
+        ),
+        (["--method", "rbf", "--smoothing", "-1"], "finite μ ≥ 0"),
+    ] {
+        let mut args = vec!["reconstruct", path.to_str().unwrap(), "-o"];
+        args.push(mesh.to_str().unwrap());
+        args.extend(extra);
+        let o = zeroset(args);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(message), "{extra:?}: {}", stderr(&o));
+        assert!(!mesh.exists());
+    }
 }
 
 #[test]

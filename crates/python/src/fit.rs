@@ -182,6 +182,12 @@ pub(crate) fn fit_rbf<'py>(
              too: drop hermite= for a noisy scan",
         ));
     }
+    if (smoothing.is_some() || smoothing_auto) && tolerance.is_some() {
+        return Err(value_error(
+            "tolerance= keeps the centres whose constraints the field misses by more than it, \
+             and a smoothed field misses them on purpose: give one or the other",
+        ));
+    }
     if smoothing_auto && kernel != "r" {
         return Err(value_error(format!(
             "smoothing='auto' is calibrated for kernel='r' (its μ is a length); with kernel=\
@@ -230,6 +236,12 @@ pub(crate) fn fit_rbf<'py>(
             ]);
             if smoothing_auto {
                 request.smoothing = noise.rbf_smoothing(diagonal(&cloud));
+                if !request.smoothing.is_finite() {
+                    return Err(value_error(
+                        "smoothing='auto': the smoothing from the noise is not finite (the \
+                         cloud's box diagonal overflows): give smoothing as a number",
+                    ));
+                }
             }
         }
         let constraints = if hermite {

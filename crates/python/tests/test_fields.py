@@ -248,6 +248,8 @@ def test_rbf_smoothing_options_are_checked(sphere):
             zeroset.fit(points, normals, smoothing=bad)
     with pytest.raises(ValueError, match="drop hermite"):
         zeroset.fit(points, normals, smoothing=0.1, hermite=True)
+    with pytest.raises(ValueError, match="give one or the other"):
+        zeroset.fit(points, normals, smoothing=0.1, tolerance=1e-3)
     with pytest.raises(ValueError, match="calibrated for kernel='r'"):
         zeroset.fit(points, normals, smoothing="auto", kernel="r3")
     with pytest.raises(ValueError, match="applies to method='rbf'"):

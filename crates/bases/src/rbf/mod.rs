@@ -24,7 +24,8 @@
 //! - **Smoothing** ([`RbfFit::with_smoothing`]): for noisy data, the smoothing spline instead
 //!   of the interpolant (Carr et al. 2001 §4.2, Wahba 1990): `σμ` on `Φ`'s diagonal, in every
 //!   solver (dense, mixed precision, the local cardinal functions, the coarse level and the
-//!   FMM products), the same as SciPy's `RBFInterpolator(smoothing=μ)` with the same kernel;
+//!   FMM products), the same as SciPy's `RBFInterpolator(smoothing=μ, degree=1)` with the
+//!   same kernel;
 //!   [`crate::noise::Noise::rbf_smoothing`] chooses `μ` for a scan from its measured noise.
 //! - [`RbfFit::fit_greedy`] ([`greedy`]): Carr et al.'s centre reduction — fit a subset, add
 //!   the constraints over the tolerance, refit — for a field that keeps only the centres it
@@ -232,13 +233,16 @@ impl<K: Kernel + Clone> RbfFit<K> {
     }
 
     /// Approximates the value constraints instead of interpolating them: the weights solve
-    /// `[σΦ + μI, P; Pᵀ, 0]`, `σ` the kernel's sign ([`Kernel::sign`]), so that the field is
+    /// `[Φ + σμI, P; Pᵀ, 0]`, `σ` the kernel's sign ([`Kernel::sign`]; `σΦ + μI` is then
+    /// positive definite where `σΦ` is), so that the field is
     /// the smoothing spline that minimises `Σᵢ (s(xᵢ) − tᵢ)² + μ'·J(s)`, `J` the kernel's
     /// semi-norm and `μ'` proportional to `μ` (Carr et al. 2001 §4.2; Wahba 1990). The field
     /// misses each value by `s(xᵢ) − tᵢ = −σμ wᵢ` ([`FitReport::misfit_rms`]); gradient
     /// constraints are still interpolated. `μ` is in the kernel's units (a length for `r`, a
     /// length cubed for `r³`) and means what `smoothing` means to SciPy's
-    /// `RBFInterpolator` with the same kernel (its `-r` is `σ r`); 0 (the default) interpolates.
+    /// `RBFInterpolator` with the same kernel and `degree=1` (its `"linear"`, `-r`, is `σ r`);
+    /// 0 (the default) interpolates. The greedy fit ([`RbfFit::fit_greedy`]) judges the
+    /// constraints by their misfit, so it is not meant for a smoothed fit.
     /// Every solver takes it: the diagonal also enters the local cardinal functions, the
     /// coarse level and the FMM products of the iterative fit.
     ///

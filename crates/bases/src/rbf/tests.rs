@@ -707,7 +707,25 @@ fn every_solver_solves_the_smoothed_system() {
             .unwrap();
         let d = field_diff(&got.field, &dense.field);
         assert!(d < tolerance, "{solver:?}: {d:.1e} from the dense fit");
+        assert!(got.report.max_residual < 1e-7, "{:?}", got.report);
     }
+    // The residual the FMM measures (above `exact_residual_max`) is the smoothed system's: near
+    // 0, far below the misfit (without the diagonal it would be the misfit itself).
+    let by_fmm = RbfFit::new(Biharmonic)
+        .with_smoothing(mu)
+        .with_solver(Solver::Iterative(IterativeParams {
+            fmm_from: 0,
+            exact_residual_max: 0,
+            ..IterativeParams::default()
+        }))
+        .fit(&c)
+        .unwrap();
+    assert!(!by_fmm.report.residual_exact);
+    assert!(
+        by_fmm.report.max_residual < 1e-3 * by_fmm.report.misfit_max,
+        "{:?}",
+        by_fmm.report
+    );
     // r³ (σ = +1) through the same paths.
     let mu3 = 1e-3;
     let tri = RbfFit::new(Triharmonic)
@@ -746,7 +764,7 @@ fn a_smoothed_field_misses_each_value_by_its_weight() {
         "the field should miss the noisy values, rms {rms:.1e}"
     );
     assert!((fit.report.misfit_rms - rms).abs() < 1e-9 * rms.max(1.0));
-    // More smoothing misses more (what the CLI's choice of μ relies on); none misses nothing.
+    // More smoothing misses more; none misses nothing.
     let misfit = |mu: f64| {
         RbfFit::new(Biharmonic)
             .with_smoothing(mu)

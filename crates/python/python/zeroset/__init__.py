@@ -408,7 +408,13 @@ def fit(
                 outlier_ratio, mu, auto, cb,
             ),
         )
-        if report.get("noisy") and smoothing is None:
+        if auto and "scatter" not in report:
+            warnings.warn(
+                "smoothing='auto': the noise cannot be measured (fewer than 64 points, or they "
+                "span no surface), so the points are interpolated; give smoothing as a number",
+                stacklevel=2,
+            )
+        if report.get("noisy") and not report.get("smoothing"):
             warnings.warn(
                 f"the points scatter {report['scatter']:.2f} of their spacing about their local "
                 "surface (noisy above 0.2): RBF interpolates every point and folds between noisy "

@@ -545,6 +545,20 @@ fn the_monitor_sees_every_step_and_its_cancel_is_not_a_fallback() {
     );
 }
 
+/// The iterative fit with FMM products whose report measures the residual by the FMM too
+/// (above `exact_residual_max`, here 0).
+fn fit_with_residual_by_fmm(c: &Constraints<3>, mu: f64) -> Fitted<Biharmonic, 3> {
+    RbfFit::new(Biharmonic)
+        .with_smoothing(mu)
+        .with_solver(Solver::Iterative(IterativeParams {
+            fmm_from: 0,
+            exact_residual_max: 0,
+            ..IterativeParams::default()
+        }))
+        .fit(c)
+        .unwrap()
+}
+
 #[test]
 fn fmm_products_give_the_dense_fit_to_their_accuracy() {
     let c = sphere_setup(3000);
@@ -570,14 +584,7 @@ fn fmm_products_give_the_dense_fit_to_their_accuracy() {
     // Above `exact_residual_max` the report's residual comes from an FMM of higher order than
     // the products' (one of the same order sees only 3.6e-10 here: the solve absorbed its
     // error): the exact figure to 1%.
-    let by_fmm = RbfFit::new(Biharmonic)
-        .with_solver(Solver::Iterative(IterativeParams {
-            fmm_from: 0,
-            exact_residual_max: 0,
-            ..IterativeParams::default()
-        }))
-        .fit(&c)
-        .unwrap();
+    let by_fmm = fit_with_residual_by_fmm(&c, 0.0);
     assert!(!by_fmm.report.residual_exact);
     let exact = c
         .as_slice()
@@ -711,15 +718,7 @@ fn every_solver_solves_the_smoothed_system() {
     }
     // The residual the FMM measures (above `exact_residual_max`) is the smoothed system's: near
     // 0, far below the misfit (without the diagonal it would be the misfit itself).
-    let by_fmm = RbfFit::new(Biharmonic)
-        .with_smoothing(mu)
-        .with_solver(Solver::Iterative(IterativeParams {
-            fmm_from: 0,
-            exact_residual_max: 0,
-            ..IterativeParams::default()
-        }))
-        .fit(&c)
-        .unwrap();
+    let by_fmm = fit_with_residual_by_fmm(&c, mu);
     assert!(!by_fmm.report.residual_exact);
     assert!(
         by_fmm.report.max_residual < 1e-3 * by_fmm.report.misfit_max,

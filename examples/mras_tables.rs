@@ -14,10 +14,11 @@
 //!   with the defaults — depth, relative error (max and mean distance from the points to the zero
 //!   set over the points' bounding-box diagonal), storage as the paper counts it, fit time —
 //!   against (a) the same MRAS uncompressed and (b) zeroset's RBF field (off-surface, kernel r)
-//!   on seeded subsets of the points, measured the same way. Each MRAS field is meshed at 256
-//!   cells along the box's longest side (the time is printed) and written to
-//!   `OUT/<model>_mras.ply`, so that `benches/peers/poisson_peers.py --measure` measures it with
-//!   the same point-to-triangle distance as Open3D's screened Poisson meshes.
+//!   on seeded subsets of the points, measured the same way; also (a') the same MRAS with plain
+//!   CP-ALS at every rank (`--plain-cp`), to show what the weighted CP fit saves. Each MRAS
+//!   field is meshed at 256 cells along the box's longest side (the time is printed) and
+//!   written to `OUT/<model>_mras.ply`, so that `benches/peers/poisson_peers.py --measure`
+//!   measures it with the same point-to-triangle distance as Open3D's screened Poisson meshes.
 //! - **figure** (Fig. 2): the bunny's MRAS surface after levels 1, 2, …, side by side,
 //!   `OUT/mras_bunny_levels.png`.
 //! - **fit FILE**: one fit with its per-level report (for trying options).
@@ -26,7 +27,7 @@
 //! ([`distance_to_zero_set`]); the point reached lies on the surface, so the figure is an upper
 //! bound of the true distance. Option overrides: `--tolerance T --max-level L --lambda λ
 //! --omega1 ω₁ --omega2 ω₂ --omega2-root ω₂ --omega2-decay d --m0 m₀ --beta β --min-knots m --admm-iter N --admm-tol t
-//! --cp-scale s --cp-points p --cp-refined c --n-min N --no-compress`.
+//! --cp-scale s --cp-points p --cp-refined c --n-min N --plain-cp --no-compress`.
 
 #[path = "common/data.rs"]
 mod data;
@@ -118,6 +119,10 @@ fn parse() -> Res<Args> {
             "--cp-scale" => o.cp_scale = num()?,
             "--cp-points" => o.cp_points = num()?,
             "--cp-refined" => o.cp_refined = num()?,
+            "--plain-cp" => {
+                o.cp_weighted = false;
+                takes = false;
+            }
             "--no-compress" => {
                 o.compress = false;
                 takes = false;
@@ -227,8 +232,8 @@ fn tables(args: &Args) -> Res<()> {
         let fit = fit_and_report(&path, &args.options)?;
         let cloud = read_point_cloud(&path)?;
         let (max, mean, _) = distances(&fit, cloud.positions());
-        let (umax, umean, ustore, usecs) = {
-            let o = args.options.clone().compress(false);
+        // The same fit with one option changed: max and mean distance, storage, fit seconds.
+        let variant = |o: MrasOptions| -> Res<(f64, f64, usize, f64)> {
             let t = Instant::now();
             let u = fit_mras(
                 cloud.positions(),
@@ -238,8 +243,10 @@ fn tables(args: &Args) -> Res<()> {
             )?;
             let secs = t.elapsed().as_secs_f64();
             let (a, b, _) = distances(&u, cloud.positions());
-            (a, b, u.field.storage(), secs)
+            Ok((a, b, u.field.storage(), secs))
         };
+        let (umax, umean, ustore, usecs) = variant(args.options.clone().compress(false))?;
+        let plain = variant(args.options.clone().cp_weighted(false))?;
         // Mesh at 256 cells along the longest side, for the peer script's distance.
         let bounds = points_box(cloud.positions(), fit.diagonal)?;
         let t = Instant::now();
@@ -292,6 +299,15 @@ fn tables(args: &Args) -> Res<()> {
             umean / fit.diagonal,
             ustore,
             usecs
+        );
+        println!(
+            "{:<34} {:>9} {:>10.3e} {:>10.3e} {:>9} {:>8.2}",
+            "(a') MRAS, plain CP-ALS",
+            cloud.len(),
+            plain.0 / fit.diagonal,
+            plain.1 / fit.diagonal,
+            plain.2,
+            plain.3
         );
         for r in &rbf {
             println!(

@@ -463,3 +463,19 @@ fn stray_points_are_set_aside_not_made_surface() {
     assert!(all.outliers.is_empty());
     assert!(near(&all) >= 50, "{}", near(&all));
 }
+
+/// The CP fit weighted by what the data points read stores fewer numbers than plain CP-ALS
+/// under the same bound at the points, with the same distances (the bound is checked exactly
+/// at every point either way).
+#[test]
+fn weighted_cp_stores_less_for_the_same_bound() {
+    let (p, n) = torus(60, 24, 1.0, 0.4);
+    let options = MrasOptions::default().max_level(4).tolerance(1e-4);
+    let weighted = fit(&p, &n, &options);
+    let plain = fit(&p, &n, &options.clone().cp_weighted(false));
+    let (w, q) = (weighted.field.storage(), plain.field.storage());
+    let (dw, dq) = (max_distance(&weighted, &p), max_distance(&plain, &p));
+    eprintln!("weighted {w} numbers, max {dw:.3e}; plain {q}, max {dq:.3e}");
+    assert!((w as f64) < 0.85 * q as f64, "weighted {w}, plain {q}");
+    assert!(dw < 1.1 * dq + 1e-5, "weighted {dw:.3e}, plain {dq:.3e}");
+}

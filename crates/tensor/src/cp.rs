@@ -537,7 +537,7 @@ fn hadamard(grams: &[Mat<f64>; 3], skip: Option<usize>) -> Mat<f64> {
 
 /// `M V⁻¹` for the symmetric positive semi-definite `V`: Cholesky, or the pseudo-inverse
 /// (singular values below `1e-12 σ₁` dropped) where `V` is singular.
-fn solve_gram(v: &Mat<f64>, m: &Mat<f64>) -> Result<Mat<f64>, TensorError> {
+pub(crate) fn solve_gram(v: &Mat<f64>, m: &Mat<f64>) -> Result<Mat<f64>, TensorError> {
     if let Ok(llt) = v.llt(Side::Lower) {
         let solved = llt.solve(m.transpose());
         if solved.col_iter().all(|c| c.iter().all(|x| x.is_finite())) {

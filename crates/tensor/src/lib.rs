@@ -3,7 +3,7 @@
 //! Dense 3-way tensors and the low-rank machinery that MRAS (paper 004 §3) compresses spline
 //! coefficients with: unfoldings, n-mode and Khatri–Rao products, the trace norm and
 //! singular-value thresholding (here), CP decomposition by alternating least squares and the
-//! paper's adaptive rank ([`cp`]).
+//! paper's adaptive rank ([`cp`]), and CP fitted in entry weights ([`weighted`]).
 //!
 //! ## The maths
 //!
@@ -40,6 +40,7 @@ pub mod cp;
 mod dense;
 mod lowrank;
 mod mttkrp;
+pub mod weighted;
 
 pub use cp::{
     AdaptiveOptions, AdaptiveResult, CpInit, CpOptions, CpProgress, CpResult, CpStop, Kruskal,
@@ -47,6 +48,7 @@ pub use cp::{
 };
 pub use dense::{Tensor3, khatri_rao};
 pub use lowrank::{ThinSvd, svt, thin_svd, trace_norm};
+pub use weighted::{WeightedOptions, WeightedResult, cp_als_weighted};
 
 /// What can go wrong with tensor shapes and data.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -108,6 +110,14 @@ pub enum TensorError {
     Tolerance {
         /// The value given.
         tol: f64,
+    },
+    /// An entry weight that is negative, NaN or infinite.
+    #[error("weight {index} is {value}: entry weights must be finite and non-negative")]
+    Weight {
+        /// The weight's index in row-major order.
+        index: usize,
+        /// The weight given.
+        value: f64,
     },
     /// The SVD did not converge.
     #[error("the singular value decomposition did not converge")]

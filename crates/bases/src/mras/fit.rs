@@ -36,6 +36,7 @@ use super::local::{
 /// | `admm_max_iter`, `admm_tol` | 50, 1e-3 | "c barely changes" | warm-started, more iterations change nothing measurable |
 /// | `cp_scale`, `cp_points` | 0, 0.5 | `ε_cp^k = 10^{−k−1}` | the bound at the data points (see [`MrasOptions::cp_points`]): bunny 3.3× → 3.8× smaller than uncompressed, same error. With rank 0 and `cp_refined` = 1, bunny numbers / max / mean distance: 0.4 → 333k, 4.47e-3, 3.29e-4; **0.5 → 294k, 4.50e-3, 3.50e-4**; 0.75 → 222k, 5.12e-3, 4.09e-4; 1 → 174k, 5.78e-3, 4.74e-4 (measured with `omega2_decay` 100; with 10 the default gives 290k, 4.50e-3, 3.51e-4, kitten 101k) |
 /// | `outlier_ratio` | 3 | — (the paper's scans are clean) | see [`crate::outliers`]: the bunny with 2% stray points in its box (random normals) broke into 23 components with open sheets; with the outliers this finds set aside, one closed bunny (`benches/peers/stray_peers.py`). None found on the bunny, kitten and `bunny_2k` samples; 2 would cut a flattened ellipsoid's rim |
+/// | `cp_weighted` | true | — (plain CP-ALS) | each rank fitted in the points' weights where plain CP-ALS misses the bound at the points (module docs): bunny numbers / max / mean distance 290k, 4.50e-3, 3.51e-4 → **218k**, 4.58e-3, 3.52e-4 (7.9× fewer than its fitted cells uncompressed, was 5.8×); kitten 101k → 68k (max 4.10e-3 → 4.16e-3); `bunny_2k` 129k → 85k; the noisy bunny and kitten copies of `benches/peers/noise_peers.py` 25–40% fewer; one component on each; fit time +0.7 s on the bunny (8.6 → 9.3 s). The `cp_points` and `cp_refined` rows were measured with plain CP-ALS |
 /// | `cp_refined` | 1 | (`10^{−k−1}` loosens the coarse levels) | bunny numbers / max / mean: 0 → 318k, 4.50e-3, 3.48e-4; 0.5 → 312k, 4.49e-3, 3.49e-4; **1 → 294k, 4.50e-3, 3.50e-4**; kitten 0.5 → 107k, 1 → 104k at the same errors. The bound it replaced (`cp_points · max(ε₀, e/16)` at every point, `e` the previous level's largest Sampson distance) stored 3–8% less where it worked, and dropped whole levels where it did not (bunny with `m₀` 10 or 11: 0.18 / 0.33 of the diagonal; now 4.5e-3 / 4.7e-3) (measured with `omega2_decay` 100; with 10 the default gives 290k, 4.50e-3, 3.51e-4, kitten 101k) |
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrasOptions {
@@ -87,6 +88,10 @@ pub struct MrasOptions {
     /// cell's own points keep: the next level fits those points again, so only the points the
     /// field ends on need the tight bound. 0: the same bound everywhere.
     pub cp_refined: f64,
+    /// Under the bound at the data points (`cp_scale` 0), fit each CP rank in the norm the
+    /// points read the coefficients in (weighted CP-ALS, [`zeroset_tensor::weighted`]) where
+    /// plain CP-ALS misses the bound; false: plain CP-ALS only.
+    pub cp_weighted: bool,
     /// The cube's margin around the bounding box, as a fraction of its largest side (each side).
     pub margin: f64,
     /// Points whose spacing (mean distance to their 8 nearest) exceeds this many times the
@@ -119,6 +124,7 @@ impl Default for MrasOptions {
             cp_scale: 0.0,
             cp_points: 0.5,
             cp_refined: 1.0,
+            cp_weighted: true,
             margin: 0.05,
             outlier_ratio: crate::outliers::DEFAULT_OUTLIER_RATIO,
         }
@@ -157,6 +163,8 @@ setter! {
     beta: f64,
     /// With CP compression on or off.
     compress: bool,
+    /// With the weighted CP fit at the data points on or off.
+    cp_weighted: bool,
     /// With ADMM iteration limit `admm_max_iter`.
     admm_max_iter: usize,
     /// With outlier ratio `outlier_ratio` (0: no points set aside).
@@ -415,6 +423,8 @@ pub fn fit_mras(
             cp_bound: options.compress.then(|| {
                 if options.cp_scale > 0.0 {
                     CpBound::Tensor(options.cp_scale * 10f64.powi(-(level as i32) - 1))
+                } else if options.cp_weighted {
+                    CpBound::PointsWeighted(options.cp_points * eps0)
                 } else {
                     CpBound::Points(options.cp_points * eps0)
                 }
@@ -472,7 +482,7 @@ pub fn fit_mras(
         //    fits their points again, so there the CP error may reach `cp_refined` times the
         //    largest residual `|f^k|` the cell's own points keep (not less than the bound).
         let mut refined_early = vec![false; solved.len()];
-        let slack = if matches!(settings.cp_bound, Some(CpBound::Points(_)))
+        let slack = if settings.cp_bound.is_some_and(CpBound::at_points)
             && may_refine
             && options.cp_refined > 0.0
         {

@@ -14,7 +14,8 @@
 //! `--smoothing auto|μ` approximates the values instead of interpolating them (the smoothing
 //! spline, `μ` on the kernel matrix's diagonal: `RbfFit::with_smoothing`), for noisy scans,
 //! whose interpolant folds between the points into bubbles. `auto` takes `μ` from the noise
-//! the cloud measures (`zeroset_bases::noise`: `2 · (σ̂/s)² · diagonal`); on value files and
+//! the cloud measures (`zeroset_bases::noise`: `2 · (σ̂/s)² · D`, `D` the size of the object
+//! the cloud mostly samples, `noise::object_size`); on value files and
 //! with other kernels `μ` is given.
 //!
 //! A value-constraint file (`.xyv`: `x y value`, a 2-D curve; `.xyzv`: `x y z value`) is
@@ -41,6 +42,7 @@ use clap::{Args, ValueEnum};
 
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
+use zeroset_bases::noise::object_size;
 use zeroset_bases::rbf::{
     Biharmonic, Constraints, FitReport, GreedyOptions, IterativeParams, Offset, OffsetReport,
     RbfField, RbfFit, Solver, ThinPlate, Triharmonic, Wendland,
@@ -216,8 +218,9 @@ pub struct FitArgs {
     #[arg(long, value_name = "auto|EPS", value_parser = parse_offset, allow_hyphen_values = true)]
     pub offset: Option<OffsetArg>,
 
-    /// Approximate instead of interpolate, for noisy scans: auto (μ = 2 × (σ̂/s)² × the
-    /// diagonal, from the noise σ̂ and spacing s `zeroset info` measures; kernel r), or MU ≥ 0
+    /// Approximate instead of interpolate, for noisy scans: auto (μ = 2 × (σ̂/s)² × D, from
+    /// the noise σ̂ and spacing s `zeroset info` measures, D the box diagonal of the connected
+    /// piece of the cloud that holds its median point: the object's size; kernel r), or MU ≥ 0
     /// added to the kernel matrix's diagonal (SciPy RBFInterpolator's `smoothing` with
     /// degree=1; in the kernel's units). [default: 0, interpolation]
     #[arg(long, value_name = "auto|MU", value_parser = parse_smoothing, allow_hyphen_values = true)]
@@ -308,7 +311,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                 line("smoothing", &format!("μ = {} (--smoothing)", g(mu)));
                 mu
             }
-            Some(SmoothingArg::Auto) => auto_smoothing(noise.as_ref())?,
+            Some(SmoothingArg::Auto) => auto_smoothing(noise.as_ref(), &cloud)?,
             None => 0.0,
         };
         if smoothing == 0.0
@@ -746,11 +749,15 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
     }
 }
 
-/// `--smoothing auto`: the smoothing [`Noise::rbf_smoothing`] gives the measured noise, or
-/// none (interpolation) where the noise cannot be measured; says which.
+/// `--smoothing auto`: the smoothing [`Noise::rbf_smoothing`] gives the measured noise at the
+/// size of the object `cloud` mostly samples ([`object_size`]), or none (interpolation) where
+/// the noise cannot be measured; says which.
 ///
 /// [`Noise::rbf_smoothing`]: zeroset_bases::noise::Noise::rbf_smoothing
-fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> anyhow::Result<f64> {
+fn auto_smoothing(
+    noise: Option<&crate::noise::Measured>,
+    cloud: &PointCloud3,
+) -> anyhow::Result<f64> {
     let Some(m) = noise else {
         line(
             "smoothing",
@@ -759,7 +766,8 @@ fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> anyhow::Result<f64>
         );
         return Ok(0.0);
     };
-    let mu = m.noise.rbf_smoothing(m.diagonal);
+    let size = object_size(cloud.positions(), m.noise.spacing).unwrap_or(m.diagonal);
+    let mu = m.noise.rbf_smoothing(size);
     if !mu.is_finite() {
         bail!(
             "--smoothing auto: μ from the noise is not finite (the cloud's box diagonal {} \
@@ -767,14 +775,23 @@ fn auto_smoothing(noise: Option<&crate::noise::Measured>) -> anyhow::Result<f64>
             g(m.diagonal)
         );
     }
+    let size_note = if size < m.diagonal * (1.0 - 1e-9) {
+        format!(
+            "the object size {} (the box diagonal of the piece of the cloud that holds its \
+             median point; the whole cloud's {})",
+            g(size),
+            g(m.diagonal)
+        )
+    } else {
+        format!("the diagonal {}", g(size))
+    };
     line(
         "smoothing",
         &format!(
-            "μ = {} (auto: {} × {:.3}² × the diagonal {}, from the noise: {})",
+            "μ = {} (auto: {} × {:.3}² × {size_note}, from the noise: {})",
             g(mu),
             g(zeroset_bases::noise::RBF_SMOOTHING_SCALE),
             m.noise.relative(),
-            g(m.diagonal),
             m.describe()
         ),
     );

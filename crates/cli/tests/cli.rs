@@ -2022,7 +2022,12 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
 /// ±`amplitude` of the radius along its normal, the sign pseudo-random (0.03: noisy, a scatter
 /// about 0.3 of the spacing).
 fn noisy_sphere_xyzn(amplitude: f64) -> String {
-    sphere_points(2000)
+    noisy_sphere_of(2000, amplitude)
+}
+
+/// [`noisy_sphere_xyzn`] with `n` points.
+fn noisy_sphere_of(n: usize, amplitude: f64) -> String {
+    sphere_points(n)
         .iter()
         .enumerate()
         .map(|(i, (p, n))| {
@@ -2037,6 +2042,47 @@ fn noisy_sphere_xyzn(amplitude: f64) -> String {
             format!("{} {} {} {} {} {}\n", q[0], q[1], q[2], n[0], n[1], n[2])
         })
         .collect()
+}
+
+#[test]
+fn auto_smoothing_follows_the_object_not_the_scene() {
+    // A noisy sphere of 500 points, and the same with a copy 20 radii away: the scene's
+    // diagonal is 5× the sphere's, the smoothing the same (μ scales with the object's size,
+    // not the box's).
+    let one = noisy_sphere_of(500, 0.06);
+    let shifted: String = one
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            format!(
+                "{} {} {} {} {} {}\n",
+                v[0] + 20.0 * RADIUS,
+                v[1],
+                v[2],
+                v[3],
+                v[4],
+                v[5]
+            )
+        })
+        .collect();
+    let mu = |text: &str| -> f64 {
+        let (dir, path) = temp_file("c.xyzn", text);
+        let field = dir.path().join("f.zsf");
+        let args = ["--smoothing", "auto", "-o", field.to_str().unwrap()];
+        let o = fit(&path, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = stdout(&o);
+        out.split("μ = ")
+            .nth(1)
+            .and_then(|s| s.split_whitespace().next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no μ in {out}"))
+    };
+    let (alone, scene) = (mu(&one), mu(&format!("{one}{shifted}")));
+    assert!(
+        (scene / alone - 1.0).abs() < 0.05,
+        "one sphere μ {alone}, two μ {scene}"
+    );
 }
 
 #[test]

@@ -12,7 +12,7 @@ use pyo3::types::PyDict;
 use zeroset_bases::field_file::{AnyField, StoredKernel};
 use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
 use zeroset_bases::neural::{Activation, Architecture, NeuralFit, NeuralParams};
-use zeroset_bases::noise::estimate_noise;
+use zeroset_bases::noise::{estimate_noise, object_size};
 use zeroset_bases::outliers::{DEFAULT_OUTLIER_RATIO, remove_outliers, valid_ratio};
 use zeroset_bases::rbf::{
     Biharmonic, Constraints, GreedyOptions, IterativeParams, Offset, RbfFit, Solver, ThinPlate,
@@ -235,7 +235,9 @@ pub(crate) fn fit_rbf<'py>(
                 ("noisy", ReportValue::Bool(noise.is_noisy())),
             ]);
             if smoothing_auto {
-                request.smoothing = noise.rbf_smoothing(diagonal(&cloud));
+                let size = object_size(cloud.positions(), noise.spacing)
+                    .unwrap_or_else(|| diagonal(&cloud));
+                request.smoothing = noise.rbf_smoothing(size);
                 if !request.smoothing.is_finite() {
                     return Err(value_error(
                         "smoothing='auto': the smoothing from the noise is not finite (the \

@@ -364,7 +364,9 @@ def fit(
     the fast multipole method: large clouds). ``tolerance`` (a fraction of the diagonal)
     keeps only the centres needed to meet it at every constraint (Carr's greedy fit).
     ``smoothing`` approximates the values instead of interpolating them, for noisy scans:
-    ``"auto"`` (kernel ``"r"``) takes μ from the measured noise, ``2 × scatter² × diagonal``;
+    ``"auto"`` (kernel ``"r"``) takes μ from the measured noise, ``2 × scatter² × D`` (``D``
+    the box diagonal of the connected piece of the cloud holding its median point: the
+    object's size, not a scene's);
     a number μ ≥ 0 is added to the kernel matrix's diagonal, as SciPy's ``RBFInterpolator``
     ``smoothing`` (``report["smoothing"]`` is the μ used, ``report["misfit_rms"]`` how far the
     field misses the values on purpose).

@@ -473,7 +473,6 @@ fn check_input(x: &Tensor3, rank: usize) -> Result<(), TensorError> {
 fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], TensorError> {
     let rank = options.rank;
     let shape = x.shape();
-    let mut rng = SplitMix64::new(0x00C0_FFEE);
     match &options.init {
         CpInit::Given(k) => {
             if k.rank() != rank || k.shape() != shape {
@@ -498,15 +497,30 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
             }))
         }
         CpInit::Svd => {
-            let mut out: [Mat<f64>; 3] = std::array::from_fn(|_| Mat::zeros(0, 0));
-            for (n, slot) in out.iter_mut().enumerate() {
-                let u = lowrank::thin_svd(x.unfold(n)?.as_ref())?.u;
-                *slot = Mat::from_fn(shape[n], rank, |i, r| {
-                    if r < u.ncols() { u[(i, r)] } else { rng.unit() }
-                });
+            let mut bases: [Mat<f64>; 3] = std::array::from_fn(|_| Mat::zeros(0, 0));
+            for (n, slot) in bases.iter_mut().enumerate() {
+                *slot = lowrank::thin_svd(x.unfold(n)?.as_ref())?.u;
             }
-            Ok(out)
+            Ok(svd_start(&bases, rank).factors)
         }
+    }
+}
+
+/// The start of [`CpInit::Svd`] from the unfoldings' left singular vectors `bases` (`Iₙ × k`
+/// each, leading first): the leading `rank` of each as the factors (weights 1), seeded random
+/// columns in `[0, 1)` beyond the `k` there are. For a caller that fits one tensor at several
+/// ranks and computes the SVDs once (`CpInit::Given(svd_start(…))` is then `CpInit::Svd`).
+pub fn svd_start(bases: &[Mat<f64>; 3], rank: usize) -> Kruskal {
+    let mut rng = SplitMix64::new(0x00C0_FFEE);
+    let factors: [Mat<f64>; 3] = std::array::from_fn(|n| {
+        let u = &bases[n];
+        Mat::from_fn(u.nrows(), rank, |i, r| {
+            if r < u.ncols() { u[(i, r)] } else { rng.unit() }
+        })
+    });
+    Kruskal {
+        weights: vec![1.0; rank],
+        factors,
     }
 }
 

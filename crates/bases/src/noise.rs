@@ -259,13 +259,22 @@ fn estimate_noise_over(
 /// few spacings apart stay apart.
 pub const OBJECT_LINK: f64 = 6.0;
 
+/// The most neighbours [`object_size`] links each point to (the nearest within its reach):
+/// enough to reach the next scan line where lines lie 10 times closer along than across.
+const OBJECT_NEIGHBOURS: usize = 32;
+
+/// Points whose links [`object_size`] finds in parallel at a time (bounded work space).
+const OBJECT_BLOCK: usize = 1 << 16;
+
 /// The size of the object a scan mostly samples: the bounding-box diagonal of the connected
-/// piece that holds the median point, the pieces ordered by their diagonals. Points within
-/// [`OBJECT_LINK`] times `spacing` (the scan's, [`Noise::spacing`]) of one of their 8 nearest
-/// others are one piece. For a scan of one object it is the object's box diagonal (stray
-/// pieces hold few points); for several objects apart, the median point's object's, not the
-/// scene's: [`Noise::rbf_smoothing`]'s length scale. `None` for fewer than 2 points, a
-/// coordinate that is not finite, or a spacing that is not positive and finite.
+/// piece that holds the median point, the pieces ordered by their diagonals. A point is linked
+/// to its [`OBJECT_NEIGHBOURS`] nearest others within [`OBJECT_LINK`] times `spacing` (the
+/// scan's, [`Noise::spacing`]); linked points are one piece. For a scan of one object it is
+/// the object's box diagonal (stray pieces hold few points); for several objects apart, the
+/// median point's object's, not the scene's: [`Noise::rbf_smoothing`]'s length scale. Where
+/// two pieces of different sizes hold about half the points each, the answer follows the one
+/// that holds the median point, so a few points can switch it. `None` for fewer than 2
+/// points, a coordinate that is not finite, or a spacing that is not positive and finite.
 ///
 /// Deterministic: the neighbours are found in parallel, the pieces joined in index order.
 ///
@@ -287,34 +296,40 @@ pub fn object_size(positions: &[Point<3>], spacing: f64) -> Option<f64> {
         return None;
     }
     let tree = Tree::new_from_slice(positions).ok()?;
-    let k = NonZero::new(SPACING_NEIGHBOURS + 1)?;
+    let k = NonZero::new(OBJECT_NEIGHBOURS + 1)?;
     let reach = (OBJECT_LINK * spacing).powi(2);
-    let links: Vec<Vec<u32>> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            tree.query(&positions[i])
-                .nearest_n::<SquaredEuclidean<f64>>(k)
-                .execute()
-                .into_iter()
-                .filter(|f| f.item as usize != i && f.distance <= reach)
-                .map(|f| f.item)
-                .collect()
-        })
-        .collect();
-    // Union–find (path halving), joined in index order.
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn root(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            parent[i as usize] = parent[parent[i as usize] as usize];
-            i = parent[i as usize];
-        }
-        i
-    }
-    for (i, near) in links.iter().enumerate() {
-        for &j in near {
-            let (a, b) = (root(&mut parent, i as u32), root(&mut parent, j));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
+    let mut links = vec![u32::MAX; OBJECT_BLOCK.min(n) * OBJECT_NEIGHBOURS];
+    for start in (0..n).step_by(OBJECT_BLOCK) {
+        let block = OBJECT_BLOCK.min(n - start);
+        links[..block * OBJECT_NEIGHBOURS]
+            .par_chunks_mut(OBJECT_NEIGHBOURS)
+            .enumerate()
+            .for_each(|(b, out)| {
+                let i = start + b;
+                out.fill(u32::MAX);
+                let found = tree
+                    .query(&positions[i])
+                    .nearest_n::<SquaredEuclidean<f64>>(k)
+                    .within(reach)
+                    .execute();
+                let near = found
+                    .into_iter()
+                    .map(|f| f.item)
+                    .filter(|&j| j as usize != i);
+                for (slot, j) in out.iter_mut().zip(near) {
+                    *slot = j;
+                }
+            });
+        for (b, near) in links[..block * OBJECT_NEIGHBOURS]
+            .chunks(OBJECT_NEIGHBOURS)
+            .enumerate()
+        {
+            for &j in near.iter().take_while(|&&j| j != u32::MAX) {
+                let (a, c) = (root(&mut parent, (start + b) as u32), root(&mut parent, j));
+                if a != c {
+                    parent[a.max(c) as usize] = a.min(c);
+                }
             }
         }
     }
@@ -341,6 +356,15 @@ pub fn object_size(positions: &[Point<3>], spacing: f64) -> Option<f64> {
         }
     }
     None
+}
+
+/// The root of `i`'s piece in the union–find forest `parent` (halving the path on the way).
+fn root(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        parent[i as usize] = parent[parent[i as usize] as usize];
+        i = parent[i as usize];
+    }
+    i
 }
 
 /// The residual sum of squares `RSS` of the quadric height field fitted to `patch` in its
@@ -468,6 +492,13 @@ mod tests {
         let spacing = estimate_noise(&small_first, None).unwrap().spacing;
         let small = box_diagonal(&sphere(5000, 0.3));
         assert!((object_size(&small_first, spacing).unwrap() - small).abs() < 1e-12);
+        // A plane scanned in lines 10 times closer along than across: one piece.
+        let lines: Vec<Point<3>> = (0..40 * 400)
+            .map(|i| [(i % 400) as f64 * 0.001, (i / 400) as f64 * 0.01, 0.0])
+            .collect();
+        // (The spacing, the mean distance to the 8 nearest, is 0.0025: ±1…4 along a line; the
+        // patches span no surface, so the noise estimate is None.)
+        assert_eq!(object_size(&lines, 0.0025), Some(box_diagonal(&lines)));
         // The same on one thread as on three.
         let on = |threads: usize| {
             rayon::ThreadPoolBuilder::new()

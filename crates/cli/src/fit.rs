@@ -770,9 +770,9 @@ fn auto_smoothing(
     let mu = m.noise.rbf_smoothing(size);
     if !mu.is_finite() {
         bail!(
-            "--smoothing auto: μ from the noise is not finite (the cloud's box diagonal {} \
+            "--smoothing auto: μ from the noise is not finite (the object size {} \
              overflows): give --smoothing MU, or move the cloud nearer the origin",
-            g(m.diagonal)
+            g(size)
         );
     }
     let size_note = if size < m.diagonal * (1.0 - 1e-9) {

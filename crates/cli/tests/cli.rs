@@ -2047,7 +2047,7 @@ fn noisy_sphere_of(n: usize, amplitude: f64) -> String {
 #[test]
 fn auto_smoothing_follows_the_object_not_the_scene() {
     // A noisy sphere of 500 points, and the same with a copy 20 radii away: the scene's
-    // diagonal is 5× the sphere's, the smoothing the same (μ scales with the object's size,
+    // diagonal is 6.4× the sphere's, the smoothing the same (μ scales with the object's size,
     // not the box's).
     let one = noisy_sphere_of(500, 0.06);
     let shifted: String = one

@@ -241,7 +241,7 @@ pub(crate) fn fit_rbf<'py>(
                 if !request.smoothing.is_finite() {
                     return Err(value_error(
                         "smoothing='auto': the smoothing from the noise is not finite (the \
-                         cloud's box diagonal overflows): give smoothing as a number",
+                         object size overflows): give smoothing as a number",
                     ));
                 }
             }

@@ -501,7 +501,7 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
             for (n, slot) in bases.iter_mut().enumerate() {
                 *slot = lowrank::thin_svd(x.unfold(n)?.as_ref())?.u;
             }
-            Ok(svd_start(&bases, rank).factors)
+            Ok(svd_start(&bases, rank)?.factors)
         }
     }
 }
@@ -509,8 +509,11 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
 /// The start of [`CpInit::Svd`] from the unfoldings' left singular vectors `bases` (`Iₙ × k`
 /// each, leading first): the leading `rank` of each as the factors (weights 1), seeded random
 /// columns in `[0, 1)` beyond the `k` there are. For a caller that fits one tensor at several
-/// ranks and computes the SVDs once (`CpInit::Given(svd_start(…))` is then `CpInit::Svd`).
-pub fn svd_start(bases: &[Mat<f64>; 3], rank: usize) -> Kruskal {
+/// ranks and computes the SVDs once (`CpInit::Given(svd_start(…)?)` is then `CpInit::Svd`).
+///
+/// # Errors
+/// [`TensorError::NonFinite`] for a NaN or infinite entry of `bases`.
+pub fn svd_start(bases: &[Mat<f64>; 3], rank: usize) -> Result<Kruskal, TensorError> {
     let mut rng = SplitMix64::new(0x00C0_FFEE);
     let factors: [Mat<f64>; 3] = std::array::from_fn(|n| {
         let u = &bases[n];
@@ -518,10 +521,7 @@ pub fn svd_start(bases: &[Mat<f64>; 3], rank: usize) -> Kruskal {
             if r < u.ncols() { u[(i, r)] } else { rng.unit() }
         })
     });
-    Kruskal {
-        weights: vec![1.0; rank],
-        factors,
-    }
+    Kruskal::new(vec![1.0; rank], factors)
 }
 
 /// The Hadamard product of the factors' Gram matrices `FᵀF`, leaving out `skip`.

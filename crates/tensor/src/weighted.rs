@@ -11,8 +11,9 @@
 //!
 //! (`∗` the entrywise product), and likewise for the rows of `B` and `C`. Unlike plain CP-ALS
 //! the normal matrix differs from row to row, so a sweep costs `O(I₀I₁I₂ R²)` instead of the
-//! MTTKRP's `O(I₀I₁I₂ R)` — meant for small tensors. `δ = 10⁻¹² · trace / R` keeps a row that
-//! no weighted entry reaches solvable (it is then pulled to zero).
+//! MTTKRP's `O(I₀I₁I₂ R)` — meant for small tensors. `δ = 10⁻¹² · trace / R` (the smallest
+//! positive number where the trace is 0: a row that no weighted entry reaches, which then
+//! comes out zero) keeps every system positive definite.
 //!
 //! MRAS (paper 004 §5.4) uses it to compress a cell's spline coefficients in the norm of the
 //! data points' B-spline rows: the plain fit spends rank on coefficients no point reads.
@@ -48,7 +49,7 @@ pub struct WeightedResult {
     pub kruskal: Kruskal,
     /// Sweeps done.
     pub iterations: usize,
-    /// The weighted relative error after the last sweep.
+    /// The weighted relative error after the last sweep (of `start` if none ran).
     pub rel_error: f64,
     /// Why it stopped ([`CpStop::Cancelled`]: `progress` returned `false`).
     pub stop: CpStop,
@@ -77,7 +78,8 @@ pub struct WeightedResult {
 /// ```
 ///
 /// # Errors
-/// [`TensorError::Length`] if `weights` does not match `x`, [`TensorError::NonFinite`] for a
+/// [`TensorError::EmptyShape`] for an empty tensor, [`TensorError::Length`] if `weights` does
+/// not match `x`, [`TensorError::NonFinite`] for a
 /// NaN or infinite entry of `x`, [`TensorError::Weight`] for a negative, NaN or infinite
 /// weight, [`TensorError::Dimensions`] if `start` is not of `x`'s shape, [`TensorError::Rank`]
 /// for a start of rank 0, [`TensorError::Tolerance`] for a negative or NaN `tol`.
@@ -89,6 +91,9 @@ pub fn cp_als_weighted(
     mut progress: impl FnMut(usize, &Kruskal) -> bool,
 ) -> Result<WeightedResult, TensorError> {
     let shape = x.shape();
+    if x.is_empty() {
+        return Err(TensorError::EmptyShape { shape });
+    }
     x.check_finite()?;
     if weights.len() != x.len() {
         return Err(TensorError::Length {
@@ -104,11 +109,11 @@ pub fn cp_als_weighted(
         let max = crate::cp::max_rank(shape);
         return Err(TensorError::Rank { rank: 0, max });
     }
-    if start.shape() != shape {
+    if let Some(mode) = (0..3).find(|&n| start.shape()[n] != shape[n]) {
         return Err(TensorError::Dimensions {
-            what: "cp_als_weighted: the starting factors' shape (first two extents)",
-            expected: (shape[0], shape[1]),
-            got: (start.shape()[0], start.shape()[1]),
+            what: "cp_als_weighted: the start's (extent, mode) in the first mode that differs",
+            expected: (shape[mode], mode),
+            got: (start.shape()[mode], mode),
         });
     }
     if options.tol.is_nan() || options.tol < 0.0 {
@@ -128,7 +133,7 @@ pub fn cp_als_weighted(
     let (xs, ws) = (x.as_slice(), weights);
     let norm2: f64 = xs.iter().zip(ws).map(|(v, w)| w * v * v).sum();
     let strides = [shape[1] * shape[2], shape[2], 1];
-    let mut rel = weighted_error(xs, ws, &factors, shape, norm2);
+    let mut rel = weighted_error(xs, ws, &factors, shape, rank, norm2);
     let mut iterations = 0;
     let mut g = vec![0.0; rank * rank];
     let mut h = vec![0.0; rank];
@@ -172,7 +177,7 @@ pub fn cp_als_weighted(
             }
         }
         let previous = rel;
-        rel = weighted_error(xs, ws, &factors, shape, norm2);
+        rel = weighted_error(xs, ws, &factors, shape, rank, norm2);
         iterations += 1;
         if !progress(iterations, &kruskal(&factors, shape, rank)?) {
             stop = CpStop::Cancelled;
@@ -214,10 +219,15 @@ fn solve_row(g: &[f64], h: &[f64]) -> Result<Vec<f64>, TensorError> {
         if r == s { v + ridge } else { v }
     });
     let b = Mat::from_fn(rank, 1, |r, _| h[r]);
-    let solved = match a.llt(Side::Lower) {
-        Ok(llt) => llt.solve(&b),
-        // Positive definite by the ridge unless rounding says otherwise: the pseudo-inverse.
-        Err(_) => crate::cp::solve_gram(&a, &b.transpose().to_owned())?
+    // Positive definite by the ridge unless rounding says otherwise: then the pseudo-inverse.
+    let solved = a
+        .llt(Side::Lower)
+        .ok()
+        .map(|llt| llt.solve(&b))
+        .filter(|x| x.col(0).iter().all(|v| v.is_finite()));
+    let solved = match solved {
+        Some(x) => x,
+        None => crate::cp::solve_gram(&a, &b.transpose().to_owned())?
             .transpose()
             .to_owned(),
     };
@@ -230,9 +240,9 @@ fn weighted_error(
     ws: &[f64],
     factors: &[Vec<f64>; 3],
     shape: [usize; 3],
+    rank: usize,
     norm2: f64,
 ) -> f64 {
-    let rank = factors[0].len() / shape[0];
     let mut e2 = 0.0;
     let mut ab = vec![0.0; rank];
     for i in 0..shape[0] {

@@ -160,11 +160,20 @@ fn bad_input_gives_specific_errors() {
         run(&y, &ok, &start, &options),
         Err(TensorError::NonFinite { index: 5 })
     );
-    let (other, _) = planted([5, 5, 6], 2, 0.0, 11).unwrap();
+    let (other, _) = planted([4, 5, 7], 2, 0.0, 11).unwrap();
     assert!(matches!(
         run(&x, &ok, &other, &options),
-        Err(TensorError::Dimensions { .. })
+        Err(TensorError::Dimensions {
+            expected: (6, 2),
+            got: (7, 2),
+            ..
+        })
     ));
+    let empty = Tensor3::zeros([0, 5, 6]);
+    assert_eq!(
+        run(&empty, &[], &start, &options),
+        Err(TensorError::EmptyShape { shape: [0, 5, 6] })
+    );
     let negative = WeightedOptions {
         tol: -1.0,
         ..options

@@ -574,7 +574,9 @@ fn compress(
         // fit, which stops as soon as the bound holds, took over less accurately: the
         // single-level sphere of Fig. 5 ended at 1.04e-3 of the diagonal, not below 1e-3.)
         let opts = CpOptions::new(rank)
-            .with_init(CpInit::Given(svd_start(&bases, rank)))
+            .with_init(CpInit::Given(
+                svd_start(&bases, rank).map_err(MrasError::Tensor)?,
+            ))
             .with_tol(CP_TOL)
             .with_max_iter(CP_MAX_ITER)
             .with_line_search(true);
@@ -594,10 +596,12 @@ fn compress(
             tol: CP_WEIGHTED_TOL,
         };
         // The bound is checked after sweeps 1, 2, 4, 8, … (each check reads every point).
-        let weighted = cp_als_weighted(&x, w, &fit.kruskal, &options, |sweep, k| {
+        // A weighted fit that fails (only by overflow) leaves the plain one.
+        let Ok(weighted) = cp_als_weighted(&x, w, &fit.kruskal, &options, |sweep, k| {
             !sweep.is_power_of_two() || at_points(k) > eps
-        })
-        .map_err(MrasError::Tensor)?;
+        }) else {
+            return Ok((fit.kruskal, error));
+        };
         let weighted_error = at_points(&weighted.kruskal);
         Ok(if weighted_error < error {
             (weighted.kruskal, weighted_error)

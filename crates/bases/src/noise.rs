@@ -261,7 +261,7 @@ pub const OBJECT_LINK: f64 = 6.0;
 
 /// The most neighbours [`object_size`] links each point to (the nearest within its reach):
 /// enough to reach the next scan line where lines lie 10 times closer along than across.
-const OBJECT_NEIGHBOURS: usize = 32;
+pub const OBJECT_NEIGHBOURS: usize = 32;
 
 /// Points whose links [`object_size`] finds in parallel at a time (bounded work space).
 const OBJECT_BLOCK: usize = 1 << 16;

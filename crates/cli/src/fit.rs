@@ -1208,23 +1208,22 @@ pub(crate) fn more(value: &str) {
 }
 
 pub(crate) fn parse_smoothing(s: &str) -> Result<SmoothingArg, String> {
-    let s = s.trim();
-    if s.eq_ignore_ascii_case("auto") {
-        return Ok(SmoothingArg::Auto);
-    }
-    s.parse::<f64>()
-        .map(SmoothingArg::Fixed)
-        .map_err(|_| format!("the smoothing is auto or a number μ ≥ 0, got {s:?}"))
+    auto_or_number(s, SmoothingArg::Auto, SmoothingArg::Fixed)
+        .map_err(|s| format!("the smoothing is auto or a number μ ≥ 0, got {s:?}"))
 }
 
 fn parse_offset(s: &str) -> Result<OffsetArg, String> {
+    auto_or_number(s, OffsetArg::Auto, OffsetArg::Fixed)
+        .map_err(|s| format!("the offset is auto or a distance, got {s:?}"))
+}
+
+/// `auto` (any case) or a number, surrounding blanks ignored; the trimmed text on failure.
+fn auto_or_number<T>(s: &str, auto: T, number: fn(f64) -> T) -> Result<T, &str> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("auto") {
-        return Ok(OffsetArg::Auto);
+        return Ok(auto);
     }
-    s.parse::<f64>()
-        .map(OffsetArg::Fixed)
-        .map_err(|_| format!("the offset is auto or a distance, got {s:?}"))
+    s.parse::<f64>().map(number).map_err(|_| s)
 }
 
 #[cfg(test)]

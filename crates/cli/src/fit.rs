@@ -498,15 +498,23 @@ fn check_smoothing(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
              by more than it, and a smoothed field misses them on purpose: use one or the other"
         );
     }
+    check_mu(args.smoothing)?;
     match args.smoothing {
-        Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
-            "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
-             0 interpolates), got {mu}"
-        ),
         Some(SmoothingArg::Auto) if kernel != KernelArg::R => bail!(
             "--smoothing auto is calibrated for --kernel r (its μ is a length); with --kernel \
              {} give --smoothing MU in that kernel's units",
             kernel.name()
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// Refuses a `--smoothing` μ that is negative or not finite (`fit` and `reconstruct`).
+pub(crate) fn check_mu(smoothing: Option<SmoothingArg>) -> anyhow::Result<()> {
+    match smoothing {
+        Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
+            "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
+             0 interpolates), got {mu}"
         ),
         _ => Ok(()),
     }

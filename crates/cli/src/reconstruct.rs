@@ -144,12 +144,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     args.outliers.ratio()?;
     args.outliers.check(&args.scan, None, args.force)?;
+    crate::fit::check_mu(args.smoothing)?;
     // `--smoothing 0` interpolates: it does not ask for an RBF fit.
     let smoothed = match args.smoothing {
-        Some(SmoothingArg::Fixed(mu)) if !(mu.is_finite() && mu >= 0.0) => bail!(
-            "--smoothing must be auto or a finite μ ≥ 0 (added to the kernel matrix's diagonal; \
-             0 interpolates), got {mu}"
-        ),
         Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
         Some(SmoothingArg::Auto) => true,
         None => false,

@@ -18,7 +18,7 @@ use faer::Mat;
 use faer::linalg::solvers::{PartialPivLu, Solve};
 
 use super::dense::DenseFactor;
-use super::system::{self, Functional, Functionals, Polynomial};
+use super::system::{self, Functionals, Polynomial};
 use super::{Constraints, Kernel, RbfError, RbfField, RbfFit};
 
 /// A batch of added constraints: its functionals' count, `C`, `A⁻¹ Cᵀ` and `S`'s LU.
@@ -105,11 +105,7 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
             }
         });
         let d = Mat::from_fn(mm, mm, |i, j| {
-            let smoothing = if i == j && new.kinds[i] == Functional::Value {
-                new.diagonal
-            } else {
-                0.0
-            };
+            let smoothing = if i == j { new.diagonal_at(i) } else { 0.0 };
             system::entry(
                 kernel,
                 (&new.points[i], new.kinds[i]),

@@ -46,6 +46,15 @@ pub(crate) struct Functionals<const D: usize> {
 }
 
 impl<const D: usize> Functionals<D> {
+    /// What functional `i` adds to its own diagonal entry: [`Functionals::diagonal`] for a
+    /// value, 0 for a gradient component (fitted exactly).
+    pub fn diagonal_at(&self, i: usize) -> f64 {
+        match self.kinds[i] {
+            Functional::Value => self.diagonal,
+            _ => 0.0,
+        }
+    }
+
     /// Expands and checks `constraints` (finite, gradient kernels smooth enough).
     pub fn new<K: Kernel + ?Sized>(
         kernel: &K,
@@ -263,9 +272,7 @@ pub(crate) fn assemble<K: Kernel + ?Sized, const D: usize>(
             for (i, out) in col[..n].iter_mut().enumerate() {
                 *out = entry(kernel, (&f.points[i], f.kinds[i]), (xj, lj));
             }
-            if lj == Functional::Value {
-                col[j] += f.diagonal;
-            }
+            col[j] += f.diagonal_at(j);
             let row = poly.row(xj, lj);
             col[n..].copy_from_slice(&row[..m]);
         } else {
@@ -310,12 +317,7 @@ pub(crate) fn apply<K: Kernel + ?Sized, const D: usize>(
             .map(|(j, wj)| entry(kernel, (xi, li), (&f.points[j], f.kinds[j])) * wj)
             .sum();
         let row = poly.row(xi, li);
-        let smoothing = if li == Functional::Value {
-            f.diagonal * w[i]
-        } else {
-            0.0
-        };
-        *out = s + (0..m).map(|k| row[k] * c[k]).sum::<f64>() + smoothing;
+        *out = s + (0..m).map(|k| row[k] * c[k]).sum::<f64>() + f.diagonal_at(i) * w[i];
     });
     bottom.fill(0.0);
     for (j, wj) in w.iter().enumerate() {

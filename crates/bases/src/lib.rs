@@ -21,6 +21,8 @@
 //!   stored as CP factors of adaptive rank.
 //! - [`noise`] — how noisy a scan is: its points' scatter about a local quadric, against their
 //!   spacing (noisy scans are approximated, not interpolated).
+//! - [`normals`] — outward normals for a scan without them: local planes by PCA, signs
+//!   propagated along a minimum spanning forest (Hoppe et al. 1992), each piece turned outward.
 //! - [`outliers`] — the stray samples of an oriented scan (isolated from the surface the rest
 //!   samples), set aside before a fit so that they do not become surface.
 
@@ -31,6 +33,7 @@ pub mod field_file;
 pub mod mras;
 pub mod neural;
 pub mod noise;
+pub mod normals;
 pub mod outliers;
 pub mod rbf;
 pub mod tangent_plane;

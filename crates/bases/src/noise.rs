@@ -114,7 +114,7 @@ const CHI2_QUANTILE: f64 = 7.584_142_785_441_285;
 /// variance) is a line of points, on which no quadric is determined: it is left out.
 const FLAT_PATCH: f64 = 1e-4;
 
-type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
+pub(crate) type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
 
 /// The constant of [`Noise::rbf_smoothing`]. Measured by sweeping `μ` over 0.003…3 on three
 /// scans with Gaussian position noise (σ per axis, a fraction of the diagonal) and taking the
@@ -359,7 +359,7 @@ pub fn object_size(positions: &[Point<3>], spacing: f64) -> Option<f64> {
 }
 
 /// The root of `i`'s piece in the union–find forest `parent` (halving the path on the way).
-fn root(parent: &mut [u32], mut i: u32) -> u32 {
+pub(crate) fn root(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         parent[i as usize] = parent[parent[i as usize] as usize];
         i = parent[i as usize];

@@ -680,7 +680,9 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     if cloud.normals().is_none() {
         bail!(
             "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \
-             properties nx ny nz; CSV columns nx,ny,nz)",
+             properties nx ny nz; CSV columns nx,ny,nz); `zeroset normals {} -o ORIENTED.ply` \
+             estimates them (and `zeroset reconstruct` does so itself)",
+            path.display(),
             path.display()
         );
     }

@@ -425,7 +425,12 @@ fn write_bounds(s: &mut String, cloud: &PointCloud3) {
 
 fn write_normals(s: &mut String, stats: &CloudStats<3>) {
     if !stats.has_normals {
-        line(s, "normals", "no");
+        line(
+            s,
+            "normals",
+            "no (fit and restore need them: `zeroset normals` estimates them; `zeroset \
+             reconstruct` does so itself)",
+        );
         return;
     }
     let bad = stats.non_unit_normals;

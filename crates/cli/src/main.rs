@@ -26,6 +26,7 @@ mod info;
 mod machine;
 mod mesh;
 mod noise;
+mod normals;
 mod outliers;
 mod output;
 mod preview;
@@ -60,6 +61,8 @@ Examples:
                                                alpha, see the surface live, save
   zeroset reconstruct scan.ply -o scan_mesh.ply
                                                scan → field → mesh + PNG in one command
+  zeroset normals scan.xyz -o scan_oriented.ply
+                                               outward normals for a scan without them
   zeroset info --help                          more on one subcommand";
 
 /// Implicit surfaces: fit scalar fields to oriented point clouds, restore them, and mesh their
@@ -130,6 +133,11 @@ enum Command {
     /// write the mesh and a PNG preview beside it, and summarise the stages' times.
     #[command(after_help = reconstruct::EXAMPLES)]
     Reconstruct(reconstruct::ReconstructArgs),
+    /// Estimate outward normals for a point cloud that has none (planes of each point's
+    /// nearest neighbours, signs propagated along a minimum spanning forest, each piece turned
+    /// outward) and write the oriented cloud (.ply or .xyzn).
+    #[command(after_help = normals::EXAMPLES)]
+    Normals(normals::NormalsArgs),
     /// The interactive restoration studio: a local web page (served by this binary on
     /// 127.0.0.1, with an access token) to place a box mask on the surface, move α or the
     /// de-noising resolution and see the restored surface live; undo/redo, the equivalent
@@ -153,6 +161,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mesh(args) => mesh::run(&args),
         Command::Preview(args) => preview::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
+        Command::Normals(args) => normals::run(&args),
         Command::Studio(args) => studio::run(&args),
     }
 }

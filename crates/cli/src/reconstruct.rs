@@ -8,7 +8,6 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Parser, ValueEnum};
 use zeroset_bases::outliers::remove_outliers;
-use zeroset_field_core::io::read_point_cloud;
 
 use crate::fit::{FitArgs, SmoothingArg};
 use crate::mesh::{DetailArg, MeshArgs};
@@ -87,6 +86,11 @@ pub struct ReconstructArgs {
     #[command(flatten)]
     pub outliers: crate::outliers::OutlierArgs,
 
+    /// Neighbours of each point when the scan has no normals and they are estimated (as
+    /// `zeroset normals --neighbours`).
+    #[arg(long, value_name = "K", default_value_t = zeroset_bases::normals::NORMAL_NEIGHBOURS)]
+    pub normal_neighbours: usize,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -145,6 +149,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     args.outliers.ratio()?;
     args.outliers.check(&args.scan, None, args.force)?;
     crate::fit::check_mu(args.smoothing)?;
+    crate::normals::check_neighbours(args.normal_neighbours)?;
     // `--smoothing 0` interpolates: it does not ask for an RBF fit.
     let smoothed = match args.smoothing {
         Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
@@ -153,16 +158,27 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     };
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
-    let cloud = read_point_cloud(&args.scan).map_err(|e| {
-        crate::fit::read_error(
-            &args.scan,
-            e,
-            "record",
-            "zeroset reconstruct needs finite coordinates and normals (`zeroset info` counts \
-             them all)",
-        )
-    })?;
+    let cloud =
+        crate::normals::read_positions(&args.scan, &Default::default(), "zeroset reconstruct")?;
     let points = cloud.len();
+    // A scan without normals: estimate them, and fit the oriented copy (a temporary file
+    // beside the output, removed however the command ends).
+    let (cloud, scan, _oriented) = if cloud.normals().is_none() {
+        crate::fit::check_extent(&args.scan, &cloud)?;
+        outln!(
+            "{:<14}{} has no normals: estimating them (as zeroset normals)",
+            "normals",
+            args.scan.display()
+        );
+        let (oriented, _) = crate::normals::orient(&cloud, args.normal_neighbours, args.quiet)?;
+        let path = temporary_file(&args.output, "ply");
+        let temporary = Temporary(Some(path.clone()));
+        crate::normals::write_cloud(&path, &oriented)
+            .with_context(|| format!("writing the oriented scan {}", path.display()))?;
+        (oriented, path, temporary)
+    } else {
+        (cloud, args.scan.clone(), Temporary(None))
+    };
     let (method, why) = match args.method {
         ReconstructMethod::Auto if points > AUTO_RBF_POINTS => (
             ReconstructMethod::Mras,
@@ -215,7 +231,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let (field, temporary) = match &args.field {
         Some(f) => (f.clone(), Temporary(None)),
         None => {
-            let t = temporary_field(&args.output);
+            let t = temporary_file(&args.output, "zsf");
             (t.clone(), Temporary(Some(t)))
         }
     };
@@ -237,12 +253,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
 
     outln!("\n== 1/3 fit");
     let t = Instant::now();
-    let mut argv = vec![
-        os("fit"),
-        args.scan.as_os_str(),
-        os("--method"),
-        os(fit_method),
-    ];
+    let mut argv = vec![os("fit"), scan.as_os_str(), os("--method"), os(fit_method)];
     argv.extend([os("-o"), field.as_os_str()]);
     let ratio = args.outliers.outlier_ratio.map(|r| r.to_string());
     if let Some(r) = &ratio {
@@ -310,11 +321,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A temporary field file beside the output, `.NAME.reconstruct-PID.zsf`; the ones a killed
-/// run left (their process gone from this machine's `/proc`) are removed first. A run on
-/// another machine or in another PID namespace writing to the same directory looks gone:
-/// give such runs `--field` files of their own.
-fn temporary_field(output: &Path) -> PathBuf {
+/// A temporary file beside the output, `.NAME.reconstruct-PID.EXTENSION` (the field, or the
+/// scan with estimated normals); the ones a killed run left (their process gone from this
+/// machine's `/proc`) are removed first. A run on another machine or in another PID namespace
+/// writing to the same directory looks gone: give such runs `--field` files of their own.
+fn temporary_file(output: &Path, extension: &str) -> PathBuf {
     // The whole name: `x.ply` and `x.obj` written at once do not share a field.
     let name = output
         .file_name()
@@ -325,11 +336,14 @@ fn temporary_field(output: &Path) -> PathBuf {
     };
     let prefix = format!(".{name}.reconstruct-");
     zeroset_field_core::io::remove_stale_files(dir, |file| {
-        let pid = file.to_str()?.strip_prefix(&prefix)?.strip_suffix(".zsf")?;
+        let pid = file
+            .to_str()?
+            .strip_prefix(&prefix)?
+            .strip_suffix(&format!(".{extension}"))?;
         if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
             return None;
         }
         pid.parse().ok()
     });
-    output.with_file_name(format!("{prefix}{}.zsf", std::process::id()))
+    output.with_file_name(format!("{prefix}{}.{extension}", std::process::id()))
 }

@@ -588,7 +588,8 @@ impl Source {
             bail!(
                 "{} has no normals: a point cloud is restored through its tangent-plane field, \
                  which needs an oriented cloud (x y z nx ny nz; PLY properties nx ny nz; CSV \
-                 columns nx,ny,nz)",
+                 columns nx,ny,nz); `zeroset normals {} -o ORIENTED.ply` estimates them",
+                input.display(),
                 input.display()
             );
         }

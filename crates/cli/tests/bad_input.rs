@@ -383,6 +383,7 @@ enum Target {
     Mesh,
     Preview,
     Reconstruct,
+    Normals,
     CloudReader,
     GemPyReader,
     ValueReader,
@@ -391,13 +392,14 @@ enum Target {
 }
 
 impl Target {
-    const ALL: [Target; 11] = [
+    const ALL: [Target; 12] = [
         Target::Info,
         Target::Fit,
         Target::Restore,
         Target::Mesh,
         Target::Preview,
         Target::Reconstruct,
+        Target::Normals,
         Target::CloudReader,
         Target::GemPyReader,
         Target::ValueReader,
@@ -413,6 +415,7 @@ impl Target {
             Target::Mesh => "`zeroset mesh`",
             Target::Preview => "`zeroset preview`",
             Target::Reconstruct => "`zeroset reconstruct`",
+            Target::Normals => "`zeroset normals`",
             Target::CloudReader => {
                 "Point clouds: `zeroset_field_core::io::read_point_cloud` (PLY, xyz, CSV, GemPy)"
             }
@@ -433,6 +436,7 @@ impl Target {
             "mesh" => Target::Mesh,
             "preview" => Target::Preview,
             "reconstruct" => Target::Reconstruct,
+            "normals" => Target::Normals,
             _ => panic!("no subcommand {word}"),
         }
     }
@@ -809,7 +813,8 @@ fn cases() -> Vec<Case> {
         // zeroset reconstruct
         cli("empty file", "reconstruct empty.xyzn -o out.ply --quiet"),
         cli("NaN coordinate", "reconstruct nan.xyzn -o out.ply --quiet"),
-        cli("no normals", "reconstruct positions.xyz -o out.ply --quiet"),
+        cli("no normals", "reconstruct positions.xyz -o out.ply --quiet")
+            .accepted("has no normals: estimating them"),
         cli(
             "all points identical (degenerate cloud)",
             "reconstruct same.xyzn -o out.ply --quiet",
@@ -831,6 +836,35 @@ fn cases() -> Vec<Case> {
         cli(
             "bad input with an existing output and --force",
             "reconstruct nan.xyzn -o out.ply --force --quiet",
+        )
+        .keeps("out.ply"),
+        // zeroset normals
+        cli("empty file", "normals empty.xyzn -o out.ply --quiet"),
+        cli("NaN coordinate", "normals nan.xyzn -o out.ply --quiet"),
+        cli(
+            "all points identical (degenerate cloud)",
+            "normals same.xyzn -o out.ply --quiet",
+        ),
+        cli(
+            "colour columns read as normals",
+            "normals rgb.xyz -o out.ply --quiet",
+        )
+        .accepted("are not unit normals"),
+        cli("missing file", "normals missing.xyzn -o out.ply --quiet"),
+        cli(
+            "wrong output extension",
+            "normals bunny.xyzn -o out.stl --quiet",
+        )
+        .names("out.stl"),
+        cli(
+            "neighbours out of range",
+            "normals bunny.xyzn -o out.ply --neighbours 1 --quiet",
+        )
+        .no_file()
+        .says("--neighbours"),
+        cli(
+            "bad input with an existing output and --force",
+            "normals nan.xyzn -o out.ply --force --quiet",
         )
         .keeps("out.ply"),
         // read_point_cloud

@@ -2543,3 +2543,90 @@ fn rbf_tolerance_keeps_only_the_centres_it_needs() {
     ]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("an option of --method mras"));
 }
+
+#[test]
+fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
+    let dir = tempfile::tempdir().unwrap();
+    // The sphere's positions alone, as `x y z r g b` with colours in columns 4–6.
+    let points = sphere_points(1500);
+    let rgb: String = points
+        .iter()
+        .enumerate()
+        .map(|(i, (p, _))| format!("{} {} {} {} 0 255\n", p[0], p[1], p[2], i % 256))
+        .collect();
+    let scan = dir.path().join("sphere.xyz");
+    fs::write(&scan, rgb).unwrap();
+    let oriented = dir.path().join("sphere.xyzn");
+    let o = zeroset([
+        OsStr::new("normals"),
+        scan.as_os_str(),
+        OsStr::new("-o"),
+        oriented.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("are not unit normals (colours?)"), "{out}");
+    assert!(out.contains("1 piece turned outward"), "{out}");
+    // Every normal unit and outward (within 3° of the radius), in the input's order.
+    let text = fs::read_to_string(&oriented).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), points.len());
+    for (row, (p, n)) in rows.iter().zip(&points) {
+        assert_eq!(&row[..3], p);
+        let cos: f64 = (0..3).map(|a| row[3 + a] * n[a]).sum();
+        assert!(cos > 3f64.to_radians().cos(), "{row:?} against {n:?}");
+    }
+    // With the file's own normals it says how far they are.
+    let given = dir.path().join("given.xyzn");
+    fs::write(&given, sphere_xyzn(1500)).unwrap();
+    let compared = dir.path().join("compared.ply");
+    let o = zeroset([
+        OsStr::new("normals"),
+        given.as_os_str(),
+        OsStr::new("-o"),
+        compared.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("with the file's normals: 0 of 1500 (0%) point the other way"),
+        "{}",
+        stdout(&o)
+    );
+    // `reconstruct` estimates them itself and meshes a closed sphere; no temporary is left.
+    let mesh = dir.path().join("mesh.ply");
+    let o = zeroset([
+        OsStr::new("reconstruct"),
+        scan.as_os_str(),
+        OsStr::new("-o"),
+        mesh.as_os_str(),
+        OsStr::new("--detail"),
+        OsStr::new("general"),
+        OsStr::new("--no-preview"),
+        OsStr::new("--quiet"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("has no normals: estimating them"), "{out}");
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+    let mut names: Vec<_> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "compared.ply",
+            "given.xyzn",
+            "mesh.ply",
+            "sphere.xyz",
+            "sphere.xyzn"
+        ]
+    );
+}

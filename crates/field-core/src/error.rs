@@ -244,8 +244,9 @@ fn not_normals_message(
     format!(
         "{}:{line}: columns 4–6 ({a} {b} {c}) do not look like unit normals: {found}; zeroset \
          reads an xyz file's columns 4–6 as the normal nx ny nz, so keep only x y z if they are \
-         colours or another attribute (zeroset fit and restore then need normals estimated \
-         elsewhere), or scale them to unit length if they are normals",
+         colours or another attribute (`zeroset normals` then estimates normals from the \
+         positions, and `zeroset reconstruct` does so itself), or scale them to unit length if \
+         they are normals",
         path.display()
     )
 }

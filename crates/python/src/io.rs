@@ -2,11 +2,12 @@
 
 use std::path::PathBuf;
 
-use numpy::PyArray2;
+use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
+use zeroset_bases::normals::{NormalOptions, estimate_normals as estimate};
 use zeroset_field_core::io::read_point_cloud;
 
-use crate::arrays::rows_array;
+use crate::arrays::{points as rows, rows_array};
 use crate::errors::to_py;
 
 /// Reads a point cloud: `(points, normals)`, normals `None` when the file has none.
@@ -26,4 +27,18 @@ pub(crate) fn read_points(
 #[pyfunction]
 pub(crate) fn sample_xyzn() -> &'static str {
     include_str!("../samples/bunny_2k.xyzn")
+}
+
+/// Outward unit normals for `points` (see `zeroset.estimate_normals`).
+#[pyfunction]
+pub(crate) fn estimate_normals<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    neighbours: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let positions = rows(&points, "points", true)?;
+    let estimated = py
+        .detach(|| estimate(positions, &NormalOptions { neighbours }))
+        .map_err(to_py)?;
+    Ok(rows_array(py, estimated.normals))
 }

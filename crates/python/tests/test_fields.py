@@ -358,3 +358,38 @@ def test_the_rbf_fit_agrees_with_scipy_rbf_interpolator(sphere):
     assert ours.report.smallest_offset == eps
     p = np.random.default_rng(10).uniform(-1.3, 1.3, size=(500, 3))
     assert np.abs(ours(p) - theirs(p)).max() < 1e-9
+
+
+def test_estimated_normals_are_outward_and_the_commands(tmp_path, zeroset_bin):
+    points, normals = sphere_cloud(800)
+    estimated = zeroset.estimate_normals(points)
+    assert estimated.shape == (800, 3)
+    assert np.all((estimated * normals).sum(axis=1) > np.cos(np.radians(3)))
+    # `zeroset normals` on the same positions writes the same bits (xyzn keeps every digit).
+    xyz = tmp_path / "sphere.xyz"
+    np.savetxt(xyz, points, fmt="%.17g")
+    out = tmp_path / "sphere.xyzn"
+    subprocess.run([zeroset_bin, "normals", str(xyz), "-o", str(out), "--quiet"], check=True)
+    written = np.loadtxt(out)
+    np.testing.assert_array_equal(written[:, :3], points)
+    np.testing.assert_array_equal(written[:, 3:], estimated)
+    # The estimate fits like a scan's own normals.
+    field = zeroset.fit(points, estimated)
+    assert field(np.zeros(3)) < -0.5 and field(np.array([1.2, 0, 0])) > 0
+
+
+def test_estimate_normals_rejects_bad_input():
+    points, _ = sphere_cloud(100)
+    bad = points.copy()
+    bad[7, 2] = np.nan
+    with pytest.raises(ValueError, match=r"points\[7\]"):
+        zeroset.estimate_normals(bad)
+    with pytest.raises(ValueError, match="at least 3 points"):
+        zeroset.estimate_normals(points[:2])
+    with pytest.raises(ValueError, match="neighbours = 1"):
+        zeroset.estimate_normals(points, neighbours=1)
+    line = np.stack([np.arange(50.0), 2 * np.arange(50.0), np.zeros(50)], axis=1)
+    with pytest.raises(ValueError, match="span no plane"):
+        zeroset.estimate_normals(line)
+    with pytest.raises(ValueError, match=r"shape \(n, 3\)"):
+        zeroset.estimate_normals(points[:, :2])

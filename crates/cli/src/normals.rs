@@ -1,0 +1,243 @@
+//! `zeroset normals`: outward normals for a scan that has none ([`zeroset_bases::normals`]:
+//! planes of each point's nearest neighbours, their signs propagated along a minimum spanning
+//! forest and each piece turned outward), written as an oriented cloud that every other
+//! command reads.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use zeroset_bases::normals::{
+    EstimatedNormals, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS, NormalOptions,
+    estimate_normals,
+};
+use zeroset_field_core::io::{ReadOptions, read_point_cloud_with, write_atomic, write_ply};
+use zeroset_field_core::{Error, PointCloud3};
+
+use crate::info::g;
+use crate::progress::{seconds, spinner};
+
+/// Shown after `zeroset normals --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  # a scan of positions only (x y z) to an oriented cloud, then a mesh from it
+  zeroset normals scan.xyz -o scan_oriented.ply
+  zeroset reconstruct scan_oriented.ply -o scan_mesh.ply
+  # a sparse or noisy scan: planes over more neighbours
+  zeroset normals scan.xyz --neighbours 30 -o scan_oriented.xyzn
+  # a scan that has normals: estimate them anyway and report how far they differ
+  zeroset normals samples/bunny_2k.xyzn -o /tmp/bunny_estimated.ply";
+
+/// `zeroset normals`' arguments.
+#[derive(Debug, Args)]
+pub struct NormalsArgs {
+    /// A point cloud: .ply, .xyz/.xyzn/.txt/.pts or .csv. Only its positions are used; normals
+    /// it has are compared with the estimate, not used.
+    pub scan: PathBuf,
+
+    /// The oriented cloud, in input order: .ply (binary little-endian, double x y z nx ny nz)
+    /// or .xyzn (text, x y z nx ny nz with every digit a double needs), written atomically.
+    #[arg(short, long, value_name = "CLOUD.ply|CLOUD.xyzn")]
+    pub output: PathBuf,
+
+    /// Neighbours of each point in its plane and in the orientation graph (2 to 256). More
+    /// average noise and bridge gaps; fewer follow fine detail and thin parts.
+    #[arg(long, value_name = "K", default_value_t = NORMAL_NEIGHBOURS)]
+    pub neighbours: usize,
+
+    /// Read the scan as this format whatever its extension: ply, xyz, csv.
+    #[arg(long)]
+    pub format: Option<String>,
+
+    /// Overwrite an existing output.
+    #[arg(long)]
+    pub force: bool,
+
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `zeroset normals`.
+pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
+    crate::output::check_output(&args.output, &[&args.scan], args.force, &["ply", "xyzn"])?;
+    check_neighbours(args.neighbours)?;
+    let start = Instant::now();
+    let mut options = ReadOptions::default();
+    if let Some(format) = &args.format {
+        options = options.with_format(format.parse().context("--format")?);
+    }
+    let cloud = read_positions(&args.scan, &options, "zeroset normals")?;
+    crate::fit::check_extent(&args.scan, &cloud)?;
+    outln!(
+        "{:<14}{}: {} points{}",
+        "scan",
+        args.scan.display(),
+        cloud.len(),
+        if cloud.normals().is_some() {
+            " (its normals are compared below, not used)"
+        } else {
+            ""
+        }
+    );
+    let (oriented, estimated) = orient(&cloud, args.neighbours, args.quiet)?;
+    if let Some(given) = cloud.normals() {
+        outln!("{:<14}{}", "compared", compare(&estimated.normals, given));
+    }
+    write_cloud(&args.output, &oriented)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    outln!(
+        "{:<14}{} ({} points with normals) in {}",
+        "wrote",
+        args.output.display(),
+        oriented.len(),
+        seconds(start.elapsed())
+    );
+    Ok(())
+}
+
+/// Reads `path` with its normals where it has some, or its positions only where an xyz file's
+/// columns 4–6 are not normals (colours: the note says so); `command` names the caller in a
+/// non-finite value's error.
+pub(crate) fn read_positions(
+    path: &Path,
+    options: &ReadOptions,
+    command: &str,
+) -> anyhow::Result<PointCloud3> {
+    let error = |e| {
+        crate::fit::read_error(
+            path,
+            e,
+            "record",
+            &format!("{command} needs finite coordinates (`zeroset info` counts them all)"),
+        )
+    };
+    match read_point_cloud_with(path, options) {
+        Err(Error::NotNormals { line, values, .. }) => {
+            outln!(
+                "{:<14}{}:{line}: columns 4–6 ({} {} {}) are not unit normals (colours?): the \
+                 positions only are read",
+                "note",
+                path.display(),
+                values[0],
+                values[1],
+                values[2]
+            );
+            read_point_cloud_with(path, &options.clone().with_positions_only(true)).map_err(error)
+        }
+        read => read.map_err(error),
+    }
+}
+
+/// Refuses a neighbour count outside the estimate's range, before any reading.
+pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
+    if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
+        anyhow::bail!(
+            "--neighbours must be from {MIN_NEIGHBOURS} to {MAX_NEIGHBOURS} (a plane through a \
+             point and its neighbours), got {k}"
+        );
+    }
+    Ok(())
+}
+
+/// `cloud`'s positions with estimated outward normals, and what the estimate found; prints
+/// the `normals` line.
+pub(crate) fn orient(
+    cloud: &PointCloud3,
+    neighbours: usize,
+    quiet: bool,
+) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
+    let t = Instant::now();
+    let bar = spinner(quiet);
+    bar.set_message("estimating normals: planes of neighbours, signs along a spanning forest");
+    let estimated = estimate_normals(
+        cloud.positions(),
+        &NormalOptions {
+            neighbours: neighbours.min(MAX_NEIGHBOURS),
+        },
+    );
+    bar.finish_and_clear();
+    let estimated = estimated.context("estimating normals")?;
+    let small = if estimated.attached > 0 {
+        format!(
+            ", {} points in pieces under {MIN_PIECE} points signed by their nearest",
+            estimated.attached
+        )
+    } else {
+        String::new()
+    };
+    let lines = if estimated.undetermined > 0 {
+        format!(
+            ", {} points whose neighbours span no plane took a neighbour's",
+            estimated.undetermined
+        )
+    } else {
+        String::new()
+    };
+    outln!(
+        "{:<14}estimated from {neighbours} neighbours each: {} piece{} turned outward{small}{lines} \
+         ({})",
+        "normals",
+        estimated.pieces,
+        if estimated.pieces == 1 { "" } else { "s" },
+        seconds(t.elapsed())
+    );
+    let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), estimated.normals.clone())
+        .context("the oriented cloud")?;
+    Ok((oriented, estimated))
+}
+
+/// How the estimate differs from normals the file had: points turned the other way, and the
+/// angle between the lines.
+fn compare(estimated: &[[f64; 3]], given: &[[f64; 3]]) -> String {
+    let mut opposite = 0;
+    let mut angles: Vec<f64> = Vec::with_capacity(given.len());
+    for (e, n) in estimated.iter().zip(given) {
+        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if length <= 0.0 {
+            continue;
+        }
+        let cos = (e[0] * n[0] + e[1] * n[1] + e[2] * n[2]) / length;
+        if cos < 0.0 {
+            opposite += 1;
+        }
+        angles.push(cos.abs().min(1.0).acos().to_degrees());
+    }
+    if angles.is_empty() {
+        return "the file's normals are all zero".to_owned();
+    }
+    angles.sort_by(f64::total_cmp);
+    let at = |q: f64| angles[((angles.len() - 1) as f64 * q).round() as usize];
+    format!(
+        "with the file's normals: {opposite} of {} ({}%) point the other way; the lines differ \
+         by {:.2}° (median), {:.2}° (90%), {:.2}° (99%)",
+        angles.len(),
+        g(100.0 * opposite as f64 / angles.len() as f64),
+        at(0.5),
+        at(0.9),
+        at(0.99)
+    )
+}
+
+/// Writes an oriented cloud as binary PLY or xyzn text by `path`'s extension, atomically.
+pub(crate) fn write_cloud(path: &Path, cloud: &PointCloud3) -> anyhow::Result<()> {
+    let text = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("xyzn"));
+    if !text {
+        return Ok(write_ply(path, cloud)?);
+    }
+    let normals = cloud.normals().context("the cloud has normals")?;
+    write_atomic(path, |w| {
+        let mut w = std::io::BufWriter::new(w);
+        for (p, n) in cloud.positions().iter().zip(normals) {
+            // `{}` of an f64 is the shortest text that reads back to the same bits.
+            writeln!(w, "{} {} {} {} {} {}", p[0], p[1], p[2], n[0], n[1], n[2])?;
+        }
+        w.flush()
+    })?;
+    Ok(())
+}

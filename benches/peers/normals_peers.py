@@ -12,7 +12,8 @@ Run by hand, not by CI (see benches/peers/README.md), from the repository root:
     benches/peers/.venv/bin/python benches/peers/normals_peers.py --open3d-only     # no zeroset binary
 
 The clouds (`--clouds`, comma-separated; default data/bunny_points.ply, data/kitten.xyz,
-samples/bunny_2k.xyzn) carry outward unit normals: they are the truth, and only their positions
+samples/bunny_2k.xyzn; noisy ones come from noise_peers.py, e.g.
+out/noise_peers/bunny_points_0.0025.xyzn) carry outward unit normals: they are the truth, and only their positions
 are written, with 17 significant digits, to OUT/normals_peers/NAME.xyz, the file both sides read.
 
 What is timed (warm-up of each configuration, then `--repeats` rounds alternating zeroset and
@@ -22,8 +23,10 @@ Open3D at each thread count; the upper median `sorted[R // 2]`, common.py's rule
   all counted), with RAYON_NUM_THREADS=1 and =N (`--mt-threads`, default: every CPU).
 - Open3D: in a worker process (this script with `--open3d-worker`) that has already read
   NAME.xyz — reading excluded, which favours the peer — (a) `estimate_normals(
-  KDTreeSearchParamKNN(K))` on a fresh normal-less PointCloud and (b)
-  `orient_normals_consistent_tangent_plane(K)`, each timed and together. Threads: the worker
+  KDTreeSearchParamKNN(K + 1))` on a fresh normal-less PointCloud and (b)
+  `orient_normals_consistent_tangent_plane(K + 1)`, each timed and together (Open3D's KNN
+  search counts the point itself; zeroset's K does not: both fit a plane to the point and its
+  K nearest others, and link it to those K). Threads: the worker
   sets OMP_NUM_THREADS and its CPU affinity to T before importing open3d (Open3D 0.20's
   `estimate_normals` runs on TBB, which ignores OMP_NUM_THREADS but keeps to the affinity):
   T = 1 and T = N (N = Open3D's default, every CPU).
@@ -115,7 +118,9 @@ class Worker:
 
     def __init__(self, xyz: Path, k: int, threads: int):
         env = {**common.ORIGINAL_ENV, WORKER_ENV: str(threads)}
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--open3d-worker", str(xyz), "--neighbours", str(k)]
+        # Open3D's KNN search counts the point itself: K + 1 gives both sides the point and its
+        # K nearest others, in the plane and in the orientation graph.
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--open3d-worker", str(xyz), "--neighbours", str(k + 1)]
         self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.info = self._answer()
 

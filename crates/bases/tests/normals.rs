@@ -215,6 +215,29 @@ fn points_on_a_line_take_a_neighbours_normal() {
 }
 
 #[test]
+fn a_large_piece_without_any_plane_takes_its_neighbours_normals() {
+    // A scanner's missed returns written as 100 copies of one point, and a 100-point wire,
+    // apart from the sphere: neither spans a plane, however many points they hold. They take
+    // the normals of the sphere points nearest to them, unit length, and leave the sphere's
+    // own alone.
+    let (sphere_points, truth) = sphere(1500, [0.0; 3], 1.0);
+    let heap = [[3.0, 0.0, 0.0]; 100];
+    let wire: Vec<P> = (0..100)
+        .map(|i| [0.0, 3.0 + 0.01 * i as f64, 0.0])
+        .collect();
+    for extra in [heap.to_vec(), wire] {
+        let mut points = sphere_points.clone();
+        points.extend(&extra);
+        let estimated = estimate(&points);
+        assert_eq!(against(&estimated.normals[..1500], &truth).0, 0.0);
+        assert_eq!((estimated.pieces, estimated.undetermined), (1, 100));
+        for n in &estimated.normals[1500..] {
+            assert!((dot(n, n) - 1.0).abs() < 1e-12, "{n:?}");
+        }
+    }
+}
+
+#[test]
 fn duplicated_points_get_the_same_normal() {
     let (points, truth) = sphere(1000, [0.0; 3], 1.0);
     let doubled: Vec<P> = points.iter().flat_map(|p| [*p, *p]).collect();

@@ -69,7 +69,7 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
     if let Some(format) = &args.format {
         options = options.with_format(format.parse().context("--format")?);
     }
-    let cloud = read_positions(&args.scan, &options, "zeroset normals")?;
+    let cloud = read_positions(&args.scan, &options, "zeroset normals", true)?;
     crate::fit::check_extent(&args.scan, &cloud)?;
     outln!(
         "{:<14}{}: {} points{}",
@@ -99,21 +99,30 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
 }
 
 /// Reads `path` with its normals where it has some, or its positions only where an xyz file's
-/// columns 4–6 are not normals (colours: the note says so); `command` names the caller in a
+/// columns 4–6 are not normals (colours: the note says so) — and, with `normals_unused`,
+/// where a normal is not finite (the note says so). `command` names the caller in a
 /// non-finite value's error.
 pub(crate) fn read_positions(
     path: &Path,
     options: &ReadOptions,
     command: &str,
+    normals_unused: bool,
 ) -> anyhow::Result<PointCloud3> {
+    let needs = if normals_unused {
+        "finite coordinates"
+    } else {
+        "finite coordinates and normals"
+    };
     let error = |e| {
         crate::fit::read_error(
             path,
             e,
             "record",
-            &format!("{command} needs finite coordinates (`zeroset info` counts them all)"),
+            &format!("{command} needs {needs} (`zeroset info` counts them all)"),
         )
     };
+    let positions_only =
+        || read_point_cloud_with(path, &options.clone().with_positions_only(true)).map_err(error);
     match read_point_cloud_with(path, options) {
         Err(Error::NotNormals { line, values, .. }) => {
             outln!(
@@ -125,7 +134,34 @@ pub(crate) fn read_positions(
                 values[1],
                 values[2]
             );
-            read_point_cloud_with(path, &options.clone().with_positions_only(true)).map_err(error)
+            positions_only()
+        }
+        Err(Error::NonFinite { record, field, .. }) if normals_unused && field.starts_with('n') => {
+            outln!(
+                "{:<14}{}: record {record} has a non-finite normal ({field}): the file's \
+                 normals are not read",
+                "note",
+                path.display()
+            );
+            // Every reader checks the normals it meets: read them unchecked, then drop them and
+            // check the positions here.
+            let unchecked = options
+                .clone()
+                .with_positions_only(true)
+                .with_allow_non_finite(true);
+            let cloud = read_point_cloud_with(path, &unchecked).map_err(error)?;
+            if let Some(record) = cloud
+                .positions()
+                .iter()
+                .position(|p| !p.iter().all(|x| x.is_finite()))
+            {
+                anyhow::bail!(
+                    "{}: record {record}: non-finite position {:?}; {command} needs {needs}",
+                    path.display(),
+                    cloud.positions()[record]
+                );
+            }
+            Ok(cloud)
         }
         read => read.map_err(error),
     }
@@ -150,6 +186,8 @@ pub(crate) fn orient(
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
+    // Fewer points than the neighbours asked for: each takes all the others.
+    let used = neighbours.min(cloud.len().saturating_sub(1));
     let bar = spinner(quiet);
     bar.set_message("estimating normals: planes of neighbours, signs along a spanning forest");
     let estimated = estimate_normals(
@@ -177,7 +215,7 @@ pub(crate) fn orient(
         String::new()
     };
     outln!(
-        "{:<14}estimated from {neighbours} neighbours each: {} piece{} turned outward{small}{lines} \
+        "{:<14}estimated from {used} neighbours each: {} piece{} turned outward{small}{lines} \
          ({})",
         "normals",
         estimated.pieces,

@@ -158,8 +158,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     };
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
-    let cloud =
-        crate::normals::read_positions(&args.scan, &Default::default(), "zeroset reconstruct")?;
+    let cloud = crate::normals::read_positions(
+        &args.scan,
+        &Default::default(),
+        "zeroset reconstruct",
+        false,
+    )?;
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
@@ -171,6 +175,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.scan.display()
         );
         let (oriented, _) = crate::normals::orient(&cloud, args.normal_neighbours, args.quiet)?;
+        drop(cloud);
         let path = temporary_file(&args.output, "ply");
         let temporary = Temporary(Some(path.clone()));
         crate::normals::write_cloud(&path, &oriented)

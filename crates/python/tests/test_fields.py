@@ -386,8 +386,9 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(bad)
     with pytest.raises(ValueError, match="at least 3 points"):
         zeroset.estimate_normals(points[:2])
-    with pytest.raises(ValueError, match="neighbours = 1"):
-        zeroset.estimate_normals(points, neighbours=1)
+    for k in (1, -3, 257):
+        with pytest.raises(ValueError, match=f"neighbours = {k}"):
+            zeroset.estimate_normals(points, neighbours=k)
     line = np.stack([np.arange(50.0), 2 * np.arange(50.0), np.zeros(50)], axis=1)
     with pytest.raises(ValueError, match="span no plane"):
         zeroset.estimate_normals(line)

@@ -297,7 +297,10 @@ def estimate_normals(points: Any, neighbours: int = 16) -> np.ndarray:
 
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
     out of range, or a cloud whose neighbourhoods mostly span no plane (points on a line)."""
-    return _native.estimate_normals(_rows(points, "points"), int(neighbours))
+    k = int(neighbours)
+    if k < 0:
+        raise ValueError(f"neighbours = {k}: from 2 to 256")
+    return _native.estimate_normals(_rows(points, "points"), k)
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:

@@ -522,139 +522,216 @@ pub fn admm_with_progress(
     b: &[f64],
     terms: &[&dyn ProxTerm],
     options: &AdmmOptions,
-    mut progress: impl FnMut(&AdmmProgress) -> bool,
+    progress: impl FnMut(&AdmmProgress) -> bool,
 ) -> Result<AdmmSolution, AdmmError> {
     options.validate()?;
-    let (n, scale) = check_problem(h, b, terms)?;
-    check_symmetric(h, scale)?;
-    check_orthogonal(terms, n)?;
-    let eta = options.eta;
-    let k = terms.len();
-    let factor = factor_shifted(h, k as f64 * eta, k)?;
+    Quadratic::new(h, b)?.admm_with_progress(terms, options, progress)
+}
 
-    let mut c = b.to_vec();
-    if k == 0 {
+/// `½cᵀHc − bᵀc` with `H` and `b` checked once (square, matching lengths, finite, `H`
+/// symmetric), so that the solves of one problem — [`Quadratic::ridge_solution`], then
+/// [`Quadratic::admm`] from it — do not each read all of `H` again to check it.
+///
+/// ```
+/// use faer::Mat;
+/// use zeroset_solvers::admm::{AdmmOptions, ProxTerm, Quadratic, TraceNormTerm};
+///
+/// let h = Mat::<f64>::identity(24, 24);
+/// let b: Vec<f64> = (0..24).map(|i| (i % 5) as f64).collect();
+/// let problem = Quadratic::new(h.as_ref(), &b)?;
+/// let start = problem.ridge_solution(0.0)?;
+/// assert_eq!(start, b);
+/// let terms = TraceNormTerm::mras_terms([2, 3, 4], 0.1)?;
+/// let refs: Vec<&dyn ProxTerm> = terms.iter().map(|t| t as &dyn ProxTerm).collect();
+/// let solved = problem.admm(&refs, &AdmmOptions::default().start(start))?;
+/// assert!(solved.converged);
+/// # Ok::<(), zeroset_solvers::admm::AdmmError>(())
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct Quadratic<'a> {
+    h: MatRef<'a, f64>,
+    b: &'a [f64],
+}
+
+impl<'a> Quadratic<'a> {
+    /// Checks `H` and `b` once.
+    ///
+    /// # Errors
+    /// [`AdmmError::NotSquare`], [`AdmmError::Length`], [`AdmmError::NonFiniteMatrix`],
+    /// [`AdmmError::NonFiniteVector`], [`AdmmError::NotSymmetric`]
+    /// (`|H_ij − H_ji| > 10⁻¹⁰ max |H|`).
+    pub fn new(h: MatRef<'a, f64>, b: &'a [f64]) -> Result<Self, AdmmError> {
+        check_problem(h, b, &[])?;
+        check_matrix(h, true)?;
+        Ok(Self { h, b })
+    }
+
+    /// [`ridge_solution`] of this problem.
+    ///
+    /// # Errors
+    /// [`AdmmError::NotPositiveDefinite`] if `H + ridge·I` has no Cholesky factor.
+    pub fn ridge_solution(&self, ridge: f64) -> Result<Vec<f64>, AdmmError> {
+        let factor = factor_shifted(self.h, ridge, 0)?;
+        let mut c = self.b.to_vec();
         solve_in_place(factor.as_ref(), &mut c);
-        let objective = objective(h, b, terms, &c)?;
-        return Ok(AdmmSolution {
+        Ok(c)
+    }
+
+    /// [`admm`] on this problem.
+    ///
+    /// # Errors
+    /// As [`admm`], less the checks of `H` and `b` already made.
+    pub fn admm(
+        &self,
+        terms: &[&dyn ProxTerm],
+        options: &AdmmOptions,
+    ) -> Result<AdmmSolution, AdmmError> {
+        self.admm_with_progress(terms, options, |_| true)
+    }
+
+    /// [`admm_with_progress`] on this problem.
+    ///
+    /// # Errors
+    /// As [`admm`], less the checks of `H` and `b` already made.
+    pub fn admm_with_progress(
+        &self,
+        terms: &[&dyn ProxTerm],
+        options: &AdmmOptions,
+        mut progress: impl FnMut(&AdmmProgress) -> bool,
+    ) -> Result<AdmmSolution, AdmmError> {
+        options.validate()?;
+        let (h, b) = (self.h, self.b);
+        let n = check_terms(h.nrows(), terms)?;
+        check_orthogonal(terms, n)?;
+        let eta = options.eta;
+        let k = terms.len();
+        let factor = factor_shifted(h, k as f64 * eta, k)?;
+
+        let mut c = b.to_vec();
+        if k == 0 {
+            solve_in_place(factor.as_ref(), &mut c);
+            let objective = objective(h, b, terms, &c)?;
+            return Ok(AdmmSolution {
+                c,
+                z: Vec::new(),
+                iterations: 0,
+                primal_residual: 0.0,
+                dual_residual: 0.0,
+                converged: true,
+                stop: AdmmStop::Converged,
+                objective,
+            });
+        }
+
+        let dims: Vec<usize> = terms.iter().map(|t| t.dims().0).collect();
+        let p: usize = dims.iter().sum();
+        let mut z: Vec<Vec<f64>> = dims.iter().map(|&m| vec![0.0; m]).collect();
+        if let Some(c0) = &options.start {
+            if c0.len() != n {
+                return Err(AdmmError::Length {
+                    what: "start",
+                    expected: n,
+                    got: c0.len(),
+                });
+            }
+            if let Some(index) = c0.iter().position(|v| !v.is_finite()) {
+                return Err(AdmmError::NonFiniteVector {
+                    what: "start",
+                    index,
+                });
+            }
+            for (zi, term) in z.iter_mut().zip(terms) {
+                term.apply(c0, zi);
+            }
+        }
+        let mut z_prev = z.clone();
+        let mut alpha: Vec<Vec<f64>> = dims.iter().map(|&m| vec![0.0; m]).collect();
+        let mut pc = z.clone();
+        let mut work: Vec<Vec<f64>> = z.clone();
+        let mut dual = vec![0.0; n];
+        let mut at_alpha = vec![0.0; n];
+        let mut rhs = vec![0.0; n];
+        let rho = options.relaxation;
+
+        let mut stop = AdmmStop::MaxIterations;
+        let (mut iterations, mut r, mut s) = (0, f64::INFINITY, f64::INFINITY);
+        for iteration in 1..=options.max_iter {
+            iterations = iteration;
+            // c-step: (H + kηI) c = b + Σ P_iᵀ(η z_i − α_i).
+            c.copy_from_slice(b);
+            for (i, term) in terms.iter().enumerate() {
+                for ((w, &zi), &ai) in work[i].iter_mut().zip(&z[i]).zip(&alpha[i]) {
+                    *w = eta * zi - ai;
+                }
+                term.apply_transpose_add(&work[i], &mut c);
+            }
+            rhs.copy_from_slice(&c);
+            solve_in_place(factor.as_ref(), &mut c);
+
+            // z-step and dual step, with the residuals' ingredients.
+            let (mut r2, mut pc2, mut z2) = (0.0, 0.0, 0.0);
+            dual.fill(0.0);
+            at_alpha.fill(0.0);
+            for (i, term) in terms.iter().enumerate() {
+                term.apply(&c, &mut pc[i]);
+                // The relaxed P_i c: ρ P_i c + (1 − ρ) z_i^{prev} (exactly P_i c for ρ = 1).
+                let relaxed = |j: usize, z_prev: &[f64]| rho * pc[i][j] + (1.0 - rho) * z_prev[j];
+                for j in 0..dims[i] {
+                    work[i][j] = relaxed(j, &z[i]) + alpha[i][j] / eta;
+                }
+                std::mem::swap(&mut z[i], &mut z_prev[i]);
+                term.prox(&work[i], 1.0 / eta, &mut z[i])?;
+                for j in 0..dims[i] {
+                    alpha[i][j] += eta * (relaxed(j, &z_prev[i]) - z[i][j]);
+                    let ri = pc[i][j] - z[i][j];
+                    r2 += ri * ri;
+                    pc2 += pc[i][j] * pc[i][j];
+                    z2 += z[i][j] * z[i][j];
+                    work[i][j] = z[i][j] - z_prev[i][j];
+                }
+                term.apply_transpose_add(&work[i], &mut dual);
+                term.apply_transpose_add(&alpha[i], &mut at_alpha);
+            }
+            r = r2.sqrt();
+            s = eta * norm(&dual);
+            let report = AdmmProgress {
+                iteration,
+                primal_residual: r,
+                dual_residual: s,
+                primal_tolerance: options.eps_abs * (p as f64).sqrt()
+                    + options.eps_rel * pc2.sqrt().max(z2.sqrt()),
+                dual_tolerance: options.eps_abs * (n as f64).sqrt()
+                    + options.eps_rel * norm(&at_alpha),
+            };
+            if r <= report.primal_tolerance && s <= report.dual_tolerance {
+                stop = AdmmStop::Converged;
+                progress(&report);
+                break;
+            }
+            if !progress(&report) {
+                stop = AdmmStop::Cancelled;
+                break;
+            }
+        }
+        // The last c-step solved (H + kηI) c = rhs: cᵀHc = cᵀ(rhs − kηc), no product with H.
+        let quadratic = c
+            .iter()
+            .zip(&rhs)
+            .zip(b)
+            .map(|((&ci, &ri), &bi)| ci * (0.5 * (ri - k as f64 * eta * ci) - bi))
+            .sum::<f64>();
+        let objective = quadratic + terms_value(terms, &c)?;
+        Ok(AdmmSolution {
             c,
-            z: Vec::new(),
-            iterations: 0,
-            primal_residual: 0.0,
-            dual_residual: 0.0,
-            converged: true,
-            stop: AdmmStop::Converged,
-            objective,
-        });
-    }
-
-    let dims: Vec<usize> = terms.iter().map(|t| t.dims().0).collect();
-    let p: usize = dims.iter().sum();
-    let mut z: Vec<Vec<f64>> = dims.iter().map(|&m| vec![0.0; m]).collect();
-    if let Some(c0) = &options.start {
-        if c0.len() != n {
-            return Err(AdmmError::Length {
-                what: "start",
-                expected: n,
-                got: c0.len(),
-            });
-        }
-        if let Some(index) = c0.iter().position(|v| !v.is_finite()) {
-            return Err(AdmmError::NonFiniteVector {
-                what: "start",
-                index,
-            });
-        }
-        for (zi, term) in z.iter_mut().zip(terms) {
-            term.apply(c0, zi);
-        }
-    }
-    let mut z_prev = z.clone();
-    let mut alpha: Vec<Vec<f64>> = dims.iter().map(|&m| vec![0.0; m]).collect();
-    let mut pc = z.clone();
-    let mut work: Vec<Vec<f64>> = z.clone();
-    let mut dual = vec![0.0; n];
-    let mut at_alpha = vec![0.0; n];
-    let mut rhs = vec![0.0; n];
-    let rho = options.relaxation;
-
-    let mut stop = AdmmStop::MaxIterations;
-    let (mut iterations, mut r, mut s) = (0, f64::INFINITY, f64::INFINITY);
-    for iteration in 1..=options.max_iter {
-        iterations = iteration;
-        // c-step: (H + kηI) c = b + Σ P_iᵀ(η z_i − α_i).
-        c.copy_from_slice(b);
-        for (i, term) in terms.iter().enumerate() {
-            for ((w, &zi), &ai) in work[i].iter_mut().zip(&z[i]).zip(&alpha[i]) {
-                *w = eta * zi - ai;
-            }
-            term.apply_transpose_add(&work[i], &mut c);
-        }
-        rhs.copy_from_slice(&c);
-        solve_in_place(factor.as_ref(), &mut c);
-
-        // z-step and dual step, with the residuals' ingredients.
-        let (mut r2, mut pc2, mut z2) = (0.0, 0.0, 0.0);
-        dual.fill(0.0);
-        at_alpha.fill(0.0);
-        for (i, term) in terms.iter().enumerate() {
-            term.apply(&c, &mut pc[i]);
-            // The relaxed P_i c: ρ P_i c + (1 − ρ) z_i^{prev} (exactly P_i c for ρ = 1).
-            let relaxed = |j: usize, z_prev: &[f64]| rho * pc[i][j] + (1.0 - rho) * z_prev[j];
-            for j in 0..dims[i] {
-                work[i][j] = relaxed(j, &z[i]) + alpha[i][j] / eta;
-            }
-            std::mem::swap(&mut z[i], &mut z_prev[i]);
-            term.prox(&work[i], 1.0 / eta, &mut z[i])?;
-            for j in 0..dims[i] {
-                alpha[i][j] += eta * (relaxed(j, &z_prev[i]) - z[i][j]);
-                let ri = pc[i][j] - z[i][j];
-                r2 += ri * ri;
-                pc2 += pc[i][j] * pc[i][j];
-                z2 += z[i][j] * z[i][j];
-                work[i][j] = z[i][j] - z_prev[i][j];
-            }
-            term.apply_transpose_add(&work[i], &mut dual);
-            term.apply_transpose_add(&alpha[i], &mut at_alpha);
-        }
-        r = r2.sqrt();
-        s = eta * norm(&dual);
-        let report = AdmmProgress {
-            iteration,
+            z,
+            iterations,
             primal_residual: r,
             dual_residual: s,
-            primal_tolerance: options.eps_abs * (p as f64).sqrt()
-                + options.eps_rel * pc2.sqrt().max(z2.sqrt()),
-            dual_tolerance: options.eps_abs * (n as f64).sqrt() + options.eps_rel * norm(&at_alpha),
-        };
-        if r <= report.primal_tolerance && s <= report.dual_tolerance {
-            stop = AdmmStop::Converged;
-            progress(&report);
-            break;
-        }
-        if !progress(&report) {
-            stop = AdmmStop::Cancelled;
-            break;
-        }
+            converged: stop == AdmmStop::Converged,
+            stop,
+            objective,
+        })
     }
-    // The last c-step solved (H + kηI) c = rhs: cᵀHc = cᵀ(rhs − kηc), no product with H.
-    let quadratic = c
-        .iter()
-        .zip(&rhs)
-        .zip(b)
-        .map(|((&ci, &ri), &bi)| ci * (0.5 * (ri - k as f64 * eta * ci) - bi))
-        .sum::<f64>();
-    let objective = quadratic + terms_value(terms, &c)?;
-    Ok(AdmmSolution {
-        c,
-        z,
-        iterations,
-        primal_residual: r,
-        dual_residual: s,
-        converged: stop == AdmmStop::Converged,
-        stop,
-        objective,
-    })
 }
 
 /// The minimiser of `½cᵀHc − bᵀc + ½ ridge ‖c‖²`, by a sequential dense Cholesky of
@@ -663,14 +740,10 @@ pub fn admm_with_progress(
 ///
 /// # Errors
 /// [`AdmmError::NotSquare`], [`AdmmError::Length`], [`AdmmError::NonFiniteMatrix`],
-/// [`AdmmError::NonFiniteVector`]; [`AdmmError::NotPositiveDefinite`] if `H + ridge·I` has no
-/// Cholesky factor.
+/// [`AdmmError::NonFiniteVector`], [`AdmmError::NotSymmetric`];
+/// [`AdmmError::NotPositiveDefinite`] if `H + ridge·I` has no Cholesky factor.
 pub fn ridge_solution(h: MatRef<'_, f64>, b: &[f64], ridge: f64) -> Result<Vec<f64>, AdmmError> {
-    check_problem(h, b, &[])?;
-    let factor = factor_shifted(h, ridge, 0)?;
-    let mut c = b.to_vec();
-    solve_in_place(factor.as_ref(), &mut c);
-    Ok(c)
+    Quadratic::new(h, b)?.ridge_solution(ridge)
 }
 
 /// The objective `½cᵀHc − bᵀc + Σ_i g_i(P_i c)`, summed in a fixed order.
@@ -685,7 +758,8 @@ pub fn objective(
     terms: &[&dyn ProxTerm],
     c: &[f64],
 ) -> Result<f64, AdmmError> {
-    let (n, _) = check_problem(h, b, terms)?;
+    let n = check_problem(h, b, terms)?;
+    check_matrix(h, false)?;
     if c.len() != n {
         return Err(AdmmError::Length {
             what: "c",
@@ -715,13 +789,12 @@ fn terms_value(terms: &[&dyn ProxTerm], c: &[f64]) -> Result<f64, AdmmError> {
     Ok(total)
 }
 
-/// Checks shapes and finiteness of `H`, `b` and the terms' dimensions; returns `n` and
-/// `max |H_ij|`.
+/// Checks the shapes of `H`, `b` and the terms, and that `b` is finite; returns `n`.
 fn check_problem(
     h: MatRef<'_, f64>,
     b: &[f64],
     terms: &[&dyn ProxTerm],
-) -> Result<(usize, f64), AdmmError> {
+) -> Result<usize, AdmmError> {
     let (rows, cols) = (h.nrows(), h.ncols());
     if rows != cols {
         return Err(AdmmError::NotSquare { rows, cols });
@@ -734,6 +807,15 @@ fn check_problem(
             got: b.len(),
         });
     }
+    check_terms(n, terms)?;
+    if let Some(index) = b.iter().position(|v| !v.is_finite()) {
+        return Err(AdmmError::NonFiniteVector { what: "b", index });
+    }
+    Ok(n)
+}
+
+/// Checks that every term maps `ℝⁿ`; returns `n`.
+fn check_terms(n: usize, terms: &[&dyn ProxTerm]) -> Result<usize, AdmmError> {
     for (term, t) in terms.iter().enumerate() {
         let got = t.dims().1;
         if got != n {
@@ -744,30 +826,17 @@ fn check_problem(
             });
         }
     }
-    let mut scale = 0.0f64;
-    for col in 0..n {
-        // A branch-free pass over the column (it vectorises), with the largest magnitude; the
-        // position only on failure.
-        let (finite, largest) = with_column(h, col, |c| {
-            c.iter().fold((true, 0.0f64), |(ok, big), v| {
-                let a = v.abs();
-                (ok & v.is_finite(), if a > big { a } else { big })
-            })
-        });
-        if !finite && let Some(row) = with_column(h, col, |c| c.iter().position(|v| !v.is_finite()))
-        {
-            return Err(AdmmError::NonFiniteMatrix { row, col });
-        }
-        scale = scale.max(largest);
-    }
-    if let Some(index) = b.iter().position(|v| !v.is_finite()) {
-        return Err(AdmmError::NonFiniteVector { what: "b", index });
-    }
-    Ok((n, scale))
+    Ok(n)
 }
 
-/// Checks `|H_ij − H_ji| ≤ 10⁻¹⁰ · scale` (`scale = max |H_ij|`, from [`check_problem`]).
-fn check_symmetric(h: MatRef<'_, f64>, scale: f64) -> Result<(), AdmmError> {
+/// Checks the square `H` in one pass over its entries: every entry finite, and with
+/// `symmetric`, `|H_ij − H_ji| ≤ 10⁻¹⁰ · max |H_ij|`. The pass visits 64 × 64 tiles of the
+/// lower triangle with their mirrored upper tiles, so that the transposed reads stay in
+/// cache, and keeps branch-free running figures (a sum that turns NaN at a non-finite entry,
+/// the largest magnitude and the largest asymmetry); the position of a failure is searched
+/// for only when there is one (the first non-finite entry in column order; the first
+/// asymmetric pair in tile order).
+fn check_matrix(h: MatRef<'_, f64>, symmetric: bool) -> Result<(), AdmmError> {
     let n = h.nrows();
     let owned;
     let h = match h.try_as_col_major() {
@@ -785,26 +854,58 @@ fn check_symmetric(h: MatRef<'_, f64>, scale: f64) -> Result<(), AdmmError> {
                 .as_slice()
         })
         .collect();
-    let tol = 1e-10 * scale;
-    // In 64 × 64 tiles, so that the transposed reads stay in cache on large matrices.
+    // `0·x` is 0 for a finite x and NaN otherwise: the sum is NaN where any entry is not
+    // finite. Selects instead of f64::max keep the loops vectorisable.
+    let (mut poison, mut largest, mut asymmetry) = (0.0f64, 0.0f64, 0.0f64);
     const TILE: usize = 64;
     for c0 in (0..n).step_by(TILE) {
         for r0 in (c0..n).step_by(TILE) {
             for col in c0..(c0 + TILE).min(n) {
-                let (first, end) = (r0.max(col + 1), (r0 + TILE).min(n));
-                let rows = &columns[first..end];
-                // Branch-free over the strip; the position only on failure.
-                let ok = columns[col][first..end]
-                    .iter()
-                    .zip(rows)
-                    .fold(true, |ok, (&below, above)| {
-                        ok & ((below - above[col]).abs() <= tol)
-                    });
-                if !ok {
-                    let row = (first..end)
-                        .find(|&row| (columns[col][row] - columns[row][col]).abs() > tol)
-                        .unwrap_or(first);
-                    return Err(AdmmError::NotSymmetric { row, col });
+                let (first, end) = (r0.max(col), (r0 + TILE).min(n));
+                if first >= end {
+                    continue;
+                }
+                let below = &columns[col][first..end];
+                let above = &columns[first..end];
+                let (p, l, a) = below.iter().zip(above).fold(
+                    (0.0f64, 0.0f64, 0.0f64),
+                    |(p, l, a), (&x, column)| {
+                        let y = column[col];
+                        let m = if x.abs() > y.abs() { x.abs() } else { y.abs() };
+                        let d = (x - y).abs();
+                        (
+                            p + x * 0.0 + y * 0.0,
+                            if m > l { m } else { l },
+                            if d > a { d } else { a },
+                        )
+                    },
+                );
+                poison += p;
+                largest = if l > largest { l } else { largest };
+                asymmetry = if a > asymmetry { a } else { asymmetry };
+            }
+        }
+    }
+    if !poison.is_finite() {
+        for (col, column) in columns.iter().enumerate() {
+            if let Some(row) = column.iter().position(|v| !v.is_finite()) {
+                return Err(AdmmError::NonFiniteMatrix { row, col });
+            }
+        }
+    }
+    let tol = 1e-10 * largest;
+    if symmetric && asymmetry > tol {
+        for c0 in (0..n).step_by(TILE) {
+            for r0 in (c0..n).step_by(TILE) {
+                let tile = columns.iter().enumerate().take((c0 + TILE).min(n)).skip(c0);
+                for (col, column) in tile {
+                    let rows = r0.max(col + 1)..(r0 + TILE).min(n);
+                    if let Some(row) = rows
+                        .into_iter()
+                        .find(|&row| (column[row] - columns[row][col]).abs() > tol)
+                    {
+                        return Err(AdmmError::NotSymmetric { row, col });
+                    }
                 }
             }
         }

@@ -4,7 +4,7 @@
 
 use faer::Mat;
 use zeroset_field_core::geometry::Point;
-use zeroset_solvers::admm::{AdmmOptions, ProxTerm, TraceNormTerm, admm, ridge_solution};
+use zeroset_solvers::admm::{AdmmOptions, ProxTerm, Quadratic, TraceNormTerm};
 use zeroset_tensor::cp::svd_start;
 use zeroset_tensor::{
     CpInit, CpOptions, Kruskal, Tensor3, WeightedOptions, cp_als, cp_als_weighted, thin_svd,
@@ -357,7 +357,9 @@ pub(crate) fn solve_cell(
     // η in units of H's mean diagonal (the paper's η = 1 is for its unnormalised energy).
     let mean_diag = (0..n).map(|i| hm[(i, i)]).sum::<f64>() / n as f64;
     let shape = [m, m, m];
-    let start = ridge_solution(hm.as_ref(), &b, 1e-12 * mean_diag)?;
+    // H and b are checked once for both solves.
+    let problem = Quadratic::new(hm.as_ref(), &b)?;
+    let start = problem.ridge_solution(1e-12 * mean_diag)?;
     // A screen: where even the offset the data asks for without the trace norm stays within the
     // CP bound at every point, `φ = 0` will do (rank 0) and ADMM need not run. (On the bunny,
     // when the screen came, the ADMM offset then met the bound too in all but 1 of 728 cells.
@@ -395,7 +397,7 @@ pub(crate) fn solve_cell(
         .max_iter(s.admm_max_iter)
         .eps_abs(s.admm_tol * s.value_scale)
         .eps_rel(s.admm_tol);
-    let sol = admm(hm.as_ref(), &b, &refs, &opts)?;
+    let sol = problem.admm(&refs, &opts)?;
     // The split variables z_i are exactly low-rank unfoldings (c is only close): their mean,
     // folded back, is the tensor to compress.
     let mut c = vec![0.0; n];

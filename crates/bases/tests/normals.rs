@@ -18,21 +18,28 @@ fn estimate(points: &[P]) -> EstimatedNormals {
     estimate_normals(points, &NormalOptions::default()).expect("normals")
 }
 
+#[path = "../../../examples/common/shapes.rs"]
+mod shapes;
+
 /// `n` points spread over the sphere of radius `r` about `c` (Fibonacci lattice) and their
 /// outward normals.
 fn sphere(n: usize, c: P, r: f64) -> (Vec<P>, Vec<P>) {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let s = (1.0 - z * z).sqrt();
-            let u = [
-                s * (golden * i as f64).cos(),
-                s * (golden * i as f64).sin(),
-                z,
-            ];
-            ([c[0] + r * u[0], c[1] + r * u[1], c[2] + r * u[2]], u)
-        })
+    let (points, normals) = shapes::sphere(n, r);
+    let moved = points
+        .iter()
+        .map(|p| [p[0] + c[0], p[1] + c[1], p[2] + c[2]])
+        .collect();
+    (moved, normals)
+}
+
+/// The points of the sphere of radius `r` (3,000 Fibonacci points) above the height `z`, with
+/// outward normals.
+fn cap(r: f64, z: f64) -> (Vec<P>, Vec<P>) {
+    let (points, normals) = sphere(3000, [0.0; 3], r);
+    points
+        .into_iter()
+        .zip(normals)
+        .filter(|(p, _)| p[2] > z)
         .unzip()
 }
 
@@ -171,16 +178,11 @@ fn a_small_piece_takes_the_sign_of_the_large_one_beside_it() {
     // 30 points on a cap of the sphere of radius 1.25 (too few to read an inside from), beside
     // the unit sphere: their outward (radial) normals agree with the nearest sphere points'.
     let (mut points, mut truth) = sphere(2000, [0.0; 3], 1.0);
-    let (cap, cap_normals): (Vec<P>, Vec<P>) = sphere(3000, [0.0; 3], 1.5)
-        .0
-        .into_iter()
-        .zip(sphere(3000, [0.0; 3], 1.0).1)
-        .filter(|(p, _)| p[2] > 1.465)
-        .unzip();
-    assert!((10..50).contains(&cap.len()), "{}", cap.len());
-    let small = cap.len();
-    points.extend(cap);
-    truth.extend(cap_normals);
+    let (patch, patch_normals) = cap(1.5, 1.465);
+    assert!((10..50).contains(&patch.len()), "{}", patch.len());
+    let small = patch.len();
+    points.extend(patch);
+    truth.extend(patch_normals);
     let estimated = estimate(&points);
     assert_eq!(against(&estimated.normals, &truth).0, 0.0);
     assert_eq!((estimated.pieces, estimated.attached), (1, small));
@@ -188,14 +190,9 @@ fn a_small_piece_takes_the_sign_of_the_large_one_beside_it() {
     // outward) agrees with the sphere's outward normals too — it is signed by its neighbours,
     // not by its own (open, tiny) inside.
     let (mut points, mut truth) = sphere(2000, [0.0; 3], 1.0);
-    let (cap, cap_normals): (Vec<P>, Vec<P>) = sphere(3000, [0.0; 3], 0.8)
-        .0
-        .into_iter()
-        .zip(sphere(3000, [0.0; 3], 1.0).1)
-        .filter(|(p, _)| p[2] > 0.78)
-        .unzip();
-    points.extend(cap);
-    truth.extend(cap_normals);
+    let (patch, patch_normals) = cap(0.8, 0.78);
+    points.extend(patch);
+    truth.extend(patch_normals);
     let estimated = estimate(&points);
     assert_eq!(against(&estimated.normals, &truth).0, 0.0);
 }

@@ -198,22 +198,22 @@ pub(crate) fn orient(
     );
     bar.finish_and_clear();
     let estimated = estimated.context("estimating normals")?;
-    let small = if estimated.attached > 0 {
-        format!(
-            ", {} points in pieces under {MIN_PIECE} points signed by their nearest",
-            estimated.attached
-        )
-    } else {
-        String::new()
+    // A clause for a count that is not zero.
+    let clause = |count: usize, text: &str| {
+        if count > 0 {
+            format!(", {count} points {text}")
+        } else {
+            String::new()
+        }
     };
-    let lines = if estimated.undetermined > 0 {
-        format!(
-            ", {} points whose neighbours span no plane took a neighbour's",
-            estimated.undetermined
-        )
-    } else {
-        String::new()
-    };
+    let small = clause(
+        estimated.attached,
+        &format!("in pieces under {MIN_PIECE} points (or without a plane) signed by their nearest"),
+    );
+    let lines = clause(
+        estimated.undetermined,
+        "whose neighbours span no plane took a neighbour's",
+    );
     outln!(
         "{:<14}estimated from {used} neighbours each: {} piece{} turned outward{small}{lines} \
          ({})",

@@ -2556,13 +2556,16 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         .collect();
     let scan = dir.path().join("sphere.xyz");
     fs::write(&scan, rgb).unwrap();
+    let normals = |input: &Path, output: &Path| {
+        zeroset([
+            OsStr::new("normals"),
+            input.as_os_str(),
+            OsStr::new("-o"),
+            output.as_os_str(),
+        ])
+    };
     let oriented = dir.path().join("sphere.xyzn");
-    let o = zeroset([
-        OsStr::new("normals"),
-        scan.as_os_str(),
-        OsStr::new("-o"),
-        oriented.as_os_str(),
-    ]);
+    let o = normals(&scan, &oriented);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     assert!(out.contains("are not unit normals (colours?)"), "{out}");
@@ -2583,12 +2586,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
     let given = dir.path().join("given.xyzn");
     fs::write(&given, sphere_xyzn(1500)).unwrap();
     let compared = dir.path().join("compared.ply");
-    let o = zeroset([
-        OsStr::new("normals"),
-        given.as_os_str(),
-        OsStr::new("-o"),
-        compared.as_os_str(),
-    ]);
+    let o = normals(&given, &compared);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("with the file's normals: 0 of 1500 (0%) point the other way"),

@@ -627,19 +627,7 @@ impl<'a> Quadratic<'a> {
         let p: usize = dims.iter().sum();
         let mut z: Vec<Vec<f64>> = dims.iter().map(|&m| vec![0.0; m]).collect();
         if let Some(c0) = &options.start {
-            if c0.len() != n {
-                return Err(AdmmError::Length {
-                    what: "start",
-                    expected: n,
-                    got: c0.len(),
-                });
-            }
-            if let Some(index) = c0.iter().position(|v| !v.is_finite()) {
-                return Err(AdmmError::NonFiniteVector {
-                    what: "start",
-                    index,
-                });
-            }
+            check_vector("start", c0, n)?;
             for (zi, term) in z.iter_mut().zip(terms) {
                 term.apply(c0, zi);
             }
@@ -760,16 +748,7 @@ pub fn objective(
 ) -> Result<f64, AdmmError> {
     let n = check_problem(h, b, terms)?;
     check_matrix(h, false)?;
-    if c.len() != n {
-        return Err(AdmmError::Length {
-            what: "c",
-            expected: n,
-            got: c.len(),
-        });
-    }
-    if let Some(index) = c.iter().position(|v| !v.is_finite()) {
-        return Err(AdmmError::NonFiniteVector { what: "c", index });
-    }
+    check_vector("c", c, n)?;
     let mut quadratic = 0.0;
     for (j, &cj) in c.iter().enumerate() {
         let hc_j: f64 = with_column(h, j, |col| col.iter().zip(c).map(|(a, x)| a * x).sum());
@@ -812,6 +791,21 @@ fn check_problem(
         return Err(AdmmError::NonFiniteVector { what: "b", index });
     }
     Ok(n)
+}
+
+/// Checks that the vector `what` has length `n` and finite entries.
+fn check_vector(what: &'static str, v: &[f64], n: usize) -> Result<(), AdmmError> {
+    if v.len() != n {
+        return Err(AdmmError::Length {
+            what,
+            expected: n,
+            got: v.len(),
+        });
+    }
+    if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+        return Err(AdmmError::NonFiniteVector { what, index });
+    }
+    Ok(())
 }
 
 /// Checks that every term maps `ℝⁿ`; returns `n`.

@@ -52,7 +52,9 @@
 //!
 //! **Limits.** A scan of one side of a flat or nearly flat surface (a wall, terrain) has no
 //! inside to read, its divergence about 0: its sign is arbitrary. A scan from inside a closed
-//! space (a room) comes out facing away from the scanner, as the outside of that space.
+//! space (a room) comes out facing away from the scanner, as the outside of that space. For
+//! both, give where the scanner stood ([`NormalOptions::viewpoint`]): each large piece then
+//! faces it.
 //! Thin parts sampled more coarsely than their thickness mix the two sheets in their planes
 //! (the 2,000-point bunny sample: one ear, 2.85% of its points, turned inward).
 //!
@@ -115,19 +117,41 @@ pub const LINE_PATCH: f64 = 1e-6;
 pub const MIN_PIECE: usize = 64;
 
 /// How [`estimate_normals`] works.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NormalOptions {
     /// The neighbours of each point in its plane and in the orientation graph
     /// ([`NORMAL_NEIGHBOURS`] by default; [`MIN_NEIGHBOURS`] to [`MAX_NEIGHBOURS`]). More
     /// average out noise and bridge gaps; fewer follow fine detail and thin parts.
     pub neighbours: usize,
+    /// Where the scanner stood, if known: each large piece is then turned to face it (its
+    /// normals' mean cosine towards the viewpoint positive) instead of outward by its
+    /// divergence — for one-sided scans of flat surfaces (a wall, terrain: no inside to read)
+    /// and scans from inside a room. `None` by default.
+    pub viewpoint: Option<Point<3>>,
 }
 
 impl Default for NormalOptions {
     fn default() -> Self {
         Self {
             neighbours: NORMAL_NEIGHBOURS,
+            viewpoint: None,
         }
+    }
+}
+
+impl NormalOptions {
+    /// These options with `k` neighbours.
+    #[must_use]
+    pub fn neighbours(mut self, k: usize) -> Self {
+        self.neighbours = k;
+        self
+    }
+
+    /// These options, turning the pieces to face `viewpoint`.
+    #[must_use]
+    pub fn viewpoint(mut self, viewpoint: Point<3>) -> Self {
+        self.viewpoint = Some(viewpoint);
+        self
     }
 }
 
@@ -169,6 +193,12 @@ pub enum NormalError {
     NonFinite {
         /// The record.
         index: usize,
+        /// Its coordinates.
+        value: Point<3>,
+    },
+    /// A viewpoint with a NaN or infinite coordinate.
+    #[error("viewpoint {value:?} is not finite")]
+    Viewpoint {
         /// Its coordinates.
         value: Point<3>,
     },
@@ -214,6 +244,11 @@ pub fn estimate_normals(
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
     }
+    if let Some(v) = options.viewpoint
+        && !v.iter().all(|x| x.is_finite())
+    {
+        return Err(NormalError::Viewpoint { value: v });
+    }
     if n < 3 {
         return Err(NormalError::TooFewPoints { needed: 3, got: n });
     }
@@ -243,7 +278,7 @@ pub fn estimate_normals(
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
-    let (signed, attached) = sign_pieces(positions, &pieces, &mut normals);
+    let (signed, attached) = sign_pieces(positions, &pieces, options.viewpoint, &mut normals);
     Ok(EstimatedNormals {
         normals,
         pieces: signed,
@@ -416,12 +451,13 @@ fn orient_pieces(
     pieces
 }
 
-/// Turns each large piece outward by its divergence and each small piece to agree with its
-/// points' nearest points in the large pieces. Returns the large pieces' count and the small
+/// Turns each large piece outward by its divergence (or to face `viewpoint`) and each small
+/// piece to agree with its points' nearest points in the large pieces. Returns the large pieces' count and the small
 /// pieces' points.
 fn sign_pieces(
     positions: &[Point<3>],
     pieces: &[Vec<u32>],
+    viewpoint: Option<Point<3>>,
     normals: &mut [Point<3>],
 ) -> (usize, usize) {
     // A piece whose root has no plane has none at all (roots are taken from the points with
@@ -456,11 +492,23 @@ fn sign_pieces(
             .iter()
             .fold([0.0; 3], |s, &i| geometry::add(&s, &positions[i as usize]))
             .map(|x| x / piece.len() as f64);
+        // Outward: Σ (p − c)·n > 0; towards the viewpoint v: Σ n·(v − p)/‖v − p‖ > 0.
         let divergence: f64 = piece
             .iter()
             .map(|&i| {
                 let i = i as usize;
-                geometry::dot(&geometry::sub(&positions[i], &centroid), &normals[i])
+                match viewpoint {
+                    None => geometry::dot(&geometry::sub(&positions[i], &centroid), &normals[i]),
+                    Some(v) => {
+                        let towards = geometry::sub(&v, &positions[i]);
+                        let length = geometry::norm(&towards);
+                        if length > 0.0 {
+                            geometry::dot(&towards, &normals[i]) / length
+                        } else {
+                            0.0
+                        }
+                    }
+                }
             })
             .sum();
         if divergence < 0.0 {

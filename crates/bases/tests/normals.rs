@@ -235,6 +235,37 @@ fn a_large_piece_without_any_plane_takes_its_neighbours_normals() {
 }
 
 #[test]
+fn a_viewpoint_turns_flat_and_inside_scans_towards_the_scanner() {
+    // Terrain seen from above (a gently curved 40 × 40 sheet, one side only): its divergence
+    // reads no inside; towards a viewpoint above every normal faces up, below every one down.
+    let terrain: Vec<P> = (0..1600)
+        .map(|i| {
+            let (x, y) = ((i % 40) as f64 * 0.025, (i / 40) as f64 * 0.025);
+            [x, y, 0.05 * (3.0 * x).sin() * (2.0 * y).cos()]
+        })
+        .collect();
+    for (height, sign) in [(10.0, 1.0), (-10.0, -1.0)] {
+        let options = NormalOptions::default().viewpoint([0.5, 0.5, height]);
+        let estimated = estimate_normals(&terrain, &options).unwrap();
+        for n in &estimated.normals {
+            assert!(sign * n[2] > 0.8, "{height}: {n:?}");
+        }
+    }
+    // A room scanned from its middle (the inside of a sphere): facing the scanner is inward,
+    // where by default the normals face out of the closed surface.
+    let (room, outward) = sphere(2000, [0.0; 3], 3.0);
+    let inside = NormalOptions::default().viewpoint([0.2, -0.1, 0.3]);
+    let estimated = estimate_normals(&room, &inside).unwrap();
+    assert_eq!(against(&estimated.normals, &outward).0, 1.0);
+    assert_eq!(against(&estimate(&room).normals, &outward).0, 0.0);
+    let nan = NormalOptions::default().viewpoint([0.0, f64::NAN, 0.0]);
+    assert!(matches!(
+        estimate_normals(&room, &nan),
+        Err(NormalError::Viewpoint { .. })
+    ));
+}
+
+#[test]
 fn duplicated_points_get_the_same_normal() {
     let (points, truth) = sphere(1000, [0.0; 3], 1.0);
     let doubled: Vec<P> = points.iter().flat_map(|p| [*p, *p]).collect();
@@ -317,7 +348,7 @@ fn bad_input_gets_specific_errors() {
     ));
     for k in [0, 1, MAX_NEIGHBOURS + 1] {
         assert_eq!(
-            estimate_normals(&points, &NormalOptions { neighbours: k }),
+            estimate_normals(&points, &NormalOptions::default().neighbours(k)),
             Err(NormalError::Neighbours { got: k })
         );
     }

@@ -27,6 +27,8 @@ Examples:
   zeroset reconstruct scan_oriented.ply -o scan_mesh.ply
   # a sparse or noisy scan: planes over more neighbours
   zeroset normals scan.xyz --neighbours 30 -o scan_oriented.xyzn
+  # terrain scanned from the air: face the sensor, far above
+  zeroset normals terrain.xyz --viewpoint 0,0,10000 -o terrain_oriented.ply
   # a scan that has normals: estimate them anyway and report how far they differ
   zeroset normals samples/bunny_2k.xyzn -o /tmp/bunny_estimated.ply";
 
@@ -46,6 +48,12 @@ pub struct NormalsArgs {
     /// average noise and bridge gaps; fewer follow fine detail and thin parts.
     #[arg(long, value_name = "K", default_value_t = NORMAL_NEIGHBOURS)]
     pub neighbours: usize,
+
+    /// Where the scanner stood: each piece is turned to face it instead of outward — for
+    /// one-sided scans of flat surfaces (a wall, terrain), which have no inside to read, and
+    /// scans from inside a room.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_viewpoint, allow_hyphen_values = true)]
+    pub viewpoint: Option<[f64; 3]>,
 
     /// Read the scan as this format whatever its extension: ply, xyz, csv.
     #[arg(long)]
@@ -82,7 +90,7 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
             ""
         }
     );
-    let (oriented, estimated) = orient(&cloud, args.neighbours, args.quiet)?;
+    let (oriented, estimated) = orient(&cloud, args.neighbours, args.viewpoint, args.quiet)?;
     if let Some(given) = cloud.normals() {
         outln!("{:<14}{}", "compared", compare(&estimated.normals, given));
     }
@@ -167,6 +175,16 @@ pub(crate) fn read_positions(
     }
 }
 
+/// `--viewpoint`: three finite comma-separated numbers.
+fn parse_viewpoint(s: &str) -> Result<[f64; 3], String> {
+    let v: [f64; 3] = crate::restore::parse_triple(s, "--viewpoint")?;
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(format!("--viewpoint must be finite, got {s:?}"))
+    }
+}
+
 /// Refuses a neighbour count outside the estimate's range, before any reading.
 pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
@@ -183,6 +201,7 @@ pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
 pub(crate) fn orient(
     cloud: &PointCloud3,
     neighbours: usize,
+    viewpoint: Option<[f64; 3]>,
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
@@ -194,6 +213,7 @@ pub(crate) fn orient(
         cloud.positions(),
         &NormalOptions {
             neighbours: neighbours.min(MAX_NEIGHBOURS),
+            viewpoint,
         },
     );
     bar.finish_and_clear();
@@ -215,11 +235,15 @@ pub(crate) fn orient(
         "whose neighbours span no plane took a neighbour's",
     );
     outln!(
-        "{:<14}estimated from {used} neighbours each: {} piece{} turned outward{small}{lines} \
+        "{:<14}estimated from {used} neighbours each: {} piece{} turned {}{small}{lines} \
          ({})",
         "normals",
         estimated.pieces,
         if estimated.pieces == 1 { "" } else { "s" },
+        match viewpoint {
+            Some(v) => format!("towards the viewpoint {v:?}"),
+            None => "outward".to_owned(),
+        },
         seconds(t.elapsed())
     );
     let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), estimated.normals.clone())

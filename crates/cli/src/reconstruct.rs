@@ -174,7 +174,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             "normals",
             args.scan.display()
         );
-        let (oriented, _) = crate::normals::orient(&cloud, args.normal_neighbours, args.quiet)?;
+        let (oriented, _) =
+            crate::normals::orient(&cloud, args.normal_neighbours, None, args.quiet)?;
         drop(cloud);
         let path = temporary_file(&args.output, "ply");
         let temporary = Temporary(Some(path.clone()));

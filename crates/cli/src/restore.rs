@@ -622,7 +622,7 @@ pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-fn parse_triple<T: std::str::FromStr>(s: &str, what: &str) -> Result<[T; 3], String>
+pub(crate) fn parse_triple<T: std::str::FromStr>(s: &str, what: &str) -> Result<[T; 3], String>
 where
     T::Err: std::fmt::Display,
 {

@@ -863,6 +863,11 @@ fn cases() -> Vec<Case> {
         .no_file()
         .says("--neighbours"),
         cli(
+            "viewpoint not finite",
+            "normals bunny.xyzn -o out.ply --viewpoint 0,inf,0 --quiet",
+        )
+        .no_file(),
+        cli(
             "bad input with an existing output and --force",
             "normals nan.xyzn -o out.ply --force --quiet",
         )

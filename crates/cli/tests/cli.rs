@@ -2582,6 +2582,27 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         let cos: f64 = (0..3).map(|a| row[3 + a] * n[a]).sum();
         assert!(cos > 3f64.to_radians().cos(), "{row:?} against {n:?}");
     }
+    // Seen from the centre (a room scanned from inside) with --viewpoint: every normal inward.
+    let inside = dir.path().join("inside.xyzn");
+    let o = zeroset([
+        OsStr::new("normals"),
+        scan.as_os_str(),
+        OsStr::new("--viewpoint"),
+        OsStr::new("0.1,-0.2,0.3"),
+        OsStr::new("-o"),
+        inside.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("turned towards the viewpoint [0.1, -0.2, 0.3]"));
+    let text = fs::read_to_string(&inside).unwrap();
+    for (line, (_, n)) in text.lines().zip(&points) {
+        let row: Vec<f64> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let cos: f64 = (0..3).map(|a| row[3 + a] * n[a]).sum();
+        assert!(cos < -3f64.to_radians().cos(), "{row:?} against {n:?}");
+    }
     // With the file's own normals it says how far they are.
     let given = dir.path().join("given.xyzn");
     fs::write(&given, sphere_xyzn(1500)).unwrap();
@@ -2622,6 +2643,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         [
             "compared.ply",
             "given.xyzn",
+            "inside.xyzn",
             "mesh.ply",
             "sphere.xyz",
             "sphere.xyzn"

@@ -31,14 +31,18 @@ pub(crate) fn sample_xyzn() -> &'static str {
 
 /// Outward unit normals for `points` (see `zeroset.estimate_normals`).
 #[pyfunction]
+#[pyo3(signature = (points, neighbours, viewpoint=None))]
 pub(crate) fn estimate_normals<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
     neighbours: usize,
+    viewpoint: Option<[f64; 3]>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let positions = rows(&points, "points", true)?;
-    let estimated = py
-        .detach(|| estimate(positions, &NormalOptions { neighbours }))
-        .map_err(to_py)?;
+    let options = NormalOptions {
+        neighbours,
+        viewpoint,
+    };
+    let estimated = py.detach(|| estimate(positions, &options)).map_err(to_py)?;
     Ok(rows_array(py, estimated.normals))
 }

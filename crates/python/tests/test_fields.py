@@ -373,6 +373,9 @@ def test_estimated_normals_are_outward_and_the_commands(tmp_path, zeroset_bin):
     written = np.loadtxt(out)
     np.testing.assert_array_equal(written[:, :3], points)
     np.testing.assert_array_equal(written[:, 3:], estimated)
+    # Seen from the centre (a room scanned from inside): every normal faces it.
+    inward = zeroset.estimate_normals(points, viewpoint=(0.0, 0.0, 0.0))
+    np.testing.assert_array_equal(inward, -estimated)
     # The estimate fits like a scan's own normals.
     field = zeroset.fit(points, estimated)
     assert field(np.zeros(3)) < -0.5 and field(np.array([1.2, 0, 0])) > 0
@@ -394,3 +397,5 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(line)
     with pytest.raises(ValueError, match=r"shape \(n, 3\)"):
         zeroset.estimate_normals(points[:, :2])
+    with pytest.raises(ValueError, match="viewpoint"):
+        zeroset.estimate_normals(points, viewpoint=(0.0, float("nan"), 0.0))

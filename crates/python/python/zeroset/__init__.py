@@ -282,12 +282,16 @@ def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     return _native.read_points(os.fspath(path))
 
 
-def estimate_normals(points: Any, neighbours: int = 16) -> np.ndarray:
+def estimate_normals(
+    points: Any, neighbours: int = 16, *, viewpoint: Optional[Sequence[float]] = None
+) -> np.ndarray:
     """Outward unit normals ``(n, 3)`` for points ``(n, 3)`` that have none (a scan of
     positions only), in the points' order: each point's plane through its ``neighbours``
     nearest (2 to 256), the signs propagated along a minimum spanning forest of the
     neighbour graph (Hoppe et al. 1992) and each connected piece turned outward. The result
-    feeds :func:`fit` like a scan's own normals.
+    feeds :func:`fit` like a scan's own normals. With ``viewpoint=(x, y, z)``, where the
+    scanner stood, each piece faces it instead (one-sided scans of flat surfaces, which have
+    no inside to read, and scans from inside a room).
 
     >>> import zeroset
     >>> points, normals = zeroset.sample_points()
@@ -300,7 +304,8 @@ def estimate_normals(points: Any, neighbours: int = 16) -> np.ndarray:
     k = int(neighbours)
     if k < 0:
         raise ValueError(f"neighbours = {k}: from 2 to 256")
-    return _native.estimate_normals(_rows(points, "points"), k)
+    v = None if viewpoint is None else _triple(viewpoint, "viewpoint")
+    return _native.estimate_normals(_rows(points, "points"), k, v)
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:

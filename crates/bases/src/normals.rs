@@ -158,10 +158,12 @@ impl NormalOptions {
 /// What [`estimate_normals`] found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EstimatedNormals {
-    /// One unit normal per input point, in input order, oriented outward.
+    /// One unit normal per input point, in input order, oriented outward (or towards the
+    /// viewpoint).
     pub normals: Vec<Point<3>>,
-    /// Connected pieces of the neighbour graph signed by their own divergence (at least
-    /// [`MIN_PIECE`] points each, or every piece when none is that large).
+    /// Connected pieces of the neighbour graph signed on their own, by their divergence or
+    /// the viewpoint (at least [`MIN_PIECE`] points with planes each, or every piece with a
+    /// plane when none is that large).
     pub pieces: usize,
     /// Points in smaller pieces, signed by their nearest points in the large ones.
     pub attached: usize,
@@ -227,14 +229,16 @@ pub enum NormalError {
     },
 }
 
-/// Unit normals for `positions`, oriented outward (see the [module docs](self)).
+/// Unit normals for `positions`, oriented outward, or towards [`NormalOptions::viewpoint`]
+/// where it is given (see the [module docs](self)).
 ///
 /// # Errors
 /// [`NormalError::TooFewPoints`] for fewer than 3 points ([`NormalError::TooManyPoints`] past
-/// `u32::MAX`), [`NormalError::NonFinite`] for a
-/// NaN or infinite coordinate, [`NormalError::Neighbours`] for a neighbour count outside
-/// [`MIN_NEIGHBOURS`]..=[`MAX_NEIGHBOURS`], [`NormalError::Degenerate`] where more than half
-/// the points' neighbourhoods span no plane.
+/// `u32::MAX`), [`NormalError::NonFinite`] for a NaN or infinite coordinate,
+/// [`NormalError::Neighbours`] for a neighbour count outside
+/// [`MIN_NEIGHBOURS`]..=[`MAX_NEIGHBOURS`], [`NormalError::Viewpoint`] for a viewpoint that is
+/// not finite, [`NormalError::Degenerate`] where more than half the points' neighbourhoods
+/// span no plane.
 pub fn estimate_normals(
     positions: &[Point<3>],
     options: &NormalOptions,

@@ -13,6 +13,7 @@ use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS, NormalOptions,
     estimate_normals,
 };
+use zeroset_field_core::geometry;
 use zeroset_field_core::io::{ReadOptions, read_point_cloud_with, write_atomic, write_ply};
 use zeroset_field_core::{Error, PointCloud3};
 
@@ -90,9 +91,9 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
             ""
         }
     );
-    let (oriented, estimated) = orient(&cloud, args.neighbours, args.viewpoint, args.quiet)?;
-    if let Some(given) = cloud.normals() {
-        outln!("{:<14}{}", "compared", compare(&estimated.normals, given));
+    let (oriented, _) = orient(&cloud, args.neighbours, args.viewpoint, args.quiet)?;
+    if let (Some(given), Some(estimated)) = (cloud.normals(), oriented.normals()) {
+        outln!("{:<14}{}", "compared", compare(estimated, given));
     }
     write_cloud(&args.output, &oriented)
         .with_context(|| format!("writing {}", args.output.display()))?;
@@ -196,8 +197,8 @@ pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `cloud`'s positions with estimated outward normals, and what the estimate found; prints
-/// the `normals` line.
+/// `cloud`'s positions with estimated outward normals, and what the estimate found (its counts;
+/// the normals are in the cloud); prints the `normals` line.
 pub(crate) fn orient(
     cloud: &PointCloud3,
     neighbours: usize,
@@ -217,7 +218,7 @@ pub(crate) fn orient(
         },
     );
     bar.finish_and_clear();
-    let estimated = estimated.context("estimating normals")?;
+    let mut estimated = estimated.context("estimating normals")?;
     // A clause for a count that is not zero.
     let clause = |count: usize, text: &str| {
         if count > 0 {
@@ -246,7 +247,9 @@ pub(crate) fn orient(
         },
         seconds(t.elapsed())
     );
-    let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), estimated.normals.clone())
+    // The normals move into the cloud; the report keeps the counts.
+    let normals = std::mem::take(&mut estimated.normals);
+    let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), normals)
         .context("the oriented cloud")?;
     Ok((oriented, estimated))
 }
@@ -257,11 +260,11 @@ fn compare(estimated: &[[f64; 3]], given: &[[f64; 3]]) -> String {
     let mut opposite = 0;
     let mut angles: Vec<f64> = Vec::with_capacity(given.len());
     for (e, n) in estimated.iter().zip(given) {
-        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let length = geometry::norm(n);
         if length <= 0.0 {
             continue;
         }
-        let cos = (e[0] * n[0] + e[1] * n[1] + e[2] * n[2]) / length;
+        let cos = geometry::dot(e, n) / length;
         if cos < 0.0 {
             opposite += 1;
         }

@@ -36,6 +36,16 @@ pub fn dot<const D: usize>(a: &Point<D>, b: &Point<D>) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The cross product `a × b` of two 3-D vectors.
+#[inline]
+pub fn cross(a: &Point<3>, b: &Point<3>) -> Point<3> {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
 /// The Euclidean norm `‖a‖₂`.
 #[inline]
 pub fn norm<const D: usize>(a: &Point<D>) -> f64 {

@@ -10,6 +10,7 @@
 //! not depend on hash order: the same mesh gives the same report.
 
 use zeroset_field_core::Point;
+use zeroset_field_core::geometry::{cross, dot, norm, sub};
 
 use crate::TriMesh;
 
@@ -144,22 +145,6 @@ impl Dsu {
     }
 }
 
-fn sub(a: Point<3>, b: Point<3>) -> Point<3> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: Point<3>, b: Point<3>) -> Point<3> {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: Point<3>, b: Point<3>) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// Checks `mesh`; see [`MeshReport`].
 ///
 /// ```
@@ -218,14 +203,14 @@ pub fn check(mesh: &TriMesh) -> MeshReport {
     }
     let (mut volume, mut area, mut degenerate) = (0.0, 0.0, 0);
     for (t, tri) in mesh.triangles().iter().enumerate() {
-        let [a, b, c] = mesh.corners(t).map(|p| sub(p, origin));
-        let n = cross(sub(b, a), sub(c, a));
-        let twice_area = dot(n, n).sqrt();
+        let [a, b, c] = mesh.corners(t).map(|p| sub(&p, &origin));
+        let n = cross(&sub(&b, &a), &sub(&c, &a));
+        let twice_area = norm(&n);
         if twice_area == 0.0 || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
             degenerate += 1;
         }
         area += 0.5 * twice_area;
-        volume += dot(a, cross(b, c)) / 6.0;
+        volume += dot(&a, &cross(&b, &c)) / 6.0;
     }
 
     let triangles = mesh.num_triangles();

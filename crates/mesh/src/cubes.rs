@@ -304,6 +304,11 @@ fn crossing_parameter(a: f64, b: f64, c: f64) -> f64 {
     t.clamp(0.0, 1.0)
 }
 
+/// How many `f32` steps (of the larger end's magnitude) a vertex of its own keeps from its
+/// edge's samples (`Extractor::apart_in_f32`): rounding to `f32` moves each by at most half a
+/// step, so the vertices of different edges around a sample stay distinct when written.
+const F32_APART: f64 = 4.0;
+
 /// Marks a centre vertex in a slab's triangles (its index within the slab in the low bits).
 const CENTRE: u32 = 1 << 31;
 
@@ -753,6 +758,28 @@ impl<'a> Extractor<'a> {
         }
     }
 
+    /// Coordinate `x` of a vertex of its own on the edge from sample `at` to `at + 1` along
+    /// `axis`, moved if need be to at least [`F32_APART`] `f32` steps from both samples. A
+    /// crossing just beside a sample (`t` = 10⁻⁹, say) otherwise puts the vertices of several
+    /// edges around that sample at one position once written as `f32` (PLY, STL): zero-area
+    /// triangles, and in STL — whose readers weld corners by position — edges shared by four
+    /// triangles. The move is at most a few `f32` steps: below what those files resolve.
+    #[inline]
+    fn apart_in_f32(&self, axis: usize, at: usize, x: f64) -> f64 {
+        let (lo, hi) = (
+            self.coordinate(axis, at as f64),
+            self.coordinate(axis, (at + 1) as f64),
+        );
+        let step =
+            f64::from(f32::EPSILON) * lo.abs().max(hi.abs()).max(f64::from(f32::MIN_POSITIVE));
+        let margin = F32_APART * step;
+        if hi - lo > 2.0 * margin {
+            x.clamp(lo + margin, hi - margin)
+        } else {
+            x
+        }
+    }
+
     /// The coordinate at continuous index `s` on `axis` (the grid's formula, so that integer
     /// `s` gives exactly the sample's coordinate).
     #[inline]
@@ -830,6 +857,7 @@ impl<'a> Extractor<'a> {
                             let s = idx[c] as f64 + if c == a { t } else { 0.0 };
                             self.coordinate(c, s)
                         });
+                        out[next][a] = self.apart_in_f32(a, idx[a], out[next][a]);
                         if self.normals {
                             let g0 = self.sample_gradient(idx);
                             let mut up = idx;

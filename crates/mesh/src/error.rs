@@ -129,6 +129,19 @@ pub enum MeshError {
         /// The number of records announced.
         expected: usize,
     },
+    /// An OBJ or STL mesh file that cannot be read: the file, its format and the place
+    /// (`line 12`, `triangle 7 (byte 434)`), and what is wrong there.
+    #[error("{}: {format} {place}: {detail}", path.display())]
+    Malformed {
+        /// The file (or the name given for in-memory data).
+        path: std::path::PathBuf,
+        /// `"OBJ"` or `"STL"`.
+        format: &'static str,
+        /// Where: a line, or a triangle with its byte offset.
+        place: String,
+        /// What is wrong.
+        detail: String,
+    },
     /// A file, or a feature of it, that this crate does not handle (not PLY, an unknown PLY
     /// encoding, a mesh too large for the output format).
     #[error("{}: unsupported format: {detail}", path.display())]

@@ -20,8 +20,10 @@
 //! - [`preview`] — software-rendered PNG previews: shaded meshes (orthographic, z-buffered,
 //!   back faces darker) and field slices (diverging colour map, zero contour in black).
 //! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
-//! - [`io`] — mesh files: PLY read (ASCII and binary, any vertex properties, polygons
-//!   fan-triangulated) and write (binary little-endian or ASCII), OBJ write; writes are atomic.
+//! - [`io`] — mesh files, each read and written: PLY (ASCII and binary, any vertex
+//!   properties, polygons fan-triangulated), Wavefront OBJ, and STL (binary and ASCII, corners
+//!   welded into shared vertices on reading); [`read_mesh`] / [`write_mesh`] by extension;
+//!   writes are atomic.
 //! - [`voxel`] — the voxel size of a marching-cubes grid from the bounding box (the
 //!   signed-marching-cubes paper's rule: `S_c = 5·l0` coarse, `l0` general, `0.3·l0` fine, with
 //!   a continuous reading of the reference length `l0`), the cubic-voxel grid covering a box,
@@ -94,7 +96,10 @@ pub mod voxel;
 pub use checks::{MeshReport, boundary_loops, check, components, unsupported_components};
 pub use cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 pub use error::{MeshError, Result};
-pub use io::{PlyFormat, read_ply_mesh, write_obj, write_ply};
+pub use io::{
+    MeshFormat, PlyFormat, StlFormat, read_mesh, read_obj_mesh, read_ply_mesh, read_stl_mesh,
+    write_mesh, write_obj, write_ply, write_stl,
+};
 pub use signed::{
     CoarseStep, SmcOptions, SmcReport, SmcStage, VgReport, expected_evaluations, settled_fraction,
     signed_marching_cubes, voxel_growing,

@@ -61,6 +61,7 @@ use std::borrow::Cow;
 use std::path::Path;
 
 use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::{cross, dot};
 use zeroset_field_core::io::write_atomic;
 use zeroset_field_core::{Aabb, Point};
 
@@ -302,18 +303,6 @@ impl Default for RenderOptions {
             colour: [176, 196, 222],
         }
     }
-}
-
-fn cross(a: &Point<3>, b: &Point<3>) -> Point<3> {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: &Point<3>, b: &Point<3>) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 fn normalised(a: Point<3>) -> Point<3> {

@@ -5,6 +5,7 @@
 //! triangle `(a, b, c)` is wound counter-clockwise seen from outside, so `(b − a) × (c − a)`
 //! points out of the solid, where the field is positive.
 
+use zeroset_field_core::geometry::{cross, norm, sub};
 use zeroset_field_core::{Aabb, Point};
 
 use crate::{MeshError, Result};
@@ -160,6 +161,52 @@ impl TriMesh {
     /// The corners of triangle `t`.
     pub fn corners(&self, t: usize) -> [Point<3>; 3] {
         self.triangles[t].map(|v| self.vertices[v as usize])
+    }
+
+    /// Each vertex's unit normal from the winding of the triangles around it: the sum of
+    /// their vectors `(b − a) × (c − a)` (so weighted by area), normalised; `[0, 0, 0]` for a
+    /// vertex no triangle with area uses. They point out of the solid when the triangles are
+    /// wound counter-clockwise seen from outside (zeroset's convention, and STL's).
+    ///
+    /// ```
+    /// use zeroset_mesh::TriMesh;
+    ///
+    /// // Two triangles of the plane z = 0, wound counter-clockwise seen from +z, and a loose
+    /// // vertex.
+    /// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [5.0; 3]];
+    /// let m = TriMesh::new(v, vec![[0, 1, 2], [0, 2, 3]])?;
+    /// let n = m.winding_normals();
+    /// assert!(n[..4].iter().all(|n| *n == [0.0, 0.0, 1.0]));
+    /// assert_eq!(n[4], [0.0; 3]);
+    /// # Ok::<(), zeroset_mesh::MeshError>(())
+    /// ```
+    pub fn winding_normals(&self) -> Vec<Point<3>> {
+        let mut sums = vec![[0.0; 3]; self.vertices.len()];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let area = area_vector(&self.corners(t));
+            for &v in tri {
+                let sum = &mut sums[v as usize];
+                for a in 0..3 {
+                    sum[a] += area[a];
+                }
+            }
+        }
+        sums.iter().map(unit_or_zero).collect()
+    }
+}
+
+/// `(b − a) × (c − a)` of a triangle's corners: twice its area along its normal.
+pub(crate) fn area_vector([a, b, c]: &[Point<3>; 3]) -> Point<3> {
+    cross(&sub(b, a), &sub(c, a))
+}
+
+/// `n / |n|`, or zero where `|n|` is 0 or not finite.
+pub(crate) fn unit_or_zero(n: &Point<3>) -> Point<3> {
+    let length = norm(n);
+    if length > 0.0 && length.is_finite() {
+        n.map(|x| x / length)
+    } else {
+        [0.0; 3]
     }
 }
 

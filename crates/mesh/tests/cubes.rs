@@ -348,8 +348,11 @@ fn a_plane_leaving_the_grid_is_open_unless_capped() {
     }
     assert!(boundary > 0);
     assert_eq!(euler(&open), 1); // a disc
+    // On the plane, but for crossings beside a sample (the plane runs through the sample at
+    // (−1, −1, 0.2), up to rounding): those are kept 4 f32 steps (~10⁻⁷ here) from it, so
+    // that the vertices around it stay distinct when written as f32.
     for p in open.vertices() {
-        assert!(f.value(p).abs() < 1e-12);
+        assert!(f.value(p).abs() < 4e-7, "{p:?} {}", f.value(p));
     }
     let capped = mesh_field(&f, &grid, 0.0, &closed()).unwrap();
     check_closed(&capped).unwrap();
@@ -361,8 +364,9 @@ fn a_plane_leaving_the_grid_is_open_unless_capped() {
         // box in z, so no clamp is active.
         4.0 * (0.1 + 1.0)
     };
+    // (To 1e-7, not rounding: the vertices beside the sample the plane runs through moved.)
     assert!(
-        (volume(&capped) - exact).abs() < 1e-9,
+        (volume(&capped) - exact).abs() < 1e-7,
         "{}",
         volume(&capped)
     );

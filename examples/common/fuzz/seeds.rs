@@ -133,6 +133,19 @@ pub fn real_files(small: bool) -> Vec<Seed> {
     let mut out = Vec::new();
     if let Some(b) = read("data/bun_zipper.ply") {
         if let Some(s) = shrink_ply(&b, 40) {
+            // The same small mesh as STL (binary and ASCII) and OBJ, for their readers.
+            if let Ok(mesh) = zeroset::mesh::io::ply_from_bytes(&s, "seed") {
+                use zeroset::mesh::io::{StlFormat, obj_to_string, stl_to_bytes};
+                for (name, format) in [
+                    ("bun_zipper_40.stl", StlFormat::Binary),
+                    ("bun_zipper_40_ascii.stl", StlFormat::Ascii),
+                ] {
+                    if let Ok(bytes) = stl_to_bytes(&mesh, format) {
+                        out.push(seed(name, bytes));
+                    }
+                }
+                out.push(seed("bun_zipper_40.obj", obj_to_string(&mesh).into_bytes()));
+            }
             out.push(seed("bun_zipper_40.ply", s));
         }
         out.push(seed("bun_zipper_head.ply", prefix_lines(&b, 4096)));
@@ -423,6 +436,8 @@ pub fn for_target(target: Target, seeds: &[Seed]) -> Vec<Seed> {
     };
     match target {
         Target::PlyCloud | Target::PlyMesh => by_ext(&["ply"]),
+        Target::StlMesh => by_ext(&["stl"]),
+        Target::ObjMesh => by_ext(&["obj"]),
         Target::Xyz => by_ext(&["xyz", "xyzn", "txt"]),
         Target::Csv | Target::GemPy => by_ext(&["csv"]),
         Target::Xyv => by_ext(&["xyv"]),

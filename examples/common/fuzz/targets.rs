@@ -22,6 +22,12 @@ pub enum Target {
     PlyCloud,
     /// PLY meshes: `zeroset_mesh::read_ply_mesh` and `ply_from_bytes`, then the mesh checks.
     PlyMesh,
+    /// STL meshes, binary and ASCII: `zeroset_mesh::read_stl_mesh` and `stl_from_bytes`, then
+    /// the mesh checks.
+    StlMesh,
+    /// Wavefront OBJ meshes: `zeroset_mesh::read_obj_mesh` and `obj_from_bytes`, then the mesh
+    /// checks.
+    ObjMesh,
     /// xyz text: `read_point_cloud_with(Format::Xyz)`, with and without normals.
     Xyz,
     /// CSV with a header: `read_point_cloud_with(Format::Csv)` and `detect_format`.
@@ -50,9 +56,11 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 12] = [
+    pub const ALL: [Target; 14] = [
         Target::PlyCloud,
         Target::PlyMesh,
+        Target::StlMesh,
+        Target::ObjMesh,
         Target::Xyz,
         Target::Csv,
         Target::GemPy,
@@ -70,6 +78,8 @@ impl Target {
         match self {
             Target::PlyCloud => "ply-cloud",
             Target::PlyMesh => "ply-mesh",
+            Target::StlMesh => "stl-mesh",
+            Target::ObjMesh => "obj-mesh",
             Target::Xyz => "xyz",
             Target::Csv => "csv",
             Target::GemPy => "gempy",
@@ -93,6 +103,8 @@ impl Target {
     pub fn ext(self) -> &'static str {
         match self {
             Target::PlyCloud | Target::PlyMesh => "ply",
+            Target::StlMesh => "stl",
+            Target::ObjMesh => "obj",
             Target::Xyz => "xyz",
             Target::Csv | Target::GemPy => "csv",
             Target::Xyv => "xyv",
@@ -242,6 +254,24 @@ pub fn run(target: Target, path: &Path, bytes: &[u8]) -> String {
             let a = outcome(&zeroset::mesh::read_ply_mesh(path), path, mesh_ok);
             let b = outcome(
                 &zeroset::mesh::io::ply_from_bytes(bytes, "F"),
+                Path::new("F"),
+                mesh_ok,
+            );
+            format!("{a} | {b}")
+        }
+        Target::StlMesh => {
+            let a = outcome(&zeroset::mesh::read_stl_mesh(path), path, mesh_ok);
+            let b = outcome(
+                &zeroset::mesh::io::stl_from_bytes(bytes, "F"),
+                Path::new("F"),
+                mesh_ok,
+            );
+            format!("{a} | {b}")
+        }
+        Target::ObjMesh => {
+            let a = outcome(&zeroset::mesh::read_obj_mesh(path), path, mesh_ok);
+            let b = outcome(
+                &zeroset::mesh::io::obj_from_bytes(bytes, "F"),
                 Path::new("F"),
                 mesh_ok,
             );

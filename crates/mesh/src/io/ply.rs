@@ -1,11 +1,9 @@
-//! Mesh files: PLY (read and write) and Wavefront OBJ (write).
+//! PLY meshes (read and write).
 //!
 //! - [`write_ply`] writes a [`TriMesh`] as PLY, binary little-endian by default
 //!   ([`PlyFormat`]): vertices as `float x y z`, normals as `float nx ny nz` when the mesh has
 //!   them, and faces as `list uchar int vertex_indices`, with a `comment` naming zeroset. The
 //!   header is the standard one that trimesh, Open3D, MeshLab and Blender read.
-//! - [`write_obj`] writes `v`, `vn` (with normals) and 1-based `f a//a b//b c//c` (or `f a b c`)
-//!   lines.
 //! - [`read_ply_mesh`] reads a PLY mesh with zeroset's one PLY layer
 //!   ([`zeroset_field_core::io::ply`]: ASCII or binary of either endianness, any scalar type
 //!   and its `int8 ... float64` alias): the `vertex` element's `x y z` (and `nx ny nz` when
@@ -13,10 +11,6 @@
 //!   `vertex_indices` (or `vertex_index`) of the `face` element, with any count and index
 //!   types; polygons with more than three corners are fan-triangulated; other elements are
 //!   skipped. Vertices that no face uses are kept.
-//!
-//! All writes are atomic ([`write_atomic`]): a reader of the path sees the old file or the
-//! complete new one. [`ply_to_bytes`], [`ply_from_bytes`] and [`obj_to_string`] do the same
-//! in memory.
 //!
 //! Errors name the file and the place: the header line, or the record with its line (ASCII)
 //! or byte offset (binary); a file that ends early is [`MeshError::PlyTruncated`] naming the
@@ -138,40 +132,6 @@ fn ply_bytes(path: &Path, mesh: &TriMesh, format: PlyFormat) -> Result<Vec<u8>> 
         }
     }
     Ok(out)
-}
-
-/// Writes `mesh` to `path` as Wavefront OBJ: a comment line, `v x y z` per vertex, `vn` per
-/// normal if the mesh has them, and `f a//a b//b c//c` (with normals) or `f a b c` per
-/// triangle, 1-based. Coordinates are written in full `f64` precision (shortest round-trip
-/// form).
-///
-/// # Errors
-/// [`MeshError::Field`] wrapping an I/O error that names `path`.
-pub fn write_obj(path: impl AsRef<Path>, mesh: &TriMesh) -> Result<()> {
-    let text = obj_to_string(mesh);
-    write_atomic(path, |w| w.write_all(text.as_bytes()))?;
-    Ok(())
-}
-
-/// The text [`write_obj`] writes.
-pub fn obj_to_string(mesh: &TriMesh) -> String {
-    let mut s = String::from("# written by zeroset (zeroset-mesh)\n");
-    for [x, y, z] in mesh.vertices() {
-        let _ = writeln!(s, "v {x} {y} {z}");
-    }
-    for [x, y, z] in mesh.normals() {
-        let _ = writeln!(s, "vn {x} {y} {z}");
-    }
-    let normals = !mesh.normals().is_empty();
-    for tri in mesh.triangles() {
-        let [a, b, c] = tri.map(|v| u64::from(v) + 1);
-        if normals {
-            let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
-        } else {
-            let _ = writeln!(s, "f {a} {b} {c}");
-        }
-    }
-    s
 }
 
 /// Reads a PLY mesh from `path`; see the [module docs](self).

@@ -1,0 +1,501 @@
+//! OBJ and STL: round trips, files as other software writes them, read errors, and the
+//! extension dispatch of `read_mesh` / `write_mesh`.
+
+use std::path::{Path, PathBuf};
+
+use zeroset_mesh::io::{
+    MeshFormat, StlFormat, obj_from_bytes, obj_to_string, stl_from_bytes, stl_to_bytes,
+};
+use zeroset_mesh::{
+    MeshError, TriMesh, boundary_loops, check, read_mesh, read_obj_mesh, read_ply_mesh,
+    read_stl_mesh, write_mesh, write_obj, write_stl,
+};
+
+/// The unit cube `[0, 1]³` offset by `o`, 12 triangles wound outward.
+fn cube_at(o: [f64; 3]) -> TriMesh {
+    let v = (0..8)
+        .map(|i| {
+            [
+                o[0] + (i & 1) as f64,
+                o[1] + ((i >> 1) & 1) as f64,
+                o[2] + ((i >> 2) & 1) as f64,
+            ]
+        })
+        .collect();
+    let quads: [[u32; 4]; 6] = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    TriMesh::new(v, t).unwrap()
+}
+
+/// A tetrahedron wound outward, with per-vertex normals and coordinates that are not `f32`.
+fn tetrahedron() -> TriMesh {
+    let v = vec![
+        [0.1, -0.2, 0.3],
+        [1.1, -0.2, 0.3],
+        [0.1, 0.8, 0.3],
+        [0.1, -0.2, 1.3],
+    ];
+    let n = vec![
+        [-0.5, -0.5, -0.5],
+        [0.75, -0.25, -0.25],
+        [-0.25, 0.75, -0.25],
+        [-0.25, -0.25, 0.75],
+    ];
+    TriMesh::new(v, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        .unwrap()
+        .with_normals(n)
+        .unwrap()
+}
+
+/// Each triangle as its corners' coordinates (rounded to `f32`, as STL stores them): the
+/// mesh's geometry and winding whatever its vertex numbering.
+fn corner_triangles(mesh: &TriMesh) -> Vec<[[f32; 3]; 3]> {
+    mesh.triangles()
+        .iter()
+        .map(|t| t.map(|v| mesh.vertices()[v as usize].map(|x| x as f32)))
+        .collect()
+}
+
+fn expect_stl_err(bytes: &[u8]) -> String {
+    match stl_from_bytes(bytes, "bad.stl") {
+        Ok(m) => panic!("expected an error, read {} triangles", m.num_triangles()),
+        Err(e) => {
+            assert!(
+                matches!(e, MeshError::Malformed { format: "STL", .. }),
+                "{e:?}"
+            );
+            e.to_string()
+        }
+    }
+}
+
+fn expect_obj_err(text: &str) -> String {
+    match obj_from_bytes(text.as_bytes(), "bad.obj") {
+        Ok(m) => panic!("expected an error, read {} triangles", m.num_triangles()),
+        Err(e) => {
+            assert!(
+                matches!(e, MeshError::Malformed { format: "OBJ", .. }),
+                "{e:?}"
+            );
+            e.to_string()
+        }
+    }
+}
+
+#[test]
+fn stl_round_trips_in_both_encodings_and_welds_the_corners() {
+    for mesh in [cube_at([0.0; 3]), tetrahedron()] {
+        let want = check(&mesh);
+        for format in [StlFormat::Binary, StlFormat::Ascii] {
+            let bytes = stl_to_bytes(&mesh, format).unwrap();
+            let back = stl_from_bytes(&bytes, "m.stl").unwrap();
+            // Corners welded back into the same number of shared vertices, same triangles and
+            // winding, no normals (STL has facet normals only).
+            assert_eq!(back.num_vertices(), mesh.num_vertices(), "{format:?}");
+            assert_eq!(corner_triangles(&back), corner_triangles(&mesh));
+            assert!(back.normals().is_empty());
+            let got = check(&back);
+            assert!(got.is_oriented_closed(), "{format:?}: {got}");
+            assert_eq!(got.euler_characteristic, want.euler_characteristic);
+            assert!((got.signed_volume - want.signed_volume).abs() < 1e-6);
+            // Written again, the same bytes: the second trip is exact.
+            assert_eq!(stl_to_bytes(&back, format).unwrap(), bytes);
+        }
+    }
+}
+
+#[test]
+fn binary_stl_layout_and_facet_normals() {
+    let cube = cube_at([0.0; 3]);
+    let bytes = stl_to_bytes(&cube, StlFormat::Binary).unwrap();
+    assert_eq!(bytes.len(), 84 + 12 * 50);
+    assert!(
+        !bytes.starts_with(b"solid"),
+        "a binary header must not begin with 'solid'"
+    );
+    assert_eq!(u32::from_le_bytes(bytes[80..84].try_into().unwrap()), 12);
+    let f = |at: usize| f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    for t in 0..12 {
+        let at = 84 + 50 * t;
+        let normal = [f(at), f(at + 4), f(at + 8)];
+        let corners: Vec<[f32; 3]> = (0..3)
+            .map(|c| [0, 1, 2].map(|k| f(at + 12 + 12 * c + 4 * k)))
+            .collect();
+        // The facet normal is the outward unit axis of the face the triangle lies on.
+        let axis = normal.iter().position(|v| v.abs() == 1.0).unwrap();
+        let side = corners[0][axis];
+        assert!(corners.iter().all(|c| c[axis] == side), "triangle {t}");
+        assert_eq!(normal[axis], if side == 1.0 { 1.0 } else { -1.0 });
+        assert_eq!(normal.iter().filter(|v| **v == 0.0).count(), 2);
+        assert_eq!(&bytes[at + 48..at + 50], &[0, 0]);
+    }
+    // A triangle without area gets a zero normal, not NaN.
+    let flat = TriMesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    let bytes = stl_to_bytes(&flat, StlFormat::Binary).unwrap();
+    assert!(bytes[84..96].iter().all(|&b| b == 0));
+}
+
+#[test]
+fn stl_as_other_software_writes_it() {
+    // A binary file whose header begins with "solid" (as many exporters write it) is binary:
+    // its length is what its count announces.
+    let mut bytes = stl_to_bytes(&cube_at([0.0; 3]), StlFormat::Binary).unwrap();
+    bytes[..11].copy_from_slice(b"solid cube ");
+    let m = stl_from_bytes(&bytes, "cube.stl").unwrap();
+    assert_eq!((m.num_vertices(), m.num_triangles()), (8, 12));
+    // Bytes after the last triangle (padding) are ignored.
+    bytes.extend_from_slice(&[0; 7]);
+    assert_eq!(stl_from_bytes(&bytes, "cube.stl").unwrap(), m);
+
+    // ASCII with upper-case keywords, CRLF, tabs, exponents, -0 beside 0 (one vertex), two
+    // solids, a quad facet (fan-triangulated), and no final endsolid.
+    let text = "SOLID part one\r\n\
+        facet normal 0 0 -1\r\n outer loop\r\n\
+        \tvertex 0 0 0\r\n vertex 0 1e0 0\r\n vertex 1.0E+00 1 -0\r\n vertex 1 -0.0 0\r\n\
+        endloop\r\n endfacet\r\nendsolid part one\r\n\
+        solid two\nfacet normal 0 0 0\nouter loop\nvertex 0 0 -0\nvertex 1 0 0\n\
+        vertex 0.5 0.5 2.5e-1\nendloop\nendfacet\n";
+    let m = stl_from_bytes(text.as_bytes(), "parts.stl").unwrap();
+    assert_eq!(m.num_triangles(), 3);
+    assert_eq!(m.num_vertices(), 5, "{:?}", m.vertices());
+    assert_eq!(m.triangles(), &[[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+    assert_eq!(m.vertices()[4], [0.5, 0.5, 0.25]);
+    // An empty solid is an empty mesh.
+    let m = stl_from_bytes(b"solid empty\nendsolid empty\n", "e.stl").unwrap();
+    assert_eq!((m.num_vertices(), m.num_triangles()), (0, 0));
+}
+
+#[test]
+fn stl_errors_name_the_place() {
+    let bytes = stl_to_bytes(&cube_at([0.0; 3]), StlFormat::Binary).unwrap();
+    // Cut in triangle 7.
+    let msg = expect_stl_err(&bytes[..84 + 7 * 50 + 20]);
+    assert!(
+        msg.contains("bad.stl")
+            && msg.contains("triangle 7 (byte 434)")
+            && msg.contains("truncated"),
+        "{msg}"
+    );
+    // A count of 4·10⁹ triangles in a 200-byte file: truncated at once, nothing allocated
+    // for the count.
+    let mut huge = bytes[..200].to_vec();
+    huge[80..84].copy_from_slice(&4_000_000_000u32.to_le_bytes());
+    let msg = expect_stl_err(&huge);
+    assert!(
+        msg.contains("triangle 2 ") && msg.contains("4000000000"),
+        "{msg}"
+    );
+    // A NaN corner.
+    let mut nan = bytes.clone();
+    let at = 84 + 3 * 50 + 12 + 12 + 8;
+    nan[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    let msg = expect_stl_err(&nan);
+    assert!(
+        msg.contains("triangle 3") && msg.contains("corner 1 coordinate z"),
+        "{msg}"
+    );
+    // Too short for either encoding.
+    let msg = expect_stl_err(b"not a mesh");
+    assert!(
+        msg.contains("10 bytes") && msg.contains("too short"),
+        "{msg}"
+    );
+
+    let facet = |body: &str| format!("solid s\nfacet normal 0 0 1\nouter loop\n{body}");
+    let cases: [(String, &str); 8] = [
+        (
+            facet("vertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n"),
+            "line 6: the facet has 2 corner(s)",
+        ),
+        (
+            facet("vertex 0 0 0\nvertex 1 nan 0\nvertex 0 1 0\nendloop\nendfacet\n"),
+            "line 5: vertex coordinate y is not finite",
+        ),
+        (
+            facet("vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 1e39\nendloop\nendfacet\n"),
+            "line 6: vertex coordinate z 1e39 is beyond the 32-bit float range of STL",
+        ),
+        (
+            facet("vertex 0 0 0\nvertex 1 0,5 0\n"),
+            "line 5: vertex coordinate y '0,5' is not a number",
+        ),
+        (
+            facet("vertex 0 0 0\nvertex 1 0 0\n"),
+            "line 2: truncated: the file ends inside the facet",
+        ),
+        (
+            "solid s\nvertex 0 0 0\n".into(),
+            "line 2: 'vertex' is a corner, which belongs inside an outer loop (the file is between facets)",
+        ),
+        (
+            "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendfacet\n"
+                .into(),
+            "line 7: 'endfacet' ends a facet whose loop is not closed",
+        ),
+        (
+            "solid s\nfacets 3\n".into(),
+            "line 2: 'facets' is not an ASCII STL keyword",
+        ),
+    ];
+    for (text, want) in &cases {
+        let msg = expect_stl_err(text.as_bytes());
+        assert!(msg.contains(want), "{text:?}:\n  got  {msg}\n  want {want}");
+    }
+}
+
+#[test]
+fn obj_round_trips_exactly() {
+    for mesh in [cube_at([0.5, -2.0, 1e-3]), tetrahedron()] {
+        let text = obj_to_string(&mesh);
+        // Full f64 text: the same mesh back, normals included (one per vertex).
+        assert_eq!(obj_from_bytes(text.as_bytes(), "m.obj").unwrap(), mesh);
+    }
+}
+
+#[test]
+fn obj_as_other_software_writes_it() {
+    // Colours after a vertex, texture coordinates, groups, materials, smoothing, comments, a
+    // continued line, corners v/vt/vn with negative (relative) indices, a quad.
+    let text = "# exported\nmtllib part.mtl\no part\n\
+        v 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 1 1 0\nv 0 1 0 # the fourth\n\
+        vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
+        g top\nusemtl steel\ns 1\n\
+        f -4/1/1 -3/2/1 \\\n  -2/3/1 -1/1/1\nl 1 2\n";
+    let m = obj_from_bytes(text.as_bytes(), "part.obj").unwrap();
+    assert_eq!(m.num_vertices(), 4);
+    assert_eq!(m.triangles(), &[[0, 1, 2], [0, 2, 3]]);
+    // Every vertex named the same normal: it becomes the vertex's.
+    assert_eq!(m.normals(), &[[0.0, 0.0, 1.0]; 4]);
+
+    // A vertex with two different normals (a crease), or one no face uses: no per-vertex
+    // normals, the geometry kept.
+    let crease = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvn 0 0 1\nvn 1 0 0\n\
+        f 1//1 2//1 3//1\nf 1//2 2//2 4//2\n";
+    let m = obj_from_bytes(crease.as_bytes(), "c.obj").unwrap();
+    assert_eq!((m.num_triangles(), m.normals().len()), (2, 0));
+    let unused = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nvn 0 0 1\nf 1//1 2//1 3//1\n";
+    let m = obj_from_bytes(unused.as_bytes(), "u.obj").unwrap();
+    assert_eq!((m.num_vertices(), m.normals().len()), (4, 0));
+}
+
+#[test]
+fn obj_errors_name_the_line() {
+    let cases = [
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+            "line 4: corner 0 '0': vertex index 0: OBJ indices start at 1",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nf 1 2 3\nv 0 1 0\n",
+            "line 3: corner 2 '3': vertex index 3 is out of range: 2 vertices read so far",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n",
+            "line 4: corner 2 '-4': vertex index -4 is out of range",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nf 1 2\n",
+            "line 3: the face has 2 corner(s)",
+        ),
+        ("v 0 0\n", "line 1: the vertex has no z coordinate"),
+        (
+            "# c\nv 0 zero 0\n",
+            "line 2: vertex coordinate y 'zero' is not a number",
+        ),
+        (
+            "v 0 0 inf\n",
+            "line 1: vertex coordinate z is not finite: inf",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//2 2//1 3//1\n",
+            "line 5: corner 0 '1//2': normal index 2 is out of range",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/a 2 3\n",
+            "line 4: corner 0 '1/a': ",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
+            "at most three parts",
+        ),
+    ];
+    for (text, want) in cases {
+        let msg = expect_obj_err(text);
+        assert!(msg.contains(want), "{text:?}:\n  got  {msg}\n  want {want}");
+    }
+    let msg = expect_obj_err("v 0 0 0\nv \u{0}\u{1}\n");
+    assert!(msg.contains("line 2: vertex coordinate x"), "{msg}");
+    let binary = [b'v', b' ', 0xff, 0xfe, b'\n'];
+    let err = obj_from_bytes(&binary, "bin.obj").unwrap_err().to_string();
+    assert!(err.contains("line 1") && err.contains("not UTF-8"), "{err}");
+}
+
+#[test]
+fn read_and_write_by_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = tetrahedron();
+    for (name, ascii) in [
+        ("t.ply", false),
+        ("t.PLY", true),
+        ("t.obj", false),
+        ("t.stl", false),
+        ("t.Stl", true),
+    ] {
+        let path = dir.path().join(name);
+        write_mesh(&path, &mesh, ascii).unwrap();
+        let back = read_mesh(&path).unwrap();
+        let format = MeshFormat::from_path(&path).unwrap();
+        assert_eq!(corner_triangles(&back), corner_triangles(&mesh), "{name}");
+        if format == MeshFormat::Stl {
+            let text = std::fs::read(&path).unwrap().starts_with(b"solid");
+            assert_eq!(text, ascii, "{name}");
+            assert_eq!(back, read_stl_mesh(&path).unwrap());
+        } else {
+            assert_eq!(back.normals().len(), 4, "{name}");
+        }
+    }
+    for bad in ["t.off", "t", "t.ply.gz"] {
+        let path = dir.path().join(bad);
+        let err = write_mesh(&path, &mesh, false).unwrap_err();
+        assert!(
+            matches!(err, MeshError::UnsupportedFormat { .. }) && err.to_string().contains(".stl"),
+            "{err}"
+        );
+        assert!(!path.exists());
+        assert!(read_mesh(&path).is_err());
+    }
+    // A missing file is named.
+    let missing = dir.path().join("missing.stl");
+    let err = read_stl_mesh(&missing).unwrap_err().to_string();
+    assert!(err.contains("missing.stl"), "{err}");
+    let err = read_obj_mesh(dir.path().join("missing.obj"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("missing.obj"), "{err}");
+}
+
+fn bunny_path() -> PathBuf {
+    std::env::var_os("ZEROSET_DATA")
+        .map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
+            PathBuf::from,
+        )
+        .join("bun_zipper.ply")
+}
+
+#[test]
+fn the_bunny_through_stl_and_obj_keeps_its_topology() {
+    let path = bunny_path();
+    assert!(path.is_file(), "test data {} not found", path.display());
+    let ply = read_ply_mesh(&path).unwrap();
+    let want = check(&ply);
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["bunny.stl", "bunny_ascii.stl", "bunny.obj"] {
+        let out = dir.path().join(name);
+        write_mesh(&out, &ply, name.contains("ascii")).unwrap();
+        let back = read_mesh(&out).unwrap();
+        let got = check(&back);
+        // STL keeps only the vertices triangles use (34,834 of 35,947); every other count —
+        // edges, the 5 holes' 223 boundary edges, Euler characteristic −3 — is the same.
+        let vertices = if name.ends_with(".stl") {
+            want.used_vertices
+        } else {
+            want.vertices
+        };
+        assert_eq!(got.vertices, vertices, "{name}");
+        assert_eq!(
+            (
+                got.edges,
+                got.boundary_edges,
+                got.euler_characteristic,
+                got.components
+            ),
+            (
+                want.edges,
+                want.boundary_edges,
+                want.euler_characteristic,
+                want.components
+            ),
+            "{name}"
+        );
+        assert_eq!(boundary_loops(&back), 5);
+        assert!(
+            (got.signed_volume - want.signed_volume).abs() < 1e-12,
+            "{name}"
+        );
+        assert_eq!(corner_triangles(&back), corner_triangles(&ply));
+    }
+    // Read back and written again, the STL is byte-identical.
+    let stl = dir.path().join("bunny.stl");
+    let bytes = std::fs::read(&stl).unwrap();
+    let again = dir.path().join("again.stl");
+    write_stl(&again, &read_stl_mesh(&stl).unwrap(), StlFormat::Binary).unwrap();
+    assert_eq!(std::fs::read(&again).unwrap(), bytes);
+    write_obj(dir.path().join("x.obj"), &ply).unwrap();
+}
+
+#[test]
+fn a_surface_beside_a_sample_survives_f32_files() {
+    // A sphere of radius 0.5 + 10⁻¹³ about (0.25, 0.25, 0.25) on a grid with a sample at
+    // (0.75, 0.25, 0.25): that sample is inside by 10⁻¹³ and five of its six neighbours
+    // outside, so five crossings lie within 10⁻¹² of an edge length of it — distinct in f64,
+    // one point once written as f32. They
+    // are kept apart, so the STL reads back (its corners welded by position) as the same
+    // closed sphere, and the PLY has no zero-area triangle.
+    use zeroset_field_core::field::FnField;
+    use zeroset_field_core::{Aabb, Grid};
+    use zeroset_mesh::io::{PlyFormat, ply_from_bytes, ply_to_bytes};
+    use zeroset_mesh::{McOptions, mesh_field};
+    let r = 0.5 + 1e-13;
+    let sphere = FnField::new(
+        move |p: &[f64; 3]| {
+            let d = p.map(|x| x - 0.25);
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - r
+        },
+        None,
+    );
+    let grid = Grid::vertex_centered(Aabb::centered_cube(1.0).unwrap(), [33; 3]).unwrap();
+    let mesh = mesh_field(&sphere, &grid, 0.0, &McOptions::default()).unwrap();
+    let want = check(&mesh);
+    assert!(
+        want.is_oriented_closed() && want.euler_characteristic == 2,
+        "{want}"
+    );
+    let near = mesh
+        .vertices()
+        .iter()
+        .filter(|p| {
+            (p[0] - 0.75).abs() < 1e-6 && (p[1] - 0.25).abs() < 1e-6 && (p[2] - 0.25).abs() < 1e-6
+        })
+        .count();
+    assert_eq!(near, 5, "the crossings around the sample");
+    for format in [StlFormat::Binary, StlFormat::Ascii] {
+        let back = stl_from_bytes(&stl_to_bytes(&mesh, format).unwrap(), "s.stl").unwrap();
+        let got = check(&back);
+        assert_eq!(back.num_vertices(), mesh.num_vertices(), "{format:?}");
+        assert!(
+            got.is_oriented_closed() && got.euler_characteristic == 2,
+            "{got}"
+        );
+    }
+    let ply = ply_from_bytes(
+        &ply_to_bytes(&mesh, PlyFormat::BinaryLittleEndian).unwrap(),
+        "s",
+    )
+    .unwrap();
+    assert_eq!(check(&ply).degenerate_triangles, 0);
+}

@@ -669,14 +669,18 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     if let Some(format) = &args.format {
         options = options.with_format(format.parse().context("--format")?);
     }
-    let cloud = read_point_cloud_with(path, &options).map_err(|e| {
-        read_error(
-            path,
-            e,
-            "record",
-            "zeroset fit needs finite coordinates and normals (`zeroset info` counts them all)",
-        )
-    })?;
+    let cloud = match crate::mesh_points::read(path, &options)? {
+        Some(cloud) => cloud,
+        None => read_point_cloud_with(path, &options).map_err(|e| {
+            read_error(
+                path,
+                e,
+                "record",
+                "zeroset fit needs finite coordinates and normals (`zeroset info` counts them \
+                 all)",
+            )
+        })?,
+    };
     if cloud.normals().is_none() {
         bail!(
             "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \

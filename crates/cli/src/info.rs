@@ -1,7 +1,7 @@
 //! `zeroset info FILE`: what a point-cloud file holds, and what to fix before fitting it; or,
-//! for a `.zsf` field file, its kind (B-spline, RBF or neural; 2-D or 3-D), box and metadata;
-//! or, for a PLY with
-//! a face element, the mesh's counts and `zeroset_mesh::checks` report.
+//! for a `.zsf` field file, its kind (B-spline, RBF, MRAS or neural; 2-D or 3-D), box and
+//! metadata; or, for a mesh (a PLY with a face element, an OBJ or an STL file), the mesh's
+//! counts and `zeroset_mesh::checks` report.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -29,6 +29,7 @@ Examples:
   zeroset info bunny.zsf        # a field file: kind, box, kernel and centres, B-spline grid
                                 # or network
   zeroset info bunny_mesh.ply   # a PLY with faces: triangles, boundary loops, Euler char., volume
+  zeroset info part.stl         # an STL (or OBJ) mesh: the same report
 
 NaN and infinite values do not stop the report: they are counted and the first is named
 (record, line, field).";
@@ -37,8 +38,8 @@ NaN and infinite values do not stop the report: they are counted and the first i
 #[derive(Debug, Args)]
 pub struct InfoArgs {
     /// The point-cloud file: .ply (ascii or binary), .xyz/.xyzn/.txt/.pts (x y z [nx ny nz]
-    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); or a .zsf field
-    /// file (told by its contents).
+    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file
+    /// (told by its contents); or a mesh: .ply with faces, .obj or .stl.
     pub file: PathBuf,
 
     /// Read the file as this format instead of detecting it from the extension and header.
@@ -87,12 +88,19 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     if args.format.is_none() && is_field_file(path) {
         return field_report(path);
     }
+    if args.format.is_none() {
+        match zeroset_mesh::MeshFormat::from_path(path) {
+            Some(zeroset_mesh::MeshFormat::Obj) => return mesh_report(path, "obj"),
+            Some(zeroset_mesh::MeshFormat::Stl) => return mesh_report(path, "stl"),
+            _ => {}
+        }
+    }
     let format = match args.format {
         Some(f) => f.into(),
         None => io::detect_format(path).context("cannot tell the file's format")?,
     };
     if format == Format::Ply && has_faces(path) {
-        return mesh_report(path);
+        return mesh_report(path, "ply");
     }
     let mut options = ReadOptions::default().with_format(format);
     // Columns 4–6 of an xyz file that are not normals (colours): describe the positions and
@@ -336,14 +344,15 @@ fn has_faces(path: &Path) -> bool {
     )
 }
 
-/// The report of a PLY mesh: counts and the `zeroset_mesh::checks` report.
-fn mesh_report(path: &Path) -> anyhow::Result<String> {
-    let mesh = zeroset_mesh::read_ply_mesh(path).context("cannot read mesh")?;
+/// The report of a mesh (PLY with faces, OBJ, STL): counts and the `zeroset_mesh::checks`
+/// report.
+fn mesh_report(path: &Path, format: &str) -> anyhow::Result<String> {
+    let mesh = zeroset_mesh::read_mesh(path).context("cannot read mesh")?;
     let r = zeroset_mesh::check(&mesh);
     let loops = zeroset_mesh::boundary_loops(&mesh);
     let mut s = String::new();
     line(&mut s, "file", &path.display().to_string());
-    line(&mut s, "format", "ply (mesh)");
+    line(&mut s, "format", &format!("{format} (mesh)"));
     line(
         &mut s,
         "vertices",

@@ -25,6 +25,7 @@ mod fit_neural;
 mod info;
 mod machine;
 mod mesh;
+mod mesh_points;
 mod noise;
 mod normals;
 mod outliers;

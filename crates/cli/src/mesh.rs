@@ -25,7 +25,7 @@
 //! axis, default 256, or `--voxel`) and written as an SVG (`-o OUT.svg`).
 
 use std::borrow::Cow;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -45,8 +45,8 @@ use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{
-    McOptions, PlyFormat, TriMesh, check, components, mesh_field, unsupported_components,
-    write_obj, write_ply,
+    McOptions, MeshFormat, TriMesh, check, components, mesh_field, unsupported_components,
+    write_mesh,
 };
 
 use crate::info::{g, point};
@@ -120,13 +120,14 @@ impl From<DetailArg> for Detail {
 /// Arguments of `zeroset mesh`.
 #[derive(Debug, Args)]
 pub struct MeshArgs {
-    /// The field file (.zsf): an RBF or neural field (`zeroset fit -o`) or a B-spline field
-    /// (`zeroset fit -o --sampled`, `zeroset restore`); meshed over the box it records.
+    /// The field file (.zsf): an RBF, MRAS or neural field (`zeroset fit -o`) or a B-spline
+    /// field (`zeroset fit -o --sampled`, `zeroset restore`); meshed over the box it records.
     pub field: PathBuf,
 
-    /// The mesh file: .ply (binary little-endian, or --ascii) or .obj, written atomically;
-    /// .svg for the level curve of a 2-D field.
-    #[arg(short, long, value_name = "OUT.ply|OUT.obj|OUT.svg")]
+    /// The mesh file: .ply (binary little-endian, or --ascii), .obj, or .stl (binary, or
+    /// --ascii; for 3-D printing and CAD), written atomically; .svg for the level curve of a
+    /// 2-D field.
+    #[arg(short, long, value_name = "OUT.ply|OUT.obj|OUT.stl|OUT.svg")]
     pub output: PathBuf,
 
     /// Surface-extraction method.
@@ -180,7 +181,7 @@ pub struct MeshArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
-    /// Write an ASCII PLY instead of binary little-endian.
+    /// Write an ASCII PLY or STL instead of binary (OBJ is always text).
     #[arg(long)]
     pub ascii: bool,
 
@@ -195,13 +196,6 @@ pub struct MeshArgs {
 
 /// A mesh component with no input point within this many voxels is reported as spurious.
 const SPURIOUS_VOXELS: f64 = 3.0;
-
-/// The output format, from the extension.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Format {
-    Ply,
-    Obj,
-}
 
 /// The report's lines ([`say_line`](crate::output::say_line): once stdout is closed,
 /// `zeroset mesh ... | head`, printing stops but the work goes on and the mesh is written).
@@ -410,7 +404,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     )?;
 
     let start = Instant::now();
-    write(&args.output, &mesh, format, args.ascii)
+    write_mesh(&args.output, &mesh, args.ascii)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let writing = start.elapsed();
     say!(
@@ -418,9 +412,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         "wrote {} ({})",
         args.output.display(),
         match (format, args.ascii) {
-            (Format::Obj, _) => "OBJ",
-            (Format::Ply, true) => "ASCII PLY",
-            (Format::Ply, false) => "binary PLY",
+            (MeshFormat::Obj, _) => "OBJ",
+            (MeshFormat::Ply, true) => "ASCII PLY",
+            (MeshFormat::Ply, false) => "binary PLY",
+            (MeshFormat::Stl, true) => "ASCII STL",
+            (MeshFormat::Stl, false) => "binary STL",
         }
     )?;
     say!(
@@ -696,26 +692,17 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
 
 /// The output's format from its extension; refuses the input, an existing file without
 /// --force and a missing directory — all before any work.
-fn check_output(args: &MeshArgs) -> anyhow::Result<Format> {
+fn check_output(args: &MeshArgs) -> anyhow::Result<MeshFormat> {
     let out = &args.output;
-    crate::output::check_output(out, &[&args.field], args.force, &["ply", "obj"])?;
-    let obj = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    let format = if obj { Format::Obj } else { Format::Ply };
-    if args.ascii && format == Format::Obj {
-        bail!("--ascii applies to PLY output (OBJ is always text)");
+    crate::output::check_output(out, &[&args.field], args.force, &MeshFormat::EXTENSIONS)?;
+    let format = MeshFormat::from_path(out).context("a mesh file's extension")?;
+    if args.ascii && !format.has_binary() {
+        bail!(
+            "--ascii applies to PLY and STL output; {} is OBJ, which is always text",
+            out.display()
+        );
     }
     Ok(format)
-}
-
-fn write(path: &Path, mesh: &TriMesh, format: Format, ascii: bool) -> zeroset_mesh::Result<()> {
-    match format {
-        Format::Obj => write_obj(path, mesh),
-        Format::Ply if ascii => write_ply(path, mesh, PlyFormat::Ascii),
-        Format::Ply => write_ply(path, mesh, PlyFormat::BinaryLittleEndian),
-    }
 }
 
 /// Runs `work`; a spinner appears if it takes longer than a second (never with `quiet`).

@@ -130,6 +130,9 @@ pub(crate) fn read_positions(
             &format!("{command} needs {needs} (`zeroset info` counts them all)"),
         )
     };
+    if let Some(cloud) = crate::mesh_points::read(path, options)? {
+        return Ok(cloud);
+    }
     let positions_only =
         || read_point_cloud_with(path, &options.clone().with_positions_only(true)).map_err(error);
     match read_point_cloud_with(path, options) {

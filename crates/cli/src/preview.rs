@@ -1,6 +1,6 @@
 //! `zeroset preview INPUT -o IMAGE.png`: a PNG picture of a mesh or a field.
 //!
-//! A mesh (`.ply`) is drawn shaded (`zeroset_mesh::preview::render_mesh`: orthographic,
+//! A mesh (`.ply`, `.obj`, `.stl`) is drawn shaded (`zeroset_mesh::preview::render_mesh`: orthographic,
 //! z-buffered, back faces darker and warmer). A field file (`.zsf`, recognised by its magic) is
 //! meshed at its zero set by marching cubes on the general `l0` voxel grid of its box (capped
 //! where it leaves the box) and drawn the same way; with `--slice AXIS[=POS]` the field is drawn
@@ -21,7 +21,7 @@ use zeroset_mesh::preview::{
     Image, MAX_IMAGE_SIZE, RenderOptions, View, render_field_2d, render_mesh, render_slice,
 };
 use zeroset_mesh::voxel::{self, Detail};
-use zeroset_mesh::{McOptions, TriMesh, mesh_field, read_ply_mesh};
+use zeroset_mesh::{McOptions, MeshFormat, TriMesh, mesh_field};
 
 /// Shown after `zeroset preview --help`.
 pub const EXAMPLES: &str = "\
@@ -82,7 +82,7 @@ fn parse_slice(s: &str) -> Result<Slice, String> {
 /// Arguments of `zeroset preview`.
 #[derive(Debug, Args)]
 pub struct PreviewArgs {
-    /// A mesh (.ply) or a field file (.zsf).
+    /// A mesh (.ply, .obj, .stl) or a field file (.zsf).
     pub input: PathBuf,
 
     /// The image, a .png file, written atomically.
@@ -238,34 +238,23 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads a mesh file by its extension (PLY only for now).
+/// Reads a mesh file (PLY, OBJ or STL) by its extension.
 fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("ply") => {
-            let mesh =
-                read_ply_mesh(path).with_context(|| format!("reading {}", path.display()))?;
-            if mesh.triangles().is_empty() {
-                bail!(
-                    "{} holds no triangle (a point cloud?): there is nothing to render",
-                    path.display()
-                );
-            }
-            Ok(mesh)
-        }
-        Some("obj") => bail!(
-            "{}: OBJ meshes are not supported for reading yet; convert to PLY, or preview the \
-             .zsf field it came from",
+    if MeshFormat::from_path(path).is_none() {
+        bail!(
+            "{} is neither a field file (.zsf) nor a mesh (.ply, .obj, .stl)",
             path.display()
-        ),
-        _ => bail!(
-            "{} is neither a field file (.zsf) nor a mesh (.ply)",
-            path.display()
-        ),
+        );
     }
+    let mesh =
+        zeroset_mesh::read_mesh(path).with_context(|| format!("reading {}", path.display()))?;
+    if mesh.triangles().is_empty() {
+        bail!(
+            "{} holds no triangle (a point cloud?): there is nothing to render",
+            path.display()
+        );
+    }
+    Ok(mesh)
 }
 
 fn render(args: &PreviewArgs, mesh: &TriMesh) -> anyhow::Result<Image> {

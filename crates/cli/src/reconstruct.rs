@@ -52,9 +52,9 @@ pub struct ReconstructArgs {
     /// point out of the solid.
     pub scan: PathBuf,
 
-    /// The mesh: .ply (binary little-endian) or .obj, written atomically. The preview is
-    /// written beside it, with the extension .png.
-    #[arg(short, long, value_name = "MESH.ply|MESH.obj")]
+    /// The mesh: .ply (binary little-endian), .obj or .stl (binary), written atomically. The
+    /// preview is written beside it, with the extension .png.
+    #[arg(short, long, value_name = "MESH.ply|MESH.obj|MESH.stl")]
     pub output: PathBuf,
 
     /// The field to fit.
@@ -134,7 +134,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let preview = (!args.no_preview).then(|| args.output.with_extension("png"));
     // Every output is checked before any work: its extension, its directory, and --force.
     let outputs: [(Option<&PathBuf>, &[&str]); 3] = [
-        (Some(&args.output), &["ply", "obj"]),
+        (Some(&args.output), &zeroset_mesh::MeshFormat::EXTENSIONS),
         (preview.as_ref(), &["png"]),
         (args.field.as_ref(), &["zsf"]),
     ];

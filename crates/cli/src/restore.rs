@@ -576,14 +576,18 @@ impl Source {
         if let Some(format) = &self.format {
             options = options.with_format(format.parse().context("--format")?);
         }
-        let cloud = read_point_cloud_with(input, &options).map_err(|e| {
-            crate::fit::read_error(
-                input,
-                e,
-                "record",
-                "zeroset restore needs finite coordinates and normals (`zeroset info` counts them all)",
-            )
-        })?;
+        let cloud = match crate::mesh_points::read(input, &options)? {
+            Some(cloud) => cloud,
+            None => read_point_cloud_with(input, &options).map_err(|e| {
+                crate::fit::read_error(
+                    input,
+                    e,
+                    "record",
+                    "zeroset restore needs finite coordinates and normals (`zeroset info` \
+                     counts them all)",
+                )
+            })?,
+        };
         if cloud.normals().is_none() {
             bail!(
                 "{} has no normals: a point cloud is restored through its tangent-plane field, \

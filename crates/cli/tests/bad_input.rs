@@ -30,7 +30,7 @@ use zeroset_field_core::geometry::Aabb;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::gempy::read_gempy_file;
 use zeroset_field_core::io::{read_point_cloud, read_value_points};
-use zeroset_mesh::{PlyFormat, TriMesh, read_ply_mesh};
+use zeroset_mesh::{PlyFormat, TriMesh};
 
 /// The committed catalogue, relative to this crate.
 const DOC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/bad-input.md");
@@ -130,8 +130,13 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         b"0 0 0 0 0 1\n\xff\xfe 1 0 0 0 1\n",
     );
     m.put(
-        "bunny.stl",
+        "bunny.off",
         "the text of `bunny.xyzn` under an extension no reader knows",
+        bunny.as_bytes(),
+    );
+    m.put(
+        "cloud.stl",
+        "the text of `bunny.xyzn` named as an STL mesh",
         bunny.as_bytes(),
     );
     fs::create_dir(dir.join("folder.xyzn")).unwrap();
@@ -329,6 +334,35 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         "an ascii PLY tetrahedron whose last face has 2 corners",
         (mesh_head(4, 4) + tet_vertices + "3 0 2 1\n3 0 1 3\n3 0 3 2\n2 1 2\n").as_bytes(),
     );
+    let stl = zeroset_mesh::io::stl_to_bytes(&tet, zeroset_mesh::StlFormat::Binary).unwrap();
+    m.put(
+        "tet_trunc.stl",
+        "a binary STL tetrahedron without its last 30 bytes (inside triangle 3)",
+        &stl[..stl.len() - 30],
+    );
+    m.put(
+        "tet_nan.stl",
+        "an ASCII STL facet with the corner `vertex 1 nan 0`",
+        b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 nan 0\n\
+          vertex 0 1 0\nendloop\nendfacet\nendsolid t\n",
+    );
+    m.put("tiny.stl", "a 10-byte file named .stl", b"not a mesh");
+    let obj_vertices = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n";
+    m.put(
+        "tet_index.obj",
+        "an OBJ tetrahedron whose last face refers to vertex 7 of 4",
+        (obj_vertices.to_owned() + "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 7\n").as_bytes(),
+    );
+    m.put(
+        "tet_zero.obj",
+        "an OBJ tetrahedron whose first face refers to vertex 0 (OBJ counts from 1)",
+        (obj_vertices.to_owned() + "f 0 2 1\nf 1 2 4\nf 1 4 3\nf 2 3 4\n").as_bytes(),
+    );
+    m.put(
+        "binary.obj",
+        "bytes that are not text, named .obj",
+        &[b'v', b' ', 0xff, 0xfe, 0, 1, b'\n'],
+    );
     m.list
 }
 
@@ -423,7 +457,9 @@ impl Target {
             Target::ValueReader => {
                 "Value constraints: `zeroset_field_core::io::read_value_points::<2>` (xyv)"
             }
-            Target::MeshReader => "Meshes: `zeroset_mesh::read_ply_mesh`",
+            Target::MeshReader => {
+                "Meshes: `zeroset_mesh::read_mesh` (PLY, OBJ or STL, by the extension)"
+            }
             Target::FieldReader => "Field files: `zeroset_bases::field_file::read_any_field::<3>`",
         }
     }
@@ -460,7 +496,7 @@ impl Target {
             Target::ValueReader => read_value_points::<2>(path)
                 .map(|v| format!("{} constraints", v.points.len()))
                 .map_err(|e| text(&e)),
-            Target::MeshReader => read_ply_mesh(path)
+            Target::MeshReader => zeroset_mesh::read_mesh(path)
                 .map(|m| {
                     format!(
                         "{} vertices, {} triangles",
@@ -574,7 +610,8 @@ fn cases() -> Vec<Case> {
         cli("not UTF-8", "info latin1.xyzn").says("UTF-8"),
         cli("missing file", "info missing.xyzn"),
         cli("directory instead of file", "info folder.xyzn"),
-        cli("wrong extension", "info bunny.stl").says("unknown point-cloud format"),
+        cli("wrong extension", "info bunny.off").says("unknown point-cloud format"),
+        cli("a point cloud named .stl", "info cloud.stl").says("not ASCII STL"),
         cli("truncated binary PLY", "info cloud_trunc.ply").says("truncated"),
         cli("header count larger than the file", "info cloud_count.ply"),
         cli("unsupported PLY encoding", "info encoding.ply").says("binary_middle_endian"),
@@ -584,6 +621,8 @@ fn cases() -> Vec<Case> {
         cli("truncated .zsf", "info trunc.zsf").says("truncated"),
         cli(".zsf of a newer version", "info newer.zsf").says("version 9"),
         cli("out-of-range face index", "info tet_index.ply").says("vertex 7"),
+        cli("truncated binary STL", "info tet_trunc.stl").says("triangle 3"),
+        cli("OBJ face index out of range", "info tet_index.obj").says("line 8"),
         cli("unknown option value", "info bunny.xyzn --format stl")
             .no_file()
             .says("possible values"),
@@ -611,7 +650,7 @@ fn cases() -> Vec<Case> {
         cli("duplicate points", "fit dup.xyzn --method rbf --quiet").accepted("merged"),
         cli("not UTF-8", "fit latin1.xyzn --method rbf").says("UTF-8"),
         cli("missing file", "fit missing.xyzn --method rbf"),
-        cli("wrong extension", "fit bunny.stl --method rbf"),
+        cli("wrong extension", "fit bunny.off --method rbf"),
         cli(
             "a field file where points belong",
             "fit sphere.zsf --method rbf",
@@ -754,7 +793,13 @@ fn cases() -> Vec<Case> {
         )
         .no_file()
         .says("possible values"),
-        cli("wrong output extension", "mesh sphere.zsf -o out.stl").names("out.stl"),
+        cli("wrong output extension", "mesh sphere.zsf -o out.off").names("out.off"),
+        cli(
+            "--ascii with OBJ output",
+            "mesh sphere.zsf -o out.obj --ascii",
+        )
+        .names("out.obj")
+        .says("always text"),
         cli(
             "2-D field meshed to a 3-D format",
             "mesh disc.zsf -o out.ply",
@@ -784,6 +829,8 @@ fn cases() -> Vec<Case> {
         )
         .says("vertex 7"),
         cli("truncated binary PLY", "preview tet_trunc.ply -o out.png").says("truncated"),
+        cli("truncated binary STL", "preview tet_trunc.stl -o out.png").says("truncated"),
+        cli("OBJ face index 0", "preview tet_zero.obj -o out.png").says("start at 1"),
         cli(
             "a mesh with no triangle",
             "preview cloud_xyz.ply -o out.png",
@@ -825,9 +872,9 @@ fn cases() -> Vec<Case> {
         ),
         cli(
             "wrong output extension",
-            "reconstruct bunny.xyzn -o out.stl --quiet",
+            "reconstruct bunny.xyzn -o out.off --quiet",
         )
-        .names("out.stl"),
+        .names("out.off"),
         cli(
             "output directory does not exist",
             "reconstruct bunny.xyzn -o nodir/out.ply --quiet",
@@ -883,7 +930,7 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "not UTF-8", "latin1.xyzn"),
         reader(CloudReader, "missing file", "missing.xyzn"),
         reader(CloudReader, "directory instead of file", "folder.xyzn"),
-        reader(CloudReader, "wrong extension", "bunny.stl"),
+        reader(CloudReader, "wrong extension", "bunny.off"),
         reader(CloudReader, "truncated binary PLY", "cloud_trunc.ply").says("truncated"),
         reader(
             CloudReader,
@@ -930,8 +977,14 @@ fn cases() -> Vec<Case> {
         reader(MeshReader, "a face with 2 corners", "tet_two.ply"),
         reader(MeshReader, "no PLY magic", "notply.ply"),
         reader(MeshReader, "unsupported PLY encoding", "encoding.ply"),
-        reader(MeshReader, "missing file", "missing.xyzn"),
+        reader(MeshReader, "missing file", "missing.ply"),
         reader(MeshReader, "no faces (a point cloud)", "cloud_xyz.ply").accepted("0 triangles"),
+        reader(MeshReader, "truncated binary STL", "tet_trunc.stl").says("triangle 3"),
+        reader(MeshReader, "NaN corner in ASCII STL", "tet_nan.stl").says("line 5"),
+        reader(MeshReader, "too short for STL", "tiny.stl").says("10 bytes"),
+        reader(MeshReader, "OBJ face index out of range", "tet_index.obj").says("line 8"),
+        reader(MeshReader, "OBJ face index 0", "tet_zero.obj").says("start at 1"),
+        reader(MeshReader, "OBJ that is not text", "binary.obj").says("UTF-8"),
         // read_any_field
         reader(FieldReader, "corrupted .zsf checksum", "crc.zsf").says("checksum"),
         reader(FieldReader, "truncated .zsf", "trunc.zsf").says("truncated"),

@@ -717,6 +717,68 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let r = zeroset_mesh::check(&zeroset_mesh::io::read_ply_mesh(&bs).unwrap());
     assert!(r.is_oriented_closed(), "{r}");
     assert_eq!(r.euler_characteristic, 2, "{r}");
+
+    // STL (binary, or ASCII) and OBJ: the same closed sphere, which info and preview read.
+    for (name, extra, kind) in [
+        ("s.stl", &[][..], "binary STL"),
+        ("a.stl", &["--ascii"][..], "ASCII STL"),
+        ("w.obj", &[][..], "OBJ"),
+    ] {
+        let out = dir.path().join(name);
+        let o = mesh(&sampled, &out, extra);
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        assert!(stdout(&o).contains(&format!("({kind})")), "{}", stdout(&o));
+        let m = zeroset_mesh::read_mesh(&out).unwrap();
+        let r = zeroset_mesh::check(&m);
+        assert!(
+            r.is_oriented_closed() && r.euler_characteristic == 2,
+            "{name}: {r}"
+        );
+        let o = zeroset(["info", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = stdout(&o);
+        assert!(
+            text.contains("(mesh)") && text.contains("closed:      yes"),
+            "{text}"
+        );
+        let png = dir.path().join(format!("{name}.png"));
+        let o = zeroset([
+            "preview",
+            out.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success() && png.is_file(), "{}", stderr(&o));
+    }
+    let o = mesh(&sampled, &dir.path().join("t.obj"), &["--ascii"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("which is always text"),
+        "{}",
+        stderr(&o)
+    );
+
+    // A mesh file is a point cloud too: its vertices, normals from its winding — outward, as
+    // the fit's check at the input points shows (|∇f| ≈ 1 along the normal).
+    let stl = dir.path().join("s.stl");
+    let o = fit(
+        &stl,
+        &["-o", dir.path().join("from_stl.zsf").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains("an STL mesh of") && text.contains("normals from the triangles' winding"),
+        "{text}"
+    );
+    let refit = dir.path().join("from_stl.ply");
+    let o = mesh(&dir.path().join("from_stl.zsf"), &refit, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&refit).unwrap());
+    assert!(
+        r.is_oriented_closed() && r.euler_characteristic == 2 && r.signed_volume > 0.0,
+        "{r}"
+    );
 }
 
 #[test]
@@ -741,8 +803,8 @@ fn mesh_refuses_bad_outputs_and_grids_with_a_message() {
     assert_eq!(fs::read(&field).unwrap(), before);
 
     let cases: [(PathBuf, &[&str], &str); 8] = [
-        (dir.path().join("s.stl"), &[], ".ply or .obj"),
-        (dir.path().join("s"), &[], ".ply or .obj"),
+        (dir.path().join("s.off"), &[], ".ply or .obj or .stl"),
+        (dir.path().join("s"), &[], ".ply or .obj or .stl"),
         (
             dir.path().join("missing").join("s.ply"),
             &[],
@@ -916,16 +978,16 @@ fn preview_refuses_bad_outputs_and_inputs_with_a_message() {
     assert_clean_failure(&o);
     assert!(stderr(&o).contains("input"), "{}", stderr(&o));
 
-    // Bad slices, a slice of a mesh, an OBJ mesh, a missing input.
+    // Bad slices, a slice of a mesh, a malformed OBJ mesh, a missing input.
     let o = preview(&field, &dir.path().join("w.png"), &["--slice", "w"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("x, y or z"), "{}", stderr(&o));
     let obj = dir.path().join("s.obj");
-    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
     let o = preview(&obj, &dir.path().join("o.png"), &[]);
     assert_clean_failure(&o);
     assert!(
-        stderr(&o).contains("not supported for reading yet"),
+        stderr(&o).contains("OBJ line 4: corner 2 '4': vertex index 4 is out of range"),
         "{}",
         stderr(&o)
     );

@@ -19,10 +19,7 @@ use zeroset_mesh::signed::{
     CoarseStep, SmcOptions, SmcStage, expected_evaluations, signed_marching_cubes,
 };
 use zeroset_mesh::voxel::{self, Detail};
-use zeroset_mesh::{
-    McOptions, PlyFormat, TriMesh, marching_cubes_with_cell_max, mesh_field, read_ply_mesh,
-    write_obj, write_ply,
-};
+use zeroset_mesh::{McOptions, MeshFormat, TriMesh, marching_cubes_with_cell_max, mesh_field};
 
 use crate::arrays::{points, rows_array, vector};
 use crate::errors::{to_py, value_error};
@@ -282,7 +279,8 @@ fn smc<K: Kernel + Clone>(
     .map_err(to_py)
 }
 
-/// Reads a triangle mesh from a PLY file: vertices, faces, and normals when it has them.
+/// Reads a triangle mesh from a PLY, OBJ or STL file: vertices, faces, and normals when it has
+/// them.
 #[pyfunction]
 #[allow(clippy::type_complexity)]
 pub(crate) fn read_mesh(
@@ -293,14 +291,22 @@ pub(crate) fn read_mesh(
     Bound<'_, PyArray2<i64>>,
     Option<Bound<'_, PyArray2<f64>>>,
 )> {
-    let mesh = py.detach(|| read_ply_mesh(&path)).map_err(to_py)?;
+    if MeshFormat::from_path(&path).is_none() {
+        return Err(value_error(format!(
+            "{}: read a mesh from .ply, .obj or .stl",
+            path.display()
+        )));
+    }
+    let mesh = py
+        .detach(|| zeroset_mesh::read_mesh(&path))
+        .map_err(to_py)?;
     let has_normals = !mesh.normals().is_empty();
     let (v, f, n) = MeshParts::new(mesh, false, false).arrays(py);
     Ok((v, f, has_normals.then_some(n)))
 }
 
-/// Writes a triangle mesh, atomically: binary PLY (or ASCII with `ascii`) for `.ply`,
-/// Wavefront OBJ for `.obj`.
+/// Writes a triangle mesh, atomically: binary PLY or STL (ASCII with `ascii`) for `.ply` and
+/// `.stl`, Wavefront OBJ for `.obj`.
 #[pyfunction]
 #[pyo3(signature = (path, vertices, faces, normals, ascii))]
 pub(crate) fn write_mesh(
@@ -342,29 +348,17 @@ pub(crate) fn write_mesh(
         .as_ref()
         .map(|n| points(n, "normals", true).map(<[_]>::to_vec))
         .transpose()?;
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    if MeshFormat::from_path(&path).is_none() {
+        return Err(value_error(format!(
+            "{}: write a mesh as .ply, .obj or .stl",
+            path.display()
+        )));
+    }
     py.detach(|| -> PyResult<()> {
         let mut mesh = TriMesh::new(v, triangles).map_err(to_py)?;
         if let Some(n) = normals {
             mesh = mesh.with_normals(n).map_err(to_py)?;
         }
-        match extension.as_deref() {
-            Some("ply") => {
-                let format = if ascii {
-                    PlyFormat::Ascii
-                } else {
-                    PlyFormat::BinaryLittleEndian
-                };
-                write_ply(&path, &mesh, format).map_err(to_py)
-            }
-            Some("obj") => write_obj(&path, &mesh).map_err(to_py),
-            _ => Err(value_error(format!(
-                "{}: write a mesh as .ply or .obj",
-                path.display()
-            ))),
-        }
+        zeroset_mesh::write_mesh(&path, &mesh, ascii).map_err(to_py)
     })
 }

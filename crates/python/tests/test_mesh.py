@@ -145,7 +145,25 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
         zeroset.write_mesh(tmp_path / "x.ply", v, f + len(v))
     with pytest.raises(ValueError, match="integers"):
         zeroset.write_mesh(tmp_path / "x.ply", v, f.astype(float))
-    with pytest.raises(ValueError, match=r"\.ply or \.obj"):
-        zeroset.write_mesh(tmp_path / "x.stl", v, f)
+    # STL: the corners are welded back into the same vertices, the triangles keep their
+    # order and winding; OBJ keeps everything (full precision, one normal per vertex).
+    for name, ascii in (("m.stl", False), ("a.stl", True)):
+        zeroset.write_mesh(tmp_path / name, v, f, n, ascii=ascii)
+        assert (tmp_path / name).read_bytes().startswith(b"solid") == ascii
+        rv, rf, rn = zeroset.read_mesh(tmp_path / name)
+        assert rn is None and len(rv) == len(v)
+        assert np.array_equal(rv[rf], v[f].astype(np.float32).astype(np.float64))
+    rv, rf, rn = zeroset.read_mesh(tmp_path / "m.obj")
+    assert np.array_equal(rv, v) and np.array_equal(rf, f) and rn is None
+    zeroset.write_mesh(tmp_path / "n.obj", v, f, n)
+    rv, rf, rn = zeroset.read_mesh(tmp_path / "n.obj")
+    assert np.array_equal(rn, n)
+    with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
+        zeroset.write_mesh(tmp_path / "x.off", v, f)
+    with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
+        zeroset.read_mesh(tmp_path / "x.off")
+    (tmp_path / "cut.stl").write_bytes((tmp_path / "m.stl").read_bytes()[:200])
+    with pytest.raises(ValueError, match="truncated"):
+        zeroset.read_mesh(tmp_path / "cut.stl")
     with pytest.raises(OSError):
         zeroset.write_mesh(tmp_path / "no" / "such" / "dir.ply", v, f)

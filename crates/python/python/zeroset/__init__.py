@@ -309,8 +309,9 @@ def estimate_normals(
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
-    """Reads a triangle mesh from a PLY file: ``(vertices (n, 3), faces (m, 3), normals or
-    None)``."""
+    """Reads a triangle mesh from a PLY, OBJ or STL file (told by the extension):
+    ``(vertices (n, 3), faces (m, 3), normals or None)``. An STL file's corners are welded
+    into shared vertices (equal coordinates), so its topology can be checked."""
     return _native.read_mesh(os.fspath(path))
 
 
@@ -322,8 +323,9 @@ def write_mesh(
     *,
     ascii: bool = False,
 ) -> None:
-    """Writes a triangle mesh atomically: PLY (binary, or ASCII with ``ascii=True``) for
-    ``.ply``, Wavefront OBJ for ``.obj``."""
+    """Writes a triangle mesh atomically, in the format the extension names: PLY or STL
+    (binary, or ASCII with ``ascii=True``) for ``.ply`` and ``.stl``, Wavefront OBJ for
+    ``.obj``. STL keeps the triangles only (no vertex normals, no unused vertices)."""
     f = np.asarray(faces)
     if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
         raise ValueError(f"faces must be integers of shape (m, 3), got {f.dtype} {f.shape}")

@@ -99,7 +99,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         Some(f) => f.into(),
         None => io::detect_format(path).context("cannot tell the file's format")?,
     };
-    if format == Format::Ply && has_faces(path) {
+    if format == Format::Ply && crate::mesh_points::has_faces(path, 0) {
         return mesh_report(path, "ply");
     }
     let mut options = ReadOptions::default().with_format(format);
@@ -333,15 +333,6 @@ fn mras_report<const D: usize>(s: &mut String, f: &zeroset_bases::mras::MrasFiel
             )
         },
     );
-}
-
-/// Whether the PLY header declares a `face` element (a mesh rather than a point cloud).
-/// An unreadable header answers `false`: the point-cloud reader then names the problem.
-fn has_faces(path: &Path) -> bool {
-    matches!(
-        zeroset_field_core::io::ply::read_header(path),
-        Ok(Ok(header)) if header.element("face").is_some()
-    )
 }
 
 /// The report of a mesh (PLY with faces, OBJ, STL): counts and the `zeroset_mesh::checks`

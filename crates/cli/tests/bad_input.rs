@@ -752,9 +752,10 @@ fn cases() -> Vec<Case> {
             ),
         ),
         cli(
-            "a mesh where a cloud or field belongs",
+            "a mesh as the cloud (its vertices, normals from its winding)",
             "restore tet.ply --mode protrusion --mask 0,0,0:0.5,0.5,0.5 -o out.zsf",
-        ),
+        )
+        .accepted("normals from the triangles' winding"),
         cli(
             "output overwrites the input",
             "restore sphere.zsf --mode protrusion --mask 0,0,0:0.5,0.5,0.5 -o sphere.zsf \

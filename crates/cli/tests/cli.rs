@@ -779,6 +779,40 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
         r.is_oriented_closed() && r.euler_characteristic == 2 && r.signed_volume > 0.0,
         "{r}"
     );
+
+    // The same sphere wound inward beside a copy wound outward, as OBJ: the inward part is
+    // turned over on its own, and the fit is outward on both.
+    let sphere = zeroset_mesh::read_mesh(&stl).unwrap();
+    let (v, t, _) = sphere.into_parts();
+    let n = v.len() as u32;
+    let mut vertices = v.clone();
+    vertices.extend(v.iter().map(|p| [p[0] + 3.0, p[1], p[2]]));
+    let mut triangles: Vec<[u32; 3]> = t.iter().map(|&[a, b, c]| [a, c, b]).collect();
+    triangles.extend(t.iter().map(|tri| tri.map(|i| i + n)));
+    let two = dir.path().join("two.obj");
+    zeroset_mesh::write_obj(
+        &two,
+        &zeroset_mesh::TriMesh::new(vertices, triangles).unwrap(),
+    )
+    .unwrap();
+    let o = fit(&two, &["-o", dir.path().join("two.zsf").to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("turned over on 1 of 2 closed part(s) wound inward"),
+        "{}",
+        stdout(&o)
+    );
+    let o = mesh(
+        &dir.path().join("two.zsf"),
+        &dir.path().join("two.ply"),
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(dir.path().join("two.ply")).unwrap());
+    assert!(
+        r.is_oriented_closed() && r.components == 2 && r.signed_volume > 0.0,
+        "{r}"
+    );
 }
 
 #[test]

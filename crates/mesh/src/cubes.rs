@@ -304,10 +304,10 @@ fn crossing_parameter(a: f64, b: f64, c: f64) -> f64 {
     t.clamp(0.0, 1.0)
 }
 
-/// How many `f32` steps (of the larger end's magnitude) a vertex of its own keeps from its
-/// edge's samples (`Extractor::apart_in_f32`): rounding to `f32` moves each by at most half a
-/// step, so the vertices of different edges around a sample stay distinct when written.
-const F32_APART: f64 = 4.0;
+/// The largest `f32` step, as a fraction of the edge, at which `Extractor::apart_in_f32`
+/// still moves a vertex: far from the origin, where `f32` resolves a voxel coarsely, the
+/// written file is coarse anyway and the `f64` mesh is left exact.
+const F32_STEP_MAX: f64 = 1e-3;
 
 /// Marks a centre vertex in a slab's triangles (its index within the slab in the low bits).
 const CENTRE: u32 = 1 << 31;
@@ -759,22 +759,30 @@ impl<'a> Extractor<'a> {
     }
 
     /// Coordinate `x` of a vertex of its own on the edge from sample `at` to `at + 1` along
-    /// `axis`, moved if need be to at least [`F32_APART`] `f32` steps from both samples. A
-    /// crossing just beside a sample (`t` = 10⁻⁹, say) otherwise puts the vertices of several
-    /// edges around that sample at one position once written as `f32` (PLY, STL): zero-area
-    /// triangles, and in STL — whose readers weld corners by position — edges shared by four
-    /// triangles. The move is at most a few `f32` steps: below what those files resolve.
+    /// `axis`, moved to the next `f32` value towards the other end where it would be written
+    /// as the same `f32` as an end sample (at most 1.5 `f32` steps, and only where a step is
+    /// under [`F32_STEP_MAX`] of the edge). A crossing just beside a sample otherwise puts the
+    /// vertices of several edges around that sample at one position once written as `f32`
+    /// (PLY, STL): zero-area triangles, and in STL — whose readers weld corners by position —
+    /// edges shared by four triangles. Vertices on the other edges around the sample keep the
+    /// sample's coordinate on this axis, so one `f32` step keeps them apart.
     #[inline]
     fn apart_in_f32(&self, axis: usize, at: usize, x: f64) -> f64 {
         let (lo, hi) = (
             self.coordinate(axis, at as f64),
             self.coordinate(axis, (at + 1) as f64),
         );
-        let step =
-            f64::from(f32::EPSILON) * lo.abs().max(hi.abs()).max(f64::from(f32::MIN_POSITIVE));
-        let margin = F32_APART * step;
-        if hi - lo > 2.0 * margin {
-            x.clamp(lo + margin, hi - margin)
+        let (x32, lo32, hi32) = (x as f32, lo as f32, hi as f32);
+        let (above_lo, below_hi) = (lo32.next_up(), hi32.next_down());
+        let step = f64::from(above_lo) - f64::from(lo32);
+        let movable = above_lo < below_hi && step <= F32_STEP_MAX * (hi - lo);
+        if !movable {
+            // An edge a few f32 steps long, or one f32 cannot resolve: nothing to gain.
+            x
+        } else if x32 == lo32 {
+            f64::from(above_lo)
+        } else if x32 == hi32 {
+            f64::from(below_hi)
         } else {
             x
         }

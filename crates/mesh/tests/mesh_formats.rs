@@ -139,6 +139,16 @@ fn binary_stl_layout_and_facet_normals() {
         assert_eq!(normal.iter().filter(|v| **v == 0.0).count(), 2);
         assert_eq!(&bytes[at + 48..at + 50], &[0, 0]);
     }
+    // A vertex beyond f32 is refused, not written as infinity.
+    let far = TriMesh::new(
+        vec![[0.0; 3], [1e39, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    for format in [StlFormat::Binary, StlFormat::Ascii] {
+        let err = stl_to_bytes(&far, format).unwrap_err();
+        assert!(err.to_string().contains("32-bit float range"), "{err}");
+    }
     // A triangle without area gets a zero normal, not NaN.
     let flat = TriMesh::new(
         vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
@@ -177,6 +187,46 @@ fn stl_as_other_software_writes_it() {
     // An empty solid is an empty mesh.
     let m = stl_from_bytes(b"solid empty\nendsolid empty\n", "e.stl").unwrap();
     assert_eq!((m.num_vertices(), m.num_triangles()), (0, 0));
+
+    // One facet written every other way: old-Mac line ends (CR only), all on one line, a
+    // UTF-8 byte-order mark, a solid named in UTF-8 or Latin-1, NUL padding after the end.
+    let facet = "facet normal 0 0 1 outer loop vertex 0 0 0 vertex 1 0 0 vertex 0 1 0 \
+                 endloop endfacet";
+    let variants: Vec<Vec<u8>> = vec![
+        format!("solid cr\r{}\rendsolid cr\r", facet.replace(' ', "\r")).into_bytes(),
+        format!("solid one line {facet} endsolid one line").into_bytes(),
+        [
+            b"\xEF\xBB\xBF".as_slice(),
+            format!("solid bom\n{facet}\nendsolid\n").as_bytes(),
+        ]
+        .concat(),
+        format!("solid Körper\n{facet}\nendsolid Körper\n").into_bytes(),
+        [
+            b"solid K\xf6rper\n".as_slice(),
+            format!("{facet}\nendsolid\n").as_bytes(),
+        ]
+        .concat(),
+        [
+            format!("solid pad\n{facet}\nendsolid pad\n").as_bytes(),
+            &[0u8; 40],
+        ]
+        .concat(),
+    ];
+    for bytes in &variants {
+        let m = stl_from_bytes(bytes, "v.stl")
+            .unwrap_or_else(|e| panic!("{:?}: {e}", String::from_utf8_lossy(bytes)));
+        assert_eq!(
+            (m.num_vertices(), m.triangles()),
+            (3, &[[0, 1, 2]][..]),
+            "{:?}",
+            String::from_utf8_lossy(bytes)
+        );
+    }
+
+    // A binary file whose count was left at 0 by a streaming writer: the length says 12.
+    let mut zero = stl_to_bytes(&cube_at([0.0; 3]), StlFormat::Binary).unwrap();
+    zero[80..84].copy_from_slice(&0u32.to_le_bytes());
+    assert_eq!(stl_from_bytes(&zero, "z.stl").unwrap().num_triangles(), 12);
 }
 
 #[test]
@@ -290,6 +340,21 @@ fn obj_as_other_software_writes_it() {
     let unused = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nvn 0 0 1\nf 1//1 2//1 3//1\n";
     let m = obj_from_bytes(unused.as_bytes(), "u.obj").unwrap();
     assert_eq!((m.num_vertices(), m.normals().len()), (4, 0));
+
+    // One `vn` line per corner, equal values: per-vertex normals all the same. A byte-order
+    // mark, texture indices without `vt` lines (a mesh keeps no texture), and a continuation
+    // on the last line.
+    let repeated = "\u{feff}v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\n\
+                    f 1/1/1 2/2/2 \\\n3/3/3";
+    let m = obj_from_bytes(repeated.as_bytes(), "r.obj").unwrap();
+    assert_eq!(m.triangles(), &[[0, 1, 2]]);
+    assert_eq!(m.normals(), &[[0.0, 0.0, 1.0]; 3]);
+
+    // Vertices and as many normals, no face: an oriented point cloud.
+    let cloud = "v 0 0 0\nvn 1 0 0\nv 1 0 0\nvn 0 1 0\n";
+    let m = obj_from_bytes(cloud.as_bytes(), "c.obj").unwrap();
+    assert_eq!(m.num_triangles(), 0);
+    assert_eq!(m.normals(), &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
 }
 
 #[test]
@@ -331,6 +396,14 @@ fn obj_errors_name_the_line() {
         (
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
             "at most three parts",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n",
+            "index 99999999999999999999 is too large",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/0 2 3\n",
+            "texture coordinate index 0",
         ),
     ];
     for (text, want) in cases {
@@ -498,4 +571,32 @@ fn a_surface_beside_a_sample_survives_f32_files() {
     )
     .unwrap();
     assert_eq!(check(&ply).degenerate_triangles, 0);
+}
+
+#[test]
+fn far_from_the_origin_the_f64_mesh_is_left_exact() {
+    // A sphere of radius 10 about (500000, 500000, 500000) on voxels of 0.625: an f32 step
+    // there (0.03) is 5% of an edge, too coarse to separate anything, so no vertex is moved:
+    // the vertices lie on the sphere as closely as linear interpolation puts them.
+    use zeroset_field_core::field::{FnField, ScalarField};
+    use zeroset_field_core::{Aabb, Grid};
+    use zeroset_mesh::{McOptions, mesh_field};
+    let c = 500_000.0;
+    let sphere = FnField::new(
+        move |p: &[f64; 3]| {
+            let d = p.map(|x| x - c);
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 10.0
+        },
+        None,
+    );
+    let bounds = Aabb::new([c - 12.5; 3], [c + 12.5; 3]).unwrap();
+    let grid = Grid::vertex_centered(bounds, [41; 3]).unwrap();
+    let mesh = mesh_field(&sphere, &grid, 0.0, &McOptions::default()).unwrap();
+    let worst = mesh
+        .vertices()
+        .iter()
+        .map(|p| sphere.value(p).abs() / 0.625)
+        .fold(0.0, f64::max);
+    assert!(worst < 0.02, "{worst}");
+    assert!(check(&mesh).is_oriented_closed());
 }

@@ -6,8 +6,8 @@
 //! `tests/fuzz.rs` (a short fixed-seed run and the regression files, in `cargo test`):
 //!
 //! - **Targets** ([`targets`]): every public reader and decoder — PLY point clouds and meshes
-//!   (ascii and binary), xyz, CSV, GemPy, `.xyv`/`.xyzv`, `.zsf` of every kind — and the
-//!   `zeroset info` flow; OBJ is only written, never read. Each execution writes the input to a
+//!   (ascii and binary), STL and OBJ meshes, xyz, CSV, GemPy, `.xyv`/`.xyzv`, `.zsf` of every kind — and the
+//!   `zeroset info` flow (OBJ and STL to the mesh reader). Each execution writes the input to a
 //!   file with the target's extension and calls every reader of the format on it.
 //! - **Seeds** ([`seeds`]): small real files and shrunk or cut copies of big ones, hand-written
 //!   variants, and files written by the library's writers and fits (cached under `target/`).

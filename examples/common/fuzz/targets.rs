@@ -338,6 +338,12 @@ fn info(path: &Path) -> String {
             Err(e) => outcome::<(), _>(&Err(e), path, |_| String::new()),
         };
     }
+    if matches!(
+        zeroset::mesh::MeshFormat::from_path(path),
+        Some(zeroset::mesh::MeshFormat::Obj | zeroset::mesh::MeshFormat::Stl)
+    ) {
+        return outcome(&zeroset::mesh::read_mesh(path), path, mesh_ok);
+    }
     let format = match io::detect_format(path) {
         Ok(f) => f,
         Err(e) => return outcome::<(), _>(&Err(e), path, |_| String::new()),

@@ -8,14 +8,18 @@
 //!   `v`, `v/vt`, `v/vt/vn` or `v//vn`, indices from 1 or negative (counted back from the
 //!   last vertex read, as the format allows); polygons are fan-triangulated. Every other
 //!   statement (`vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, `l`, `p`, ...) is skipped, as are
-//!   comments (`#`); a line ending in `\` continues on the next. The mesh gets per-vertex
-//!   normals when every vertex is used by a face corner that names a normal and always the
-//!   same one (what [`write_obj`] writes); otherwise it has none (the normals of other files
-//!   belong to corners, not vertices). Vertices that no face uses are kept.
+//!   comments (`#`) and a UTF-8 byte-order mark; a line ending in `\` continues on the next.
+//!   Texture indices are checked to be integers, not looked up: a mesh keeps no texture. The
+//!   mesh gets per-vertex normals when every vertex is used by face corners that name a
+//!   normal, and always the same one (by value: exporters that repeat a `vn` line per corner
+//!   qualify) — what [`write_obj`] writes; otherwise it has none (other files' normals belong
+//!   to corners, not vertices). A file of vertices and no face with as many `vn` as `v` is an
+//!   oriented point cloud: the `i`-th normal is the `i`-th vertex's. Vertices that no face
+//!   uses are kept. The normals are kept as written (not normalised).
 //!
 //! Errors name the file and the line: a coordinate that does not parse or is not finite, a
-//! face with fewer than three corners, an index of 0 or out of range (with the count there
-//! was at that line).
+//! face with fewer than three corners, an index of 0, too large, or out of range (with the
+//! count there was at that line).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -103,26 +107,13 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             "the text is not UTF-8 (is this a binary file?)".into(),
         )
     })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut vertices: Vec<Point<3>> = Vec::new();
     let mut normals: Vec<Point<3>> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut vertex_normal: Vec<VertexNormal> = Vec::new();
-    let mut textures = 0;
     let mut corners: Vec<(u32, Option<usize>)> = Vec::new();
-    let mut statement = String::new();
-    let mut first_line = 0;
-    for (i, raw) in text.lines().enumerate() {
-        let content = raw.split('#').next().unwrap_or("").trim_end();
-        if statement.is_empty() {
-            first_line = i + 1;
-        }
-        if let Some(head) = content.strip_suffix('\\') {
-            statement.push_str(head);
-            statement.push(' ');
-            continue;
-        }
-        statement.push_str(content);
-        let line = first_line;
+    for (line, statement) in statements(text) {
         let mut words = statement.split_whitespace();
         match words.next() {
             Some("v") => {
@@ -130,7 +121,6 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                 vertices.push(p);
                 vertex_normal.push(VertexNormal::Unused);
             }
-            Some("vt") => textures += 1,
             Some("vn") => {
                 let n = coordinates(words, "normal").map_err(|d| malformed(line, d))?;
                 normals.push(n);
@@ -138,7 +128,7 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             Some("f") => {
                 corners.clear();
                 for (k, word) in words.enumerate() {
-                    let corner = face_corner(word, vertices.len(), textures, normals.len())
+                    let corner = face_corner(word, vertices.len(), normals.len())
                         .map_err(|d| malformed(line, format!("corner {k} '{word}': {d}")))?;
                     corners.push(corner);
                 }
@@ -155,7 +145,9 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                     let seen = &mut vertex_normal[v as usize];
                     *seen = match (*seen, n) {
                         (VertexNormal::Unused, Some(n)) => VertexNormal::Same(n),
-                        (VertexNormal::Same(m), Some(n)) if m == n => VertexNormal::Same(m),
+                        (VertexNormal::Same(m), Some(n)) if normals[m] == normals[n] => {
+                            VertexNormal::Same(m)
+                        }
                         _ => VertexNormal::Mixed,
                     };
                 }
@@ -167,7 +159,10 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             // nothing a triangle mesh keeps.
             _ => {}
         }
-        statement.clear();
+    }
+    // Vertices only, with as many normals: an oriented point cloud, normals in order.
+    if triangles.is_empty() && !vertices.is_empty() && normals.len() == vertices.len() {
+        return TriMesh::new(vertices, triangles)?.with_normals(normals);
     }
     let mesh = TriMesh::new(vertices, triangles)?;
     let per_vertex: Option<Vec<Point<3>>> = vertex_normal
@@ -181,6 +176,31 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
         Some(n) if !n.is_empty() => mesh.with_normals(n),
         _ => Ok(mesh),
     }
+}
+
+/// The statements of OBJ text with the line each begins on: comments (`#` to the end of the
+/// line) dropped, a line ending in `\` joined to the next (the last line too).
+fn statements(text: &str) -> impl Iterator<Item = (usize, String)> + '_ {
+    let mut lines = text.lines().enumerate();
+    std::iter::from_fn(move || {
+        let mut statement = String::new();
+        let mut first = None;
+        for (i, raw) in lines.by_ref() {
+            first.get_or_insert(i + 1);
+            let content = raw.split('#').next().unwrap_or("").trim_end();
+            match content.strip_suffix('\\') {
+                Some(head) => {
+                    statement.push_str(head);
+                    statement.push(' ');
+                }
+                None => {
+                    statement.push_str(content);
+                    return first.map(|line| (line, statement));
+                }
+            }
+        }
+        first.map(|line| (line, statement))
+    })
 }
 
 /// The first three numbers of a `v` or `vn` statement (more are ignored: `w`, or colours).
@@ -205,11 +225,10 @@ fn coordinates<'a>(
 }
 
 /// One face corner `v`, `v/vt`, `v/vt/vn` or `v//vn`: the 0-based vertex and normal (the
-/// texture coordinate is checked and dropped).
+/// texture coordinate, which a triangle mesh does not keep, is only checked to be an index).
 fn face_corner(
     word: &str,
     vertices: usize,
-    textures: usize,
     normals: usize,
 ) -> std::result::Result<(u32, Option<usize>), String> {
     if word.split('/').count() > 3 {
@@ -218,7 +237,7 @@ fn face_corner(
     let mut parts = word.split('/');
     let v = resolve(parts.next().unwrap_or(""), vertices, ["vertex", "vertices"])?;
     if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
-        resolve(t, textures, ["texture coordinate", "texture coordinates"])?;
+        index(t, "texture coordinate")?;
     }
     let n = match parts.next() {
         Some(n) if !n.is_empty() => Some(resolve(n, normals, ["normal", "normals"])?),
@@ -228,6 +247,24 @@ fn face_corner(
     Ok((v, n))
 }
 
+/// An OBJ index as written: a non-zero integer.
+fn index(text: &str, what: &str) -> std::result::Result<i64, String> {
+    match text.parse::<i64>() {
+        Ok(0) => Err(format!("{what} index 0: OBJ indices start at 1")),
+        Ok(i) => Ok(i),
+        Err(_)
+            if !text.is_empty()
+                && text
+                    .trim_start_matches('-')
+                    .bytes()
+                    .all(|b| b.is_ascii_digit()) =>
+        {
+            Err(format!("the {what} index {text} is too large"))
+        }
+        Err(_) => Err(format!("the {what} index '{text}' is not an integer")),
+    }
+}
+
 /// A 1-based (or negative, relative) OBJ index among `count` items read so far, 0-based;
 /// `[what, whats]` names one item and several.
 fn resolve(
@@ -235,19 +272,17 @@ fn resolve(
     count: usize,
     [what, whats]: [&str; 2],
 ) -> std::result::Result<usize, String> {
-    let i: i64 = text
-        .parse()
-        .map_err(|_| format!("the {what} index '{text}' is not an integer"))?;
-    let index = match i {
-        0 => return Err(format!("{what} index 0: OBJ indices start at 1")),
-        i if i > 0 => (i - 1) as u64,
-        i => (count as u64).wrapping_sub(i.unsigned_abs()),
+    let i = index(text, what)?;
+    let resolved = if i > 0 {
+        (i - 1) as u64
+    } else {
+        (count as u64).wrapping_sub(i.unsigned_abs())
     };
-    if index >= count as u64 {
+    if resolved >= count as u64 {
         return Err(format!(
             "{what} index {i} is out of range: {count} {} read so far",
             if count == 1 { what } else { whats }
         ));
     }
-    Ok(index as usize)
+    Ok(resolved as usize)
 }

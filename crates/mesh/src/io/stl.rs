@@ -74,6 +74,16 @@ pub fn stl_to_bytes(mesh: &TriMesh, format: StlFormat) -> Result<Vec<u8>> {
 }
 
 fn stl_bytes(path: &Path, mesh: &TriMesh, format: StlFormat) -> Result<Vec<u8>> {
+    if let Some(p) = mesh
+        .vertices()
+        .iter()
+        .find(|p| p.iter().any(|x| !(*x as f32).is_finite()))
+    {
+        return Err(MeshError::UnsupportedFormat {
+            path: path.to_owned(),
+            detail: format!("vertex {p:?} is beyond the 32-bit float range of STL"),
+        });
+    }
     // The corners as written (f32), and the normal of those: a file read back and written
     // again is byte-identical.
     let corners =
@@ -181,19 +191,31 @@ fn parse_stl(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     parse_binary(path, bytes)
 }
 
-/// Whether the first bytes (up to 512) are printable ASCII text.
+/// The UTF-8 byte-order mark some editors put before text.
+const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// Whether the first bytes (up to 512, after a byte-order mark) are text: no control bytes
+/// but whitespace (bytes above 127 are allowed: a name in UTF-8 or Latin-1).
 fn is_text(bytes: &[u8]) -> bool {
+    let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
     bytes[..bytes.len().min(512)]
         .iter()
-        .all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace())
+        .all(|&b| !b.is_ascii_control() || b.is_ascii_whitespace())
 }
 
-/// Whether the file is text that begins with `solid`.
+/// Whether the file reads as ASCII STL: `solid` first (after a byte-order mark and
+/// whitespace), then text ([`is_text`]) or `facet` or `endsolid` among its first kilobyte —
+/// which a binary file whose header happens to begin with `solid` does not hold.
 fn looks_ascii(bytes: &[u8]) -> bool {
-    let start = bytes.iter().position(|b| !b.is_ascii_whitespace());
-    start.is_some_and(|start| {
-        bytes.len() >= start + 5 && bytes[start..start + 5].eq_ignore_ascii_case(b"solid")
-    }) && is_text(bytes)
+    let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
+    let start = bytes
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(bytes.len());
+    let head = &bytes[start..bytes.len().min(start + 1024)];
+    let lower = head.to_ascii_lowercase();
+    let holds = |word: &[u8]| lower.windows(word.len()).any(|w| w == word);
+    lower.starts_with(b"solid") && (holds(b"facet") || holds(b"endsolid") || is_text(bytes))
 }
 
 /// Corners welded into shared vertices by their coordinates.
@@ -226,7 +248,13 @@ fn too_many_vertices(path: &Path) -> MeshError {
 }
 
 fn parse_binary(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
-    let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+    let present = (bytes.len() - BINARY_HEADER) / BINARY_TRIANGLE;
+    let mut count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+    if count == 0 && present > 0 && (bytes.len() - BINARY_HEADER).is_multiple_of(BINARY_TRIANGLE) {
+        // A count left at 0 by a writer that streams the triangles: the file's length says
+        // how many it holds.
+        count = present;
+    }
     let malformed = |t: usize, detail: String| MeshError::Malformed {
         path: path.to_owned(),
         format: "STL",
@@ -236,14 +264,13 @@ fn parse_binary(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
         ),
         detail,
     };
-    let present = (bytes.len() - BINARY_HEADER) / BINARY_TRIANGLE;
     if present < count {
         return Err(malformed(
             present,
             format!(
                 "truncated: the file ends in this triangle, of the {count} its count announces \
                  ({} bytes expected, {} found)",
-                BINARY_HEADER + BINARY_TRIANGLE * count,
+                BINARY_HEADER as u64 + BINARY_TRIANGLE as u64 * count as u64,
                 bytes.len()
             ),
         ));
@@ -288,14 +315,38 @@ fn parse_binary(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     TriMesh::new(welder.vertices, triangles)
 }
 
+/// The words of ASCII STL text with their line numbers (lines end at `\n`, `\r\n` or a lone
+/// `\r`, as old Mac files have them).
+fn words(text: &str) -> impl Iterator<Item = (&str, usize)> {
+    let mut line = 1;
+    let mut rest = text;
+    std::iter::from_fn(move || {
+        loop {
+            let start = rest.find(|c: char| !c.is_whitespace())?;
+            for (i, c) in rest[..start].char_indices() {
+                if c == '\n' || (c == '\r' && !rest[i + 1..].starts_with('\n')) {
+                    line += 1;
+                }
+            }
+            rest = &rest[start..];
+            let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+            let word = &rest[..end];
+            rest = &rest[end..];
+            if !word.is_empty() {
+                return Some((word, line));
+            }
+        }
+    })
+}
+
 /// Where the ASCII reader is in the `solid ... endsolid` grammar.
 #[derive(Clone, Copy, PartialEq, Debug)]
 enum State {
-    /// Before `solid`, or after `endsolid`.
+    /// Before `solid`, or after `endsolid` and its name.
     Outside,
-    /// Inside a solid, between facets.
+    /// Inside a solid, between facets (or on the `solid` line, reading its name).
     Solid,
-    /// After `facet normal`, before `outer loop`.
+    /// After `facet normal nx ny nz`, before `outer loop`.
     Facet,
     /// Inside `outer loop`, reading corners.
     Loop,
@@ -310,49 +361,72 @@ fn parse_ascii(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
         place: format!("line {line}"),
         detail,
     };
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let line = 1 + bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
-        malformed(line, "ASCII STL that is not text".into())
-    })?;
+    // Names may be in any encoding; the keywords and numbers are ASCII. Trailing NUL padding
+    // is not part of the text.
+    let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
+    let end = bytes.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+    let text = String::from_utf8_lossy(&bytes[..end]);
     let mut welder = Welder::default();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut corners: Vec<u32> = Vec::new();
     let mut state = State::Outside;
+    // The line of the last `solid` or `endsolid`: words after it on that line are its name.
+    let mut name_line = 0;
     let mut facet_line = 0;
     let mut solids = 0;
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let mut words = raw.split_whitespace();
-        let Some(keyword) = words.next() else {
-            continue;
-        };
-        let keyword = keyword.to_ascii_lowercase();
+    let mut words = words(&text);
+    let truncated = |line: usize| {
+        malformed(
+            line,
+            "truncated: the file ends inside the facet that begins here".into(),
+        )
+    };
+    while let Some((word, line)) = words.next() {
+        let keyword = word.to_ascii_lowercase();
         let expect = |wanted: State, what: &str| {
             if state == wanted {
                 Ok(())
             } else {
                 Err(malformed(
                     line,
-                    format!("'{keyword}' {what} (the file is {})", describe(state)),
+                    format!("'{word}' {what} (the file is {})", describe(state)),
                 ))
             }
         };
         state = match keyword.as_str() {
-            "solid" => {
-                expect(State::Outside, "begins a solid, but one is open")?;
+            "solid" if state == State::Outside => {
                 solids += 1;
+                name_line = line;
                 State::Solid
             }
             "facet" => {
                 expect(State::Solid, "begins a facet, which belongs inside a solid")?;
                 facet_line = line;
+                match words.next() {
+                    Some((w, _)) if w.eq_ignore_ascii_case("normal") => {}
+                    Some((w, l)) => {
+                        return Err(malformed(
+                            l,
+                            format!("'facet {w}': expected 'facet normal'"),
+                        ));
+                    }
+                    None => return Err(truncated(facet_line)),
+                }
+                // The facet normal: read past, not used (the winding gives the orientation).
+                for _ in 0..3 {
+                    words.next().ok_or_else(|| truncated(facet_line))?;
+                }
                 State::Facet
             }
             "outer" => {
                 expect(State::Facet, "begins a loop, which belongs inside a facet")?;
+                match words.next() {
+                    Some((w, _)) if w.eq_ignore_ascii_case("loop") => {}
+                    Some((w, l)) => {
+                        return Err(malformed(l, format!("'outer {w}': expected 'outer loop'")));
+                    }
+                    None => return Err(truncated(facet_line)),
+                }
                 corners.clear();
                 State::Loop
             }
@@ -361,7 +435,14 @@ fn parse_ascii(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                     State::Loop,
                     "is a corner, which belongs inside an outer loop",
                 )?;
-                let p = ascii_vertex(words).map_err(|d| malformed(line, d))?;
+                let mut p = [0.0; 3];
+                for (axis, value) in p.iter_mut().enumerate() {
+                    let name = ["x", "y", "z"][axis];
+                    let Some((w, l)) = words.next() else {
+                        return Err(truncated(facet_line));
+                    };
+                    *value = ascii_coordinate(w, name).map_err(|d| malformed(l, d))?;
+                }
                 corners.push(welder.vertex(p).ok_or_else(|| too_many_vertices(path))?);
                 State::Loop
             }
@@ -387,13 +468,16 @@ fn parse_ascii(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             }
             "endsolid" => {
                 expect(State::Solid, "ends a solid with a facet open, or none open")?;
+                name_line = line;
                 State::Outside
             }
+            // The name after `solid` or `endsolid`, on its line.
+            _ if line == name_line && matches!(state, State::Solid | State::Outside) => state,
             _ => {
                 return Err(malformed(
                     line,
                     format!(
-                        "'{keyword}' is not an ASCII STL keyword (solid, facet, outer loop, \
+                        "'{word}' is not an ASCII STL keyword (solid, facet normal, outer loop, \
                          vertex, endloop, endfacet, endsolid)"
                     ),
                 ));
@@ -401,10 +485,7 @@ fn parse_ascii(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
         };
     }
     if matches!(state, State::Facet | State::Loop | State::Looped) {
-        return Err(malformed(
-            facet_line,
-            "truncated: the file ends inside the facet that begins here".into(),
-        ));
+        return Err(truncated(facet_line));
     }
     if solids == 0 {
         return Err(malformed(1, "no 'solid' in the file".into()));
@@ -423,29 +504,17 @@ fn describe(state: State) -> &'static str {
     }
 }
 
-/// The coordinates of an ASCII `vertex x y z` line, rounded to `f32` as binary STL stores
-/// them.
-fn ascii_vertex<'a>(
-    mut words: impl Iterator<Item = &'a str>,
-) -> std::result::Result<Point<3>, String> {
-    let mut p = [0.0; 3];
-    for (axis, value) in p.iter_mut().enumerate() {
-        let name = ["x", "y", "z"][axis];
-        let word = words
-            .next()
-            .ok_or_else(|| format!("the vertex has no {name} coordinate"))?;
-        let v: f32 = word
-            .parse()
-            .map_err(|_| format!("vertex coordinate {name} '{word}' is not a number"))?;
-        if !v.is_finite() {
-            let beyond = word.parse::<f64>().is_ok_and(f64::is_finite);
-            return Err(if beyond {
-                format!("vertex coordinate {name} {word} is beyond the 32-bit float range of STL")
-            } else {
-                format!("vertex coordinate {name} is not finite: {word}")
-            });
-        }
-        *value = f64::from(v);
+/// An ASCII vertex coordinate, rounded to `f32` as binary STL stores it.
+fn ascii_coordinate(word: &str, name: &str) -> std::result::Result<f64, String> {
+    let v: f32 = word
+        .parse()
+        .map_err(|_| format!("vertex coordinate {name} '{word}' is not a number"))?;
+    if v.is_finite() {
+        return Ok(f64::from(v));
     }
-    Ok(p)
+    Err(if word.parse::<f64>().is_ok_and(f64::is_finite) {
+        format!("vertex coordinate {name} {word} is beyond the 32-bit float range of STL")
+    } else {
+        format!("vertex coordinate {name} is not finite: {word}")
+    })
 }

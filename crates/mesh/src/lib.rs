@@ -24,6 +24,8 @@
 //!   properties, polygons fan-triangulated), Wavefront OBJ, and STL (binary and ASCII, corners
 //!   welded into shared vertices on reading); [`read_mesh`] / [`write_mesh`] by extension;
 //!   writes are atomic.
+//! - [`points`] — a mesh as an oriented point cloud: its vertices, normals from the file or
+//!   the triangles' winding (closed parts wound inward turned over).
 //! - [`voxel`] — the voxel size of a marching-cubes grid from the bounding box (the
 //!   signed-marching-cubes paper's rule: `S_c = 5·l0` coarse, `l0` general, `0.3·l0` fine, with
 //!   a continuous reading of the reference length `l0`), the cubic-voxel grid covering a box,
@@ -85,6 +87,7 @@ pub mod checks;
 pub mod cubes;
 pub mod error;
 pub mod io;
+pub mod points;
 pub mod preview;
 mod samples;
 pub mod signed;
@@ -97,8 +100,8 @@ pub use checks::{MeshReport, boundary_loops, check, components, unsupported_comp
 pub use cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{
-    MeshFormat, PlyFormat, StlFormat, read_mesh, read_obj_mesh, read_ply_mesh, read_stl_mesh,
-    write_mesh, write_obj, write_ply, write_stl,
+    MeshFormat, PlyFormat, StlFormat, is_mesh_file, read_mesh, read_obj_mesh, read_ply_mesh,
+    read_stl_mesh, write_mesh, write_obj, write_ply, write_stl,
 };
 pub use signed::{
     CoarseStep, SmcOptions, SmcReport, SmcStage, VgReport, expected_evaluations, settled_fraction,

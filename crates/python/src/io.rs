@@ -10,13 +10,23 @@ use zeroset_field_core::io::read_point_cloud;
 use crate::arrays::{points as rows, rows_array};
 use crate::errors::to_py;
 
-/// Reads a point cloud: `(points, normals)`, normals `None` when the file has none.
+/// Reads a point cloud: `(points, normals)`, normals `None` when the file has none. A mesh
+/// file (OBJ, STL, PLY with faces) gives its vertices, normals from the file or the
+/// triangles' winding (`zeroset_mesh::points`).
 #[pyfunction]
 #[allow(clippy::type_complexity)]
 pub(crate) fn read_points(
     py: Python<'_>,
     path: PathBuf,
 ) -> PyResult<(Bound<'_, PyArray2<f64>>, Option<Bound<'_, PyArray2<f64>>>)> {
+    if zeroset_mesh::is_mesh_file(&path) {
+        let mesh = py
+            .detach(|| zeroset_mesh::read_mesh(&path))
+            .map_err(to_py)?;
+        let points = zeroset_mesh::points::mesh_points(mesh);
+        let normals = points.normals.map(|n| rows_array(py, n));
+        return Ok((rows_array(py, points.positions), normals));
+    }
     let cloud = py.detach(|| read_point_cloud(&path)).map_err(to_py)?;
     let normals = cloud.normals().map(|n| rows_array(py, n.to_vec()));
     Ok((rows_array(py, cloud.positions().to_vec()), normals))

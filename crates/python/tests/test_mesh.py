@@ -162,6 +162,15 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
         zeroset.write_mesh(tmp_path / "x.off", v, f)
     with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
         zeroset.read_mesh(tmp_path / "x.off")
+    # A mesh file read as points: its vertices, with the file's normals (PLY), or normals from
+    # the triangles' winding (STL: outward on the sphere).
+    p_ply, n_ply = zeroset.read_points(tmp_path / "m.ply")
+    assert np.allclose(p_ply, v, atol=1e-6)
+    assert np.allclose(n_ply, n / np.linalg.norm(n, axis=1)[:, None], atol=1e-6)
+    p_stl, n_stl = zeroset.read_points(tmp_path / "m.stl")
+    assert len(p_stl) == len(v) and n_stl is not None
+    centre = v.mean(axis=0)
+    assert (np.einsum("ij,ij->i", p_stl - centre, n_stl) > 0).all()
     (tmp_path / "cut.stl").write_bytes((tmp_path / "m.stl").read_bytes()[:200])
     with pytest.raises(ValueError, match="truncated"):
         zeroset.read_mesh(tmp_path / "cut.stl")

@@ -75,6 +75,21 @@ impl MeshFormat {
     }
 }
 
+/// Whether `path` is a mesh file: `.obj` or `.stl` (by the extension), or `.ply` whose header
+/// declares at least one face (a PLY without faces is a point cloud). An unreadable PLY
+/// header answers `false`, for the point-cloud reader to name the problem.
+pub fn is_mesh_file(path: impl AsRef<Path>) -> bool {
+    let path = path.as_ref();
+    match MeshFormat::from_path(path) {
+        Some(MeshFormat::Obj | MeshFormat::Stl) => true,
+        Some(MeshFormat::Ply) => matches!(
+            zeroset_field_core::io::ply::read_header(path),
+            Ok(Ok(header)) if header.element("face").is_some_and(|f| f.count > 0)
+        ),
+        None => false,
+    }
+}
+
 fn unknown_extension(path: &Path) -> MeshError {
     MeshError::UnsupportedFormat {
         path: path.to_owned(),

@@ -1,8 +1,9 @@
 //! OBJ and STL: round trips, files as other software writes them, read errors, and the
 //! extension dispatch of `read_mesh` / `write_mesh`.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use common::{bunny_path, cube_at, cube_triangles};
 use zeroset_mesh::io::{
     MeshFormat, StlFormat, obj_from_bytes, obj_to_string, stl_from_bytes, stl_to_bytes,
 };
@@ -11,50 +12,9 @@ use zeroset_mesh::{
     read_stl_mesh, write_mesh, write_obj, write_stl,
 };
 
-/// The unit cube `[0, 1]³` offset by `o`, 12 triangles wound outward.
-fn cube_at(o: [f64; 3]) -> TriMesh {
-    let v = (0..8)
-        .map(|i| {
-            [
-                o[0] + (i & 1) as f64,
-                o[1] + ((i >> 1) & 1) as f64,
-                o[2] + ((i >> 2) & 1) as f64,
-            ]
-        })
-        .collect();
-    let quads: [[u32; 4]; 6] = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    TriMesh::new(v, t).unwrap()
-}
-
-/// A tetrahedron wound outward, with per-vertex normals and coordinates that are not `f32`.
+/// The tetrahedron of these tests, at coordinates that are not all `f32` values.
 fn tetrahedron() -> TriMesh {
-    let v = vec![
-        [0.1, -0.2, 0.3],
-        [1.1, -0.2, 0.3],
-        [0.1, 0.8, 0.3],
-        [0.1, -0.2, 1.3],
-    ];
-    let n = vec![
-        [-0.5, -0.5, -0.5],
-        [0.75, -0.25, -0.25],
-        [-0.25, 0.75, -0.25],
-        [-0.25, -0.25, 0.75],
-    ];
-    TriMesh::new(v, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-        .unwrap()
-        .with_normals(n)
-        .unwrap()
+    common::tetrahedron_at([0.1, -0.2, 0.3])
 }
 
 /// Each triangle as its corners' coordinates (rounded to `f32`, as STL stores them): the
@@ -461,15 +421,6 @@ fn read_and_write_by_extension() {
     assert!(err.contains("missing.obj"), "{err}");
 }
 
-fn bunny_path() -> PathBuf {
-    std::env::var_os("ZEROSET_DATA")
-        .map_or_else(
-            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
-            PathBuf::from,
-        )
-        .join("bun_zipper.ply")
-}
-
 #[test]
 fn the_bunny_through_stl_and_obj_keeps_its_topology() {
     let path = bunny_path();
@@ -599,4 +550,95 @@ fn far_from_the_origin_the_f64_mesh_is_left_exact() {
         .fold(0.0, f64::max);
     assert!(worst < 0.02, "{worst}");
     assert!(check(&mesh).is_oriented_closed());
+}
+
+/// Whether every normal of `p` points away from the centre of its cube (unit cubes with
+/// their lowest corners at x = each of `corners`).
+fn away_from_cube_centres(p: &zeroset_mesh::points::MeshPoints, corners: &[f64]) -> bool {
+    use zeroset_field_core::geometry::{dot, sub};
+    let n = p.normals.as_ref().unwrap();
+    p.positions.iter().zip(n).all(|(x, n)| {
+        let o = corners
+            .iter()
+            .copied()
+            .min_by(|a, b| (x[0] - a - 0.5).abs().total_cmp(&(x[0] - b - 0.5).abs()))
+            .unwrap();
+        dot(&sub(x, &[o + 0.5, 0.5, 0.5]), n) > 0.0
+    })
+}
+
+#[test]
+fn mesh_points_turn_closed_parts_wound_inward_each_on_its_own() {
+    use zeroset_mesh::points::{NormalSource, mesh_points};
+    let (mut v, mut t, _) = cube_at([0.0; 3]).into_parts();
+    v.extend(cube_at([3.0, 0.0, 0.0]).vertices());
+    t.extend(cube_triangles(8).iter().map(|&[a, b, c]| [a, c, b]));
+    let p = mesh_points(TriMesh::new(v, t).unwrap());
+    let want = NormalSource::Winding {
+        turned: 1,
+        closed_parts: 2,
+    };
+    assert_eq!(p.source, want);
+    assert!(away_from_cube_centres(&p, &[0.0, 3.0]));
+}
+
+#[test]
+fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
+    use zeroset_mesh::points::{NormalSource, mesh_points};
+    // A unit square at z = 0.3 wound counter-clockwise seen from +z: normals +z; wound the
+    // other way, −z (a sheet's signed volume, about 0, says nothing of its sides).
+    let v = vec![
+        [0.0, 0.0, 0.3],
+        [1.0, 0.0, 0.3],
+        [1.0, 1.0, 0.3],
+        [0.0, 1.0, 0.3],
+    ];
+    for (tris, z) in [
+        ([[0, 1, 2], [0, 2, 3]], 1.0),
+        ([[0, 2, 1], [0, 3, 2]], -1.0),
+    ] {
+        let p = mesh_points(TriMesh::new(v.clone(), tris.to_vec()).unwrap());
+        assert_eq!(p.source, NormalSource::WindingOpen);
+        assert_eq!(p.normals.unwrap(), vec![[0.0, 0.0, z]; 4]);
+    }
+    // The second triangle wound the other way: inconsistent, no normals.
+    let p = mesh_points(TriMesh::new(v.clone(), vec![[0, 1, 2], [0, 3, 2]]).unwrap());
+    assert!(p.normals.is_none());
+    assert!(
+        matches!(p.source, NormalSource::Inconsistent { .. }),
+        "{}",
+        p.source
+    );
+    // A vertex only on a triangle without area.
+    let mut w = v;
+    w.push([2.0, 0.0, 0.3]);
+    let p = mesh_points(TriMesh::new(w, vec![[0, 1, 2], [1, 4, 1]]).unwrap());
+    assert!(p.normals.is_none() && matches!(p.source, NormalSource::Flat { vertices: 1 }));
+}
+
+#[test]
+fn mesh_points_make_the_files_normals_unit_and_a_zero_one_defers_to_the_winding() {
+    use zeroset_field_core::geometry::{norm, sub};
+    use zeroset_mesh::points::{NormalSource, mesh_points};
+    let cube = cube_at([0.0; 3]);
+    let scaled: Vec<[f64; 3]> = cube.vertices().iter().map(|p| sub(p, &[0.5; 3])).collect();
+    let p = mesh_points(cube.clone().with_normals(scaled.clone()).unwrap());
+    assert_eq!(p.source, NormalSource::File);
+    assert!(
+        p.normals
+            .unwrap()
+            .iter()
+            .all(|n| (norm(n) - 1.0).abs() < 1e-15)
+    );
+    let mut zero = scaled;
+    zero[3] = [0.0; 3];
+    let p = mesh_points(cube.clone().with_normals(zero).unwrap());
+    assert!(matches!(p.source, NormalSource::Winding { turned: 0, .. }));
+    assert!(away_from_cube_centres(&p, &[0.0]));
+    // Vertices only: all of them, no normals.
+    let p = mesh_points(TriMesh::new(cube.vertices().to_vec(), vec![]).unwrap());
+    assert_eq!(
+        (p.positions.len(), p.source),
+        (8, NormalSource::NoTriangles)
+    );
 }

@@ -1,65 +1,19 @@
 //! Mesh file round trips (PLY, OBJ), read errors, and mesh checks on small solids and on the
 //! Stanford bunny.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::{bunny_path, cube_at, cube_triangles, unit_cube};
 use zeroset_mesh::io::{ply_from_bytes, ply_to_bytes};
 use zeroset_mesh::{
     MeshError, PlyFormat, TriMesh, boundary_loops, check, read_ply_mesh, write_obj, write_ply,
 };
 
-/// The unit cube `[0, 1]³`, 12 triangles wound outward.
-fn unit_cube() -> TriMesh {
-    cube_at([0.0; 3])
-}
-
-fn cube_at(o: [f64; 3]) -> TriMesh {
-    let v = (0..8)
-        .map(|i| {
-            [
-                o[0] + (i & 1) as f64,
-                o[1] + ((i >> 1) & 1) as f64,
-                o[2] + ((i >> 2) & 1) as f64,
-            ]
-        })
-        .collect();
-    TriMesh::new(v, cube_triangles(0)).unwrap()
-}
-
-fn cube_triangles(offset: u32) -> Vec<[u32; 3]> {
-    let quads: [[u32; 4]; 6] = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .map(|t| t.map(|v| v + offset))
-        .collect()
-}
-
-/// A tetrahedron wound outward, with normals (the corner directions from the centroid).
+/// The tetrahedron of these tests, its corner at the origin.
 fn tetrahedron() -> TriMesh {
-    let v = vec![
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-    ];
-    let n = vec![
-        [-0.5, -0.5, -0.5],
-        [0.75, -0.25, -0.25],
-        [-0.25, 0.75, -0.25],
-        [-0.25, -0.25, 0.75],
-    ];
-    TriMesh::new(v, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-        .unwrap()
-        .with_normals(n)
-        .unwrap()
+    common::tetrahedron_at([0.0; 3])
 }
 
 #[test]
@@ -404,16 +358,6 @@ fn flipped_removed_and_disjoint() {
     assert!(r.closed);
     assert!((r.signed_volume - 2.0).abs() < 1e-12, "{r}");
     assert_eq!(boundary_loops(&two), 0);
-}
-
-/// The Stanford bunny mesh in the repository's `data/` folder (or `$ZEROSET_DATA`).
-fn bunny_path() -> PathBuf {
-    std::env::var_os("ZEROSET_DATA")
-        .map_or_else(
-            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
-            PathBuf::from,
-        )
-        .join("bun_zipper.ply")
 }
 
 #[test]

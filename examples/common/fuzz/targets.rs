@@ -123,6 +123,18 @@ impl Target {
     }
 }
 
+/// A mesh format's two readers, from the file and from its bytes, each then checked.
+fn read_mesh_both(
+    path: &Path,
+    bytes: &[u8],
+    from_file: fn(&Path) -> zeroset::mesh::Result<zeroset::mesh::TriMesh>,
+    from_bytes: fn(&[u8], &str) -> zeroset::mesh::Result<zeroset::mesh::TriMesh>,
+) -> String {
+    let a = outcome(&from_file(path), path, mesh_ok);
+    let b = outcome(&from_bytes(bytes, "F"), Path::new("F"), mesh_ok);
+    format!("{a} | {b}")
+}
+
 /// The normalised outcome of a `Result`: `ok <what>` or `<Variant>: <message>` with the path,
 /// quoted text and digits taken out, at most 64 characters.
 fn outcome<T, E: std::fmt::Debug + std::fmt::Display>(
@@ -250,33 +262,24 @@ pub fn run(target: Target, path: &Path, bytes: &[u8]) -> String {
             read_cloud(path, Format::Ply, true, false),
         ]
         .join(" | "),
-        Target::PlyMesh => {
-            let a = outcome(&zeroset::mesh::read_ply_mesh(path), path, mesh_ok);
-            let b = outcome(
-                &zeroset::mesh::io::ply_from_bytes(bytes, "F"),
-                Path::new("F"),
-                mesh_ok,
-            );
-            format!("{a} | {b}")
-        }
-        Target::StlMesh => {
-            let a = outcome(&zeroset::mesh::read_stl_mesh(path), path, mesh_ok);
-            let b = outcome(
-                &zeroset::mesh::io::stl_from_bytes(bytes, "F"),
-                Path::new("F"),
-                mesh_ok,
-            );
-            format!("{a} | {b}")
-        }
-        Target::ObjMesh => {
-            let a = outcome(&zeroset::mesh::read_obj_mesh(path), path, mesh_ok);
-            let b = outcome(
-                &zeroset::mesh::io::obj_from_bytes(bytes, "F"),
-                Path::new("F"),
-                mesh_ok,
-            );
-            format!("{a} | {b}")
-        }
+        Target::PlyMesh => read_mesh_both(
+            path,
+            bytes,
+            |p| zeroset::mesh::read_ply_mesh(p),
+            zeroset::mesh::io::ply_from_bytes,
+        ),
+        Target::StlMesh => read_mesh_both(
+            path,
+            bytes,
+            |p| zeroset::mesh::read_stl_mesh(p),
+            zeroset::mesh::io::stl_from_bytes,
+        ),
+        Target::ObjMesh => read_mesh_both(
+            path,
+            bytes,
+            |p| zeroset::mesh::read_obj_mesh(p),
+            zeroset::mesh::io::obj_from_bytes,
+        ),
         Target::Xyz => [
             read_cloud(path, Format::Xyz, false, false),
             read_cloud(path, Format::Xyz, true, true),

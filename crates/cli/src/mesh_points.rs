@@ -47,11 +47,20 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
         );
     } else {
         outln!(
-            "{:<14}{}: {format} mesh of {triangles} triangles; its {} vertices are the points{}, \
-             normals {}",
+            "{:<14}{}: {format} mesh of {triangles} triangles; its {} vertices{} are the \
+             points{}, normals {}",
             "mesh",
             path.display(),
-            points.positions.len(),
+            points.positions.len() - points.sampled,
+            if points.sampled > 0 {
+                format!(
+                    " and {} points inside its triangles (fewer than {} vertices: a coarse mesh)",
+                    points.sampled,
+                    zeroset_mesh::points::MIN_MESH_POINTS
+                )
+            } else {
+                String::new()
+            },
             if points.left_out > 0 {
                 format!(" ({} that no triangle uses left out)", points.left_out)
             } else {

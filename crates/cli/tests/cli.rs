@@ -813,6 +813,35 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
         r.is_oriented_closed() && r.components == 2 && r.signed_volume > 0.0,
         "{r}"
     );
+
+    // A CAD-like mesh: a cube of 12 triangles. Its 8 corners alone fit a blob; the points
+    // sampled inside its faces give a closed box of about its volume.
+    let cube = dir.path().join("cube.obj");
+    fs::write(
+        &cube,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n\
+         f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n",
+    )
+    .unwrap();
+    let o = fit(
+        &cube,
+        &["-o", dir.path().join("cube.zsf").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("points inside its triangles"),
+        "{}",
+        stdout(&o)
+    );
+    let o = mesh(
+        &dir.path().join("cube.zsf"),
+        &dir.path().join("cube.stl"),
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(dir.path().join("cube.stl")).unwrap());
+    assert!(r.is_oriented_closed() && r.components == 1, "{r}");
+    assert!((r.signed_volume - 1.0).abs() < 0.02, "{r}");
 }
 
 #[test]

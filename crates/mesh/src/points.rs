@@ -3,7 +3,8 @@
 //!
 //! The points are the vertices the triangles use — a vertex no triangle uses is not on the
 //! surface the mesh describes — or, for a mesh without triangles (an OBJ of vertices only),
-//! every vertex. Their normals, in this order ([`NormalSource`]):
+//! every vertex; a mesh of fewer than [`MIN_MESH_POINTS`] vertices also gets points inside
+//! its large triangles. Their normals, in this order ([`NormalSource`]):
 //! 1. the mesh's own per-vertex normals (a PLY with `nx ny nz`, an OBJ whose every vertex
 //!    names one `vn`), made unit; where one is zero or not finite, the next rule decides;
 //! 2. the triangles' winding, where it is consistent (each edge shared by two triangles runs
@@ -26,11 +27,18 @@
 //! let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [9.0; 3]];
 //! let inward = TriMesh::new(v, vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])?;
 //! let p = mesh_points(inward);
-//! assert_eq!((p.positions.len(), p.left_out), (4, 1));
+//! assert_eq!((p.positions.len() - p.sampled, p.left_out), (4, 1));
 //! assert_eq!(p.source, NormalSource::Winding { turned: 1, closed_parts: 1 });
-//! // Turned over: the normal at the apex (0, 0, 1) points up and out.
+//! // Turned over: the normal at the apex (0, 0, 1) points up and out...
 //! let n = p.normals.unwrap();
 //! assert!(n[3][2] > 0.5);
+//! // ...and so do those of the points sampled inside the 4 triangles (4 vertices are
+//! // too few to fit): each along its face's outward normal.
+//! assert!(p.sampled > 5000);
+//! let centroid = [0.25; 3];
+//! assert!(p.positions[4..].iter().zip(&n[4..]).all(|(x, n)| {
+//!     (0..3).map(|a| (x[a] - centroid[a]) * n[a]).sum::<f64>() > 0.0
+//! }));
 //! # Ok::<(), zeroset_mesh::MeshError>(())
 //! ```
 
@@ -39,6 +47,7 @@ use std::fmt;
 use zeroset_field_core::Point;
 use zeroset_field_core::geometry::{cross, dot, norm, sub};
 
+use crate::trimesh::{area_vector, unit_or_zero};
 use crate::{TriMesh, check, components};
 
 /// The points of a mesh and their normals; see the [module docs](self).
@@ -53,7 +62,17 @@ pub struct MeshPoints {
     pub source: NormalSource,
     /// Vertices left out because no triangle uses them.
     pub left_out: usize,
+    /// Points sampled inside large triangles, after the vertices in
+    /// [`positions`](Self::positions) (0 for a mesh of at least [`MIN_MESH_POINTS`] vertices).
+    pub sampled: usize,
 }
+
+/// The fewest points a mesh with triangles gives. A mesh of fewer vertices — a CAD part's few,
+/// large triangles: a cube's 8 corners — is sampled inside its triangles, on a barycentric
+/// lattice as fine in each triangle as `MIN_MESH_POINTS` spread over the mesh's area asks
+/// (triangles too small for a lattice point inside get none), so that a fit sees its faces.
+/// A scan's dense mesh has enough vertices already and is taken as it is.
+pub const MIN_MESH_POINTS: usize = 10_000;
 
 /// Where [`MeshPoints::normals`] came from, or why there are none. Its `Display` is a phrase
 /// that follows "normals" in a sentence.
@@ -129,18 +148,26 @@ pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
         mesh.retain_triangles(|_| true)
     };
     let left_out = all - mesh.num_vertices();
-    let (normals, source) = normals(&mesh);
-    let (positions, _, _) = mesh.into_parts();
+    let (mut normals, source, sign) = normals(&mesh);
+    let (inside, inside_normals) = sample_triangles(&mesh, normals.as_deref(), &sign);
+    let sampled = inside.len();
+    let (mut positions, _, _) = mesh.into_parts();
+    positions.extend(inside);
+    if let Some(n) = &mut normals {
+        n.extend(inside_normals);
+    }
     MeshPoints {
         positions,
         normals,
         source,
         left_out,
+        sampled,
     }
 }
 
-/// The normals of `mesh`'s vertices and where they came from.
-fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource) {
+/// The normals of `mesh`'s vertices, where they came from, and each triangle's orientation
+/// (`-1` for a part turned over; empty where the normals are not the winding's).
+fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
     let unit: Option<Vec<Point<3>>> = mesh
         .normals()
         .iter()
@@ -150,10 +177,10 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource) {
         })
         .collect();
     if let Some(unit) = unit.filter(|u| !u.is_empty()) {
-        return (Some(unit), NormalSource::File);
+        return (Some(unit), NormalSource::File, Vec::new());
     }
     if mesh.is_empty() {
-        return (None, NormalSource::NoTriangles);
+        return (None, NormalSource::NoTriangles, Vec::new());
     }
     let report = check(mesh);
     if report.inconsistent_edges > 0 || report.non_manifold_edges > 0 {
@@ -161,15 +188,19 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource) {
             inconsistent_edges: report.inconsistent_edges,
             non_manifold_edges: report.non_manifold_edges,
         };
-        return (None, source);
+        return (None, source, Vec::new());
     }
     let mut normals = mesh.winding_normals();
     let flat = normals.iter().filter(|n| **n == [0.0; 3]).count();
     if flat > 0 {
-        return (None, NormalSource::Flat { vertices: flat });
+        return (None, NormalSource::Flat { vertices: flat }, Vec::new());
     }
     if report.boundary_edges > 0 {
-        return (Some(normals), NormalSource::WindingOpen);
+        return (
+            Some(normals),
+            NormalSource::WindingOpen,
+            vec![1.0; mesh.num_triangles()],
+        );
     }
     // Each closed part's volume, from a corner of the box (for fewer cancelling digits).
     let (labels, parts) = components(mesh);
@@ -196,5 +227,65 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource) {
         turned: volume.iter().filter(|v| **v < 0.0).count(),
         closed_parts: parts,
     };
-    (Some(normals), source)
+    let sign = labels
+        .iter()
+        .map(|&part| {
+            if volume[part as usize] < 0.0 {
+                -1.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    (Some(normals), source, sign)
+}
+
+/// Points inside the triangles of `mesh` larger than its share of [`MIN_MESH_POINTS`], with
+/// normals (the triangle's, or the file's interpolated) where the vertices have them.
+fn sample_triangles(
+    mesh: &TriMesh,
+    vertex_normals: Option<&[Point<3>]>,
+    sign: &[f64],
+) -> (Vec<Point<3>>, Vec<Point<3>>) {
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
+    let areas: Vec<f64> = (0..mesh.num_triangles())
+        .map(|t| 0.5 * norm(&area_vector(&mesh.corners(t))))
+        .collect();
+    let total: f64 = areas.iter().sum();
+    if mesh.num_vertices() >= MIN_MESH_POINTS || !(total > 0.0 && total.is_finite()) {
+        return (points, normals);
+    }
+    // A lattice of k subdivisions a side has about k²/2 points inside: k² = 2a·N/A spreads
+    // N points over the area A.
+    let per_area = MIN_MESH_POINTS as f64 / total;
+    for (t, &area) in areas.iter().enumerate() {
+        let k = (2.0 * area * per_area).sqrt().floor() as usize;
+        if k < 3 {
+            continue;
+        }
+        let [a, b, c] = mesh.corners(t);
+        let face = unit_or_zero(&area_vector(&[a, b, c]));
+        let tri = mesh.triangles()[t];
+        for i in 1..k - 1 {
+            for j in 1..k - i {
+                let (u, v) = (i as f64 / k as f64, j as f64 / k as f64);
+                let w = 1.0 - u - v;
+                points.push(std::array::from_fn(|x| w * a[x] + u * b[x] + v * c[x]));
+                if let Some(n) = vertex_normals {
+                    let normal = if sign.is_empty() {
+                        // The file's normals, interpolated (the face's where they cancel).
+                        let [na, nb, nc] = tri.map(|v| n[v as usize]);
+                        let m = unit_or_zero(&std::array::from_fn(|x| {
+                            w * na[x] + u * nb[x] + v * nc[x]
+                        }));
+                        if m == [0.0; 3] { face } else { m }
+                    } else {
+                        face.map(|x| sign[t] * x)
+                    };
+                    normals.push(normal);
+                }
+            }
+        }
+    }
+    (points, normals)
 }

@@ -599,7 +599,9 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
     ] {
         let p = mesh_points(TriMesh::new(v.clone(), tris.to_vec()).unwrap());
         assert_eq!(p.source, NormalSource::WindingOpen);
-        assert_eq!(p.normals.unwrap(), vec![[0.0, 0.0, z]; 4]);
+        let n = p.normals.unwrap();
+        assert_eq!(n.len(), 4 + p.sampled);
+        assert!(n.iter().all(|n| *n == [0.0, 0.0, z]));
     }
     // The second triangle wound the other way: inconsistent, no normals.
     let p = mesh_points(TriMesh::new(v.clone(), vec![[0, 1, 2], [0, 3, 2]]).unwrap());
@@ -641,4 +643,29 @@ fn mesh_points_make_the_files_normals_unit_and_a_zero_one_defers_to_the_winding(
         (p.positions.len(), p.source),
         (8, NormalSource::NoTriangles)
     );
+}
+
+#[test]
+fn mesh_points_sample_a_coarse_mesh_inside_its_triangles() {
+    use zeroset_field_core::geometry::dot;
+    use zeroset_mesh::points::{MIN_MESH_POINTS, mesh_points};
+    // A cube's 8 corners are too few to fit: points on its 6 faces, about MIN_MESH_POINTS of
+    // them, every one on a face with that face's outward normal; the same points every time.
+    let p = mesh_points(cube_at([0.0; 3]));
+    let enough = MIN_MESH_POINTS * 8 / 10..=MIN_MESH_POINTS;
+    assert!(enough.contains(&p.sampled), "{}", p.sampled);
+    let n = p.normals.as_ref().unwrap();
+    for (x, n) in p.positions.iter().zip(n).skip(8) {
+        let axis = (0..3).find(|&a| n[a] != 0.0).unwrap();
+        let side = if n[axis] > 0.0 { 1.0 } else { 0.0 };
+        assert!(
+            (x[axis] - side).abs() < 1e-12 && n[axis].abs() == 1.0,
+            "{x:?} {n:?}"
+        );
+        assert!(dot(&[x[0] - 0.5, x[1] - 0.5, x[2] - 0.5], n) > 0.0);
+    }
+    assert_eq!(mesh_points(cube_at([0.0; 3])), p);
+    // The bunny's own mesh has vertices enough: nothing sampled.
+    let bunny = read_ply_mesh(bunny_path()).unwrap();
+    assert_eq!(mesh_points(bunny).sampled, 0);
 }

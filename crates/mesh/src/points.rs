@@ -210,9 +210,19 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
         let [a, b, c] = mesh.corners(t).map(|p| sub(&p, &origin));
         volume[part as usize] += dot(&a, &cross(&b, &c)) / 6.0;
     }
+    let sign: Vec<f64> = labels
+        .iter()
+        .map(|&part| {
+            if volume[part as usize] < 0.0 {
+                -1.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
     let mut turn = vec![false; normals.len()];
-    for (tri, &part) in mesh.triangles().iter().zip(&labels) {
-        if volume[part as usize] < 0.0 {
+    for (tri, &s) in mesh.triangles().iter().zip(&sign) {
+        if s < 0.0 {
             for &v in tri {
                 turn[v as usize] = true;
             }
@@ -227,16 +237,6 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
         turned: volume.iter().filter(|v| **v < 0.0).count(),
         closed_parts: parts,
     };
-    let sign = labels
-        .iter()
-        .map(|&part| {
-            if volume[part as usize] < 0.0 {
-                -1.0
-            } else {
-                1.0
-            }
-        })
-        .collect();
     (Some(normals), source, sign)
 }
 

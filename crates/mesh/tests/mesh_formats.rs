@@ -226,7 +226,7 @@ fn stl_errors_name_the_place() {
     );
 
     let facet = |body: &str| format!("solid s\nfacet normal 0 0 1\nouter loop\n{body}");
-    let cases: [(String, &str); 8] = [
+    let cases: [(String, &str); 9] = [
         (
             facet("vertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n"),
             "line 6: the facet has 2 corner(s)",
@@ -259,6 +259,10 @@ fn stl_errors_name_the_place() {
         (
             "solid s\nfacets 3\n".into(),
             "line 2: 'facets' is not an ASCII STL keyword",
+        ),
+        (
+            "solid a\nendsolid a\nsolid b\nsolid c\n".into(),
+            "line 4: 'solid' begins a solid, but one is open",
         ),
     ];
     for (text, want) in &cases {

@@ -473,6 +473,16 @@ fn parse_ascii(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
             }
             // The name after `solid` or `endsolid`, on its line.
             _ if line == name_line && matches!(state, State::Solid | State::Outside) => state,
+            "solid" => {
+                return Err(malformed(
+                    line,
+                    format!(
+                        "'{word}' begins a solid, but one is open (the file is {}; is an \
+                         'endsolid' missing?)",
+                        describe(state)
+                    ),
+                ));
+            }
             _ => {
                 return Err(malformed(
                     line,

@@ -350,6 +350,25 @@ fn mesh_report(path: &Path, format: &str) -> anyhow::Result<String> {
         &format!("{}, {} used by triangles", r.vertices, r.used_vertices),
     );
     line(&mut s, "triangles", &r.triangles.to_string());
+    if r.triangles == 0 {
+        // An OBJ of vertices only (or an empty mesh): what the fitting commands make of it.
+        line(
+            &mut s,
+            "points",
+            &format!(
+                "no triangle: zeroset fit, normals and reconstruct read the {} vertices as a \
+                 point cloud{}",
+                r.vertices,
+                if mesh.normals().is_empty() {
+                    " without normals"
+                } else {
+                    " with their normals"
+                }
+            ),
+        );
+        mesh_bounds(&mut s, &mesh);
+        return Ok(s);
+    }
     line(
         &mut s,
         "closed",
@@ -383,14 +402,19 @@ fn mesh_report(path: &Path, format: &str) -> anyhow::Result<String> {
     );
     line(&mut s, "volume", &format!("signed {}", g(r.signed_volume)));
     line(&mut s, "area", &g(r.area));
+    mesh_bounds(&mut s, &mesh);
+    Ok(s)
+}
+
+/// The `bounds:` lines of a mesh report.
+fn mesh_bounds(s: &mut String, mesh: &zeroset_mesh::TriMesh) {
     match mesh.bounds() {
-        None => line(&mut s, "bounds", "none (no vertex)"),
+        None => line(s, "bounds", "none (no vertex)"),
         Some(b) => {
-            line(&mut s, "bounds", &format!("min {}", point(b.min())));
-            more(&mut s, &format!("max {}", point(b.max())));
+            line(s, "bounds", &format!("min {}", point(b.min())));
+            more(s, &format!("max {}", point(b.max())));
         }
     }
-    Ok(s)
 }
 
 const LABEL_WIDTH: usize = 12;

@@ -1124,6 +1124,37 @@ fn threads_zero_is_a_clear_error() {
 // ---- zeroset info on a mesh ----
 
 #[test]
+fn an_obj_of_vertices_only_is_a_point_cloud() {
+    // 200 points on a sphere with their normals, as `v` and `vn` lines and no face: info says
+    // what the fitting commands make of it, and fit reads it with its normals.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cloud.obj");
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let mut text = String::new();
+    for i in 0..200 {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / 200.0;
+        let r = (1.0 - z * z).sqrt();
+        let (x, y) = (r * (golden * i as f64).cos(), r * (golden * i as f64).sin());
+        text.push_str(&format!("v {x} {y} {z}\nvn {x} {y} {z}\n"));
+    }
+    fs::write(&path, text).unwrap();
+    let o = info(&path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("read the 200 vertices as a point cloud with their normals"),
+        "{}",
+        stdout(&o)
+    );
+    let o = fit(&path, &[]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("200 points with normals"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+#[test]
 fn info_reports_a_ply_mesh() {
     let path = std::env::var_os("ZEROSET_DATA")
         .map_or_else(

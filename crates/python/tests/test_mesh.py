@@ -163,14 +163,21 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
     with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
         zeroset.read_mesh(tmp_path / "x.off")
     # A mesh file read as points: its vertices, with the file's normals (PLY), or normals from
-    # the triangles' winding (STL: outward on the sphere).
-    p_ply, n_ply = zeroset.read_points(tmp_path / "m.ply")
-    assert np.allclose(p_ply, v, atol=1e-6)
-    assert np.allclose(n_ply, n / np.linalg.norm(n, axis=1)[:, None], atol=1e-6)
-    p_stl, n_stl = zeroset.read_points(tmp_path / "m.stl")
-    assert len(p_stl) == len(v) and n_stl is not None
+    # the triangles' winding (STL), then — a mesh of fewer than 10,000 vertices — points
+    # sampled inside its triangles; every normal outward on the sphere.
     centre = v.mean(axis=0)
-    assert (np.einsum("ij,ij->i", p_stl - centre, n_stl) > 0).all()
+    p_ply, n_ply = zeroset.read_points(tmp_path / "m.ply")
+    assert len(v) < len(p_ply)  # fewer than 10,000 vertices: some points sampled inside
+    # The vertices come in the order the triangles use them: compare sorted.
+    v32 = v.astype(np.float32).astype(np.float64)
+    mine, theirs = np.lexsort(p_ply[: len(v)].T), np.lexsort(v32.T)
+    assert np.array_equal(p_ply[: len(v)][mine], v32[theirs])
+    unit = n / np.linalg.norm(n, axis=1)[:, None]
+    assert np.allclose(n_ply[: len(v)][mine], unit[theirs], atol=1e-6)
+    p_stl, n_stl = zeroset.read_points(tmp_path / "m.stl")
+    assert len(p_stl) == len(p_ply) and n_stl is not None
+    for p, q in ((p_ply, n_ply), (p_stl, n_stl)):
+        assert (np.einsum("ij,ij->i", p - centre, q) > 0).all()
     (tmp_path / "cut.stl").write_bytes((tmp_path / "m.stl").read_bytes()[:200])
     with pytest.raises(ValueError, match="truncated"):
         zeroset.read_mesh(tmp_path / "cut.stl")

@@ -99,7 +99,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         Some(f) => f.into(),
         None => io::detect_format(path).context("cannot tell the file's format")?,
     };
-    if format == Format::Ply && has_face_element(path) {
+    if format == Format::Ply && zeroset_mesh::io::ply_face_count(path).is_some() {
         return mesh_report(path, "ply");
     }
     let mut options = ReadOptions::default().with_format(format);
@@ -553,16 +553,6 @@ fn trim_zeros(text: String) -> String {
     } else {
         text
     }
-}
-
-/// Whether the PLY header declares a `face` element, even an empty one (a mesh file rather
-/// than a point cloud). An unreadable header answers `false`: the point-cloud reader then
-/// names the problem.
-fn has_face_element(path: &Path) -> bool {
-    matches!(
-        zeroset_field_core::io::ply::read_header(path),
-        Ok(Ok(header)) if header.element("face").is_some()
-    )
 }
 
 #[cfg(test)]

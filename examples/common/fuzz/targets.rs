@@ -351,7 +351,7 @@ fn info(path: &Path) -> String {
         Ok(f) => f,
         Err(e) => return outcome::<(), _>(&Err(e), path, |_| String::new()),
     };
-    if format == Format::Ply && has_faces(path) {
+    if format == Format::Ply && zeroset::mesh::io::ply_face_count(path).is_some() {
         return outcome(&zeroset::mesh::read_ply_mesh(path), path, mesh_ok);
     }
     let mut options = ReadOptions::default().with_format(format);
@@ -375,13 +375,4 @@ fn info(path: &Path) -> String {
         }));
     }
     s
-}
-
-/// `has_faces` of crates/cli/src/info.rs: whether the PLY header declares a `face` element,
-/// read by the one PLY layer.
-fn has_faces(path: &Path) -> bool {
-    matches!(
-        io::ply::read_header(path),
-        Ok(Ok(header)) if header.element("face").is_some()
-    )
 }

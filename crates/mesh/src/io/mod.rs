@@ -82,11 +82,17 @@ pub fn is_mesh_file(path: impl AsRef<Path>) -> bool {
     let path = path.as_ref();
     match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj | MeshFormat::Stl) => true,
-        Some(MeshFormat::Ply) => matches!(
-            zeroset_field_core::io::ply::read_header(path),
-            Ok(Ok(header)) if header.element("face").is_some_and(|f| f.count > 0)
-        ),
+        Some(MeshFormat::Ply) => ply_face_count(path).is_some_and(|faces| faces > 0),
         None => false,
+    }
+}
+
+/// The number of faces a PLY file's header declares, or `None` when it declares no `face`
+/// element (a point cloud) or its header cannot be read (for the reader to name the problem).
+pub fn ply_face_count(path: impl AsRef<Path>) -> Option<usize> {
+    match zeroset_field_core::io::ply::read_header(path.as_ref()) {
+        Ok(Ok(header)) => header.element("face").map(|f| f.count),
+        _ => None,
     }
 }
 

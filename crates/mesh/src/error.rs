@@ -129,13 +129,13 @@ pub enum MeshError {
         /// The number of records announced.
         expected: usize,
     },
-    /// An OBJ or STL mesh file that cannot be read: the file, its format and the place
+    /// An OBJ, STL or OFF mesh file that cannot be read: the file, its format and the place
     /// (`line 12`, `triangle 7 (byte 434)`), and what is wrong there.
     #[error("{}: {format} {place}: {detail}", path.display())]
     Malformed {
         /// The file (or the name given for in-memory data).
         path: std::path::PathBuf,
-        /// `"OBJ"` or `"STL"`.
+        /// `"OBJ"`, `"STL"` or `"OFF"`.
         format: &'static str,
         /// Where: a line, or a triangle with its byte offset.
         place: String,

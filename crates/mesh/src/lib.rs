@@ -21,9 +21,9 @@
 //!   back faces darker) and field slices (diverging colour map, zero contour in black).
 //! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
 //! - [`io`] — mesh files, each read and written: PLY (ASCII and binary, any vertex
-//!   properties, polygons fan-triangulated), Wavefront OBJ, and STL (binary and ASCII, corners
-//!   welded into shared vertices on reading); [`read_mesh`] / [`write_mesh`] by extension;
-//!   writes are atomic.
+//!   properties, polygons fan-triangulated), Wavefront OBJ, STL (binary and ASCII, corners
+//!   welded into shared vertices on reading), and OFF (text, `[ST][C][N]OFF`);
+//!   [`read_mesh`] / [`write_mesh`] by extension; writes are atomic.
 //! - [`points`] — a mesh as an oriented point cloud: its vertices, normals from the file or
 //!   the triangles' winding (closed parts wound inward turned over).
 //! - [`voxel`] — the voxel size of a marching-cubes grid from the bounding box (the
@@ -100,8 +100,8 @@ pub use checks::{MeshReport, boundary_loops, check, components, unsupported_comp
 pub use cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{
-    MeshFormat, PlyFormat, StlFormat, is_mesh_file, read_mesh, read_obj_mesh, read_ply_mesh,
-    read_stl_mesh, write_mesh, write_obj, write_ply, write_stl,
+    MeshFormat, PlyFormat, StlFormat, is_mesh_file, read_mesh, read_obj_mesh, read_off_mesh,
+    read_ply_mesh, read_stl_mesh, write_mesh, write_obj, write_off, write_ply, write_stl,
 };
 pub use signed::{
     CoarseStep, SmcOptions, SmcReport, SmcStage, VgReport, expected_evaluations, settled_fraction,

@@ -391,6 +391,8 @@ fn read_and_write_by_extension() {
         ("t.obj", false),
         ("t.stl", false),
         ("t.Stl", true),
+        ("t.off", false),
+        ("t.OFF", true),
     ] {
         let path = dir.path().join(name);
         write_mesh(&path, &mesh, ascii).unwrap();
@@ -405,7 +407,7 @@ fn read_and_write_by_extension() {
             assert_eq!(back.normals().len(), 4, "{name}");
         }
     }
-    for bad in ["t.off", "t", "t.ply.gz"] {
+    for bad in ["t.3mf", "t", "t.ply.gz"] {
         let path = dir.path().join(bad);
         let err = write_mesh(&path, &mesh, false).unwrap_err();
         assert!(

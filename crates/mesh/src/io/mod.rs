@@ -1,10 +1,11 @@
-//! Mesh files: PLY, Wavefront OBJ and STL, each read and written.
+//! Mesh files: PLY, Wavefront OBJ, STL and OFF, each read and written.
 //!
 //! | format | read | write | normals | vertices no triangle uses |
 //! |---|---|---|---|---|
 //! | [`ply`] | ASCII, binary either endian | binary little-endian or ASCII | per vertex | kept |
 //! | [`obj`] (Wavefront) | text | text | per vertex when each vertex has one | kept |
 //! | [`stl`] | binary or ASCII, corners welded | binary or ASCII | facet normals written, not read | dropped |
+//! | [`off`] (Object File Format) | text: `[ST][C][N]OFF`, or no keyword | text (`OFF`, or `NOFF` with normals) | per vertex (`NOFF`) | kept |
 //!
 //! [`read_mesh`] and [`write_mesh`] pick the format by the file's extension ([`MeshFormat`]);
 //! each format's module has its reader and writer (re-exported here). All writes are atomic
@@ -31,12 +32,14 @@
 //! ```
 
 pub mod obj;
+pub mod off;
 pub mod ply;
 pub mod stl;
 
 use std::path::Path;
 
 pub use obj::{obj_from_bytes, obj_to_string, read_obj_mesh, write_obj};
+pub use off::{off_from_bytes, off_to_string, read_off_mesh, write_off};
 pub use ply::{PlyFormat, ply_from_bytes, ply_to_bytes, read_ply_mesh, write_ply};
 pub use stl::{StlFormat, read_stl_mesh, stl_from_bytes, stl_to_bytes, write_stl};
 
@@ -51,12 +54,14 @@ pub enum MeshFormat {
     Obj,
     /// STL (`.stl`).
     Stl,
+    /// OFF, the Object File Format (`.off`).
+    Off,
 }
 
 impl MeshFormat {
     /// The extensions of the formats, lower case, as [`from_path`](Self::from_path) accepts
     /// them (in any case).
-    pub const EXTENSIONS: [&'static str; 3] = ["ply", "obj", "stl"];
+    pub const EXTENSIONS: [&'static str; 4] = ["ply", "obj", "stl", "off"];
 
     /// The format `path`'s extension names (in any case), or `None`.
     pub fn from_path(path: &Path) -> Option<Self> {
@@ -65,23 +70,25 @@ impl MeshFormat {
             "ply" => Some(Self::Ply),
             "obj" => Some(Self::Obj),
             "stl" => Some(Self::Stl),
+            "off" => Some(Self::Off),
             _ => None,
         }
     }
 
-    /// Whether the format has an ASCII and a binary encoding (PLY, STL); OBJ is text only.
+    /// Whether the format has an ASCII and a binary encoding (PLY, STL); OBJ and OFF are
+    /// text only (binary OFF is not read or written).
     pub fn has_binary(self) -> bool {
-        !matches!(self, Self::Obj)
+        !matches!(self, Self::Obj | Self::Off)
     }
 }
 
-/// Whether `path` is a mesh file: `.obj` or `.stl` (by the extension), or `.ply` whose header
-/// declares at least one face (a PLY without faces is a point cloud). An unreadable PLY
+/// Whether `path` is a mesh file: `.obj`, `.stl` or `.off` (by the extension), or `.ply` whose
+/// header declares at least one face (a PLY without faces is a point cloud). An unreadable PLY
 /// header answers `false`, for the point-cloud reader to name the problem.
 pub fn is_mesh_file(path: impl AsRef<Path>) -> bool {
     let path = path.as_ref();
     match MeshFormat::from_path(path) {
-        Some(MeshFormat::Obj | MeshFormat::Stl) => true,
+        Some(MeshFormat::Obj | MeshFormat::Stl | MeshFormat::Off) => true,
         Some(MeshFormat::Ply) => ply_face_count(path).is_some_and(|faces| faces > 0),
         None => false,
     }
@@ -99,7 +106,7 @@ pub fn ply_face_count(path: impl AsRef<Path>) -> Option<usize> {
 fn unknown_extension(path: &Path) -> MeshError {
     MeshError::UnsupportedFormat {
         path: path.to_owned(),
-        detail: "a mesh file is .ply, .obj or .stl (told by the extension)".into(),
+        detail: "a mesh file is .ply, .obj, .stl or .off (told by the extension)".into(),
     }
 }
 
@@ -107,22 +114,24 @@ fn unknown_extension(path: &Path) -> MeshError {
 ///
 /// # Errors
 /// [`MeshError::UnsupportedFormat`] for another extension; otherwise as
-/// [`read_ply_mesh`], [`read_obj_mesh`] or [`read_stl_mesh`].
+/// [`read_ply_mesh`], [`read_obj_mesh`], [`read_stl_mesh`] or [`read_off_mesh`].
 pub fn read_mesh(path: impl AsRef<Path>) -> Result<TriMesh> {
     let path = path.as_ref();
     match MeshFormat::from_path(path).ok_or_else(|| unknown_extension(path))? {
         MeshFormat::Ply => read_ply_mesh(path),
         MeshFormat::Obj => read_obj_mesh(path),
         MeshFormat::Stl => read_stl_mesh(path),
+        MeshFormat::Off => read_off_mesh(path),
     }
 }
 
 /// Writes `mesh` in the format `path`'s extension names, atomically: binary PLY or STL, or
-/// their ASCII form with `ascii` (OBJ is always text, and `ascii` does not change it).
+/// their ASCII form with `ascii` (OBJ and OFF are always text, and `ascii` does not change
+/// them).
 ///
 /// # Errors
 /// [`MeshError::UnsupportedFormat`] for another extension; otherwise as [`write_ply`],
-/// [`write_obj`] or [`write_stl`].
+/// [`write_obj`], [`write_stl`] or [`write_off`].
 pub fn write_mesh(path: impl AsRef<Path>, mesh: &TriMesh, ascii: bool) -> Result<()> {
     let path = path.as_ref();
     match MeshFormat::from_path(path).ok_or_else(|| unknown_extension(path))? {
@@ -131,5 +140,6 @@ pub fn write_mesh(path: impl AsRef<Path>, mesh: &TriMesh, ascii: bool) -> Result
         MeshFormat::Obj => write_obj(path, mesh),
         MeshFormat::Stl if ascii => write_stl(path, mesh, StlFormat::Ascii),
         MeshFormat::Stl => write_stl(path, mesh, StlFormat::Binary),
+        MeshFormat::Off => write_off(path, mesh),
     }
 }

@@ -192,8 +192,11 @@ const SAMPLED_BYTES_PER_SAMPLE: u64 = 24;
 /// Arguments of `zeroset fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
-    /// An oriented point cloud: .ply (with nx ny nz), .xyzn/.xyz/.txt/.pts (x y z nx ny nz
-    /// per line) or .csv (header with x,y,z,nx,ny,nz). Normals point out of the solid. Or a
+    /// An oriented point cloud: .ply (with nx ny nz), .pcd (PCL, with normal_x normal_y
+    /// normal_z), .xyzn/.xyz/.txt/.pts/.asc/.pwn (x y z nx ny nz per line, or columns named by
+    /// a first line) or .csv (header with x,y,z,nx,ny,nz); or a mesh (.ply with faces, .obj,
+    /// .stl, .off), read as its vertices with the triangles' normals. Normals point out of the solid.
+    /// Or a
     /// value-constraint file: .xyv (x y value per line, a 2-D curve) or .xyzv (x y z value);
     /// values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,

@@ -37,9 +37,10 @@ NaN and infinite values do not stop the report: they are counted and the first i
 /// Arguments of `zeroset info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The point-cloud file: .ply (ascii or binary), .xyz/.xyzn/.txt/.pts (x y z [nx ny nz]
-    /// per line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file
-    /// (told by its contents); or a mesh: .ply with faces, .obj or .stl.
+    /// The point-cloud file: .ply (ascii or binary), .pcd (PCL), .xyz/.xyzn/.txt/.pts/.asc/.pwn
+    /// (x y z [nx ny nz] per line, or columns named by a first line), or .csv (header with
+    /// x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file (told by its contents); or a mesh:
+    /// .ply with faces, .obj, .stl or .off.
     pub file: PathBuf,
 
     /// Read the file as this format instead of detecting it from the extension and header.
@@ -58,6 +59,8 @@ pub enum FormatArg {
     Csv,
     /// A GemPy surface-points or orientations table.
     Gempy,
+    /// The Point Cloud Library's PCD (ascii, binary or binary_compressed).
+    Pcd,
 }
 
 impl From<FormatArg> for Format {
@@ -67,6 +70,7 @@ impl From<FormatArg> for Format {
             FormatArg::Xyz => Format::Xyz,
             FormatArg::Csv => Format::Csv,
             FormatArg::Gempy => Format::GemPy,
+            FormatArg::Pcd => Format::Pcd,
         }
     }
 }
@@ -92,6 +96,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         match zeroset_mesh::MeshFormat::from_path(path) {
             Some(zeroset_mesh::MeshFormat::Obj) => return mesh_report(path, "obj"),
             Some(zeroset_mesh::MeshFormat::Stl) => return mesh_report(path, "stl"),
+            Some(zeroset_mesh::MeshFormat::Off) => return mesh_report(path, "off"),
             _ => {}
         }
     }

@@ -124,10 +124,10 @@ pub struct MeshArgs {
     /// field (`zeroset fit -o --sampled`, `zeroset restore`); meshed over the box it records.
     pub field: PathBuf,
 
-    /// The mesh file: .ply (binary little-endian, or --ascii), .obj, or .stl (binary, or
-    /// --ascii; for 3-D printing and CAD), written atomically; .svg for the level curve of a
-    /// 2-D field.
-    #[arg(short, long, value_name = "OUT.ply|OUT.obj|OUT.stl|OUT.svg")]
+    /// The mesh file: .ply (binary little-endian, or --ascii), .obj, .stl (binary, or
+    /// --ascii; for 3-D printing and CAD) or .off, written atomically; .svg for the level curve
+    /// of a 2-D field.
+    #[arg(short, long, value_name = "OUT.ply|OUT.obj|OUT.stl|OUT.off|OUT.svg")]
     pub output: PathBuf,
 
     /// Surface-extraction method.
@@ -417,6 +417,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             (MeshFormat::Ply, false) => "binary PLY",
             (MeshFormat::Stl, true) => "ASCII STL",
             (MeshFormat::Stl, false) => "binary STL",
+            (MeshFormat::Off, _) => "OFF",
         }
     )?;
     say!(
@@ -698,8 +699,9 @@ fn check_output(args: &MeshArgs) -> anyhow::Result<MeshFormat> {
     let format = MeshFormat::from_path(out).context("a mesh file's extension")?;
     if args.ascii && !format.has_binary() {
         bail!(
-            "--ascii applies to PLY and STL output; {} is OBJ, which is always text",
-            out.display()
+            "--ascii applies to PLY and STL output; {} is {}, which is always text",
+            out.display(),
+            format.name()
         );
     }
     Ok(format)

@@ -28,6 +28,7 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
     let format = match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj) => "an OBJ",
         Some(MeshFormat::Ply) => "a PLY",
+        Some(MeshFormat::Off) => "an OFF",
         _ => "an STL",
     };
     if triangles == 0 {

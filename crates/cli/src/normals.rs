@@ -36,7 +36,8 @@ Examples:
 /// `zeroset normals`' arguments.
 #[derive(Debug, Args)]
 pub struct NormalsArgs {
-    /// A point cloud: .ply, .xyz/.xyzn/.txt/.pts or .csv. Only its positions are used; normals
+    /// A point cloud: .ply, .pcd, .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a mesh (.ply with
+    /// faces, .obj, .stl, .off). Only its positions are used; normals
     /// it has are compared with the estimate, not used.
     pub scan: PathBuf,
 

@@ -82,7 +82,7 @@ fn parse_slice(s: &str) -> Result<Slice, String> {
 /// Arguments of `zeroset preview`.
 #[derive(Debug, Args)]
 pub struct PreviewArgs {
-    /// A mesh (.ply, .obj, .stl) or a field file (.zsf).
+    /// A mesh (.ply, .obj, .stl, .off) or a field file (.zsf).
     pub input: PathBuf,
 
     /// The image, a .png file, written atomically.
@@ -238,11 +238,11 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads a mesh file (PLY, OBJ or STL) by its extension.
+/// Reads a mesh file (PLY, OBJ, STL or OFF) by its extension.
 fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
     if MeshFormat::from_path(path).is_none() {
         bail!(
-            "{} is neither a field file (.zsf) nor a mesh (.ply, .obj, .stl)",
+            "{} is neither a field file (.zsf) nor a mesh (.ply, .obj, .stl, .off)",
             path.display()
         );
     }

@@ -48,11 +48,11 @@ pub enum ReconstructMethod {
 /// `zeroset reconstruct`'s arguments.
 #[derive(Debug, Args)]
 pub struct ReconstructArgs {
-    /// An oriented point cloud: .ply (with nx ny nz), .xyzn/.xyz/.txt/.pts or .csv; normals
-    /// point out of the solid.
+    /// A point cloud: .ply, .pcd, .xyzn/.xyz/.txt/.pts/.asc/.pwn or .csv, with normals pointing
+    /// out of the solid or without (then estimated); or a mesh (.ply with faces, .obj, .stl, .off).
     pub scan: PathBuf,
 
-    /// The mesh: .ply (binary little-endian), .obj or .stl (binary), written atomically. The
+    /// The mesh: .ply (binary little-endian), .obj, .stl (binary) or .off, written atomically. The
     /// preview is written beside it, with the extension .png.
     #[arg(short, long, value_name = "MESH.ply|MESH.obj|MESH.stl")]
     pub output: PathBuf,

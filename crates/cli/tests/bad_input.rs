@@ -130,8 +130,8 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         b"0 0 0 0 0 1\n\xff\xfe 1 0 0 0 1\n",
     );
     m.put(
-        "bunny.off",
-        "the text of `bunny.xyzn` under an extension no reader knows",
+        "bunny.las",
+        "the text of `bunny.xyzn` under an extension no reader knows (LAS: LiDAR, not read)",
         bunny.as_bytes(),
     );
     m.put(
@@ -363,6 +363,60 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         "bytes that are not text, named .obj",
         &[b'v', b' ', 0xff, 0xfe, 0, 1, b'\n'],
     );
+    m.put(
+        "tet_index.off",
+        "an OFF tetrahedron whose last face refers to vertex 7 of 4 (OFF counts from 0)",
+        b"OFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 7\n",
+    );
+    m.put(
+        "tet_short.off",
+        "an OFF whose counts announce 4 vertices and 4 faces; it ends after 2 vertices",
+        b"OFF\n4 4 6\n0 0 0\n1 0 0\n",
+    );
+    let pcd_head = |points: usize, data: &str| {
+        format!(
+            "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\n\
+             SIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {points}\nHEIGHT 1\n\
+             VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {points}\nDATA {data}\n"
+        )
+    };
+    m.put(
+        "short.pcd",
+        "a binary PCD announcing 100 points of 12 bytes, holding 30 bytes",
+        &[pcd_head(100, "binary").into_bytes(), vec![0; 30]].concat(),
+    );
+    m.put(
+        "lzf.pcd",
+        "a binary_compressed PCD whose LZF block is garbage (sizes 6 and 24)",
+        &[
+            pcd_head(2, "binary_compressed").into_bytes(),
+            [6u32.to_le_bytes(), 24u32.to_le_bytes()].concat(),
+            vec![0xff; 6],
+        ]
+        .concat(),
+    );
+    m.put(
+        "gaps.pcd",
+        "an ASCII PCD of 3 points whose x y z are all NaN (an organised cloud's gaps)",
+        (pcd_head(3, "ascii") + &"nan nan nan\n".repeat(3)).as_bytes(),
+    );
+    m.put(
+        "type.pcd",
+        "a PCD header with TYPE `F F D` (D is no PCD type)",
+        pcd_head(1, "ascii")
+            .replace("TYPE F F F", "TYPE F F D")
+            .as_bytes(),
+    );
+    m.put(
+        "named_noz.xyz",
+        "an xyz file whose first line names the columns `x y w nx ny nz`",
+        b"x y w nx ny nz\n0 0 0 0 0 1\n",
+    );
+    m.put(
+        "decimal_comma.txt",
+        "points written with decimal commas and semicolons: `1,5;2,0;3,25`",
+        b"1,5;2,0;3,25\n",
+    );
     m.list
 }
 
@@ -458,7 +512,7 @@ impl Target {
                 "Value constraints: `zeroset_field_core::io::read_value_points::<2>` (xyv)"
             }
             Target::MeshReader => {
-                "Meshes: `zeroset_mesh::read_mesh` (PLY, OBJ or STL, by the extension)"
+                "Meshes: `zeroset_mesh::read_mesh` (PLY, OBJ, STL or OFF, by the extension)"
             }
             Target::FieldReader => "Field files: `zeroset_bases::field_file::read_any_field::<3>`",
         }
@@ -610,7 +664,7 @@ fn cases() -> Vec<Case> {
         cli("not UTF-8", "info latin1.xyzn").says("UTF-8"),
         cli("missing file", "info missing.xyzn"),
         cli("directory instead of file", "info folder.xyzn"),
-        cli("wrong extension", "info bunny.off").says("unknown point-cloud format"),
+        cli("wrong extension", "info bunny.las").says("unknown point-cloud format"),
         cli("a point cloud named .stl", "info cloud.stl").says("not ASCII STL"),
         cli("truncated binary PLY", "info cloud_trunc.ply").says("truncated"),
         cli("header count larger than the file", "info cloud_count.ply"),
@@ -623,6 +677,11 @@ fn cases() -> Vec<Case> {
         cli("out-of-range face index", "info tet_index.ply").says("vertex 7"),
         cli("truncated binary STL", "info tet_trunc.stl").says("triangle 3"),
         cli("OBJ face index out of range", "info tet_index.obj").says("line 8"),
+        cli("OFF face index out of range", "info tet_index.off").says("line 10"),
+        cli("truncated binary PCD", "info short.pcd").says("truncated"),
+        cli("PCD gaps only", "info gaps.pcd").says("NaN"),
+        cli("header line without z", "info named_noz.xyz").says("'z'"),
+        cli("decimal commas", "info decimal_comma.txt").says("decimal commas"),
         cli("unknown option value", "info bunny.xyzn --format stl")
             .no_file()
             .says("possible values"),
@@ -650,7 +709,9 @@ fn cases() -> Vec<Case> {
         cli("duplicate points", "fit dup.xyzn --method rbf --quiet").accepted("merged"),
         cli("not UTF-8", "fit latin1.xyzn --method rbf").says("UTF-8"),
         cli("missing file", "fit missing.xyzn --method rbf"),
-        cli("wrong extension", "fit bunny.off --method rbf"),
+        cli("wrong extension", "fit bunny.las --method rbf"),
+        cli("truncated OFF mesh", "fit tet_short.off --method rbf").says("truncated"),
+        cli("corrupt LZF in PCD", "fit lzf.pcd --method rbf").says("decompress"),
         cli(
             "a field file where points belong",
             "fit sphere.zsf --method rbf",
@@ -794,7 +855,7 @@ fn cases() -> Vec<Case> {
         )
         .no_file()
         .says("possible values"),
-        cli("wrong output extension", "mesh sphere.zsf -o out.off").names("out.off"),
+        cli("wrong output extension", "mesh sphere.zsf -o out.3mf").names("out.3mf"),
         cli(
             "--ascii with OBJ output",
             "mesh sphere.zsf -o out.obj --ascii",
@@ -873,9 +934,9 @@ fn cases() -> Vec<Case> {
         ),
         cli(
             "wrong output extension",
-            "reconstruct bunny.xyzn -o out.off --quiet",
+            "reconstruct bunny.xyzn -o out.3mf --quiet",
         )
-        .names("out.off"),
+        .names("out.3mf"),
         cli(
             "output directory does not exist",
             "reconstruct bunny.xyzn -o nodir/out.ply --quiet",
@@ -931,7 +992,7 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "not UTF-8", "latin1.xyzn"),
         reader(CloudReader, "missing file", "missing.xyzn"),
         reader(CloudReader, "directory instead of file", "folder.xyzn"),
-        reader(CloudReader, "wrong extension", "bunny.off"),
+        reader(CloudReader, "wrong extension", "bunny.las"),
         reader(CloudReader, "truncated binary PLY", "cloud_trunc.ply").says("truncated"),
         reader(
             CloudReader,
@@ -948,6 +1009,12 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "CSV without a z column", "noz.csv"),
         reader(CloudReader, "CSV: not a number", "word.csv"),
         reader(CloudReader, "CSV header only", "header_only.csv"),
+        reader(CloudReader, "truncated binary PCD", "short.pcd").says("truncated"),
+        reader(CloudReader, "corrupt LZF in PCD", "lzf.pcd").says("decompress"),
+        reader(CloudReader, "PCD gaps only", "gaps.pcd").says("NaN"),
+        reader(CloudReader, "PCD TYPE not I, U or F", "type.pcd").says("type.pcd:5"),
+        reader(CloudReader, "header line without z", "named_noz.xyz").says("named_noz.xyz:1"),
+        reader(CloudReader, "decimal commas", "decimal_comma.txt").says("decimal commas"),
         reader(CloudReader, "duplicate points", "dup.xyzn").accepted("100 points"),
         // GemPy
         reader(
@@ -986,6 +1053,8 @@ fn cases() -> Vec<Case> {
         reader(MeshReader, "OBJ face index out of range", "tet_index.obj").says("line 8"),
         reader(MeshReader, "OBJ face index 0", "tet_zero.obj").says("start at 1"),
         reader(MeshReader, "OBJ that is not text", "binary.obj").says("UTF-8"),
+        reader(MeshReader, "OFF face index out of range", "tet_index.off").says("line 10"),
+        reader(MeshReader, "truncated OFF", "tet_short.off").says("truncated"),
         // read_any_field
         reader(FieldReader, "corrupted .zsf checksum", "crc.zsf").says("checksum"),
         reader(FieldReader, "truncated .zsf", "trunc.zsf").says("truncated"),

@@ -866,8 +866,12 @@ fn mesh_refuses_bad_outputs_and_grids_with_a_message() {
     assert_eq!(fs::read(&field).unwrap(), before);
 
     let cases: [(PathBuf, &[&str], &str); 8] = [
-        (dir.path().join("s.off"), &[], ".ply or .obj or .stl"),
-        (dir.path().join("s"), &[], ".ply or .obj or .stl"),
+        (
+            dir.path().join("s.3mf"),
+            &[],
+            ".ply or .obj or .stl or .off",
+        ),
+        (dir.path().join("s"), &[], ".ply or .obj or .stl or .off"),
         (
             dir.path().join("missing").join("s.ply"),
             &[],

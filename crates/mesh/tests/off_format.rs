@@ -121,16 +121,9 @@ fn round_trips_are_bit_exact_and_keep_the_topology() {
 
 #[test]
 fn written_text_is_as_documented() {
-    let plain = TriMesh::new(
-        vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-        ],
-        vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
-    )
-    .unwrap();
+    // The tetrahedron without its normals.
+    let tet = common::tetrahedron_at([0.0; 3]);
+    let plain = TriMesh::new(tet.vertices().to_vec(), tet.triangles().to_vec()).unwrap();
     let text = off_to_string(&plain);
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], "OFF");

@@ -1,4 +1,5 @@
-//! Point clouds in: every format `zeroset` reads (PLY, xyz / xyzn / pts, CSV, GemPy tables).
+//! Point clouds in: every format `zeroset` reads (PLY, PCD, xyz / xyzn / pts text, CSV, GemPy
+//! tables, and meshes' vertices).
 
 use std::path::PathBuf;
 

@@ -279,7 +279,7 @@ fn smc<K: Kernel + Clone>(
     .map_err(to_py)
 }
 
-/// Reads a triangle mesh from a PLY, OBJ or STL file: vertices, faces, and normals when it has
+/// Reads a triangle mesh from a PLY, OBJ, STL or OFF file: vertices, faces, and normals when it has
 /// them.
 #[pyfunction]
 #[allow(clippy::type_complexity)]
@@ -293,7 +293,7 @@ pub(crate) fn read_mesh(
 )> {
     if MeshFormat::from_path(&path).is_none() {
         return Err(value_error(format!(
-            "{}: read a mesh from .ply, .obj or .stl",
+            "{}: read a mesh from .ply, .obj, .stl or .off",
             path.display()
         )));
     }
@@ -350,7 +350,7 @@ pub(crate) fn write_mesh(
         .transpose()?;
     if MeshFormat::from_path(&path).is_none() {
         return Err(value_error(format!(
-            "{}: write a mesh as .ply, .obj or .stl",
+            "{}: write a mesh as .ply, .obj, .stl or .off",
             path.display()
         )));
     }

@@ -399,3 +399,40 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(points[:, :2])
     with pytest.raises(ValueError, match="viewpoint"):
         zeroset.estimate_normals(points, viewpoint=(0.0, float("nan"), 0.0))
+
+
+def test_read_points_takes_pcd_and_named_text_columns(tmp_path):
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(50, 3)).astype(np.float32)
+    normals = points / np.linalg.norm(points, axis=1, keepdims=True)
+    # A binary PCD as PCL writes it: x y z, then an rgb field, then PCL's normal names.
+    record = np.dtype(
+        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4"),
+         ("normal_x", "<f4"), ("normal_y", "<f4"), ("normal_z", "<f4")]
+    )
+    rows = np.zeros(len(points), dtype=record)
+    for i, axis in enumerate("xyz"):
+        rows[axis] = points[:, i]
+        rows[f"normal_{axis}"] = normals[:, i]
+    header = (
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
+        "FIELDS x y z rgb normal_x normal_y normal_z\nSIZE 4 4 4 4 4 4 4\n"
+        "TYPE F F F U F F F\nCOUNT 1 1 1 1 1 1 1\n"
+        f"WIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {len(points)}\n"
+        "DATA binary\n"
+    )
+    path = tmp_path / "scan.pcd"
+    path.write_bytes(header.encode() + rows.tobytes())
+    read_p, read_n = zeroset.read_points(path)
+    assert np.array_equal(read_p, points.astype(np.float64))
+    assert np.array_equal(read_n, normals.astype(np.float64))
+    # CloudCompare's text export, colours before the normal, names on the first line.
+    text = tmp_path / "scan.txt"
+    lines = ["//X,Y,Z,R,G,B,Nx,Ny,Nz"] + [
+        ",".join(f"{v!r}" for v in (*p.tolist(), 10, 20, 30, *n.tolist()))
+        for p, n in zip(points.astype(np.float64), normals.astype(np.float64))
+    ]
+    text.write_text("\n".join(lines) + "\n")
+    read_p, read_n = zeroset.read_points(text)
+    assert np.array_equal(read_p, points.astype(np.float64))
+    assert np.array_equal(read_n, normals.astype(np.float64))

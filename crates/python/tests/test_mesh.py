@@ -158,10 +158,13 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
     zeroset.write_mesh(tmp_path / "n.obj", v, f, n)
     rv, rf, rn = zeroset.read_mesh(tmp_path / "n.obj")
     assert np.array_equal(rn, n)
-    with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
-        zeroset.write_mesh(tmp_path / "x.off", v, f)
-    with pytest.raises(ValueError, match=r"\.ply, \.obj or \.stl"):
-        zeroset.read_mesh(tmp_path / "x.off")
+    zeroset.write_mesh(tmp_path / "n.off", v, f, n)
+    rv, rf, rn = zeroset.read_mesh(tmp_path / "n.off")
+    assert np.array_equal(rv, v) and np.array_equal(rf, f) and np.array_equal(rn, n)
+    with pytest.raises(ValueError, match=r"\.ply, \.obj, \.stl or \.off"):
+        zeroset.write_mesh(tmp_path / "x.3mf", v, f)
+    with pytest.raises(ValueError, match=r"\.ply, \.obj, \.stl or \.off"):
+        zeroset.read_mesh(tmp_path / "x.3mf")
     # A mesh file read as points: its vertices, with the file's normals (PLY), or normals from
     # the triangles' winding (STL), then — a mesh of fewer than 10,000 vertices — points
     # sampled inside its triangles; every normal outward on the sphere.

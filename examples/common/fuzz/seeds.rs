@@ -145,6 +145,8 @@ pub fn real_files(small: bool) -> Vec<Seed> {
                     }
                 }
                 out.push(seed("bun_zipper_40.obj", obj_to_string(&mesh).into_bytes()));
+                let off = zeroset::mesh::io::off_to_string(&mesh);
+                out.push(seed("bun_zipper_40.off", off.into_bytes()));
             }
             out.push(seed("bun_zipper_40.ply", s));
         }
@@ -169,6 +171,13 @@ pub fn real_files(small: bool) -> Vec<Seed> {
     }
     if let Some(b) = read("samples/curve.xyv") {
         out.push(seed("curve.xyv", b));
+    }
+    // PCD as Open3D writes it, in its three encodings (300 points each, under 22 kB).
+    for encoding in ["ascii", "binary", "binary_compressed"] {
+        let name = format!("bunny300_{encoding}.pcd");
+        if let Some(b) = read(&format!("crates/field-core/tests/data/{name}")) {
+            out.push(seed(&name, b));
+        }
     }
     for dir in ["data/geology/greenstone", "data/geology/perth_basin"] {
         let Ok(entries) = std::fs::read_dir(root.join(dir)) else {
@@ -438,7 +447,9 @@ pub fn for_target(target: Target, seeds: &[Seed]) -> Vec<Seed> {
         Target::PlyCloud | Target::PlyMesh => by_ext(&["ply"]),
         Target::StlMesh => by_ext(&["stl"]),
         Target::ObjMesh => by_ext(&["obj"]),
+        Target::OffMesh => by_ext(&["off"]),
         Target::Xyz => by_ext(&["xyz", "xyzn", "txt"]),
+        Target::Pcd => by_ext(&["pcd"]),
         Target::Csv | Target::GemPy => by_ext(&["csv"]),
         Target::Xyv => by_ext(&["xyv"]),
         Target::Xyzv => by_ext(&["xyzv"]),

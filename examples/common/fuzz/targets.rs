@@ -28,8 +28,13 @@ pub enum Target {
     /// Wavefront OBJ meshes: `zeroset_mesh::read_obj_mesh` and `obj_from_bytes`, then the mesh
     /// checks.
     ObjMesh,
+    /// OFF meshes: `zeroset_mesh::read_off_mesh` and `off_from_bytes`, then the mesh checks.
+    OffMesh,
     /// xyz text: `read_point_cloud_with(Format::Xyz)`, with and without normals.
     Xyz,
+    /// PCL's PCD (ascii, binary, binary_compressed): `read_point_cloud_with(Format::Pcd)`,
+    /// strict and lenient, and `detect_format` on the bytes under another name.
+    Pcd,
     /// CSV with a header: `read_point_cloud_with(Format::Csv)` and `detect_format`.
     Csv,
     /// GemPy tables: `read_gempy_file`, `read_surface_points`, `read_orientations` and the
@@ -56,12 +61,14 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 14] = [
+    pub const ALL: [Target; 16] = [
         Target::PlyCloud,
         Target::PlyMesh,
         Target::StlMesh,
         Target::ObjMesh,
+        Target::OffMesh,
         Target::Xyz,
+        Target::Pcd,
         Target::Csv,
         Target::GemPy,
         Target::Xyv,
@@ -80,7 +87,9 @@ impl Target {
             Target::PlyMesh => "ply-mesh",
             Target::StlMesh => "stl-mesh",
             Target::ObjMesh => "obj-mesh",
+            Target::OffMesh => "off-mesh",
             Target::Xyz => "xyz",
+            Target::Pcd => "pcd",
             Target::Csv => "csv",
             Target::GemPy => "gempy",
             Target::Xyv => "xyv",
@@ -105,7 +114,9 @@ impl Target {
             Target::PlyCloud | Target::PlyMesh => "ply",
             Target::StlMesh => "stl",
             Target::ObjMesh => "obj",
+            Target::OffMesh => "off",
             Target::Xyz => "xyz",
+            Target::Pcd => "pcd",
             Target::Csv | Target::GemPy => "csv",
             Target::Xyv => "xyv",
             Target::Xyzv => "xyzv",
@@ -280,6 +291,17 @@ pub fn run(target: Target, path: &Path, bytes: &[u8]) -> String {
             |p| zeroset::mesh::read_obj_mesh(p),
             zeroset::mesh::io::obj_from_bytes,
         ),
+        Target::OffMesh => read_mesh_both(
+            path,
+            bytes,
+            |p| zeroset::mesh::read_off_mesh(p),
+            zeroset::mesh::io::off_from_bytes,
+        ),
+        Target::Pcd => [
+            read_cloud(path, Format::Pcd, false, false),
+            read_cloud(path, Format::Pcd, true, true),
+        ]
+        .join(" | "),
         Target::Xyz => [
             read_cloud(path, Format::Xyz, false, false),
             read_cloud(path, Format::Xyz, true, true),
@@ -343,7 +365,11 @@ fn info(path: &Path) -> String {
     }
     if matches!(
         zeroset::mesh::MeshFormat::from_path(path),
-        Some(zeroset::mesh::MeshFormat::Obj | zeroset::mesh::MeshFormat::Stl)
+        Some(
+            zeroset::mesh::MeshFormat::Obj
+                | zeroset::mesh::MeshFormat::Stl
+                | zeroset::mesh::MeshFormat::Off
+        )
     ) {
         return outcome(&zeroset::mesh::read_mesh(path), path, mesh_ok);
     }

@@ -3,10 +3,11 @@
 //!
 //! | [`Format`] | Extensions | What is read | Normals |
 //! |---|---|---|---|
-//! | [`Format::Ply`] | `.ply` | `ascii`, `binary_little_endian` or `binary_big_endian`; element `vertex`, properties `x y z` of any scalar type; other properties and elements (faces) are skipped | `nx ny nz`, all three or none |
-//! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` | one point per line: 3 numbers (`x y z`) or at least 6 (`x y z nx ny nz`, further columns ignored), separated by whitespace or commas; `#` starts a comment; blank lines are skipped; every line has the same count | columns 4–6, if they look like normals: not RGB colours (all whole numbers 0–255) and every non-zero length within [`NORMAL_LENGTHS`]; otherwise [`Error::NotNormals`] |
-//! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored | columns `nx`, `ny`, `nz`, all three or none |
+//! | [`Format::Ply`] | `.ply` | `ascii`, `binary_little_endian` or `binary_big_endian`; element `vertex`, properties `x y z` of any scalar type; other properties and elements (faces) are skipped | `nx ny nz` (or PCL's `normal_x normal_y normal_z`), all three or none |
+//! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` `.asc` `.pwn` | one point per line: at least 3 numbers (`x y z`, columns after the third ignored unless there are 6 or more: `x y z nx ny nz`), separated by whitespace, commas or semicolons; or columns named by a first line (`x y z nx ny nz`, CloudCompare's `//X,Y,Z,R,G,B,Nx,Ny,Nz`, any order, other names ignored); `#` starts a comment; blank lines are skipped; every line has the same count; a `.pts` file's first line may be its point count | named `nx ny nz` (or `normal_x ...`: [`NORMAL_NAMES`]); unnamed columns 4–6 if they look like normals: not RGB colours (all whole numbers 0–255) and every non-zero length within [`NORMAL_LENGTHS`]; otherwise [`Error::NotNormals`] |
+//! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored; fields separated by commas, or by semicolons or tabs where the header has more of them | columns `nx ny nz` or `normal_x normal_y normal_z`, all three or none |
 //! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
+//! | [`Format::Pcd`] | `.pcd` | PCL's PCD v0.5–0.7: `DATA ascii`, `binary` or `binary_compressed` (LZF); fields `x y z` of any type; other fields skipped; points whose `x y z` are all NaN (an organised cloud's gaps) left out; see [`pcd`] | `normal_x normal_y normal_z` (or `nx ny nz`), all three or none |
 //!
 //! [`read_point_cloud`] picks the format with [`detect_format`] (the extension, then the CSV
 //! header) and returns a [`PointCloud3`]; [`read_point_cloud_with`] takes [`ReadOptions`] to force
@@ -47,6 +48,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Point3;
 
 pub mod gempy;
+pub mod pcd;
 pub mod ply;
 mod table;
 pub mod values;
@@ -67,33 +69,45 @@ pub enum Format {
     Csv,
     /// A GemPy geology table (surface points or orientations); see [`gempy`].
     GemPy,
+    /// The Point Cloud Library's PCD: a text header, then the points as text, binary or
+    /// LZF-compressed binary; see [`pcd`].
+    Pcd,
 }
 
 impl Format {
     /// Every format, in the order of the module table.
-    pub const ALL: [Format; 4] = [Format::Ply, Format::Xyz, Format::Csv, Format::GemPy];
+    pub const ALL: [Format; 5] = [
+        Format::Ply,
+        Format::Xyz,
+        Format::Csv,
+        Format::GemPy,
+        Format::Pcd,
+    ];
 
     /// The format implied by the file extension (case-insensitive), without reading the file:
-    /// `.ply` → [`Format::Ply`]; `.xyz`, `.xyzn`, `.txt`, `.pts` → [`Format::Xyz`]; `.csv` →
-    /// [`Format::Csv`]. A `.csv` file may hold a GemPy table: [`detect_format`] reads the header
-    /// to tell. `None` for any other extension.
+    /// `.ply` → [`Format::Ply`]; `.xyz`, `.xyzn`, `.txt`, `.pts`, `.asc`, `.pwn` →
+    /// [`Format::Xyz`]; `.csv` → [`Format::Csv`]; `.pcd` → [`Format::Pcd`]. A `.csv` file may
+    /// hold a GemPy table: [`detect_format`] reads the header to tell. `None` for any other
+    /// extension.
     pub fn from_path(path: impl AsRef<Path>) -> Option<Format> {
         let ext = path.as_ref().extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
             "ply" => Some(Format::Ply),
-            "xyz" | "xyzn" | "txt" | "pts" => Some(Format::Xyz),
+            "xyz" | "xyzn" | "txt" | "pts" | "asc" | "pwn" => Some(Format::Xyz),
             "csv" => Some(Format::Csv),
+            "pcd" => Some(Format::Pcd),
             _ => None,
         }
     }
 
-    /// The lower-case name used on the command line: `ply`, `xyz`, `csv` or `gempy`.
+    /// The lower-case name used on the command line: `ply`, `xyz`, `csv`, `gempy` or `pcd`.
     pub fn name(self) -> &'static str {
         match self {
             Format::Ply => "ply",
             Format::Xyz => "xyz",
             Format::Csv => "csv",
             Format::GemPy => "gempy",
+            Format::Pcd => "pcd",
         }
     }
 }
@@ -106,13 +120,13 @@ impl fmt::Display for Format {
 
 /// The error of [`Format::from_str`]: the name given is not a format.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown format '{0}' (expected ply, xyz, csv or gempy)")]
+#[error("unknown format '{0}' (expected ply, xyz, csv, gempy or pcd)")]
 pub struct UnknownFormatName(pub String);
 
 impl FromStr for Format {
     type Err = UnknownFormatName;
 
-    /// Parses `ply`, `xyz`, `csv` or `gempy` (case-insensitive).
+    /// Parses `ply`, `xyz`, `csv`, `gempy` or `pcd` (case-insensitive).
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         Format::ALL
             .into_iter()
@@ -124,7 +138,8 @@ impl FromStr for Format {
 /// The format of a file: the extension first ([`Format::from_path`]); a `.csv` file whose
 /// header names `formation` or `surface`, or all of `dip`, `azimuth` and `polarity`, is
 /// [`Format::GemPy`]. A file with an unknown extension that starts with the PLY magic line
-/// `ply` is [`Format::Ply`].
+/// `ply` is [`Format::Ply`]; one that starts as PCL writes PCD files (`# .PCD` or `VERSION`) is
+/// [`Format::Pcd`].
 ///
 /// # Errors
 /// [`Error::UnknownFormat`] when neither the extension nor the content tells;
@@ -143,11 +158,13 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
         }
         Some(format) => Ok(format),
         None => {
-            let mut magic = [0u8; 4];
+            let mut magic = [0u8; 8];
             let mut file = File::open(path).map_err(io_error(path))?;
             let n = read_prefix(&mut file, &mut magic).map_err(io_error(path))?;
             match &magic[..n] {
-                [b'p', b'l', b'y', b'\n' | b'\r'] => Ok(Format::Ply),
+                [b'p', b'l', b'y', b'\n' | b'\r', ..] => Ok(Format::Ply),
+                [b'#', b' ', b'.', b'P', b'C', b'D', ..]
+                | [b'V', b'E', b'R', b'S', b'I', b'O', b'N', ..] => Ok(Format::Pcd),
                 _ => Err(Error::UnknownFormat {
                     path: path.to_owned(),
                 }),
@@ -271,6 +288,7 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         Format::Xyz => xyz::read(path, &checker, !options.positions_only)?,
         Format::Csv => table::read_xyz_table(path, &checker)?,
         Format::GemPy => gempy::read_cloud(path, &checker)?,
+        Format::Pcd => pcd::read(path, &checker)?,
     };
     if positions.is_empty() {
         return Err(malformed(path, None, "the file holds no point"));
@@ -483,6 +501,34 @@ pub(crate) type RawPoints = (Vec<Point3>, Option<Vec<Point3>>);
 pub(crate) const POSITION_FIELDS: [&str; 3] = ["x", "y", "z"];
 /// See [`POSITION_FIELDS`].
 pub(crate) const NORMAL_FIELDS: [&str; 3] = ["nx", "ny", "nz"];
+
+/// The names point files give a normal's components, one set per family of writers: `nx ny nz`
+/// (Open3D, MeshLab, CloudCompare, zeroset) and `normal_x normal_y normal_z` (PCL's PCD and PLY
+/// files). Text headers and CSV match them in any case, PLY and PCD exactly.
+pub const NORMAL_NAMES: [[&str; 3]; 2] = [["nx", "ny", "nz"], ["normal_x", "normal_y", "normal_z"]];
+
+/// The normal's three columns (or properties) and the names they were found under.
+pub(crate) type NormalColumns = ([usize; 3], [&'static str; 3]);
+
+/// Where the normal's components are among named columns or properties, `find` telling where
+/// a name is: the first set of [`NORMAL_NAMES`] found whole, with its names; `Ok(None)` if no
+/// name of any set is found; `Err(name)`, the first missing component of a set found in part.
+pub(crate) fn normal_columns(
+    find: impl Fn(&str) -> Option<usize>,
+) -> std::result::Result<Option<NormalColumns>, &'static str> {
+    let mut partial = None;
+    for names in NORMAL_NAMES {
+        match names.map(&find) {
+            [Some(a), Some(b), Some(c)] => return Ok(Some(([a, b, c], names))),
+            [None, None, None] => {}
+            found => {
+                let i = found.iter().position(Option::is_none).unwrap_or(0);
+                partial = partial.or(Some(names[i]));
+            }
+        }
+    }
+    partial.map_or(Ok(None), Err)
+}
 
 /// Rejects non-finite values unless allowed, naming the file, record, line and field.
 pub(crate) struct FiniteCheck<'a> {

@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 pub(super) struct Table {
     path: PathBuf,
     header: Vec<String>,
+    delimiter: u8,
     reader: csv::Reader<File>,
     records: usize,
 }
@@ -27,10 +28,13 @@ pub(super) struct Row {
 
 impl Table {
     /// Opens a CSV file and reads its header; `#` lines are comments, fields are trimmed, and
-    /// every row must have as many fields as the header.
+    /// every row must have as many fields as the header. The fields are separated by commas,
+    /// or by semicolons or tabs where the header holds more of those ([`sniff_delimiter`]).
     pub(super) fn open(path: &Path) -> Result<Self> {
+        let delimiter = sniff_delimiter(path)?;
         let (file, _) = open_nonempty(path)?;
         let mut reader = csv::ReaderBuilder::new()
+            .delimiter(delimiter)
             .has_headers(true)
             .trim(Trim::All)
             .comment(Some(b'#'))
@@ -54,6 +58,7 @@ impl Table {
         Ok(Self {
             path: path.to_owned(),
             header,
+            delimiter,
             reader,
             records: 0,
         })
@@ -127,10 +132,16 @@ impl Table {
             ));
         }
         super::parse_number(text).ok_or_else(|| {
+            // Spreadsheets in many locales write `1,5` with `;` between fields.
+            let hint = if self.delimiter != b',' && text.contains(',') {
+                " (decimal commas are not read: export the numbers with decimal points)"
+            } else {
+                ""
+            };
             malformed(
                 &self.path,
                 Some(row.line),
-                format!("not a number in column '{name}': '{text}'"),
+                format!("not a number in column '{name}': '{text}'{hint}"),
             )
         })
     }
@@ -150,6 +161,30 @@ pub(super) fn find_column(header: &[String], names: &[&str]) -> Option<usize> {
     names
         .iter()
         .find_map(|n| header.iter().position(|h| h.eq_ignore_ascii_case(n)))
+}
+
+/// The field separator of a CSV file: `;` or a tab where its first line that is not blank or
+/// a `#` comment holds more of it than of commas (and of the other), else `,`.
+fn sniff_delimiter(path: &Path) -> Result<u8> {
+    use std::io::{BufRead, BufReader, Read};
+    let (file, _) = open_nonempty(path)?;
+    let mut reader = BufReader::new(file).take(super::xyz::MAX_LINE as u64);
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        let n = reader
+            .read_until(b'\n', &mut line)
+            .map_err(|e| malformed(path, None, format!("cannot read the header: {e}")))?;
+        let text = line.trim_ascii();
+        if n == 0 || !(text.is_empty() || text.starts_with(b"#")) {
+            break;
+        }
+    }
+    let count = |byte: u8| line.iter().filter(|&&b| b == byte).count();
+    Ok([b',', b';', b'\t']
+        .into_iter()
+        .max_by_key(|&byte| (count(byte), byte == b','))
+        .unwrap_or(b','))
 }
 
 /// The trimmed header of a CSV file.
@@ -181,7 +216,8 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
     malformed(path, line, reason)
 }
 
-/// Reads a CSV point table: columns `x y z` and optionally `nx ny nz` (any case).
+/// Reads a CSV point table: columns `x y z` and optionally the normal (`nx ny nz` or
+/// `normal_x normal_y normal_z`, [`NORMAL_NAMES`](super::NORMAL_NAMES); any case).
 pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let mut table = Table::open(path)?;
     let pos = [
@@ -189,18 +225,9 @@ pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<Raw
         table.require(&["y"], "y")?,
         table.require(&["z"], "z")?,
     ];
-    let nrm = [
-        table.find(&["nx"]),
-        table.find(&["ny"]),
-        table.find(&["nz"]),
-    ];
-    let nrm = match nrm {
-        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-        [None, None, None] => None,
-        _ => {
-            let missing = nrm.iter().position(Option::is_none).unwrap_or(0);
-            return Err(table.missing(NORMAL_FIELDS[missing]));
-        }
+    let nrm = match super::normal_columns(|name| table.find(&[name])) {
+        Ok(found) => found.map(|(columns, _)| columns),
+        Err(name) => return Err(table.missing(name)),
     };
     let mut positions = Vec::new();
     let mut normals = nrm.map(|_| Vec::new());

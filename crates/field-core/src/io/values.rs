@@ -8,7 +8,7 @@
 //! | `.xyv` | `x y value` | 2 |
 //! | `.xyzv` | `x y z value` | 3 |
 //!
-//! Numbers are separated by whitespace or commas; `#` starts a comment (to the end of the
+//! Numbers are separated by whitespace, commas or semicolons; `#` starts a comment (to the end of the
 //! line); blank lines are skipped; every data line holds exactly `D + 1` numbers. Values follow
 //! zeroset's convention — negative inside, 0 on the curve or surface, positive outside —
 //! e.g. −1 inside, 0 on, +1 outside. Errors name the file and the 1-based line: a token that is
@@ -30,7 +30,8 @@
 
 use std::path::Path;
 
-use super::{FiniteCheck, malformed, xyz::for_each_number_line};
+use super::xyz::{TextLine, for_each_number_line};
+use super::{FiniteCheck, malformed};
 use crate::error::Result;
 use crate::geometry::Point;
 
@@ -73,7 +74,10 @@ pub fn read_value_points<const D: usize>(path: impl AsRef<Path>) -> Result<Value
         .collect();
     let mut out = ValuePoints::default();
     let what = format!("the constraints of {}", path.display());
-    for_each_number_line(path, |line, values, _| {
+    for_each_number_line(path, false, |line, text| {
+        let TextLine::Numbers(values, _) = text else {
+            return Ok(());
+        };
         if values.len() != D + 1 {
             let want = names.join(" ");
             return Err(malformed(

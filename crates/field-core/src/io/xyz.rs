@@ -1,7 +1,9 @@
-//! XYZ text: `x y z` or `x y z nx ny nz [...]` per line.
+//! XYZ text: `x y z` or `x y z nx ny nz [...]` per line, or columns named by a first line.
 //!
 //! Columns 4–6 carry no names, and `x y z r g b` files (colours) are common: they are read as
-//! normals only if they look like normals ([`NormalColumns`]).
+//! normals only if they look like normals ([`NormalColumns`]). A first line of names (`x y z
+//! r g b nx ny nz`, or CloudCompare's `//X,Y,Z,R,G,B,Nx,Ny,Nz`) says where the coordinates
+//! and the normal are instead ([`Layout::named`]).
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
@@ -19,13 +21,90 @@ use crate::geometry::{Point3, norm};
 /// to unit length (the RBF constraints and the tangent-plane field both normalise), so they
 /// are read as they are. Lengths further from 1 are refused: such columns are seldom normals
 /// (colours, intensities, curvatures), and guessing would fit garbage. A zero normal is left
-/// to the fits, which name it.
+/// to the fits, which name it. Columns a header line names `nx ny nz` are read as they are.
 pub const NORMAL_LENGTHS: (f64, f64) = (0.5, 2.0);
+
+/// Where a file's coordinates and normal are, and how many numbers each line holds.
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    /// The numbers on every line.
+    count: usize,
+    /// The line that set `count` (the header line, or the first line of numbers).
+    since: usize,
+    /// The columns of `x y z`.
+    position: [usize; 3],
+    /// The columns of the normal, if the file has one.
+    normal: Option<[usize; 3]>,
+    /// Whether a header line named the columns (its normals are read as they are).
+    named: bool,
+}
+
+impl Layout {
+    /// The layout a header line's `names` give (matched in any case): `x y z` required, the
+    /// normal if [`NORMAL_NAMES`](super::NORMAL_NAMES) has a set named whole, other columns
+    /// ignored.
+    fn named(path: &Path, line: usize, names: &[&str]) -> crate::Result<Self> {
+        let find = |name: &str| names.iter().position(|n| n.eq_ignore_ascii_case(name));
+        let listed = || names.join(" ");
+        let mut position = [0; 3];
+        for (column, name) in position.iter_mut().zip(POSITION_FIELDS) {
+            *column = find(name).ok_or_else(|| {
+                malformed(
+                    path,
+                    Some(line),
+                    format!(
+                        "the header line names no column '{name}' (names: {}); name the \
+                         coordinates x y z",
+                        listed()
+                    ),
+                )
+            })?;
+        }
+        let normal = super::normal_columns(find).map_err(|name| {
+            malformed(
+                path,
+                Some(line),
+                format!(
+                    "the header line names part of a normal but no column '{name}' (names: {})",
+                    listed()
+                ),
+            )
+        })?;
+        Ok(Self {
+            count: names.len(),
+            since: line,
+            position,
+            normal: normal.map(|(columns, _)| columns),
+            named: true,
+        })
+    }
+
+    /// The layout of a file without a header line, from its first line's `count` numbers: `x
+    /// y z` first; columns 4–6 the normal if there are at least 6 (checked to look like
+    /// normals); a fourth and fifth column alone (an intensity, a label) ignored.
+    fn unnamed(path: &Path, line: usize, count: usize) -> crate::Result<Self> {
+        if count < 3 {
+            return Err(malformed(
+                path,
+                Some(line),
+                format!("expected at least 3 numbers (x y z [nx ny nz]), found {count}"),
+            ));
+        }
+        Ok(Self {
+            count,
+            since: line,
+            position: [0, 1, 2],
+            normal: (count >= 6).then_some([3, 4, 5]),
+            named: false,
+        })
+    }
+}
 
 /// Reads an XYZ text file; see the module table in [`super`].
 ///
-/// A first data line holding a single non-negative integer (the point count that `.pts` files
-/// start with) is skipped.
+/// A first line of names (no number on it; a leading `//` dropped) names the columns
+/// ([`Layout::named`]). A first data line holding a single non-negative integer (the point
+/// count that `.pts` files start with) is skipped.
 pub(super) fn read(
     path: &Path,
     check: &FiniteCheck<'_>,
@@ -35,48 +114,55 @@ pub(super) fn read(
     let mut normals: Option<Vec<_>> = None;
     let what = format!("the points of {}", path.display());
     let mut normal_columns = NormalColumns::default();
-    // Column count and the line that set it.
-    let mut columns: Option<(usize, usize)> = None;
-    for_each_number_line(path, |line_no, values, content| {
-        let (count, since) = match columns {
-            Some(c) => c,
+    let mut layout: Option<Layout> = None;
+    for_each_number_line(path, true, |line_no, line| {
+        let (values, content) = match line {
+            TextLine::Names(names) => {
+                let named = Layout::named(path, line_no, names)?;
+                normals = named.normal.map(|_| Vec::new());
+                layout = Some(named);
+                return Ok(());
+            }
+            TextLine::Numbers(values, content) => (values, content),
+        };
+        if values.len() == 1 && positions.is_empty() && is_count_header(content) {
+            return Ok(());
+        }
+        let layout = match layout {
+            Some(layout) => layout,
             None => {
-                let count = values.len();
-                if count == 1 && positions.is_empty() && is_count_header(content) {
-                    return Ok(());
-                }
-                if count != 3 && count < 6 {
-                    return Err(malformed(
-                        path,
-                        Some(line_no),
-                        format!("expected 3 or 6 numbers (x y z [nx ny nz]), found {count}"),
-                    ));
-                }
-                if count >= 6 {
-                    normals = Some(Vec::new());
-                }
-                columns = Some((count, line_no));
-                (count, line_no)
+                let first = Layout::unnamed(path, line_no, values.len())?;
+                normals = first.normal.map(|_| Vec::new());
+                *layout.insert(first)
             }
         };
-        if values.len() != count {
+        if values.len() != layout.count {
+            let since = if layout.named {
+                format!("one per name on line {}", layout.since)
+            } else {
+                format!("as on line {}", layout.since)
+            };
             return Err(malformed(
                 path,
                 Some(line_no),
                 format!(
-                    "expected {count} numbers as on line {since}, found {}",
+                    "expected {} numbers ({since}), found {}",
+                    layout.count,
                     values.len()
                 ),
             ));
         }
         let record = positions.len();
-        check.check(record, Some(line_no), &POSITION_FIELDS, &values[..3])?;
+        let position = layout.position.map(|c| values[c]);
+        check.check(record, Some(line_no), &POSITION_FIELDS, &position)?;
         crate::limits::grow(&mut positions, 1, &what)?;
-        positions.push([values[0], values[1], values[2]]);
-        if let Some(n) = normals.as_mut() {
-            check.check(record, Some(line_no), &NORMAL_FIELDS, &values[3..6])?;
-            let normal = [values[3], values[4], values[5]];
-            normal_columns.see(record, line_no, &normal);
+        positions.push(position);
+        if let (Some(n), Some(columns)) = (normals.as_mut(), layout.normal) {
+            let normal = columns.map(|c| values[c]);
+            check.check(record, Some(line_no), &NORMAL_FIELDS, &normal)?;
+            if !layout.named {
+                normal_columns.see(record, line_no, &normal);
+            }
             crate::limits::grow(n, 1, &what)?;
             n.push(normal);
         }
@@ -153,13 +239,25 @@ impl NormalColumns {
     }
 }
 
-/// Calls `line` with the 1-based line number, the numbers and the text before any `#` of every
-/// line of `path` that holds at least one number. Numbers are separated by whitespace or
-/// commas; `#` starts a comment; a leading byte-order mark is skipped. A token that is not a
-/// number is an error naming the line and column.
+/// A line of a text file that holds something: numbers, or (first, where asked for) names.
+pub(super) enum TextLine<'a> {
+    /// The first line's names, where it holds no number ([`for_each_number_line`]).
+    Names(&'a [&'a str]),
+    /// The numbers of a line, and its text before any `#`.
+    Numbers(&'a [f64], &'a str),
+}
+
+/// Calls `line` with the 1-based line number and the content of every line of `path` that
+/// holds something. Numbers are separated by whitespace, commas or semicolons (a line holding
+/// both of the last two is refused: decimal commas are not read); `#` starts a comment; a
+/// leading byte-order mark is skipped. With `names_first`, a first such line that does not
+/// start with a number is a line of names ([`TextLine::Names`]; a leading `//` dropped, split
+/// at commas, semicolons or tabs where it has them, else at whitespace). Any other token that
+/// is not a number is an error naming the line and column.
 pub(super) fn for_each_number_line(
     path: &Path,
-    mut line: impl FnMut(usize, &[f64], &str) -> crate::Result<()>,
+    names_first: bool,
+    mut line: impl FnMut(usize, TextLine<'_>) -> crate::Result<()>,
 ) -> crate::Result<()> {
     let (file, _) = open_nonempty(path)?;
     let mut reader = BufReader::new(file);
@@ -168,6 +266,7 @@ pub(super) fn for_each_number_line(
     // file given by mistake, a corrupted one) does not become one string the size of the file.
     let limit = MAX_LINE as u64 + 1;
     let mut line_no = 0;
+    let mut first = true;
     let mut values: Vec<f64> = Vec::with_capacity(8);
     loop {
         buf.clear();
@@ -192,11 +291,29 @@ pub(super) fn for_each_number_line(
             &buf
         };
         let content = text.split('#').next().unwrap_or_default();
-        values.clear();
-        for token in content
-            .split(|c: char| c.is_whitespace() || c == ',')
+        let mut tokens = content
+            .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
             .filter(|t| !t.is_empty())
-        {
+            .peekable();
+        let Some(&head) = tokens.peek() else {
+            continue;
+        };
+        let was_first = std::mem::replace(&mut first, false);
+        if names_first && was_first && super::parse_number(head).is_none() {
+            let names = header_names(content);
+            line(line_no, TextLine::Names(&names))?;
+            continue;
+        }
+        if content.contains(';') && content.contains(',') {
+            return Err(malformed(
+                path,
+                Some(line_no),
+                "both ',' and ';' on one line: decimal commas are not read (export the numbers \
+                 with decimal points)",
+            ));
+        }
+        values.clear();
+        for token in tokens {
             let value = super::parse_number(token).ok_or_else(|| {
                 malformed(
                     path,
@@ -206,9 +323,26 @@ pub(super) fn for_each_number_line(
             })?;
             values.push(value);
         }
-        if !values.is_empty() {
-            line(line_no, &values, content)?;
+        line(line_no, TextLine::Numbers(&values, content))?;
+    }
+}
+
+/// The names of a header line: a leading `//` dropped (CloudCompare writes one), split at
+/// commas, semicolons or tabs where the line has any (a name may hold a space; an empty name,
+/// such as a pandas index column's, is a column too, except after a trailing separator), else
+/// at whitespace; each trimmed.
+fn header_names(content: &str) -> Vec<&str> {
+    let content = content.trim();
+    let content = content.strip_prefix("//").unwrap_or(content);
+    let separators = [',', ';', '\t'];
+    if content.contains(separators) {
+        let mut names: Vec<&str> = content.split(separators).map(str::trim).collect();
+        while names.last().is_some_and(|n| n.is_empty()) {
+            names.pop();
         }
+        names
+    } else {
+        content.split_whitespace().collect()
     }
 }
 

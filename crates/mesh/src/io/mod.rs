@@ -63,6 +63,16 @@ impl MeshFormat {
     /// them (in any case).
     pub const EXTENSIONS: [&'static str; 4] = ["ply", "obj", "stl", "off"];
 
+    /// The format's name as users know it: `PLY`, `OBJ`, `STL` or `OFF`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ply => "PLY",
+            Self::Obj => "OBJ",
+            Self::Stl => "STL",
+            Self::Off => "OFF",
+        }
+    }
+
     /// The format `path`'s extension names (in any case), or `None`.
     pub fn from_path(path: &Path) -> Option<Self> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();

@@ -296,18 +296,18 @@ fn parse_off(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     } else {
         "x y z"
     };
+    let truncated = |read: usize, announced: usize, what: &str| {
+        format!(
+            "truncated: the file ends after {read} of the {announced} {what} the counts on line \
+             {counts_line} announce"
+        )
+    };
     let capacity = nv.min(lines.room(MIN_VERTEX_BYTES));
     let mut vertices: Vec<Point<3>> = Vec::with_capacity(capacity);
     let mut normals: Vec<Point<3>> = Vec::with_capacity(if keyword.normals { capacity } else { 0 });
     for i in 0..nv {
         let Some((line, text)) = lines.next_line().map_err(not_utf8)? else {
-            return Err(malformed(
-                lines.last,
-                format!(
-                    "truncated: the file ends after {i} of the {nv} vertices the counts on line \
-                     {counts_line} announce"
-                ),
-            ));
+            return Err(malformed(lines.last, truncated(i, nv, "vertices")));
         };
         let mut words = text.split_whitespace();
         let mut numbers = |names: [&str; 3], kind: &str| -> Result<Point<3>> {
@@ -354,13 +354,7 @@ fn parse_off(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(nf.min(lines.room(MIN_FACE_BYTES)));
     for j in 0..nf {
         let Some((line, text)) = lines.next_line().map_err(not_utf8)? else {
-            return Err(malformed(
-                lines.last,
-                format!(
-                    "truncated: the file ends after {j} of the {nf} faces the counts on line \
-                     {counts_line} announce"
-                ),
-            ));
+            return Err(malformed(lines.last, truncated(j, nf, "faces")));
         };
         let mut words = text.split_whitespace();
         let k = words.next().unwrap_or("");

@@ -278,8 +278,9 @@ def _as_field(
 
 def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     """Reads a point cloud: ``(points, normals)``, each ``(n, 3)``; normals ``None`` when the
-    file has none. PLY (ascii or binary), xyz / xyzn / pts, CSV with a header, GemPy tables;
-    or a mesh (OBJ, STL, PLY with faces): the vertices its triangles use, with normals from
+    file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), xyz / xyzn /
+    pts / asc / pwn text (columns ``x y z [nx ny nz]`` or named by a first line), CSV with a
+    header, GemPy tables; or a mesh (OBJ, STL, OFF, PLY with faces): the vertices its triangles use, with normals from
     the file or the triangles' winding (closed parts wound inward turned over), ``None``
     where the winding is inconsistent (``estimate_normals`` then)."""
     return _native.read_points(os.fspath(path))
@@ -312,7 +313,7 @@ def estimate_normals(
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
-    """Reads a triangle mesh from a PLY, OBJ or STL file (told by the extension):
+    """Reads a triangle mesh from a PLY, OBJ, STL or OFF file (told by the extension):
     ``(vertices (n, 3), faces (m, 3), normals or None)``. An STL file's corners are welded
     into shared vertices (equal coordinates), so its topology can be checked."""
     return _native.read_mesh(os.fspath(path))

@@ -224,7 +224,9 @@ impl Element {
         }
     }
 
-    /// Where `x y z`, and `nx ny nz` if the element has all three, are among the properties.
+    /// Where `x y z`, and the normal if the element has all three components (`nx ny nz`, or
+    /// PCL's `normal_x normal_y normal_z`: [`NORMAL_NAMES`](super::NORMAL_NAMES)), are among
+    /// the properties.
     ///
     /// # Errors
     /// [`PlyError::MissingProperty`] for a missing coordinate, or for a missing normal
@@ -238,22 +240,22 @@ impl Element {
         for (slot, name) in xyz.iter_mut().zip(POSITION_NAMES) {
             *slot = self.scalar(name)?.ok_or_else(|| missing(name))?;
         }
-        let n = [self.scalar("nx")?, self.scalar("ny")?, self.scalar("nz")?];
-        match n {
-            [Some(a), Some(b), Some(c)] => Ok((xyz, Some([a, b, c]))),
-            [None, None, None] => Ok((xyz, None)),
-            _ => {
-                let i = n.iter().position(Option::is_none).unwrap_or(0);
-                Err(missing(NORMAL_NAMES[i]))
+        match super::normal_columns(|name| self.find(name)) {
+            Ok(None) => Ok((xyz, None)),
+            Ok(Some((_, names))) => {
+                let mut slots = [0; 3];
+                for (slot, name) in slots.iter_mut().zip(names) {
+                    *slot = self.scalar(name)?.ok_or_else(|| missing(name))?;
+                }
+                Ok((xyz, Some(slots)))
             }
+            Err(name) => Err(missing(name)),
         }
     }
 }
 
 /// The coordinate property names.
 const POSITION_NAMES: [&str; 3] = ["x", "y", "z"];
-/// The normal property names.
-const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
 
 /// How the records are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

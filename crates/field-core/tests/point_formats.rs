@@ -1,0 +1,502 @@
+//! Point files as scanners, PCL, Open3D and CloudCompare write them: PCD in its three
+//! encodings, text files whose first line names the columns, semicolon-separated tables and
+//! PCL's normal names in PLY.
+//!
+//! `tests/data/bunny300_*.pcd` were written by Open3D 0.20 (`write_point_cloud` with
+//! `write_ascii=True`, the default binary, and `compressed=True`) from the first 300 points
+//! of `data/bunny_2k.xyzn` with random colours; `tests/data/bunny300.xyzn` holds those points
+//! as printed to 9 significant digits (so each value's `f32` is exact).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use zeroset_field_core::Error;
+use zeroset_field_core::cloud::PointCloud3;
+use zeroset_field_core::io::{Format, detect_format, read_point_cloud};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+fn temp_file(name: &str, bytes: impl AsRef<[u8]>) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    fs::write(&path, bytes).unwrap();
+    (dir, path)
+}
+
+fn read(name: &str, bytes: impl AsRef<[u8]>) -> PointCloud3 {
+    let (_dir, path) = temp_file(name, bytes);
+    read_point_cloud(&path).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn read_err(name: &str, bytes: impl AsRef<[u8]>) -> Error {
+    let (_dir, path) = temp_file(name, bytes);
+    match read_point_cloud(&path) {
+        Ok(cloud) => panic!("{name}: expected an error, read {} points", cloud.len()),
+        Err(e) => e,
+    }
+}
+
+/// `x` rounded to `f32`, as a PCD of `F 4` fields stores it.
+fn f32_of(p: [f64; 3]) -> [f64; 3] {
+    p.map(|v| f64::from(v as f32))
+}
+
+#[test]
+fn open3d_pcd_files_in_all_three_encodings_read_as_the_points_they_were_written_from() {
+    let truth = read_point_cloud(data("bunny300.xyzn")).unwrap();
+    let normals = truth.normals().unwrap();
+    for encoding in ["ascii", "binary", "binary_compressed"] {
+        let path = data(&format!("bunny300_{encoding}.pcd"));
+        assert_eq!(detect_format(&path).unwrap(), Format::Pcd);
+        let cloud = read_point_cloud(&path).unwrap();
+        assert_eq!(cloud.len(), 300, "{encoding}");
+        let read_normals = cloud.normals().expect("normal_x normal_y normal_z");
+        for (i, (p, n)) in cloud.positions().iter().zip(read_normals).enumerate() {
+            if encoding == "ascii" {
+                // Open3D prints its floats to 7 significant digits.
+                let close = |a: [f64; 3], b: [f64; 3]| {
+                    a.iter()
+                        .zip(b)
+                        .all(|(x, y)| (x - y).abs() <= 1e-6 * y.abs().max(1e-3))
+                };
+                assert!(close(*p, truth.positions()[i]), "{encoding} point {i}");
+                assert!(close(*n, normals[i]), "{encoding} normal {i}");
+            } else {
+                assert_eq!(*p, f32_of(truth.positions()[i]), "{encoding} point {i}");
+                assert_eq!(*n, f32_of(normals[i]), "{encoding} normal {i}");
+            }
+        }
+    }
+}
+
+/// A PCD field: `name size type count`.
+type PcdField<'a> = (&'a str, usize, char, usize);
+
+/// A binary PCD header for `fields` and `points` points.
+fn pcd_header(fields: &[PcdField<'_>], points: usize, data: &str) -> Vec<u8> {
+    let column =
+        |f: &dyn Fn(&PcdField<'_>) -> String| fields.iter().map(f).collect::<Vec<_>>().join(" ");
+    format!(
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {}\nSIZE {}\nTYPE {}\n\
+         COUNT {}\nWIDTH {points}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {points}\nDATA {data}\n",
+        column(&|f| f.0.to_owned()),
+        column(&|f| f.1.to_string()),
+        column(&|f| f.2.to_string()),
+        column(&|f| f.3.to_string()),
+    )
+    .into_bytes()
+}
+
+#[test]
+fn binary_pcd_reads_every_field_type_and_skips_the_fields_it_does_not_use() {
+    // x: signed 4 bytes, y: unsigned 2, z: signed 1 (sign extension), a 3-value colour field
+    // between them and a double-precision normal after.
+    let fields = [
+        ("x", 4, 'I', 1),
+        ("rgb", 1, 'U', 3),
+        ("y", 2, 'U', 1),
+        ("z", 1, 'I', 1),
+        ("normal_x", 8, 'F', 1),
+        ("normal_y", 8, 'F', 1),
+        ("normal_z", 4, 'F', 1),
+        ("_", 1, 'U', 2),
+    ];
+    let mut bytes = pcd_header(&fields, 2, "binary");
+    for (x, y, z, n) in [
+        (-5i32, 65_535u16, -128i8, [0.6, 0.8, 0.0f64]),
+        (7, 3, 127, [0.0, 0.0, -1.0]),
+    ] {
+        bytes.extend(x.to_le_bytes());
+        bytes.extend([9, 9, 9]);
+        bytes.extend(y.to_le_bytes());
+        bytes.extend(z.to_le_bytes());
+        bytes.extend(n[0].to_le_bytes());
+        bytes.extend(n[1].to_le_bytes());
+        bytes.extend((n[2] as f32).to_le_bytes());
+        bytes.extend([0, 0]);
+    }
+    let cloud = read("typed.pcd", &bytes);
+    assert_eq!(
+        cloud.positions(),
+        &[[-5.0, 65_535.0, -128.0], [7.0, 3.0, 127.0]]
+    );
+    assert_eq!(
+        cloud.normals().unwrap(),
+        &[[0.6, 0.8, 0.0], [0.0, 0.0, -1.0]]
+    );
+}
+
+#[test]
+fn an_organised_cloud_leaves_out_its_gaps_in_every_encoding() {
+    // A 3 × 2 depth image whose second and fifth pixels had no return (all NaN).
+    let pixels: [[f32; 3]; 6] = [
+        [0.0, 0.0, 1.0],
+        [f32::NAN; 3],
+        [1.0, 0.0, 1.5],
+        [0.0, 1.0, 2.0],
+        [f32::NAN; 3],
+        [1.0, 1.0, 2.5],
+    ];
+    let kept: Vec<[f64; 3]> = pixels
+        .iter()
+        .filter(|p| !p[0].is_nan())
+        .map(|p| p.map(f64::from))
+        .collect();
+    let header = |data: &str| {
+        format!(
+            "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 2\n\
+             POINTS 6\nDATA {data}\n"
+        )
+        .into_bytes()
+    };
+    let mut ascii = header("ascii");
+    for p in pixels {
+        ascii.extend(format!("{} {} {}\n", p[0], p[1], p[2]).bytes());
+    }
+    let mut binary = header("binary");
+    // Field by field for the compressed encoding: every x, every y, every z.
+    let mut columns = Vec::new();
+    for p in pixels {
+        binary.extend(p.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    for axis in 0..3 {
+        columns.extend(pixels.iter().flat_map(|p| p[axis].to_le_bytes()));
+    }
+    // Repeat the block so that LZF finds something to compress.
+    let compressed_of = |raw: &[u8]| lzf::compress(raw).unwrap();
+    let packed = compressed_of(&columns);
+    let mut compressed = header("binary_compressed");
+    compressed.extend((packed.len() as u32).to_le_bytes());
+    compressed.extend((columns.len() as u32).to_le_bytes());
+    compressed.extend(&packed);
+    for (name, bytes) in [("a", ascii), ("b", binary), ("c", compressed)] {
+        let cloud = read(&format!("{name}.pcd"), &bytes);
+        assert_eq!(cloud.positions(), kept.as_slice(), "{name}");
+        assert!(cloud.normals().is_none());
+    }
+    // A gap is all three coordinates: one NaN alone is a bad value, named.
+    let e = read_err(
+        "half.pcd",
+        [
+            header("ascii"),
+            b"0 0 1\nnan 2 3\n1 0 1\n0 1 2\n1 1 2\n2 2 2\n".to_vec(),
+        ]
+        .concat(),
+    );
+    assert!(
+        matches!(
+            &e,
+            Error::NonFinite {
+                record: 1,
+                line: Some(11),
+                field: "x",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let e = read_err(
+        "empty.pcd",
+        [header("ascii"), "nan nan nan\n".repeat(6).into_bytes()].concat(),
+    );
+    assert!(
+        e.to_string().contains("every one of its 6 points has NaN"),
+        "{e}"
+    );
+}
+
+/// The message of reading `text` as a `.pcd` file, checked to name `line` when given.
+fn pcd_error(text: &[u8], line: Option<usize>) -> String {
+    let e = read_err("bad.pcd", text);
+    if let Some(line) = line {
+        assert!(
+            matches!(&e, Error::Malformed { line: Some(l), .. } if *l == line),
+            "expected line {line}: {e}"
+        );
+    }
+    e.to_string()
+}
+
+#[test]
+fn bad_pcd_files_are_named_errors_not_panics_or_huge_allocations() {
+    let xyz = [("x", 4, 'F', 1), ("y", 4, 'F', 1), ("z", 4, 'F', 1)];
+    // Truncated binary: 3 records announced, 2 and a half there.
+    let mut bytes = pcd_header(&xyz, 3, "binary");
+    bytes.extend([0u8; 30]);
+    let e = read_err("short.pcd", &bytes);
+    assert!(
+        matches!(
+            &e,
+            Error::Truncated {
+                expected: 3,
+                got: 2,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A count no file holds answers at once, in each encoding.
+    for data in ["binary", "ascii", "binary_compressed"] {
+        let mut bytes = pcd_header(&xyz, 1 << 40, data);
+        bytes.extend(b"0 0 0\n");
+        let e = read_err("huge.pcd", &bytes);
+        let message = e.to_string();
+        assert!(
+            matches!(e, Error::Truncated { .. } | Error::Malformed { .. }),
+            "{data}: {message}"
+        );
+    }
+    // ASCII ends early, a short line, a word.
+    let mut ascii = pcd_header(&xyz, 3, "ascii");
+    ascii.extend(b"0 0 0\n1 1 1\n");
+    assert!(matches!(
+        read_err("a.pcd", &ascii),
+        Error::Truncated {
+            expected: 3,
+            got: 2,
+            ..
+        }
+    ));
+    let mut ascii = pcd_header(&xyz, 2, "ascii");
+    ascii.extend(b"0 0 0\n1 1\n");
+    let message = pcd_error(&ascii, Some(13));
+    assert!(message.contains("expected 3 values"), "{message}");
+    let mut ascii = pcd_header(&xyz, 1, "ascii");
+    ascii.extend(b"0 zero 0\n");
+    assert!(pcd_error(&ascii, Some(12)).contains("not a number: 'zero'"));
+    // Corrupt LZF data, and sizes that do not add up.
+    let mut compressed = pcd_header(&xyz, 2, "binary_compressed");
+    compressed.extend(6u32.to_le_bytes());
+    compressed.extend(24u32.to_le_bytes());
+    compressed.extend([0xff; 6]);
+    assert!(pcd_error(&compressed, None).contains("does not decompress"));
+    let mut compressed = pcd_header(&xyz, 2, "binary_compressed");
+    compressed.extend(6u32.to_le_bytes());
+    compressed.extend(20u32.to_le_bytes());
+    compressed.extend([0; 6]);
+    assert!(pcd_error(&compressed, None).contains("take 24"));
+    let mut compressed = pcd_header(&xyz, 2, "binary_compressed");
+    compressed.extend(600u32.to_le_bytes());
+    compressed.extend(24u32.to_le_bytes());
+    compressed.extend([0; 6]);
+    assert!(matches!(
+        read_err("c.pcd", &compressed),
+        Error::Truncated { .. }
+    ));
+    let mut compressed = pcd_header(&xyz, 2, "binary_compressed");
+    compressed.extend([1, 0]);
+    assert!(pcd_error(&compressed, None).contains("before its two sizes"));
+    // Headers.
+    let header = |lines: &str| format!("VERSION 0.7\n{lines}\n").into_bytes();
+    for (lines, line, says) in [
+        (
+            "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii",
+            3,
+            "SIZE has 2 entries for 3",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F D\nPOINTS 1\nDATA ascii",
+            4,
+            "TYPE 'D'",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nPOINTS 1\nDATA ascii",
+            3,
+            "SIZE 3",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS -1\nDATA ascii",
+            5,
+            "POINTS '-1'",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nDATA ascii",
+            5,
+            "neither POINTS",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA lzma",
+            6,
+            "DATA 'lzma'",
+        ),
+        (
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1",
+            6,
+            "without a 'DATA' line",
+        ),
+        (
+            "SIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii",
+            5,
+            "no FIELDS",
+        ),
+    ] {
+        let message = pcd_error(&header(lines), Some(line));
+        assert!(message.contains(says), "{lines:?}: {message}");
+    }
+    let message = pcd_error(b"ply\nformat ascii 1.0\n", Some(1));
+    assert!(message.contains("not a PCD file"), "{message}");
+    // Missing coordinates, a normal in part, a coordinate with several values.
+    let e = read_err(
+        "noz.pcd",
+        [pcd_header(&xyz[..2], 1, "ascii"), b"0 0\n".to_vec()].concat(),
+    );
+    assert!(
+        matches!(e, Error::MissingProperty { property: "z", .. }),
+        "{e}"
+    );
+    let fields = [
+        xyz[0],
+        xyz[1],
+        xyz[2],
+        ("normal_x", 4, 'F', 1),
+        ("normal_y", 4, 'F', 1),
+    ];
+    let e = read_err(
+        "nonz.pcd",
+        [pcd_header(&fields, 1, "ascii"), b"0 0 0 1 0\n".to_vec()].concat(),
+    );
+    assert!(
+        matches!(
+            e,
+            Error::MissingProperty {
+                property: "normal_z",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let fields = [("x", 4, 'F', 2), xyz[1], xyz[2]];
+    let message = pcd_error(
+        &[pcd_header(&fields, 1, "ascii"), b"0 0 0 0\n".to_vec()].concat(),
+        None,
+    );
+    assert!(message.contains("COUNT 2"), "{message}");
+}
+
+#[test]
+fn a_pcd_file_is_told_by_its_header_whatever_its_name() {
+    let bytes = fs::read(data("bunny300_binary.pcd")).unwrap();
+    let (_dir, path) = temp_file("scan.dat", &bytes);
+    assert_eq!(detect_format(&path).unwrap(), Format::Pcd);
+    assert_eq!(read_point_cloud(&path).unwrap().len(), 300);
+}
+
+#[test]
+fn a_first_line_of_names_places_the_coordinates_and_the_normal() {
+    // Any order, any case; colour columns before the normal (CloudCompare's order).
+    let cloud = read(
+        "cc.txt",
+        "//X,Y,Z,R,G,B,Nx,Ny,Nz\n1,2,3,255,0,10,0,0,1\n4,5,6,0,0,0,0,1,0\n",
+    );
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+    assert_eq!(
+        cloud.normals().unwrap(),
+        &[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
+    );
+    let cloud = read("o.xyz", "nz ny nx z y x\n1 0 0 3 2 1\n");
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0]]);
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.0, 1.0]]);
+    let cloud = read(
+        "pcl.txt",
+        "x y z normal_x normal_y normal_z curvature\n0 0 0 0 0 1 0.2\n",
+    );
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.0, 1.0]]);
+    // Named normals are read as they are, like PLY's: no guess about their lengths.
+    let cloud = read("long.xyz", "x y z nx ny nz\n0 0 0 0 0 3\n");
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.0, 3.0]]);
+    // Without normal names, the rest is not a normal, even where it would look like one.
+    let cloud = read("x.xyz", "X Y Z a b c\n0 0 0 0 0 1\n");
+    assert!(cloud.normals().is_none());
+    // A name with a space, between separators; a pandas index column (empty name).
+    let cloud = read("sf.txt", "//X;Y;Z;Scalar field\n1;2;3;0.5\n");
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0]]);
+    let cloud = read("pandas.txt", ",x,y,z\n0,1,2,3\n1,4,5,6,\n");
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+    // What is wrong with a header line, named.
+    let e = read_err("noz.xyz", "x y w\n0 0 0\n");
+    assert!(
+        matches!(&e, Error::Malformed { line: Some(1), reason, .. }
+            if reason.contains("no column 'z'") && reason.contains("x y w")),
+        "{e}"
+    );
+    let e = read_err("part.xyz", "x y z nx ny\n0 0 0 0 1\n");
+    assert!(e.to_string().contains("no column 'nz'"), "{e}");
+    let e = read_err("count.xyz", "x y z nx ny nz\n0 0 0 0 0 1\n0 0 0\n");
+    assert!(
+        matches!(&e, Error::Malformed { line: Some(3), reason, .. }
+            if reason.contains("expected 6 numbers (one per name on line 1), found 3")),
+        "{e}"
+    );
+    // Names only on the first line: a word later is still an error.
+    let e = read_err("late.xyz", "0 0 0\nx y z\n");
+    assert!(e.to_string().contains("not a number: 'x'"), "{e}");
+}
+
+#[test]
+fn text_points_with_an_intensity_column_or_semicolons_read_their_positions() {
+    let cloud = read("i.xyz", "0 0 0 0.5\n1 1 1 0.7\n");
+    assert_eq!(cloud.positions(), &[[0.0; 3], [1.0; 3]]);
+    assert!(cloud.normals().is_none());
+    let cloud = read("il.xyz", "0 0 0 0.5 3\n");
+    assert_eq!(cloud.positions(), &[[0.0; 3]]);
+    let cloud = read("s.txt", "1.5;2;3;0;0;1\n");
+    assert_eq!(cloud.positions(), &[[1.5, 2.0, 3.0]]);
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.0, 1.0]]);
+    assert_eq!(Format::from_path("scan.asc"), Some(Format::Xyz));
+    assert_eq!(Format::from_path("oni.PWN"), Some(Format::Xyz));
+    // Decimal commas are refused, never read as more numbers.
+    let e = read_err("eu.txt", "1,5;2,0;3,25\n");
+    assert!(
+        matches!(&e, Error::Malformed { line: Some(1), reason, .. } if reason.contains("decimal commas")),
+        "{e}"
+    );
+}
+
+#[test]
+fn csv_tables_separated_by_semicolons_or_tabs_and_pcl_normal_names() {
+    let cloud = read(
+        "s.csv",
+        "# exported\nX;Y;Z;normal_x;normal_y;normal_z\n1;2;3;0;1;0\n",
+    );
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0]]);
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 1.0, 0.0]]);
+    let cloud = read("t.csv", "x\ty\tz\n1\t2\t3\n");
+    assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0]]);
+    let e = read_err("eu.csv", "x;y;z\n1,5;2;3\n");
+    assert!(e.to_string().contains("decimal commas are not read"), "{e}");
+    let e = read_err("part.csv", "x,y,z,normal_x,normal_y\n0,0,0,0,1\n");
+    assert!(
+        matches!(&e, Error::MissingColumn { column, .. } if column == "normal_z"),
+        "{e}"
+    );
+}
+
+#[test]
+fn ply_files_from_pcl_name_their_normals_normal_x() {
+    let cloud = read(
+        "pcl.ply",
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+         property float z\nproperty float normal_x\nproperty float normal_y\n\
+         property float normal_z\nproperty float curvature\nend_header\n0 0 0 0 0 1 0.5\n",
+    );
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.0, 1.0]]);
+    let e = read_err(
+        "part.ply",
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+         property float z\nproperty float normal_x\nend_header\n0 0 0 1\n",
+    );
+    assert!(
+        matches!(
+            e,
+            Error::MissingProperty {
+                property: "normal_y",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}

@@ -181,7 +181,7 @@ pub(crate) fn read_positions(
 }
 
 /// `--viewpoint`: three finite comma-separated numbers.
-fn parse_viewpoint(s: &str) -> Result<[f64; 3], String> {
+pub(crate) fn parse_viewpoint(s: &str) -> Result<[f64; 3], String> {
     let v: [f64; 3] = crate::restore::parse_triple(s, "--viewpoint")?;
     if v.iter().all(|x| x.is_finite()) {
         Ok(v)

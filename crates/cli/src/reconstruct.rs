@@ -91,6 +91,13 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "K", default_value_t = zeroset_bases::normals::NORMAL_NEIGHBOURS)]
     pub normal_neighbours: usize,
 
+    /// Where the scanner stood, for a scan without normals taken from one side (a room, a
+    /// facade, terrain): the estimated normals are turned to face it instead of outward (as
+    /// `zeroset normals --viewpoint`). Refused for a scan with normals of its own.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::normals::parse_viewpoint,
+          allow_hyphen_values = true)]
+    pub viewpoint: Option<[f64; 3]>,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -167,6 +174,14 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
+    if let (Some(v), Some(_)) = (args.viewpoint, cloud.normals()) {
+        bail!(
+            "--viewpoint {v:?} turns estimated normals, but {} has normals of its own, which \
+             the fit uses as they are (drop --viewpoint, or give the positions only to have \
+             them estimated)",
+            args.scan.display()
+        );
+    }
     let (cloud, scan, _oriented) = if cloud.normals().is_none() {
         crate::fit::check_extent(&args.scan, &cloud)?;
         outln!(
@@ -175,7 +190,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.scan.display()
         );
         let (oriented, _) =
-            crate::normals::orient(&cloud, args.normal_neighbours, None, args.quiet)?;
+            crate::normals::orient(&cloud, args.normal_neighbours, args.viewpoint, args.quiet)?;
         drop(cloud);
         let path = temporary_file(&args.output, "ply");
         let temporary = Temporary(Some(path.clone()));

@@ -921,6 +921,17 @@ fn cases() -> Vec<Case> {
         .keeps("out.png"),
         // zeroset reconstruct
         cli("empty file", "reconstruct empty.xyzn -o out.ply --quiet"),
+        cli(
+            "a viewpoint for a scan with normals",
+            "reconstruct bunny.xyzn -o out.ply --viewpoint 0,0,1 --quiet",
+        )
+        .says("normals of its own"),
+        cli(
+            "NaN viewpoint",
+            "reconstruct positions.xyz -o out.ply --viewpoint 0,nan,1 --quiet",
+        )
+        .no_file()
+        .says("finite"),
         cli("NaN coordinate", "reconstruct nan.xyzn -o out.ply --quiet"),
         cli("no normals", "reconstruct positions.xyz -o out.ply --quiet")
             .accepted("has no normals: estimating them"),

@@ -2793,6 +2793,55 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
         "{out}"
     );
+    let volume =
+        |path: &Path| zeroset_mesh::check(&zeroset_mesh::read_mesh(path).unwrap()).signed_volume;
+    let ball = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
+    assert!(
+        (volume(&mesh) / ball - 1.0).abs() < 0.02,
+        "{}",
+        volume(&mesh)
+    );
+    // Seen from its centre (CENTRE), as a scan of a room is: the normals face the viewpoint, and the
+    // solid is what lies outside the sphere (the mesh wound inward, its volume negative).
+    let room = dir.path().join("room.ply");
+    let o = zeroset([
+        OsStr::new("reconstruct"),
+        scan.as_os_str(),
+        OsStr::new("-o"),
+        room.as_os_str(),
+        OsStr::new("--viewpoint"),
+        OsStr::new("0.1,-0.2,0.3"),
+        OsStr::new("--detail"),
+        OsStr::new("general"),
+        OsStr::new("--no-preview"),
+        OsStr::new("--quiet"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("towards the viewpoint [0.1, -0.2, 0.3]"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        (volume(&room) / ball + 1.0).abs() < 0.02,
+        "{}",
+        volume(&room)
+    );
+    // A scan with normals of its own keeps them: a viewpoint is refused, before any work.
+    let o = zeroset([
+        OsStr::new("reconstruct"),
+        given.as_os_str(),
+        OsStr::new("-o"),
+        dir.path().join("refused.ply").as_os_str(),
+        OsStr::new("--viewpoint"),
+        OsStr::new("0,0,0"),
+    ]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("has normals of its own"),
+        "{}",
+        stderr(&o)
+    );
     let mut names: Vec<_> = fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
@@ -2805,6 +2854,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
             "given.xyzn",
             "inside.xyzn",
             "mesh.ply",
+            "room.ply",
             "sphere.xyz",
             "sphere.xyzn"
         ]

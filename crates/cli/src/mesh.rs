@@ -403,6 +403,19 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         g(report.area)
     )?;
 
+    let rounding = mesh.f32_rounding();
+    if format == MeshFormat::Stl && rounding > zeroset_mesh::io::ply::F32_ROUNDING_LIMIT {
+        // STL holds 32-bit floats only; PLY switches to doubles, OBJ and OFF write f64 text.
+        let diagonal = mesh.bounds().map_or(0.0, |b| b.diagonal());
+        say!(
+            out,
+            "warning: STL stores 32-bit floats, which move these vertices by up to {} ({:.1e} \
+             of the diagonal): the mesh lies far from the origin for its size; .ply, .obj or \
+             .off keep them exactly (or shift the scan nearer the origin)",
+            g(rounding * diagonal),
+            rounding
+        )?;
+    }
     let start = Instant::now();
     write_mesh(&args.output, &mesh, args.ascii)
         .with_context(|| format!("writing {}", args.output.display()))?;

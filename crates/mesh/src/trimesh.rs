@@ -158,6 +158,42 @@ impl TriMesh {
         Aabb::from_points(&self.vertices)
     }
 
+    /// How far storing the vertices as 32-bit floats (binary STL always, PLY `float`) would
+    /// move them, as a fraction of the box's diagonal: the largest `|x − f32(x)|` over the
+    /// coordinates, divided by the diagonal. About 3·10⁻⁸ for a mesh about the origin; large
+    /// for one far from it (georeferenced coordinates: a 15 m building at 4·10⁶ m, f32's step
+    /// there 0.5 m, gives 10⁻²); infinite for a coordinate beyond the `f32` range, and 0 for a
+    /// mesh without extent.
+    ///
+    /// ```
+    /// use zeroset_mesh::TriMesh;
+    ///
+    /// let near = TriMesh::new(vec![[0.1, 0.2, 0.3], [1.1, 0.2, 0.3], [0.1, 1.2, 0.3]], vec![[0, 1, 2]])?;
+    /// assert!(near.f32_rounding() < 1e-7);
+    /// let far = TriMesh::new(vec![[4e6, 0.2, 0.3], [4e6 + 1.1, 0.2, 0.3], [4e6, 1.2, 0.3]], vec![[0, 1, 2]])?;
+    /// assert!(far.f32_rounding() > 0.05);
+    /// # Ok::<(), zeroset_mesh::MeshError>(())
+    /// ```
+    pub fn f32_rounding(&self) -> f64 {
+        let Some(diagonal) = self.bounds().map(|b| b.diagonal()) else {
+            return 0.0;
+        };
+        let worst = self
+            .vertices
+            .iter()
+            .flatten()
+            .map(|&x| {
+                let y = x as f32;
+                if y.is_finite() {
+                    (x - f64::from(y)).abs()
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .fold(0.0, f64::max);
+        if worst == 0.0 { 0.0 } else { worst / diagonal }
+    }
+
     /// The corners of triangle `t`.
     pub fn corners(&self, t: usize) -> [Point<3>; 3] {
         self.triangles[t].map(|v| self.vertices[v as usize])

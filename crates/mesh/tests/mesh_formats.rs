@@ -675,3 +675,27 @@ fn mesh_points_sample_a_coarse_mesh_inside_its_triangles() {
     let bunny = read_ply_mesh(bunny_path()).unwrap();
     assert_eq!(mesh_points(bunny).sampled, 0);
 }
+
+#[test]
+fn ply_keeps_a_georeferenced_mesh_in_doubles_and_a_mesh_near_the_origin_in_floats() {
+    use zeroset_mesh::io::{PlyFormat, ply::F32_ROUNDING_LIMIT, ply_from_bytes, ply_to_bytes};
+    // A 1 m cube at UTM-like coordinates, where f32's step is 0.5 m: as floats its corners
+    // would collapse onto each other.
+    let far = cube_at([512_345.678, 4_101_234.567, 123.4]);
+    assert!(far.f32_rounding() > 1e-3);
+    let near = tetrahedron();
+    assert!(near.f32_rounding() < F32_ROUNDING_LIMIT);
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+        let bytes = ply_to_bytes(&far, format).unwrap();
+        let header = String::from_utf8_lossy(&bytes[..200]).into_owned();
+        assert!(header.contains("property double x"), "{header}");
+        let back = ply_from_bytes(&bytes, "far.ply").unwrap();
+        assert_eq!(back.vertices(), far.vertices(), "{format:?}");
+        let report = check(&back);
+        assert!(report.is_oriented_closed() && (report.signed_volume - 1.0).abs() < 1e-6);
+
+        let bytes = ply_to_bytes(&near, format).unwrap();
+        let header = String::from_utf8_lossy(&bytes[..200]).into_owned();
+        assert!(header.contains("property float x"), "{header}");
+    }
+}

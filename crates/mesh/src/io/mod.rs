@@ -2,7 +2,7 @@
 //!
 //! | format | read | write | normals | vertices no triangle uses |
 //! |---|---|---|---|---|
-//! | [`ply`] | ASCII, binary either endian | binary little-endian or ASCII | per vertex | kept |
+//! | [`ply`] | ASCII, binary either endian | binary little-endian or ASCII; `float` coordinates, `double` where `float` would move them ([`ply::F32_ROUNDING_LIMIT`]) | per vertex | kept |
 //! | [`obj`] (Wavefront) | text | text | per vertex when each vertex has one | kept |
 //! | [`stl`] | binary or ASCII, corners welded | binary or ASCII | facet normals written, not read | dropped |
 //! | [`off`] (Object File Format) | text: `[ST][C][N]OFF`, or no keyword | text (`OFF`, or `NOFF` with normals) | per vertex (`NOFF`) | kept |

@@ -1,8 +1,10 @@
 //! PLY meshes (read and write).
 //!
 //! - [`write_ply`] writes a [`TriMesh`] as PLY, binary little-endian by default
-//!   ([`PlyFormat`]): vertices as `float x y z`, normals as `float nx ny nz` when the mesh has
-//!   them, and faces as `list uchar int vertex_indices`, with a `comment` naming zeroset. The
+//!   ([`PlyFormat`]): vertices as `float x y z` — `double x y z` where 32-bit floats would
+//!   move them by more than [`F32_ROUNDING_LIMIT`] of the mesh's diagonal
+//!   ([`TriMesh::f32_rounding`]: georeferenced meshes far from the origin) —, normals as
+//!   `float nx ny nz` when the mesh has them, and faces as `list uchar int vertex_indices`, with a `comment` naming zeroset. The
 //!   header is the standard one that trimesh, Open3D, MeshLab and Blender read.
 //! - [`read_ply_mesh`] reads a PLY mesh with zeroset's one PLY layer
 //!   ([`zeroset_field_core::io::ply`]: ASCII or binary of either endianness, any scalar type
@@ -21,8 +23,9 @@
 //! a header that claims 10⁹ vertices in a 200-byte file is reported as truncated without a
 //! large allocation.
 //!
-//! Coordinates are written as 32-bit floats, so a round trip is exact for coordinates that are
-//! `f32` values and otherwise rounds them to the nearest one.
+//! Coordinates written as 32-bit floats round trip exactly where they are `f32` values and are
+//! otherwise rounded to the nearest one (by at most [`F32_ROUNDING_LIMIT`] of the diagonal);
+//! written as doubles, exactly.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -32,6 +35,11 @@ use zeroset_field_core::io::ply::{Header, Kind, Place, PlyError, Record, Records
 use zeroset_field_core::io::write_atomic;
 
 use crate::{MeshError, Result, TriMesh};
+
+/// The largest move, as a fraction of the mesh's diagonal, that [`write_ply`] lets rounding
+/// the vertices to 32-bit floats make (10⁻⁶: far below a marching-cubes voxel, which is 10⁻³
+/// to 10⁻² of the diagonal); beyond it the coordinates are written as `double`.
+pub const F32_ROUNDING_LIMIT: f64 = 1e-6;
 
 /// How [`write_ply`] encodes the records.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
@@ -74,6 +82,7 @@ fn ply_bytes(path: &Path, mesh: &TriMesh, format: PlyFormat) -> Result<Vec<u8>> 
         });
     }
     let normals = !mesh.normals().is_empty();
+    let double = mesh.f32_rounding() > F32_ROUNDING_LIMIT;
     let mut header = String::from("ply\n");
     header.push_str(match format {
         PlyFormat::BinaryLittleEndian => "format binary_little_endian 1.0\n",
@@ -81,8 +90,9 @@ fn ply_bytes(path: &Path, mesh: &TriMesh, format: PlyFormat) -> Result<Vec<u8>> 
     });
     header.push_str("comment written by zeroset (zeroset-mesh)\n");
     let _ = writeln!(header, "element vertex {}", mesh.num_vertices());
+    let coordinate = if double { "double" } else { "float" };
     for name in ["x", "y", "z"] {
-        let _ = writeln!(header, "property float {name}");
+        let _ = writeln!(header, "property {coordinate} {name}");
     }
     if normals {
         for name in ["nx", "ny", "nz"] {
@@ -95,11 +105,15 @@ fn ply_bytes(path: &Path, mesh: &TriMesh, format: PlyFormat) -> Result<Vec<u8>> 
     let mut out = header.into_bytes();
     match format {
         PlyFormat::BinaryLittleEndian => {
-            let per_vertex = if normals { 24 } else { 12 };
+            let per_vertex = if double { 24 } else { 12 } + if normals { 12 } else { 0 };
             out.reserve(mesh.num_vertices() * per_vertex + mesh.num_triangles() * 13);
             for (i, p) in mesh.vertices().iter().enumerate() {
                 for v in p {
-                    out.extend_from_slice(&(*v as f32).to_le_bytes());
+                    if double {
+                        out.extend_from_slice(&v.to_le_bytes());
+                    } else {
+                        out.extend_from_slice(&(*v as f32).to_le_bytes());
+                    }
                 }
                 if normals {
                     for v in &mesh.normals()[i] {
@@ -118,7 +132,11 @@ fn ply_bytes(path: &Path, mesh: &TriMesh, format: PlyFormat) -> Result<Vec<u8>> 
         PlyFormat::Ascii => {
             let mut text = String::new();
             for (i, p) in mesh.vertices().iter().enumerate() {
-                let _ = write!(text, "{} {} {}", p[0] as f32, p[1] as f32, p[2] as f32);
+                if double {
+                    let _ = write!(text, "{} {} {}", p[0], p[1], p[2]);
+                } else {
+                    let _ = write!(text, "{} {} {}", p[0] as f32, p[1] as f32, p[2] as f32);
+                }
                 if normals {
                     let n = mesh.normals()[i];
                     let _ = write!(text, " {} {} {}", n[0] as f32, n[1] as f32, n[2] as f32);

@@ -37,10 +37,10 @@ NaN and infinite values do not stop the report: they are counted and the first i
 /// Arguments of `zeroset info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The point-cloud file: .ply (ascii or binary), .pcd (PCL), .xyz/.xyzn/.txt/.pts/.asc/.pwn
-    /// (x y z [nx ny nz] per line, or columns named by a first line), or .csv (header with
-    /// x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file (told by its contents); or a mesh:
-    /// .ply with faces, .obj, .stl or .off.
+    /// The point-cloud file: .ply (ascii or binary), .pcd (PCL), .las (LiDAR),
+    /// .xyz/.xyzn/.txt/.pts/.asc/.pwn (x y z [nx ny nz] per line, or columns named by a first
+    /// line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file (told
+    /// by its contents); or a mesh: .ply with faces, .obj, .stl or .off.
     pub file: PathBuf,
 
     /// Read the file as this format instead of detecting it from the extension and header.
@@ -61,6 +61,8 @@ pub enum FormatArg {
     Gempy,
     /// The Point Cloud Library's PCD (ascii, binary or binary_compressed).
     Pcd,
+    /// LiDAR LAS or LAZ.
+    Las,
 }
 
 impl From<FormatArg> for Format {
@@ -71,6 +73,7 @@ impl From<FormatArg> for Format {
             FormatArg::Csv => Format::Csv,
             FormatArg::Gempy => Format::GemPy,
             FormatArg::Pcd => Format::Pcd,
+            FormatArg::Las => Format::Las,
         }
     }
 }

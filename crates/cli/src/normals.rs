@@ -36,9 +36,9 @@ Examples:
 /// `zeroset normals`' arguments.
 #[derive(Debug, Args)]
 pub struct NormalsArgs {
-    /// A point cloud: .ply, .pcd, .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a mesh (.ply with
-    /// faces, .obj, .stl, .off). Only its positions are used; normals
-    /// it has are compared with the estimate, not used.
+    /// A point cloud: .ply, .pcd, .las (LiDAR), .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a
+    /// mesh (.ply with faces, .obj, .stl, .off). Only its positions are used; normals it has
+    /// are compared with the estimate, not used.
     pub scan: PathBuf,
 
     /// The oriented cloud, in input order: .ply (binary little-endian, double x y z nx ny nz)

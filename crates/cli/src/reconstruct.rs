@@ -48,8 +48,9 @@ pub enum ReconstructMethod {
 /// `zeroset reconstruct`'s arguments.
 #[derive(Debug, Args)]
 pub struct ReconstructArgs {
-    /// A point cloud: .ply, .pcd, .xyzn/.xyz/.txt/.pts/.asc/.pwn or .csv, with normals pointing
-    /// out of the solid or without (then estimated); or a mesh (.ply with faces, .obj, .stl, .off).
+    /// A point cloud: .ply, .pcd, .las, .xyzn/.xyz/.txt/.pts/.asc/.pwn or .csv, with normals
+    /// pointing out of the solid or without (then estimated); or a mesh (.ply with faces,
+    /// .obj, .stl, .off).
     pub scan: PathBuf,
 
     /// The mesh: .ply (binary little-endian), .obj, .stl (binary) or .off, written atomically. The

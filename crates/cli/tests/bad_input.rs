@@ -130,8 +130,8 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         b"0 0 0 0 0 1\n\xff\xfe 1 0 0 0 1\n",
     );
     m.put(
-        "bunny.las",
-        "the text of `bunny.xyzn` under an extension no reader knows (LAS: LiDAR, not read)",
+        "bunny.e57",
+        "the text of `bunny.xyzn` under an extension no reader knows (E57, a laser-scanner format zeroset does not read)",
         bunny.as_bytes(),
     );
     m.put(
@@ -407,6 +407,26 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
             .replace("TYPE F F F", "TYPE F F D")
             .as_bytes(),
     );
+    let laz = fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../field-core/tests/data/bunny300.laz"
+    ))
+    .unwrap();
+    m.put(
+        "bunny300.laz",
+        "300 bunny points as LAZ (LAS compressed with LASzip), written by laspy 2.5.4",
+        &laz,
+    );
+    let las = fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../field-core/tests/data/bunny300.las"
+    ))
+    .unwrap();
+    m.put(
+        "cut.las",
+        "the first 5,000 bytes of a LAS file of 300 points (20 bytes each) written by laspy",
+        &las[..5000],
+    );
     m.put(
         "named_noz.xyz",
         "an xyz file whose first line names the columns `x y w nx ny nz`",
@@ -664,7 +684,7 @@ fn cases() -> Vec<Case> {
         cli("not UTF-8", "info latin1.xyzn").says("UTF-8"),
         cli("missing file", "info missing.xyzn"),
         cli("directory instead of file", "info folder.xyzn"),
-        cli("wrong extension", "info bunny.las").says("unknown point-cloud format"),
+        cli("wrong extension", "info bunny.e57").says("unknown point-cloud format"),
         cli("a point cloud named .stl", "info cloud.stl").says("not ASCII STL"),
         cli("truncated binary PLY", "info cloud_trunc.ply").says("truncated"),
         cli("header count larger than the file", "info cloud_count.ply"),
@@ -679,6 +699,8 @@ fn cases() -> Vec<Case> {
         cli("OBJ face index out of range", "info tet_index.obj").says("line 8"),
         cli("OFF face index out of range", "info tet_index.off").says("line 10"),
         cli("truncated binary PCD", "info short.pcd").says("truncated"),
+        cli("LAZ (compressed LAS)", "info bunny300.laz").says("laszip -i"),
+        cli("truncated LAS", "info cut.las").says("truncated"),
         cli("PCD gaps only", "info gaps.pcd").says("NaN"),
         cli("header line without z", "info named_noz.xyz").says("'z'"),
         cli("decimal commas", "info decimal_comma.txt").says("decimal commas"),
@@ -709,7 +731,7 @@ fn cases() -> Vec<Case> {
         cli("duplicate points", "fit dup.xyzn --method rbf --quiet").accepted("merged"),
         cli("not UTF-8", "fit latin1.xyzn --method rbf").says("UTF-8"),
         cli("missing file", "fit missing.xyzn --method rbf"),
-        cli("wrong extension", "fit bunny.las --method rbf"),
+        cli("wrong extension", "fit bunny.e57 --method rbf"),
         cli("truncated OFF mesh", "fit tet_short.off --method rbf").says("truncated"),
         cli("corrupt LZF in PCD", "fit lzf.pcd --method rbf").says("decompress"),
         cli(
@@ -1003,7 +1025,7 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "not UTF-8", "latin1.xyzn"),
         reader(CloudReader, "missing file", "missing.xyzn"),
         reader(CloudReader, "directory instead of file", "folder.xyzn"),
-        reader(CloudReader, "wrong extension", "bunny.las"),
+        reader(CloudReader, "wrong extension", "bunny.e57"),
         reader(CloudReader, "truncated binary PLY", "cloud_trunc.ply").says("truncated"),
         reader(
             CloudReader,
@@ -1021,6 +1043,8 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "CSV: not a number", "word.csv"),
         reader(CloudReader, "CSV header only", "header_only.csv"),
         reader(CloudReader, "truncated binary PCD", "short.pcd").says("truncated"),
+        reader(CloudReader, "LAZ (compressed LAS)", "bunny300.laz").says("pdal translate"),
+        reader(CloudReader, "truncated LAS", "cut.las").says("truncated"),
         reader(CloudReader, "corrupt LZF in PCD", "lzf.pcd").says("decompress"),
         reader(CloudReader, "PCD gaps only", "gaps.pcd").says("NaN"),
         reader(CloudReader, "PCD TYPE not I, U or F", "type.pcd").says("type.pcd:5"),

@@ -2801,8 +2801,9 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         "{}",
         volume(&mesh)
     );
-    // Seen from its centre (CENTRE), as a scan of a room is: the normals face the viewpoint, and the
-    // solid is what lies outside the sphere (the mesh wound inward, its volume negative).
+    // Seen from its centre (CENTRE), as a scan of a room is: the normals face the viewpoint,
+    // and the solid is what lies outside the sphere (the mesh wound inward, its volume
+    // negative).
     let room = dir.path().join("room.ply");
     let o = zeroset([
         OsStr::new("reconstruct"),

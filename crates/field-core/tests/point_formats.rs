@@ -5,7 +5,9 @@
 //! `tests/data/bunny300_*.pcd` were written by Open3D 0.20 (`write_point_cloud` with
 //! `write_ascii=True`, the default binary, and `compressed=True`) from the first 300 points
 //! of `data/bunny_2k.xyzn` with random colours; `tests/data/bunny300.xyzn` holds those points
-//! as printed to 9 significant digits (so each value's `f32` is exact).
+//! as printed to 9 significant digits (so each value's `f32` is exact). `bunny300.las` (LAS
+//! 1.2, point format 0) and `bunny300.laz` (LAZ, point format 3 with GPS time and colour) were
+//! written from the same points by laspy 2.5.4 (with lazrs), scale 10⁻⁷.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -499,4 +501,120 @@ fn ply_files_from_pcl_name_their_normals_normal_x() {
         ),
         "{e}"
     );
+}
+
+/// `points` written by the `las` crate as LAS 1.4, point format 1
+/// (GPS time), georeferenced: millimetre scale about a UTM-like offset. Points whose index is
+/// in `withheld` carry the withheld flag.
+fn las_bytes(points: &[[f64; 3]], withheld: &[usize]) -> Vec<u8> {
+    use las::{Builder, Point, Transform, Vector, Writer};
+    let mut builder = Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).unwrap();
+    let transform = |offset| Transform {
+        scale: 0.001,
+        offset,
+    };
+    builder.transforms = Vector {
+        x: transform(512_000.0),
+        y: transform(4_101_000.0),
+        z: transform(0.0),
+    };
+    let mut writer = Writer::new(
+        std::io::Cursor::new(Vec::new()),
+        builder.into_header().unwrap(),
+    )
+    .unwrap();
+    for (i, p) in points.iter().enumerate() {
+        writer
+            .write_point(Point {
+                x: p[0],
+                y: p[1],
+                z: p[2],
+                gps_time: Some(i as f64),
+                is_withheld: withheld.contains(&i),
+                ..Default::default()
+            })
+            .unwrap();
+    }
+    writer.into_inner().unwrap().into_inner()
+}
+
+#[test]
+fn laspy_written_las_reads_as_the_points_it_was_written_from_and_laz_says_how_to_decompress() {
+    let truth = read_point_cloud(data("bunny300.xyzn")).unwrap();
+    let las = read_point_cloud(data("bunny300.las")).unwrap();
+    assert_eq!(las.len(), 300);
+    let e = read_point_cloud(data("bunny300.laz")).unwrap_err();
+    assert!(
+        matches!(&e, Error::Malformed { reason, .. } if reason.contains("laszip -i")),
+        "{e}"
+    );
+    for (got, want) in las.positions().iter().zip(truth.positions()) {
+        // Stored as whole multiples of the scale, 10⁻⁷: within half of it.
+        for a in 0..3 {
+            assert!(
+                (got[a] - want[a]).abs() <= 0.5e-7 + 1e-15,
+                "{got:?} vs {want:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn las_reads_georeferenced_points_exactly_without_the_withheld_ones() {
+    // Whole millimetres, as the scale stores them.
+    let points: Vec<[f64; 3]> = (0..70_000)
+        .map(|i| {
+            let (a, b) = ((i % 300) as f64, (i / 300) as f64);
+            [
+                512_345.0 + a * 0.25,
+                4_101_234.0 + b * 0.125,
+                100.0 + (a * b) * 0.001,
+            ]
+        })
+        .collect();
+    let withheld = [3, 65_540];
+    let kept: Vec<[f64; 3]> = points
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !withheld.contains(i))
+        .map(|(_, p)| *p)
+        .collect();
+    for name in ["scan.las", "SCAN.LAS"] {
+        let (_dir, path) = temp_file(name, las_bytes(&points, &withheld));
+        assert_eq!(detect_format(&path).unwrap(), Format::Las);
+        let cloud = read_point_cloud(&path).unwrap();
+        assert!(cloud.normals().is_none());
+        assert_eq!(cloud.len(), kept.len(), "{name}");
+        for (got, want) in cloud.positions().iter().zip(&kept) {
+            for a in 0..3 {
+                assert!(
+                    (got[a] - want[a]).abs() < 1e-6,
+                    "{name}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+    // Told by its magic `LASF` under another name.
+    let (_dir, path) = temp_file("scan.bin", las_bytes(&points[..10], &[]));
+    assert_eq!(detect_format(&path).unwrap(), Format::Las);
+}
+
+#[test]
+fn bad_las_files_are_named_errors() {
+    let points: Vec<[f64; 3]> = (0..1000)
+        .map(|i| [512_000.0 + i as f64, 4_101_000.0, 0.0])
+        .collect();
+    let bytes = las_bytes(&points, &[]);
+    let e = read_err("cut.las", &bytes[..bytes.len() * 2 / 3]);
+    assert!(matches!(e, Error::Truncated { expected: 1000, .. }), "{e}");
+    // A header that announces far more points than the file holds answers at once.
+    let mut bytes = las_bytes(&points, &[]);
+    // The legacy 32-bit point count at byte 107, LAS 1.4's 64-bit one at byte 247.
+    bytes[107..111].copy_from_slice(&u32::MAX.to_le_bytes());
+    bytes[247..255].copy_from_slice(&(1u64 << 40).to_le_bytes());
+    let e = read_err("huge.las", &bytes);
+    assert!(matches!(e, Error::Truncated { .. }), "{e}");
+    let e = read_err("text.las", "LASF but not really a LAS file\n");
+    assert!(e.to_string().contains("text.las"), "{e}");
 }

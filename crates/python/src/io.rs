@@ -1,4 +1,4 @@
-//! Point clouds in: every format `zeroset` reads (PLY, PCD, xyz / xyzn / pts text, CSV, GemPy
+//! Point clouds in: every format `zeroset` reads (PLY, PCD, LAS, xyz / xyzn / pts text, CSV, GemPy
 //! tables, and meshes' vertices).
 
 use std::path::PathBuf;

@@ -172,11 +172,17 @@ pub fn real_files(small: bool) -> Vec<Seed> {
     if let Some(b) = read("samples/curve.xyv") {
         out.push(seed("curve.xyv", b));
     }
-    // PCD as Open3D writes it, in its three encodings (300 points each, under 22 kB).
-    for encoding in ["ascii", "binary", "binary_compressed"] {
-        let name = format!("bunny300_{encoding}.pcd");
+    // PCD as Open3D writes it, in its three encodings, and LAS / LAZ as laspy does (300
+    // points each, under 22 kB).
+    for name in [
+        "bunny300_ascii.pcd",
+        "bunny300_binary.pcd",
+        "bunny300_binary_compressed.pcd",
+        "bunny300.las",
+        "bunny300.laz",
+    ] {
         if let Some(b) = read(&format!("crates/field-core/tests/data/{name}")) {
-            out.push(seed(&name, b));
+            out.push(seed(name, b));
         }
     }
     for dir in ["data/geology/greenstone", "data/geology/perth_basin"] {
@@ -450,6 +456,7 @@ pub fn for_target(target: Target, seeds: &[Seed]) -> Vec<Seed> {
         Target::OffMesh => by_ext(&["off"]),
         Target::Xyz => by_ext(&["xyz", "xyzn", "txt"]),
         Target::Pcd => by_ext(&["pcd"]),
+        Target::Las => by_ext(&["las", "laz"]),
         Target::Csv | Target::GemPy => by_ext(&["csv"]),
         Target::Xyv => by_ext(&["xyv"]),
         Target::Xyzv => by_ext(&["xyzv"]),

@@ -33,8 +33,10 @@ pub enum Target {
     /// xyz text: `read_point_cloud_with(Format::Xyz)`, with and without normals.
     Xyz,
     /// PCL's PCD (ascii, binary, binary_compressed): `read_point_cloud_with(Format::Pcd)`,
-    /// strict and lenient, and `detect_format` on the bytes under another name.
+    /// strict and lenient.
     Pcd,
+    /// LiDAR LAS and LAZ: `read_point_cloud_with(Format::Las)`, strict and lenient.
+    Las,
     /// CSV with a header: `read_point_cloud_with(Format::Csv)` and `detect_format`.
     Csv,
     /// GemPy tables: `read_gempy_file`, `read_surface_points`, `read_orientations` and the
@@ -61,7 +63,7 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 16] = [
+    pub const ALL: [Target; 17] = [
         Target::PlyCloud,
         Target::PlyMesh,
         Target::StlMesh,
@@ -69,6 +71,7 @@ impl Target {
         Target::OffMesh,
         Target::Xyz,
         Target::Pcd,
+        Target::Las,
         Target::Csv,
         Target::GemPy,
         Target::Xyv,
@@ -90,6 +93,7 @@ impl Target {
             Target::OffMesh => "off-mesh",
             Target::Xyz => "xyz",
             Target::Pcd => "pcd",
+            Target::Las => "las",
             Target::Csv => "csv",
             Target::GemPy => "gempy",
             Target::Xyv => "xyv",
@@ -117,6 +121,7 @@ impl Target {
             Target::OffMesh => "off",
             Target::Xyz => "xyz",
             Target::Pcd => "pcd",
+            Target::Las => "las",
             Target::Csv | Target::GemPy => "csv",
             Target::Xyv => "xyv",
             Target::Xyzv => "xyzv",
@@ -300,6 +305,11 @@ pub fn run(target: Target, path: &Path, bytes: &[u8]) -> String {
         Target::Pcd => [
             read_cloud(path, Format::Pcd, false, false),
             read_cloud(path, Format::Pcd, true, true),
+        ]
+        .join(" | "),
+        Target::Las => [
+            read_cloud(path, Format::Las, false, false),
+            read_cloud(path, Format::Las, true, true),
         ]
         .join(" | "),
         Target::Xyz => [

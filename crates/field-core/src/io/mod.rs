@@ -8,6 +8,7 @@
 //! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored; fields separated by commas, or by semicolons or tabs where the header has more of them | columns `nx ny nz` or `normal_x normal_y normal_z`, all three or none |
 //! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
 //! | [`Format::Pcd`] | `.pcd` | PCL's PCD v0.5–0.7: `DATA ascii`, `binary` or `binary_compressed` (LZF); fields `x y z` of any type; other fields skipped; points whose `x y z` are all NaN (an organised cloud's gaps) left out; see [`pcd`] | `normal_x normal_y normal_z` (or `nx ny nz`), all three or none |
+//! | [`Format::Las`] | `.las` `.laz` | ASPRS LAS 1.0–1.4, any point format; `x y z` scaled and offset as the header says; withheld points left out; LAZ refused with how to decompress it; see [`las`] | none (LAS has no standard normals) |
 //!
 //! [`read_point_cloud`] picks the format with [`detect_format`] (the extension, then the CSV
 //! header) and returns a [`PointCloud3`]; [`read_point_cloud_with`] takes [`ReadOptions`] to force
@@ -48,6 +49,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Point3;
 
 pub mod gempy;
+pub mod las;
 pub mod pcd;
 pub mod ply;
 mod table;
@@ -72,21 +74,26 @@ pub enum Format {
     /// The Point Cloud Library's PCD: a text header, then the points as text, binary or
     /// LZF-compressed binary; see [`pcd`].
     Pcd,
+    /// The ASPRS LiDAR format LAS (positions only; LAZ refused with how to decompress it); see
+    /// [`las`].
+    Las,
 }
 
 impl Format {
     /// Every format, in the order of the module table.
-    pub const ALL: [Format; 5] = [
+    pub const ALL: [Format; 6] = [
         Format::Ply,
         Format::Xyz,
         Format::Csv,
         Format::GemPy,
         Format::Pcd,
+        Format::Las,
     ];
 
     /// The format implied by the file extension (case-insensitive), without reading the file:
     /// `.ply` → [`Format::Ply`]; `.xyz`, `.xyzn`, `.txt`, `.pts`, `.asc`, `.pwn` →
-    /// [`Format::Xyz`]; `.csv` → [`Format::Csv`]; `.pcd` → [`Format::Pcd`]. A `.csv` file may
+    /// [`Format::Xyz`]; `.csv` → [`Format::Csv`]; `.pcd` → [`Format::Pcd`]; `.las`, `.laz` →
+    /// [`Format::Las`]. A `.csv` file may
     /// hold a GemPy table: [`detect_format`] reads the header to tell. `None` for any other
     /// extension.
     pub fn from_path(path: impl AsRef<Path>) -> Option<Format> {
@@ -96,11 +103,13 @@ impl Format {
             "xyz" | "xyzn" | "txt" | "pts" | "asc" | "pwn" => Some(Format::Xyz),
             "csv" => Some(Format::Csv),
             "pcd" => Some(Format::Pcd),
+            "las" | "laz" => Some(Format::Las),
             _ => None,
         }
     }
 
-    /// The lower-case name used on the command line: `ply`, `xyz`, `csv`, `gempy` or `pcd`.
+    /// The lower-case name used on the command line: `ply`, `xyz`, `csv`, `gempy`, `pcd` or
+    /// `las`.
     pub fn name(self) -> &'static str {
         match self {
             Format::Ply => "ply",
@@ -108,6 +117,7 @@ impl Format {
             Format::Csv => "csv",
             Format::GemPy => "gempy",
             Format::Pcd => "pcd",
+            Format::Las => "las",
         }
     }
 }
@@ -120,13 +130,13 @@ impl fmt::Display for Format {
 
 /// The error of [`Format::from_str`]: the name given is not a format.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown format '{0}' (expected ply, xyz, csv, gempy or pcd)")]
+#[error("unknown format '{0}' (expected ply, xyz, csv, gempy, pcd or las)")]
 pub struct UnknownFormatName(pub String);
 
 impl FromStr for Format {
     type Err = UnknownFormatName;
 
-    /// Parses `ply`, `xyz`, `csv`, `gempy` or `pcd` (case-insensitive).
+    /// Parses `ply`, `xyz`, `csv`, `gempy`, `pcd` or `las` (case-insensitive).
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         Format::ALL
             .into_iter()
@@ -139,7 +149,7 @@ impl FromStr for Format {
 /// header names `formation` or `surface`, or all of `dip`, `azimuth` and `polarity`, is
 /// [`Format::GemPy`]. A file with an unknown extension that starts with the PLY magic line
 /// `ply` is [`Format::Ply`]; one that starts as PCL writes PCD files (`# .PCD` or `VERSION`) is
-/// [`Format::Pcd`].
+/// [`Format::Pcd`]; one that starts with `LASF` is [`Format::Las`].
 ///
 /// # Errors
 /// [`Error::UnknownFormat`] when neither the extension nor the content tells;
@@ -165,6 +175,7 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
                 [b'p', b'l', b'y', b'\n' | b'\r', ..] => Ok(Format::Ply),
                 [b'#', b' ', b'.', b'P', b'C', b'D', ..]
                 | [b'V', b'E', b'R', b'S', b'I', b'O', b'N', ..] => Ok(Format::Pcd),
+                [b'L', b'A', b'S', b'F', ..] => Ok(Format::Las),
                 _ => Err(Error::UnknownFormat {
                     path: path.to_owned(),
                 }),
@@ -289,6 +300,7 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         Format::Csv => table::read_xyz_table(path, &checker)?,
         Format::GemPy => gempy::read_cloud(path, &checker)?,
         Format::Pcd => pcd::read(path, &checker)?,
+        Format::Las => las::read(path, &checker)?,
     };
     if positions.is_empty() {
         return Err(malformed(path, None, "the file holds no point"));

@@ -278,10 +278,10 @@ def _as_field(
 
 def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     """Reads a point cloud: ``(points, normals)``, each ``(n, 3)``; normals ``None`` when the
-    file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), xyz / xyzn /
-    pts / asc / pwn text (columns ``x y z [nx ny nz]`` or named by a first line), CSV with a
-    header, GemPy tables; or a mesh (OBJ, STL, OFF, PLY with faces): the vertices its triangles use, with normals from
-    the file or the triangles' winding (closed parts wound inward turned over), ``None``
+    file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), LAS, xyz /
+    xyzn / pts / asc / pwn text (columns ``x y z [nx ny nz]`` or named by a first line), CSV
+    with a header, GemPy tables; or a mesh (OBJ, STL, OFF, PLY with faces): the vertices its
+    triangles use, with normals from the file or the triangles' winding (closed parts wound inward turned over), ``None``
     where the winding is inconsistent (``estimate_normals`` then)."""
     return _native.read_points(os.fspath(path))
 

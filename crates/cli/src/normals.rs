@@ -109,16 +109,17 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
 }
 
 /// Reads `path` with its normals where it has some, or its positions only where an xyz file's
-/// columns 4–6 are not normals (colours: the note says so) — and, with `normals_unused`,
-/// where a normal is not finite (the note says so). `command` names the caller in a
+/// columns 4–6 are not normals (colours: the note says so) — and, with `normals_optional`
+/// (the caller estimates normals where the file has none), where a normal is not finite (PCL
+/// writes NaN for the normals it could not estimate; the note says so). `command` names the caller in a
 /// non-finite value's error.
 pub(crate) fn read_positions(
     path: &Path,
     options: &ReadOptions,
     command: &str,
-    normals_unused: bool,
+    normals_optional: bool,
 ) -> anyhow::Result<PointCloud3> {
-    let needs = if normals_unused {
+    let needs = if normals_optional {
         "finite coordinates"
     } else {
         "finite coordinates and normals"
@@ -149,10 +150,12 @@ pub(crate) fn read_positions(
             );
             positions_only()
         }
-        Err(Error::NonFinite { record, field, .. }) if normals_unused && field.starts_with('n') => {
+        Err(Error::NonFinite { record, field, .. })
+            if normals_optional && field.starts_with('n') =>
+        {
             outln!(
-                "{:<14}{}: record {record} has a non-finite normal ({field}): the file's \
-                 normals are not read",
+                "{:<14}{}: record {record} has a non-finite normal ({field}; PCL writes NaN \
+                 where it could not estimate one): the file's normals are not read",
                 "note",
                 path.display()
             );

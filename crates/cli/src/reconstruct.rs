@@ -55,7 +55,7 @@ pub struct ReconstructArgs {
 
     /// The mesh: .ply (binary little-endian), .obj, .stl (binary) or .off, written atomically. The
     /// preview is written beside it, with the extension .png.
-    #[arg(short, long, value_name = "MESH.ply|MESH.obj|MESH.stl")]
+    #[arg(short, long, value_name = "MESH.ply|MESH.obj|MESH.stl|MESH.off")]
     pub output: PathBuf,
 
     /// The field to fit.
@@ -170,7 +170,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         &args.scan,
         &Default::default(),
         "zeroset reconstruct",
-        false,
+        true,
     )?;
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file

@@ -2828,6 +2828,43 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         "{}",
         volume(&room)
     );
+    // A scan whose normals include NaN (PCL writes them where it could not estimate one):
+    // the file's normals are set aside and estimated, as for a scan without normals.
+    let holes = dir.path().join("holes.xyzn");
+    let text: String = sphere_xyzn(1500)
+        .lines()
+        .enumerate()
+        .map(|(i, line)| {
+            let mut words: Vec<&str> = line.split_whitespace().collect();
+            if i == 7 {
+                words[3] = "nan";
+            }
+            words.join(" ") + "\n"
+        })
+        .collect();
+    fs::write(&holes, &text).unwrap();
+    let patched = dir.path().join("patched.ply");
+    let o = zeroset([
+        OsStr::new("reconstruct"),
+        holes.as_os_str(),
+        OsStr::new("-o"),
+        patched.as_os_str(),
+        OsStr::new("--detail"),
+        OsStr::new("general"),
+        OsStr::new("--no-preview"),
+        OsStr::new("--quiet"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("record 7 has a non-finite normal"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        (volume(&patched) / ball - 1.0).abs() < 0.02,
+        "{}",
+        volume(&patched)
+    );
     // A scan with normals of its own keeps them: a viewpoint is refused, before any work.
     let o = zeroset([
         OsStr::new("reconstruct"),
@@ -2853,8 +2890,10 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         [
             "compared.ply",
             "given.xyzn",
+            "holes.xyzn",
             "inside.xyzn",
             "mesh.ply",
+            "patched.ply",
             "room.ply",
             "sphere.xyz",
             "sphere.xyzn"

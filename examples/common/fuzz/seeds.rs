@@ -179,6 +179,7 @@ pub fn real_files(small: bool) -> Vec<Seed> {
         "bunny300_binary.pcd",
         "bunny300_binary_compressed.pcd",
         "bunny300.las",
+        "bunny300_14.las",
         "bunny300.laz",
     ] {
         if let Some(b) = read(&format!("crates/field-core/tests/data/{name}")) {

@@ -15,11 +15,12 @@
 //! DATA binary
 //! ```
 //!
-//! - Header: `FIELDS` names the fields; `SIZE` (bytes: 1, 2, 4 or 8), `TYPE` (`I` signed, `U`
-//!   unsigned, `F` floating point of 4 or 8 bytes) and `COUNT` (values per field, default 1)
-//!   give one entry per field; `POINTS` the count (default `WIDTH × HEIGHT`); `DATA` ends the
-//!   header and says how the points follow. `VERSION`, `VIEWPOINT` and `#` comments are
-//!   skipped, as is any other keyword.
+//! - Header: `FIELDS` names the fields; `SIZE` (bytes: 1, 2, 4 or 8; default 4), `TYPE` (`I`
+//!   signed, `U` unsigned, `F` floating point of 4 or 8 bytes; default `F`, as PCL reads files
+//!   older than v0.7) and `COUNT` (values per field, default 1) give one entry per field;
+//!   `POINTS` the count (default `WIDTH × HEIGHT`; both given, they must agree); `DATA` ends
+//!   the header and says how the points follow. `VERSION`, `VIEWPOINT` and `#` comments are
+//!   skipped, as is any other keyword. Text after the announced points is not read.
 //! - `DATA ascii`: one point per line, every field's values separated by whitespace.
 //!   `DATA binary`: `POINTS` records of the fields' bytes in turn, little-endian (PCL writes
 //!   the memory of an x86 or ARM machine). `DATA binary_compressed`: the compressed and the
@@ -36,7 +37,7 @@
 //!   announced ([`Error::Truncated`] otherwise), and the compressed
 //!   block's sizes are checked against the file and against what LZF can expand to before
 //!   anything is allocated. Errors name the file and the header line, the text line, or the
-//!   record and its byte.
+//!   point (0-based record).
 
 use std::path::Path;
 
@@ -45,7 +46,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Point3;
 use crate::limits;
 
-/// The most LZF can expand data by: a 2-byte back reference copies up to 9 bytes, a 3-byte one
+/// The most LZF can expand data by: a 2-byte back reference copies up to 8 bytes, a 3-byte one
 /// up to 264 (so at most 88× per input byte); rounded up.
 const LZF_MAX_EXPANSION: u64 = 90;
 
@@ -146,11 +147,16 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
         return Err(malformed(path, None, "the file is empty (0 bytes)"));
     }
     let header = parse_header(path, &bytes)?;
+    let missing = |name: &str| {
+        let fields: Vec<&str> = header.fields.iter().map(|f| f.name.as_str()).collect();
+        malformed(
+            path,
+            None,
+            format!("PCD has no field '{name}' (FIELDS {})", fields.join(" ")),
+        )
+    };
     let slot = |name: &'static str| {
-        let i = header.find(name).ok_or_else(|| Error::MissingProperty {
-            path: path.to_owned(),
-            property: name,
-        })?;
+        let i = header.find(name).ok_or_else(|| missing(name))?;
         let field = &header.fields[i];
         if field.count != 1 {
             return Err(malformed(
@@ -168,12 +174,7 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let normal = match super::normal_columns(|name| header.find(name)) {
         Ok(None) => None,
         Ok(Some((_, names))) => Some([slot(names[0])?, slot(names[1])?, slot(names[2])?]),
-        Err(name) => {
-            return Err(Error::MissingProperty {
-                path: path.to_owned(),
-                property: name,
-            });
-        }
+        Err(name) => return Err(missing(name)),
     };
     let body = &bytes[header.start..];
     let normals = normal.is_some();
@@ -322,7 +323,8 @@ fn read_ascii(
     points: &mut Points<'_>,
 ) -> Result<()> {
     let values_per_line = header.values();
-    let mut values = Vec::with_capacity(values_per_line);
+    // Grown by the values a line holds, never sized by the header's counts.
+    let mut values = Vec::new();
     let mut record = 0;
     for (i, line) in body.split(|&b| b == b'\n').enumerate() {
         if record == header.points {
@@ -529,8 +531,9 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 };
                 let names = names.ok_or_else(|| error("PCD header has no FIELDS line".into()))?;
                 let n = names.len();
-                let sizes = sizes.ok_or_else(|| error("PCD header has no SIZE line".into()))?;
-                let types = types.ok_or_else(|| error("PCD header has no TYPE line".into()))?;
+                // Files older than v0.7 may leave SIZE and TYPE out: PCL reads 4-byte floats.
+                let sizes = sizes.unwrap_or_else(|| (line_no, vec![4; n]));
+                let types = types.unwrap_or_else(|| (line_no, vec![Kind::Float; n]));
                 let counts = counts.unwrap_or_else(|| (line_no, vec![1; n]));
                 let at_line = |line: usize, detail: String| malformed(path, Some(line), detail);
                 for (what, line, len) in [
@@ -585,6 +588,12 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                     column += count;
                 }
                 let points = match (points, width, height) {
+                    (Some(p), Some(w), Some(h)) if w.checked_mul(h) != Some(p) => {
+                        return Err(error(format!(
+                            "PCD POINTS {p} is not WIDTH × HEIGHT = {w} × {h} (PCL refuses such \
+                             a header too)"
+                        )));
+                    }
                     (Some(p), _, _) => p,
                     (None, Some(w), Some(h)) => w.saturating_mul(h),
                     _ => {

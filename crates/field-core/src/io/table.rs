@@ -164,7 +164,8 @@ pub(super) fn find_column(header: &[String], names: &[&str]) -> Option<usize> {
 }
 
 /// The field separator of a CSV file: `;` or a tab where its first line that is not blank or
-/// a `#` comment holds more of it than of commas (and of the other), else `,`.
+/// a `#` comment holds more of it than of commas (and of the other), outside double quotes,
+/// else `,`.
 fn sniff_delimiter(path: &Path) -> Result<u8> {
     use std::io::{BufRead, BufReader, Read};
     let (file, _) = open_nonempty(path)?;
@@ -180,7 +181,17 @@ fn sniff_delimiter(path: &Path) -> Result<u8> {
             break;
         }
     }
-    let count = |byte: u8| line.iter().filter(|&&b| b == byte).count();
+    // Separators inside a quoted name (`"note; a"`) do not count.
+    let mut quoted = false;
+    let outside: Vec<u8> = line
+        .iter()
+        .filter(|&&b| {
+            quoted ^= b == b'"';
+            !quoted && b != b'"'
+        })
+        .copied()
+        .collect();
+    let count = |byte: u8| outside.iter().filter(|&&b| b == byte).count();
     Ok([b',', b';', b'\t']
         .into_iter()
         .max_by_key(|&byte| (count(byte), byte == b','))

@@ -299,7 +299,10 @@ pub(super) fn for_each_number_line(
             continue;
         };
         let was_first = std::mem::replace(&mut first, false);
-        if names_first && was_first && super::parse_number(head).is_none() {
+        // A name starts with a letter, `_` or a quote (`1e`, `-` or `.` are mistyped numbers).
+        let named = content.trim_start().starts_with("//")
+            || head.starts_with(|c: char| c.is_alphabetic() || c == '_' || c == '"');
+        if names_first && was_first && named && super::parse_number(head).is_none() {
             let names = header_names(content);
             line(line_no, TextLine::Names(&names))?;
             continue;
@@ -310,6 +313,14 @@ pub(super) fn for_each_number_line(
                 Some(line_no),
                 "both ',' and ';' on one line: decimal commas are not read (export the numbers \
                  with decimal points)",
+            ));
+        }
+        if has_decimal_comma(content) {
+            return Err(malformed(
+                path,
+                Some(line_no),
+                "numbers separated by spaces hold commas between digits (`0,5 1,25`): decimal \
+                 commas are not read (export the numbers with decimal points)",
             ));
         }
         values.clear();
@@ -327,6 +338,30 @@ pub(super) fn for_each_number_line(
     }
 }
 
+/// Whether a line separated by whitespace has a word that reads as one number with a decimal
+/// comma: exactly one comma, between two digits, and no decimal point. `0,5 1,25 2` is three
+/// numbers, not five; `1,2,3`, `1, 2, 3`, `0,0,0, 0,0,1` and `1.5,2.5 3` are lists.
+fn has_decimal_comma(content: &str) -> bool {
+    let mut words = content.split_whitespace();
+    let (Some(_), Some(_)) = (words.next(), words.next()) else {
+        return false;
+    };
+    content.split_whitespace().any(|word| {
+        let b = word.as_bytes();
+        let commas: Vec<usize> = (0..b.len()).filter(|&i| b[i] == b',').collect();
+        match commas[..] {
+            [i] => {
+                i > 0
+                    && i + 1 < b.len()
+                    && b[i - 1].is_ascii_digit()
+                    && b[i + 1].is_ascii_digit()
+                    && !word.contains('.')
+            }
+            _ => false,
+        }
+    })
+}
+
 /// The names of a header line: a leading `//` dropped (CloudCompare writes one), split at
 /// commas, semicolons or tabs where the line has any (a name may hold a space; an empty name,
 /// such as a pandas index column's, is a column too, except after a trailing separator), else
@@ -336,13 +371,19 @@ fn header_names(content: &str) -> Vec<&str> {
     let content = content.strip_prefix("//").unwrap_or(content);
     let separators = [',', ';', '\t'];
     if content.contains(separators) {
-        let mut names: Vec<&str> = content.split(separators).map(str::trim).collect();
+        let mut names: Vec<&str> = content
+            .split(separators)
+            .map(|n| n.trim().trim_matches('"'))
+            .collect();
         while names.last().is_some_and(|n| n.is_empty()) {
             names.pop();
         }
         names
     } else {
-        content.split_whitespace().collect()
+        content
+            .split_whitespace()
+            .map(|n| n.trim_matches('"'))
+            .collect()
     }
 }
 

@@ -17,8 +17,9 @@
 //!     it may be missing altogether (the file begins with the counts: the extension says it
 //!     is OFF). `4OFF` (4-D vertices), `nOFF` (vertices of any dimension) and `OFF BINARY`
 //!     are refused.
-//!   - The counts are read as words, on one line or several; the edge count may be omitted
-//!     (`nv nf`).
+//!   - The vertex and face counts are read as words, on one line or two; the edge count, not
+//!     used, is read only on the face count's line and may be omitted (`nv nf`): a lone
+//!     number on the next line is the first vertex's.
 //!   - Vertices and faces are read one a line. A vertex line begins `x y z`, then, for an
 //!     `N` keyword, the normal `nx ny nz`, which the mesh keeps per vertex, as written (not
 //!     normalised); the colour (`C`), texture coordinates (`ST`) and any other numbers after

@@ -2775,17 +2775,22 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         stdout(&o)
     );
     // `reconstruct` estimates them itself and meshes a closed sphere; no temporary is left.
+    let reconstruct = |scan: &Path, mesh: &Path, extra: &[&str]| {
+        let mut args = vec![
+            OsStr::new("reconstruct"),
+            scan.as_os_str(),
+            OsStr::new("-o"),
+            mesh.as_os_str(),
+            OsStr::new("--detail"),
+            OsStr::new("general"),
+            OsStr::new("--no-preview"),
+            OsStr::new("--quiet"),
+        ];
+        args.extend(extra.iter().map(OsStr::new));
+        zeroset(args)
+    };
     let mesh = dir.path().join("mesh.ply");
-    let o = zeroset([
-        OsStr::new("reconstruct"),
-        scan.as_os_str(),
-        OsStr::new("-o"),
-        mesh.as_os_str(),
-        OsStr::new("--detail"),
-        OsStr::new("general"),
-        OsStr::new("--no-preview"),
-        OsStr::new("--quiet"),
-    ]);
+    let o = reconstruct(&scan, &mesh, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     assert!(out.contains("has no normals: estimating them"), "{out}");
@@ -2805,18 +2810,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
     // and the solid is what lies outside the sphere (the mesh wound inward, its volume
     // negative).
     let room = dir.path().join("room.ply");
-    let o = zeroset([
-        OsStr::new("reconstruct"),
-        scan.as_os_str(),
-        OsStr::new("-o"),
-        room.as_os_str(),
-        OsStr::new("--viewpoint"),
-        OsStr::new("0.1,-0.2,0.3"),
-        OsStr::new("--detail"),
-        OsStr::new("general"),
-        OsStr::new("--no-preview"),
-        OsStr::new("--quiet"),
-    ]);
+    let o = reconstruct(&scan, &room, &["--viewpoint", "0.1,-0.2,0.3"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("towards the viewpoint [0.1, -0.2, 0.3]"),
@@ -2844,16 +2838,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         .collect();
     fs::write(&holes, &text).unwrap();
     let patched = dir.path().join("patched.ply");
-    let o = zeroset([
-        OsStr::new("reconstruct"),
-        holes.as_os_str(),
-        OsStr::new("-o"),
-        patched.as_os_str(),
-        OsStr::new("--detail"),
-        OsStr::new("general"),
-        OsStr::new("--no-preview"),
-        OsStr::new("--quiet"),
-    ]);
+    let o = reconstruct(&holes, &patched, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("record 7 has a non-finite normal"),

@@ -45,7 +45,11 @@ fn manufactured(seed: u64, n: usize, extra: usize, density: f64) -> Manufactured
     }
     dense[m - 1] = dense[m - 2].iter().map(|v| -v).collect();
     let x: Vec<f64> = (0..n).map(|_| rng.random::<f64>() * 4.0 - 2.0).collect();
-    let rho = rng.random::<f64>() * 2.0 - 1.0;
+    // |ρ| in [0.1, 1]: a residual near zero (ρ = 1.7e-7 for the seed in
+    // agreement.proptest-regressions) leaves ‖r‖ at the level of the rounding in b − A x, where
+    // the relative normal residual ‖Aᵀr‖/(‖A‖‖r‖) measures noise, not the solver.
+    let u = rng.random::<f64>() * 2.0 - 1.0;
+    let rho = u.signum() * (0.1 + 0.9 * u.abs());
     let mut b: Vec<f64> = dense
         .iter()
         .map(|row| row.iter().zip(&x).map(|(a, x)| a * x).sum())

@@ -403,8 +403,13 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         g(report.area)
     )?;
 
-    let rounding = mesh.f32_rounding();
-    if format == MeshFormat::Stl && rounding > zeroset_mesh::io::ply::F32_ROUNDING_LIMIT {
+    // Only STL needs the measure here; the PLY writer takes its own.
+    let rounding = if format == MeshFormat::Stl {
+        mesh.f32_rounding()
+    } else {
+        0.0
+    };
+    if rounding > zeroset_mesh::io::ply::F32_ROUNDING_LIMIT {
         // STL holds 32-bit floats only; PLY switches to doubles, OBJ and OFF write f64 text.
         let diagonal = mesh.bounds().map_or(0.0, |b| b.diagonal());
         say!(

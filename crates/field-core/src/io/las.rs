@@ -39,12 +39,7 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     while read < announced {
         let n = reader.fill_points(BLOCK, &mut block).map_err(|e| match e {
             las::Error::Io(ref io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-                Error::Truncated {
-                    path: path.to_owned(),
-                    element: "point".to_owned(),
-                    expected: usize::try_from(announced).unwrap_or(usize::MAX),
-                    got: usize::try_from(read).unwrap_or(usize::MAX),
-                }
+                truncated(path, announced, read)
             }
             e => las_error(path, e),
         })?;
@@ -116,12 +111,7 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
     }
     let room = len.saturating_sub(start);
     if count.checked_mul(record).is_none_or(|need| need > room) {
-        return Err(Error::Truncated {
-            path: path.to_owned(),
-            element: "point".to_owned(),
-            expected: usize::try_from(count).unwrap_or(usize::MAX),
-            got: usize::try_from(room / record).unwrap_or(usize::MAX),
-        });
+        return Err(truncated(path, count, room / record));
     }
     if extended {
         let (mut at, evlrs) = (u64_at(235), u32_at(243));
@@ -155,6 +145,16 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
         }
     }
     Ok(())
+}
+
+/// [`Error::Truncated`] for `expected` points of which the file holds `got`.
+fn truncated(path: &Path, expected: u64, got: u64) -> Error {
+    Error::Truncated {
+        path: path.to_owned(),
+        element: "point".to_owned(),
+        expected: usize::try_from(expected).unwrap_or(usize::MAX),
+        got: usize::try_from(got).unwrap_or(usize::MAX),
+    }
 }
 
 /// The error for a LAZ file: what it is, and how to decompress it.

@@ -33,6 +33,7 @@ use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 
 use zeroset_bases::field_file::{AnyField, RbfAny, read_any_field, read_dimension};
+use zeroset_bases::outliers::DEFAULT_OUTLIER_RATIO;
 use zeroset_bases::rbf::fmm::cache::{self, Cached};
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
@@ -43,10 +44,11 @@ use zeroset_mesh::signed::{
 };
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
+use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, trim};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{
-    McOptions, MeshFormat, TriMesh, check, components, mesh_field, unsupported_components,
-    write_mesh,
+    McOptions, MeshFormat, TriMesh, boundary_loops, check, components, mesh_field,
+    unsupported_components, write_mesh,
 };
 
 use crate::info::{g, point};
@@ -66,6 +68,8 @@ Examples:
   zeroset mesh bunny.zsf -o bunny.obj --resolution 128
   # an explicit voxel edge, another level, capped where it leaves the grid
   zeroset mesh bunny.zsf -o shell.ply --voxel 0.002 --level 0.01 --close --force
+  # a one-sided scan's surface cut where the scan ends (RBF fields: give the scan)
+  zeroset mesh face.zsf -o face.ply --trim --scan face_scan.ply
   # two-step signed marching cubes with the fast multipole method (orders 5 and 10)
   zeroset mesh bunny.zsf -o bunny.ply --method smc --order 5 --high-order 10 --detail fine
   # a 2-D field's zero curve by marching squares, as SVG
@@ -181,6 +185,25 @@ pub struct MeshArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
+    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 2)
+    /// beyond its nearest points: for one-sided scans (a face, a façade, terrain), whose
+    /// surface otherwise runs on to the box, and to reopen holes the scan left. Needs the
+    /// points: MRAS fields record them; for other fields give --scan.
+    #[arg(long, value_name = "REACH", num_args = 0..=1, require_equals = true,
+          default_missing_value = "2")]
+    pub trim: Option<f64>,
+
+    /// The scan the field was fitted to, for --trim and the report's coverage line (default:
+    /// the points an MRAS field records; RBF fields record their centres, the off-surface ones
+    /// among them). Stray points are set aside first, as `zeroset fit` does.
+    #[arg(long, value_name = "SCAN")]
+    pub scan: Option<PathBuf>,
+
+    /// The stray-point ratio for --scan (as `zeroset fit --outlier-ratio`; 0 keeps every
+    /// point). `zeroset reconstruct` passes its own.
+    #[arg(long, value_name = "R", default_value_t = DEFAULT_OUTLIER_RATIO, hide = true)]
+    pub scan_outlier_ratio: f64,
+
     /// Write an ASCII PLY or STL instead of binary (OBJ is always text).
     #[arg(long)]
     pub ascii: bool,
@@ -196,6 +219,25 @@ pub struct MeshArgs {
 
 /// A mesh component with no input point within this many voxels is reported as spurious.
 const SPURIOUS_VOXELS: f64 = 3.0;
+
+/// The share of a mesh's area beyond the scan's reach above which the report suggests --trim:
+/// a closed scan's small holes stay under it (the bunny's five: 0.25%), the surface a
+/// one-sided scan leaves to the field's guess does not (a half sphere's 9%, a terrain
+/// patch's 18%, the bunny's front's 56%).
+const OPEN_SCAN_SHARE: f64 = 0.05;
+
+/// The points of `path` for trimming: positions, stray points set aside (when the scan has
+/// normals) with `ratio`.
+fn read_scan(path: &std::path::Path, ratio: f64) -> anyhow::Result<Vec<[f64; 3]>> {
+    if !zeroset_bases::outliers::valid_ratio(ratio) {
+        bail!("the stray-point ratio must be 0 (off) or at least 1.5, got {ratio}");
+    }
+    let cloud = crate::normals::read_positions(path, &Default::default(), "--scan", true)
+        .context("--scan")?;
+    let (kept, _) = zeroset_bases::outliers::remove_outliers(&cloud, ratio)
+        .with_context(|| format!("--scan {}", path.display()))?;
+    Ok(kept.positions().to_vec())
+}
 
 /// The report's lines ([`say_line`](crate::output::say_line): once stdout is closed,
 /// `zeroset mesh ... | head`, printing stops but the work goes on and the mesh is written).
@@ -227,9 +269,19 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     if !args.level.is_finite() {
         bail!("--level must be finite, got {}", args.level);
     }
+    if let Some(reach) = args.trim
+        && !(reach.is_finite() && reach > 0.0)
+    {
+        bail!("--trim takes a finite positive reach (in local point spacings), got {reach}");
+    }
     let total = Instant::now();
 
     let start = Instant::now();
+    let scan = args
+        .scan
+        .as_deref()
+        .map(|path| read_scan(path, args.scan_outlier_ratio))
+        .transpose()?;
     let field = read_any_field::<3>(&args.field)
         .with_context(|| format!("reading {}", args.field.display()))?;
     let reading = start.elapsed();
@@ -375,6 +427,71 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             field.kind()
         ),
         None => {}
+    }
+    // The scan's reach: trim to it, or say how much of the mesh lies beyond it.
+    let scan = scan.or_else(|| match &field {
+        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
+        _ => None,
+    });
+    match (scan, args.trim) {
+        (None, Some(_)) => bail!(
+            "--trim needs the points the field was fitted to: give --scan SCAN ({} holds a {} \
+             field{})",
+            args.field.display(),
+            field.kind(),
+            if matches!(field, AnyField::Rbf(_)) {
+                ", whose centres include its off-surface points"
+            } else {
+                ", which does not record them"
+            }
+        ),
+        (Some(points), reach) if !mesh.is_empty() => {
+            let reach_or_default = reach.unwrap_or(DEFAULT_REACH);
+            let support = match ScanSupport::new(&points, reach_or_default) {
+                Ok(support) => Some(support),
+                Err(e) if reach.is_some() => return Err(e).context("--trim"),
+                Err(_) => None,
+            };
+            if let Some(support) = support {
+                let trimmed = trim(&mesh, &support);
+                let kept = check(&trimmed.mesh);
+                let share = if report.area > 0.0 {
+                    (1.0 - kept.area / report.area).max(0.0)
+                } else {
+                    0.0
+                };
+                let how = format!(
+                    "{} local spacings (median spacing {})",
+                    g(reach_or_default),
+                    g(support.median_spacing())
+                );
+                if reach.is_some() {
+                    say!(
+                        out,
+                        "trim: cut {:.2}% of the area beyond the scan's reach of {how}: {} \
+                         triangles dropped, {} cut; {} boundary loop(s)",
+                        100.0 * share,
+                        trimmed.dropped_triangles,
+                        trimmed.cut_triangles,
+                        boundary_loops(&trimmed.mesh)
+                    )?;
+                    mesh = trimmed.mesh;
+                    report = kept;
+                } else {
+                    say!(
+                        out,
+                        "coverage: {:.2}% of the area lies beyond the scan's reach of {how}{}",
+                        100.0 * share,
+                        if share > OPEN_SCAN_SHARE {
+                            " (an open scan?); --trim cuts it there"
+                        } else {
+                            ""
+                        }
+                    )?;
+                }
+            }
+        }
+        _ => {}
     }
     let checking = start.elapsed();
     say!(

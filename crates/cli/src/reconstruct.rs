@@ -20,7 +20,9 @@ Examples:
   # the sample bunny to a mesh and bunny.png beside it (RBF: 2,000 points, fine voxels)
   zeroset reconstruct samples/bunny_2k.xyzn -o bunny.ply
   # a full scan with multilevel low-rank splines, a finer mesh, and the field kept
-  zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan.ply";
+  zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan_mesh.ply
+  # a one-sided scan (a face, a façade, terrain): the surface cut where the scan ends
+  zeroset reconstruct face_scan.ply --trim -o face.ply";
 
 /// Clouds of up to this many points are fitted by RBF under `--method auto`, larger ones by
 /// MRAS. Measured on 2 threads (whole `zeroset reconstruct` commands): the full 34,834-point
@@ -76,6 +78,13 @@ pub struct ReconstructArgs {
     /// records the points, RBF and MRAS alike).
     #[arg(long)]
     pub drop_spurious: bool,
+
+    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 2)
+    /// beyond its nearest points (as `zeroset mesh --trim`): for one-sided scans (a face, a
+    /// façade, terrain), and to reopen holes the scan left.
+    #[arg(long, value_name = "REACH", num_args = 0..=1, require_equals = true,
+          default_missing_value = "2")]
+    pub trim: Option<f64>,
 
     /// RBF fits: approximate instead of interpolate (as `zeroset fit --smoothing`): auto (from
     /// the measured noise) or MU ≥ 0.
@@ -158,6 +167,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     args.outliers.check(&args.scan, None, args.force)?;
     crate::fit::check_mu(args.smoothing)?;
     crate::normals::check_neighbours(args.normal_neighbours)?;
+    if let Some(reach) = args.trim
+        && !(reach.is_finite() && reach > 0.0)
+    {
+        bail!("--trim takes a finite positive reach (in local point spacings), got {reach}");
+    }
     // `--smoothing 0` interpolates: it does not ask for an RBF fit.
     let smoothed = match args.smoothing {
         Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
@@ -303,6 +317,20 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     argv.push(std::ffi::OsStr::new(&detail));
     if args.drop_spurious {
         argv.push(os("--drop-spurious"));
+    }
+    let trim = args.trim.map(|r| format!("--trim={r}"));
+    if let Some(trim) = &trim {
+        argv.push(std::ffi::OsStr::new(trim));
+    }
+    // MRAS fields record the points they fitted; RBF fields' centres include the off-surface
+    // points, so the mesh stage reads the scan again (stray points set aside as the fit did).
+    let scan_ratio = args.outliers.ratio()?.to_string();
+    if method != ReconstructMethod::Mras {
+        argv.extend([os("--scan"), scan.as_os_str()]);
+        argv.extend([
+            os("--scan-outlier-ratio"),
+            std::ffi::OsStr::new(&scan_ratio),
+        ]);
     }
     common(&mut argv, args.force);
     crate::mesh::run(&stage::<MeshArgs>(&argv)?).context("reconstruct, stage 2 (mesh)")?;

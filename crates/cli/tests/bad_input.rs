@@ -898,6 +898,36 @@ fn cases() -> Vec<Case> {
             .names("out.ply")
             .keeps("out.ply"),
         cli(
+            "--trim for a field that records no points, without --scan",
+            "mesh sphere.zsf -o out.ply --trim",
+        )
+        .no_file()
+        .says("--scan"),
+        cli("--trim of zero", "mesh sphere.zsf -o out.ply --trim=0")
+            .no_file()
+            .says("finite positive"),
+        cli("--trim of NaN", "mesh sphere.zsf -o out.ply --trim=nan")
+            .no_file()
+            .says("finite positive"),
+        cli(
+            "--scan file missing",
+            "mesh sphere.zsf -o out.ply --trim --scan missing.xyzn",
+        )
+        .no_file()
+        .names("missing.xyzn"),
+        cli(
+            "--scan with a NaN coordinate",
+            "mesh sphere.zsf -o out.ply --trim --scan nan.xyzn",
+        )
+        .no_file()
+        .says("NaN"),
+        cli(
+            "--trim to a scan of 5 copies of one point",
+            "mesh sphere.zsf -o out.ply --trim --scan same.xyzn",
+        )
+        .no_file()
+        .says("cannot trim"),
+        cli(
             "bad input with an existing output and --force",
             "mesh crc.zsf -o out.ply --force",
         )
@@ -948,6 +978,12 @@ fn cases() -> Vec<Case> {
             "reconstruct bunny.xyzn -o out.ply --viewpoint 0,0,1 --quiet",
         )
         .says("normals of its own"),
+        cli(
+            "negative --trim",
+            "reconstruct bunny.xyzn -o out.ply --trim=-1 --quiet",
+        )
+        .no_file()
+        .says("finite positive"),
         cli(
             "NaN viewpoint",
             "reconstruct positions.xyz -o out.ply --viewpoint 0,nan,1 --quiet",

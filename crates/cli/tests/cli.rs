@@ -2704,6 +2704,106 @@ fn rbf_tolerance_keeps_only_the_centres_it_needs() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("an option of --method mras"));
 }
 
+/// The upper half of the sphere of the fit tests (points with normal z ≥ 0), as `x y z nx ny
+/// nz` lines: an open scan.
+fn hemisphere_xyzn(n: usize) -> String {
+    sphere_points(n)
+        .iter()
+        .filter(|(_, q)| q[2] >= 0.0)
+        .map(|(p, q)| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], q[0], q[1], q[2]))
+        .collect()
+}
+
+#[test]
+fn reconstruct_and_mesh_trim_an_open_scan_to_its_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("dome.xyzn");
+    fs::write(&scan, hemisphere_xyzn(12000)).unwrap();
+    let reconstruct = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            OsStr::new("reconstruct"),
+            scan.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+            OsStr::new("--no-preview"),
+            OsStr::new("--quiet"),
+        ];
+        args.extend(extra.iter().map(OsStr::new));
+        zeroset(args)
+    };
+    let half_area = 2.0 * std::f64::consts::PI * RADIUS * RADIUS;
+    // Untrimmed, the zero set runs on below the dome's rim; the report says how much of it
+    // the scan does not reach, and what cuts it.
+    let whole = dir.path().join("whole.ply");
+    let o = reconstruct(&whole, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("(an open scan?); --trim cuts it there"),
+        "{}",
+        stdout(&o)
+    );
+    let untrimmed = zeroset_mesh::check(&zeroset_mesh::read_mesh(&whole).unwrap());
+    assert!(untrimmed.area > 1.1 * half_area, "{}", untrimmed.area);
+    // Trimmed: one disc (Euler characteristic 1, one boundary loop) a little larger than
+    // the half sphere, reaching about two local spacings below its rim.
+    let dome = dir.path().join("dome.ply");
+    let o = reconstruct(&dome, &["--trim"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("trim: cut "), "{}", stdout(&o));
+    let trimmed = zeroset_mesh::read_mesh(&dome).unwrap();
+    let r = zeroset_mesh::check(&trimmed);
+    assert_eq!(
+        (r.components, r.euler_characteristic, r.non_manifold_edges),
+        (1, 1, 0),
+        "{r}"
+    );
+    assert_eq!(zeroset_mesh::boundary_loops(&trimmed), 1);
+    assert!(
+        r.area > half_area && r.area < 1.12 * half_area,
+        "area {} against the half sphere's {half_area}",
+        r.area
+    );
+    let lowest = trimmed
+        .vertices()
+        .iter()
+        .map(|v| v[2] - CENTRE[2])
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest > -0.25 * RADIUS && lowest < 0.0, "{lowest}");
+    // A tighter reach cuts closer to the rim.
+    let tight = dir.path().join("tight.ply");
+    let o = reconstruct(&tight, &["--trim=1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let tight_area = zeroset_mesh::check(&zeroset_mesh::read_mesh(&tight).unwrap()).area;
+    assert!(
+        tight_area < r.area && tight_area > half_area,
+        "{tight_area} {}",
+        r.area
+    );
+    // An MRAS field records its points: `zeroset mesh --trim` needs no --scan.
+    let field = dir.path().join("dome.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        scan.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("mras"),
+        OsStr::new("--quiet"),
+        OsStr::new("-o"),
+        field.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mras = dir.path().join("mras.ply");
+    let o = mesh(&field, &mras, &["--trim"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let m = zeroset_mesh::read_mesh(&mras).unwrap();
+    let r = zeroset_mesh::check(&m);
+    assert_eq!((r.components, r.euler_characteristic), (1, 1), "{r}");
+    assert!(
+        r.area > half_area && r.area < 1.12 * half_area,
+        "{}",
+        r.area
+    );
+}
+
 #[test]
 fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
     let dir = tempfile::tempdir().unwrap();

@@ -26,6 +26,13 @@ pub enum MeshError {
         /// The value found.
         value: f64,
     },
+    /// Points that cannot support a trim ([`crate::trim`]): too few, all repeated, or a reach
+    /// that is not finite and positive.
+    #[error("cannot trim to the scan: {detail}")]
+    Trim {
+        /// What is wrong.
+        detail: String,
+    },
     /// A mesh whose triangles refer to missing vertices, or with non-finite coordinates.
     #[error("invalid mesh: {detail}")]
     InvalidMesh {

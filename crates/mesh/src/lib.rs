@@ -19,6 +19,8 @@
 //! - [`svg`] — SVG previews of 2-D results (contours, polylines, points), written atomically.
 //! - [`preview`] — software-rendered PNG previews: shaded meshes (orthographic, z-buffered,
 //!   back faces darker) and field slices (diverging colour map, zero contour in black).
+//! - [`trim`] — a mesh trimmed to the scan it was fitted to: cut where it leaves the reach of
+//!   the points (a few local spacings), for one-sided scans and holes the scan left open.
 //! - [`trimesh`] — indexed triangle meshes ([`TriMesh`]), wound outward.
 //! - [`io`] — mesh files, each read and written: PLY (ASCII and binary, any vertex
 //!   properties, polygons fan-triangulated), Wavefront OBJ, STL (binary and ASCII, corners
@@ -93,6 +95,7 @@ mod samples;
 pub mod signed;
 pub mod squares;
 pub mod svg;
+pub mod trim;
 pub mod trimesh;
 pub mod voxel;
 

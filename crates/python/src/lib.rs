@@ -39,6 +39,7 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::mesh_native, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::write_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh::trim_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(restore::restore, m)?)?;
     Ok(())
 }

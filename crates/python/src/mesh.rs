@@ -1,6 +1,6 @@
 //! Meshes: marching cubes on a numpy volume (scikit-image's layout), the zero set of a field
 //! (marching cubes, or the two-step signed marching cubes of an RBF field by the FMM), and
-//! triangle meshes read and written as PLY / OBJ.
+//! triangle meshes read, written and trimmed to a scan.
 
 use std::path::PathBuf;
 
@@ -18,6 +18,7 @@ use zeroset_field_core::grid::{Centering, Grid};
 use zeroset_mesh::signed::{
     CoarseStep, SmcOptions, SmcStage, expected_evaluations, signed_marching_cubes,
 };
+use zeroset_mesh::trim::{ScanSupport, trim};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, MeshFormat, TriMesh, marching_cubes_with_cell_max, mesh_field};
 
@@ -305,19 +306,14 @@ pub(crate) fn read_mesh(
     Ok((v, f, has_normals.then_some(n)))
 }
 
-/// Writes a triangle mesh, atomically: binary PLY or STL (ASCII with `ascii`) for `.ply` and
-/// `.stl`, Wavefront OBJ for `.obj`.
-#[pyfunction]
-#[pyo3(signature = (path, vertices, faces, normals, ascii))]
-pub(crate) fn write_mesh(
-    py: Python<'_>,
-    path: PathBuf,
-    vertices: PyReadonlyArray2<'_, f64>,
-    faces: PyReadonlyArray2<'_, i64>,
-    normals: Option<PyReadonlyArray2<'_, f64>>,
-    ascii: bool,
-) -> PyResult<()> {
-    let v = points(&vertices, "vertices", true)?.to_vec();
+/// A mesh from numpy arrays: vertices `(n, 3)`, faces `(m, 3)` indexing them, optional normals
+/// `(n, 3)` (checked: finite, indices in range).
+fn mesh_of(
+    vertices: &PyReadonlyArray2<'_, f64>,
+    faces: &PyReadonlyArray2<'_, i64>,
+    normals: Option<&PyReadonlyArray2<'_, f64>>,
+) -> PyResult<TriMesh> {
+    let v = points(vertices, "vertices", true)?.to_vec();
     let shape = faces.shape();
     if shape[1] != 3 {
         return Err(value_error(format!(
@@ -344,21 +340,70 @@ pub(crate) fn write_mesh(
         }
         triangles.push(tri);
     }
-    let normals = normals
-        .as_ref()
-        .map(|n| points(n, "normals", true).map(<[_]>::to_vec))
-        .transpose()?;
+    let mut mesh = TriMesh::new(v, triangles).map_err(to_py)?;
+    if let Some(n) = normals {
+        mesh = mesh
+            .with_normals(points(n, "normals", true)?.to_vec())
+            .map_err(to_py)?;
+    }
+    Ok(mesh)
+}
+
+/// Writes a triangle mesh, atomically: binary PLY or STL (ASCII with `ascii`) for `.ply` and
+/// `.stl`, Wavefront OBJ for `.obj`.
+#[pyfunction]
+#[pyo3(signature = (path, vertices, faces, normals, ascii))]
+pub(crate) fn write_mesh(
+    py: Python<'_>,
+    path: PathBuf,
+    vertices: PyReadonlyArray2<'_, f64>,
+    faces: PyReadonlyArray2<'_, i64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+    ascii: bool,
+) -> PyResult<()> {
     if MeshFormat::from_path(&path).is_none() {
         return Err(value_error(format!(
             "{}: write a mesh as .ply, .obj, .stl or .off",
             path.display()
         )));
     }
-    py.detach(|| -> PyResult<()> {
-        let mut mesh = TriMesh::new(v, triangles).map_err(to_py)?;
-        if let Some(n) = normals {
-            mesh = mesh.with_normals(n).map_err(to_py)?;
-        }
-        zeroset_mesh::write_mesh(&path, &mesh, ascii).map_err(to_py)
-    })
+    let mesh = mesh_of(&vertices, &faces, normals.as_ref())?;
+    py.detach(|| zeroset_mesh::write_mesh(&path, &mesh, ascii).map_err(to_py))
+}
+
+/// A mesh cut where it leaves the reach of `scan` (`reach` local point spacings; see
+/// `zeroset_mesh::trim`): vertices, faces, normals (`None` when none were given), and the
+/// counts of dropped and cut triangles.
+#[pyfunction]
+#[pyo3(signature = (vertices, faces, normals, scan, reach))]
+#[allow(clippy::type_complexity)]
+pub(crate) fn trim_mesh<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    normals: Option<PyReadonlyArray2<'py, f64>>,
+    scan: PyReadonlyArray2<'py, f64>,
+    reach: f64,
+) -> PyResult<(
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<i64>>,
+    Option<Bound<'py, PyArray2<f64>>>,
+    usize,
+    usize,
+)> {
+    let mesh = mesh_of(&vertices, &faces, normals.as_ref())?;
+    let scan = points(&scan, "scan", true)?.to_vec();
+    let trimmed = py.detach(|| -> PyResult<_> {
+        let support = ScanSupport::new(&scan, reach).map_err(to_py)?;
+        Ok(trim(&mesh, &support))
+    })?;
+    let has_normals = !trimmed.mesh.normals().is_empty();
+    let (v, f, n) = MeshParts::new(trimmed.mesh, false, false).arrays(py);
+    Ok((
+        v,
+        f,
+        has_normals.then_some(n),
+        trimmed.dropped_triangles,
+        trimmed.cut_triangles,
+    ))
 }

@@ -186,3 +186,48 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
         zeroset.read_mesh(tmp_path / "cut.stl")
     with pytest.raises(OSError):
         zeroset.write_mesh(tmp_path / "no" / "such" / "dir.ply", v, f)
+
+
+def test_trim_mesh_cuts_a_sphere_to_the_half_a_scan_covers(sphere_field):
+    # The fitted sphere's mesh, trimmed to points on its upper half: a disc-like cap (one
+    # boundary loop) a little larger than the half, the cut welded, normals carried along.
+    verts, faces, normals = zeroset.mesh(sphere_field, detail="fine")
+    centre = verts.mean(axis=0)
+    radius = np.linalg.norm(verts - centre, axis=1).mean()
+    rng = np.random.default_rng(1)
+    d = rng.normal(size=(4000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:, 2] = np.abs(d[:, 2])
+    scan = centre + radius * d
+    tv, tf, tn = zeroset.trim_mesh(verts, faces, scan, normals=normals)
+    assert tn is not None and tn.shape == tv.shape
+    assert np.allclose(np.linalg.norm(tn, axis=1), 1.0)
+    assert tv[:, 2].min() > centre[2] - 0.3 * radius
+    edges = np.sort(tf[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert counts.max() == 2  # welded: no edge has three triangles
+    area = lambda v, f: 0.5 * np.linalg.norm(
+        np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1
+    ).sum()
+    half = area(verts, faces) / 2
+    assert half < area(tv, tf) < 1.15 * half
+    # A smaller reach cuts closer; a scan covering everything leaves the mesh as it was.
+    sv, sf, _ = zeroset.trim_mesh(verts, faces, scan, reach=1.0)
+    assert area(sv, sf) < area(tv, tf)
+    same_v, same_f, none = zeroset.trim_mesh(verts, faces, verts)
+    assert none is None and np.array_equal(same_v, verts) and np.array_equal(same_f, faces)
+
+
+@pytest.mark.parametrize(
+    "scan, kwargs, message",
+    [
+        (np.zeros((5, 3)), {}, "at least 9"),
+        (np.zeros((20, 3)), {}, "repeated"),
+        (np.random.default_rng(0).random((20, 3)), {"reach": 0.0}, "finite and positive"),
+        (np.random.default_rng(0).random((20, 2)), {}, "scan"),
+    ],
+)
+def test_trim_mesh_refuses_bad_scans(scan, kwargs, message):
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match=message):
+        zeroset.trim_mesh(v, np.array([[0, 1, 2]]), scan, **kwargs)

@@ -53,6 +53,7 @@ __all__ = [
     "restore",
     "sample_points",
     "svt",
+    "trim_mesh",
     "write_mesh",
 ]
 
@@ -341,6 +342,44 @@ def write_mesh(
         n,
         bool(ascii),
     )
+
+
+def trim_mesh(
+    vertices: Any,
+    faces: Any,
+    scan: Any,
+    *,
+    normals: Any = None,
+    reach: float = 2.0,
+) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
+    """The mesh cut where it leaves the reach of the points ``scan`` (``(k, 3)``, at least 9):
+    each point reaches ``reach`` times its local spacing (the mean distance to its 8
+    nearest), and triangles partly within reach are cut along the edge of it, so the result
+    stays welded. As ``zeroset mesh --trim``: for one-sided scans (a face, a façade,
+    terrain), whose zero set otherwise runs on to the field's box, and to reopen holes the
+    scan left. Returns ``(vertices, faces, normals or None)``; normals, if given, are
+    interpolated to the new vertices.
+
+    >>> import numpy as np, zeroset
+    >>> v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    >>> f = np.array([[0, 1, 2], [0, 2, 3]])
+    >>> scan = np.array([[0.025 * i, 0.05 * j, 0] for i in range(11) for j in range(21)])
+    >>> tv, tf, _ = zeroset.trim_mesh(v, f, scan)
+    >>> bool(tv[:, 0].max() < 0.5), len(tf)
+    (True, 3)
+    """
+    f = np.asarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"faces must be integers of shape (m, 3), got {f.dtype} {f.shape}")
+    n = None if normals is None else _rows(normals, "normals")
+    tv, tf, tn, _, _ = _native.trim_mesh(
+        _rows(vertices, "vertices"),
+        np.ascontiguousarray(f, dtype=np.int64),
+        n,
+        _rows(scan, "scan"),
+        float(reach),
+    )
+    return tv, tf, tn
 
 
 def load(path: PathLike) -> Field:

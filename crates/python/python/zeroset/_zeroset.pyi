@@ -104,6 +104,9 @@ def read_mesh(path: str) -> Tuple[_F64, _I64, Optional[_F64]]: ...
 def write_mesh(
     path: str, vertices: _F64, faces: _I64, normals: Optional[_F64], ascii: bool
 ) -> None: ...
+def trim_mesh(
+    vertices: _F64, faces: _I64, normals: Optional[_F64], scan: _F64, reach: float
+) -> Tuple[_F64, _I64, Optional[_F64], int, int]: ...
 def restore(
     field: NativeField,
     lo: _Triple,

@@ -185,12 +185,12 @@ pub struct MeshArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
-    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 2)
+    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 1.5)
     /// beyond its nearest points: for one-sided scans (a face, a façade, terrain), whose
     /// surface otherwise runs on to the box, and to reopen holes the scan left. Needs the
     /// points: MRAS fields record them; for other fields give --scan.
     #[arg(long, value_name = "REACH", num_args = 0..=1, require_equals = true,
-          default_missing_value = "2")]
+          default_missing_value = "1.5")]
     pub trim: Option<f64>,
 
     /// The scan the field was fitted to, for --trim and the report's coverage line (default:
@@ -221,7 +221,7 @@ pub struct MeshArgs {
 const SPURIOUS_VOXELS: f64 = 3.0;
 
 /// The share of a mesh's area beyond the scan's reach above which the report suggests --trim:
-/// a closed scan's small holes stay under it (the bunny's five: 0.25%), the surface a
+/// a closed scan's small holes stay under it (the bunny's five: 0.3%), the surface a
 /// one-sided scan leaves to the field's guess does not (a half sphere's 9%, a terrain
 /// patch's 18%, the bunny's front's 56%).
 const OPEN_SCAN_SHARE: f64 = 0.05;

@@ -79,11 +79,11 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub drop_spurious: bool,
 
-    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 2)
+    /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 1.5)
     /// beyond its nearest points (as `zeroset mesh --trim`): for one-sided scans (a face, a
     /// façade, terrain), and to reopen holes the scan left.
     #[arg(long, value_name = "REACH", num_args = 0..=1, require_equals = true,
-          default_missing_value = "2")]
+          default_missing_value = "1.5")]
     pub trim: Option<f64>,
 
     /// RBF fits: approximate instead of interpolate (as `zeroset fit --smoothing`): auto (from

@@ -350,7 +350,7 @@ def trim_mesh(
     scan: Any,
     *,
     normals: Any = None,
-    reach: float = 2.0,
+    reach: float = 1.5,
 ) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
     """The mesh cut where it leaves the reach of the points ``scan`` (``(k, 3)``, at least 9):
     each point reaches ``reach`` times its local spacing (the mean distance to its 8
@@ -361,12 +361,16 @@ def trim_mesh(
     interpolated to the new vertices.
 
     >>> import numpy as np, zeroset
-    >>> v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
-    >>> f = np.array([[0, 1, 2], [0, 2, 3]])
-    >>> scan = np.array([[0.025 * i, 0.05 * j, 0] for i in range(11) for j in range(21)])
-    >>> tv, tf, _ = zeroset.trim_mesh(v, f, scan)
-    >>> bool(tv[:, 0].max() < 0.5), len(tf)
-    (True, 3)
+    >>> g = np.linspace(0, 1, 21)                  # the unit square, 20 x 20 cells
+    >>> v = np.array([[x, y, 0] for x in g for y in g])
+    >>> c = [(i, j) for i in range(20) for j in range(20)]
+    >>> k = lambda i, j: 21 * i + j
+    >>> f = np.array([t for i, j in c for t in ([k(i, j), k(i + 1, j), k(i + 1, j + 1)],
+    ...                                         [k(i, j), k(i + 1, j + 1), k(i, j + 1)])])
+    >>> scan = np.array([[0.025 * i, 0.025 * j, 0] for i in range(11) for j in range(41)])
+    >>> tv, tf, _ = zeroset.trim_mesh(v, f, scan)  # cut a little beyond x = 0.25
+    >>> bool(0.25 < tv[:, 0].max() < 0.4)
+    True
     """
     f = np.asarray(faces)
     if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):

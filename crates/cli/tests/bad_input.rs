@@ -417,6 +417,21 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         "300 bunny points as LAZ (LAS compressed with LASzip), written by laspy 2.5.4",
         &laz,
     );
+    // Its chunk table's count of chunks set to 2³² − 1 (64 GB of entries for the decoder).
+    let start = u32::from_le_bytes([laz[96], laz[97], laz[98], laz[99]]) as usize;
+    let table = i64::from_le_bytes(laz[start..start + 8].try_into().unwrap()) as usize;
+    let mut chunks = laz.clone();
+    chunks[table + 4..table + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+    m.put(
+        "chunks.laz",
+        "`bunny300.laz` with its chunk table claiming 4,294,967,295 chunks",
+        &chunks,
+    );
+    m.put(
+        "cut.laz",
+        "the first 400 bytes after the header of `bunny300.laz` (its points cut short)",
+        &laz[..start + 400],
+    );
     let las = fs::read(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../field-core/tests/data/bunny300.las"
@@ -699,7 +714,9 @@ fn cases() -> Vec<Case> {
         cli("OBJ face index out of range", "info tet_index.obj").says("line 8"),
         cli("OFF face index out of range", "info tet_index.off").says("line 10"),
         cli("truncated binary PCD", "info short.pcd").says("truncated"),
-        cli("LAZ (compressed LAS)", "info bunny300.laz").says("laszip -i"),
+        cli("LAZ (compressed LAS)", "info bunny300.laz").accepted("300"),
+        cli("LAZ with a crafted chunk table", "info chunks.laz").says("chunk table lists"),
+        cli("LAZ cut short", "info cut.laz").names("cut.laz"),
         cli("truncated LAS", "info cut.las").says("truncated"),
         cli("PCD gaps only", "info gaps.pcd").says("NaN"),
         cli("header line without z", "info named_noz.xyz").says("'z'"),
@@ -1079,7 +1096,8 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "CSV: not a number", "word.csv"),
         reader(CloudReader, "CSV header only", "header_only.csv"),
         reader(CloudReader, "truncated binary PCD", "short.pcd").says("truncated"),
-        reader(CloudReader, "LAZ (compressed LAS)", "bunny300.laz").says("pdal translate"),
+        reader(CloudReader, "LAZ with a crafted chunk table", "chunks.laz").says("4294967295"),
+        reader(CloudReader, "LAZ cut short", "cut.laz"),
         reader(CloudReader, "truncated LAS", "cut.las").says("truncated"),
         reader(CloudReader, "corrupt LZF in PCD", "lzf.pcd").says("decompress"),
         reader(CloudReader, "PCD gaps only", "gaps.pcd").says("NaN"),

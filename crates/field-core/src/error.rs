@@ -94,7 +94,8 @@ pub enum Error {
         record: usize,
         /// The 1-based line in a text file, if any.
         line: Option<usize>,
-        /// Which value: "x", "y", "z", "nx", "ny", "nz", "azimuth", ...
+        /// Which value: "x", "y", "z", "nx", "ny", "nz" (or "normal_x", ... where the file names
+        /// them so), "azimuth", ...
         field: &'static str,
         /// The offending value.
         value: f64,

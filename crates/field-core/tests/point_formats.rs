@@ -512,6 +512,50 @@ fn ply_files_from_pcl_name_their_normals_normal_x() {
     );
 }
 
+#[test]
+fn a_non_finite_normal_is_named_as_the_file_names_it() {
+    let field = |e: Error| match e {
+        Error::NonFinite { field, .. } => field,
+        other => panic!("expected NonFinite, got {other}"),
+    };
+    let ply = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+               property float z\nproperty float normal_x\nproperty float normal_y\n\
+               property float normal_z\nend_header\n0 0 0 0 nan 1\n";
+    assert_eq!(field(read_err("pcl.ply", ply)), "normal_y");
+    let plain = ply.replace("normal_", "n");
+    assert_eq!(field(read_err("plain.ply", plain)), "ny");
+    let pcd = pcd_header(
+        &[
+            ("x", 4, 'F', 1),
+            ("y", 4, 'F', 1),
+            ("z", 4, 'F', 1),
+            ("normal_x", 4, 'F', 1),
+            ("normal_y", 4, 'F', 1),
+            ("normal_z", 4, 'F', 1),
+        ],
+        1,
+        "ascii",
+    );
+    let mut pcd = pcd;
+    pcd.extend_from_slice(b"0 0 0 0 0 inf\n");
+    assert_eq!(field(read_err("pcl.pcd", pcd)), "normal_z");
+    assert_eq!(
+        field(read_err(
+            "named.csv",
+            "x,y,z,normal_x,normal_y,normal_z\n0,0,0,nan,0,1\n"
+        )),
+        "normal_x"
+    );
+    assert_eq!(
+        field(read_err(
+            "named.xyz",
+            "X Y Z Normal_X Normal_Y Normal_Z\n0 0 0 0 nan 1\n"
+        )),
+        "normal_y"
+    );
+    assert_eq!(field(read_err("plain.xyzn", "0 0 0 0 nan 1\n")), "ny");
+}
+
 /// `points` written by the `las` crate as LAS 1.4, point format 1
 /// (GPS time), georeferenced: millimetre scale about a UTM-like offset. Points whose index is
 /// in `withheld` carry the withheld flag.
@@ -549,15 +593,14 @@ fn las_bytes(points: &[[f64; 3]], withheld: &[usize]) -> Vec<u8> {
 }
 
 #[test]
-fn laspy_written_las_reads_as_the_points_it_was_written_from_and_laz_says_how_to_decompress() {
+fn laspy_written_las_and_laz_read_as_the_points_they_were_written_from() {
     let truth = read_point_cloud(data("bunny300.xyzn")).unwrap();
     let las = read_point_cloud(data("bunny300.las")).unwrap();
     assert_eq!(las.len(), 300);
-    let e = read_point_cloud(data("bunny300.laz")).unwrap_err();
-    assert!(
-        matches!(&e, Error::Malformed { reason, .. } if reason.contains("laszip -i")),
-        "{e}"
-    );
+    // The LAZ (another point format, compressed) holds the same integers.
+    let laz = read_point_cloud(data("bunny300.laz")).unwrap();
+    assert_eq!(laz.positions(), las.positions());
+    assert!(laz.normals().is_none());
     for (got, want) in las.positions().iter().zip(truth.positions()) {
         // Stored as whole multiples of the scale, 10⁻⁷: within half of it.
         for a in 0..3 {
@@ -566,6 +609,57 @@ fn laspy_written_las_reads_as_the_points_it_was_written_from_and_laz_says_how_to
                 "{got:?} vs {want:?}"
             );
         }
+    }
+}
+
+/// The byte where `laz`'s LASzip VLR data starts.
+fn laszip_record(laz: &[u8]) -> usize {
+    let u16_at = |i: usize| u16::from_le_bytes([laz[i], laz[i + 1]]) as usize;
+    let (mut at, count) = (u16_at(94), u16_at(100));
+    for _ in 0..count {
+        if laz[at + 2..].starts_with(b"laszip encoded") && u16_at(at + 18) == 22204 {
+            return at + 54;
+        }
+        at += 54 + u16_at(at + 20);
+    }
+    panic!("no LASzip VLR");
+}
+
+#[test]
+fn crafted_laz_files_are_refused_before_the_decoder_sizes_anything_by_them() {
+    let laz = fs::read(data("bunny300.laz")).unwrap();
+    let vlr = laszip_record(&laz);
+    let start = u32::from_le_bytes(laz[96..100].try_into().unwrap()) as usize;
+    let table = i64::from_le_bytes(laz[start..start + 8].try_into().unwrap()) as usize;
+    let reason = |bytes: Vec<u8>| match read_err("crafted.laz", bytes) {
+        Error::Malformed { reason, .. } => reason,
+        other => panic!("expected Malformed, got {other}"),
+    };
+    // No items (the decoder's `expect` on the first item).
+    let mut none = laz.clone();
+    none[vlr + 32..vlr + 34].copy_from_slice(&0u16.to_le_bytes());
+    assert!(reason(none).contains("lists 0 items"));
+    // A chunk table of 2³² − 1 chunks (64 GB of entries).
+    let mut chunks = laz.clone();
+    chunks[table + 4..table + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+    assert!(reason(chunks).contains("chunk table lists 4294967295 chunks"));
+    // A chunk table past the end, and items that do not make up the record.
+    let mut past = laz.clone();
+    past[start..start + 8].copy_from_slice(&(laz.len() as i64 + 100).to_le_bytes());
+    assert!(reason(past).contains("past the file's end"));
+    let mut sizes = laz.clone();
+    sizes[vlr + 34 + 2] ^= 1;
+    assert!(reason(sizes).contains("bytes a point, the header's record length"));
+    // Cut anywhere in the points: an error naming the file, never a panic.
+    for cut in [
+        start + 8,
+        start + 100,
+        (start + table) / 2,
+        table,
+        laz.len() - 3,
+    ] {
+        let e = read_err("cut.laz", &laz[..cut]);
+        assert!(e.to_string().contains("cut.laz"), "{cut}: {e}");
     }
 }
 

@@ -1,20 +1,22 @@
-//! LAS, the ASPRS LiDAR format (versions 1.0–1.4, every point format), read with the [`las`]
-//! crate.
-//!
-//! LAZ (LAS compressed with LASzip) is refused with a message saying how to decompress it
-//! (`laszip`, `pdal translate`): fuzzing the `laz` crate's decoder found crafted files that
-//! make it panic or allocate without bound before any point is read, and zeroset neither
-//! panics nor aborts on a bad file.
+//! LAS, the ASPRS LiDAR format (versions 1.0–1.4, every point format), and LAZ (LAS compressed
+//! with LASzip), read with the [`las`] crate (LAZ by the [`laz`] crate it uses).
 //!
 //! - Read: each point's `x y z`, the stored integers times the header's scale plus its offset
 //!   (so georeferenced coordinates keep their full precision in `f64`). LAS has no standard
 //!   normals: the cloud has none (`zeroset normals` or `zeroset reconstruct` estimate them,
 //!   with `--viewpoint` above an airborne scan). Intensity, classification, returns, colour
 //!   and the rest are skipped; so are points flagged withheld (the format's "deleted").
-//! - Before the crate reads the file, the header's point count times the record length is
-//!   checked against the bytes after the header ([`Error::Truncated`] otherwise), and every
-//!   extended VLR's length (LAS 1.4) against the file's size: the crate sizes buffers by them.
-//!   The points are then read in blocks of [`BLOCK`]. Errors name the file.
+//! - Before the crates read the file, what they would size buffers by is checked against the
+//!   file ([`Error::Truncated`] or [`Error::Malformed`] otherwise): for LAS the header's point
+//!   count times the record length against the bytes after the header; every extended VLR's
+//!   length (LAS 1.4) against the file's size; for LAZ the LASzip VLR (at least one item,
+//!   item sizes adding up to the record length, at most [`MAX_LAZ_RECORD`] bytes) and the
+//!   chunk table's count of chunks against the compressed bytes. Fuzzing the `laz` decoder
+//!   without these checks found crafted files that made it panic or allocate without bound
+//!   (a chunk table of 2³² entries: 64 GB) before any point was read. A panic the checks do
+//!   not foresee is caught and reported as the file's error.
+//! - The points are read in blocks of at most [`BLOCK`] (fewer for long records: a block's
+//!   bytes stay under 16 MiB). Errors name the file.
 
 use std::path::Path;
 
@@ -22,13 +24,36 @@ use super::{FiniteCheck, POSITION_FIELDS, RawPoints, io_error};
 use crate::error::{Error, Result};
 use crate::limits;
 
-/// Points read at a time.
+/// Points read at a time (at most).
 pub const BLOCK: u64 = 1 << 16;
+
+/// The longest LAZ point record read, in bytes: the standard formats take 20–67 bytes, the rest
+/// is "extra bytes", for each of which the decoder keeps its own models.
+pub const MAX_LAZ_RECORD: u64 = 512;
 
 /// Reads a LAS or LAZ file; see the [module docs](self).
 pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let (file, len) = super::open_nonempty(path)?;
     check_raw_header(path, file, len)?;
+    // The checks above rule out what fuzzing found; a panic in the decoders beyond them is the
+    // file's error, not the caller's crash.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_points(path, check)))
+        .unwrap_or_else(|panic| {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic".to_owned());
+            Err(super::malformed(
+                path,
+                None,
+                format!("not a readable LAS/LAZ file: its decoder failed ({what})"),
+            ))
+        })
+}
+
+/// The points of a file that passed [`check_raw_header`].
+fn read_points(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let mut reader = las::Reader::from_path(path).map_err(|e| las_error(path, e))?;
     let header = reader.header();
     let announced = header.number_of_points();
@@ -36,13 +61,17 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let mut positions = Vec::new();
     let mut block = las::PointDataBuilder::new().for_header(header).build();
     let mut read = 0u64;
+    let record = u64::from(header.point_format().len()).max(1);
+    let per_block = ((16u64 << 20) / record).clamp(1, BLOCK);
     while read < announced {
-        let n = reader.fill_points(BLOCK, &mut block).map_err(|e| match e {
-            las::Error::Io(ref io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-                truncated(path, announced, read)
-            }
-            e => las_error(path, e),
-        })?;
+        let n = reader
+            .fill_points(per_block, &mut block)
+            .map_err(|e| match e {
+                las::Error::Io(ref io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                    truncated(path, announced, read)
+                }
+                e => las_error(path, e),
+            })?;
         if n == 0 {
             break;
         }
@@ -86,11 +115,6 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
             "not a LAS file: it does not start with the signature LASF",
         ));
     }
-    // Bit 7 of the point format marks LASzip compression (its points are smaller than the
-    // record length says).
-    if head[104] & 0x80 != 0 {
-        return Err(laz_refused(path));
-    }
     let u16_at = |at: usize| u64::from(u16::from_le_bytes([head[at], head[at + 1]]));
     let u32_at = |at: usize| {
         u64::from(u32::from_le_bytes([
@@ -110,7 +134,12 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
         count = count.max(u64_at(247));
     }
     let room = len.saturating_sub(start);
-    if count.checked_mul(record).is_none_or(|need| need > room) {
+    // Bit 7 of the point format marks LASzip compression: its points are smaller than the
+    // record length says.
+    if head[104] & 0x80 != 0 {
+        let vlrs = (u16_at(94), u32_at(100));
+        check_laszip(path, &mut file, len, vlrs, start, record)?;
+    } else if count.checked_mul(record).is_none_or(|need| need > room) {
         return Err(truncated(path, count, room / record));
     }
     if extended {
@@ -147,6 +176,120 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
     Ok(())
 }
 
+/// Checks a LAZ file's LASzip VLR and chunk table before the `laz` crate sizes buffers by them:
+/// the VLRs start at byte `vlrs.0` (the header's size) and number `vlrs.1`; the points at
+/// `start`, each `record` bytes once decompressed. The layouts are LASzip's (`laszip_dll.h`):
+/// the VLR data is compressor `u16`, coder `u16`, version `u8 u8 u16`, options `u32`, chunk
+/// size `u32`, two `i64`, the item count `u16`, then per item type, size and version (`u16`
+/// each); the points start with the chunk table's offset (`i64`; where it is not past that,
+/// the file's last 8 bytes hold it), and the table with a version and its count of chunks
+/// (`u32` each).
+fn check_laszip(
+    path: &Path,
+    file: &mut std::fs::File,
+    len: u64,
+    vlrs: (u64, u64),
+    start: u64,
+    record: u64,
+) -> Result<()> {
+    use std::io::{Read, Seek, SeekFrom};
+    let bad = |reason: String| super::malformed(path, None, format!("LAZ: {reason}"));
+    let mut read_at = |at: u64, buf: &mut [u8]| -> Result<bool> {
+        if at.checked_add(buf.len() as u64).is_none_or(|end| end > len) {
+            return Ok(false);
+        }
+        file.seek(SeekFrom::Start(at))
+            .and_then(|_| file.read_exact(buf))
+            .map_err(io_error(path))?;
+        Ok(true)
+    };
+    let (mut at, count) = vlrs;
+    let mut items = None;
+    for _ in 0..count.min(65_536) {
+        let mut head = [0u8; 54];
+        if !read_at(at, &mut head)? {
+            break;
+        }
+        let length = u64::from(u16::from_le_bytes([head[20], head[21]]));
+        let user = &head[2..18];
+        let id = u16::from_le_bytes([head[18], head[19]]);
+        if user.starts_with(b"laszip encoded") && id == 22204 {
+            let mut data = vec![0u8; usize::try_from(length).unwrap_or(0)];
+            if !read_at(at + 54, &mut data)? {
+                return Err(bad(format!(
+                    "the LASzip record claims {length} bytes past the file's end"
+                )));
+            }
+            items = Some(data);
+            break;
+        }
+        at += 54 + length;
+    }
+    let data = items.ok_or_else(|| {
+        bad("no LASzip record (user \"laszip encoded\", id 22204) among the VLRs".to_owned())
+    })?;
+    let u16_at = |d: &[u8], i: usize| u64::from(u16::from_le_bytes([d[i], d[i + 1]]));
+    if data.len() < 34 {
+        return Err(bad(format!(
+            "the LASzip record holds {} bytes, fewer than its 34-byte head",
+            data.len()
+        )));
+    }
+    let compressor = u16_at(&data, 0);
+    if !(1..=3).contains(&compressor) {
+        return Err(bad(format!(
+            "unknown compressor {compressor} (LASzip has 1 to 3)"
+        )));
+    }
+    let n = u16_at(&data, 32);
+    if n == 0 || data.len() < 34 + 6 * n as usize {
+        return Err(bad(format!(
+            "the LASzip record lists {n} items in {} bytes",
+            data.len()
+        )));
+    }
+    let sizes: u64 = (0..n as usize).map(|i| u16_at(&data, 34 + 6 * i + 2)).sum();
+    if sizes != record {
+        return Err(bad(format!(
+            "the LASzip items take {sizes} bytes a point, the header's record length {record}"
+        )));
+    }
+    if record > MAX_LAZ_RECORD {
+        return Err(bad(format!(
+            "points of {record} bytes: zeroset reads LAZ records of at most {MAX_LAZ_RECORD} \
+             (decompress it with `laszip -i scan.laz -o scan.las` to read it as LAS)"
+        )));
+    }
+    // The chunk table: its count sizes an allocation of 16 bytes a chunk. Every chunk holds a
+    // point, its first stored raw: at most one chunk per record's bytes of compressed data.
+    let mut offset = [0u8; 8];
+    if compressor >= 2 && read_at(start, &mut offset)? {
+        let mut table = i64::from_le_bytes(offset);
+        if table <= start as i64 && read_at(len.saturating_sub(8), &mut offset)? {
+            table = i64::from_le_bytes(offset);
+        }
+        if table > start as i64 {
+            let mut head = [0u8; 8];
+            if !read_at(table as u64, &mut head)? {
+                return Err(bad(format!(
+                    "the chunk table is said to start at byte {table}, past the file's end ({len} \
+                     bytes)"
+                )));
+            }
+            let chunks = u64::from(u32::from_le_bytes([head[4], head[5], head[6], head[7]]));
+            let most = (table as u64 - start) / record.max(1) + 1;
+            if chunks > most {
+                return Err(bad(format!(
+                    "the chunk table lists {chunks} chunks; the {} bytes of points hold at most \
+                     {most}",
+                    table as u64 - start
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// [`Error::Truncated`] for `expected` points of which the file holds `got`.
 fn truncated(path: &Path, expected: u64, got: u64) -> Error {
     Error::Truncated {
@@ -157,21 +300,10 @@ fn truncated(path: &Path, expected: u64, got: u64) -> Error {
     }
 }
 
-/// The error for a LAZ file: what it is, and how to decompress it.
-fn laz_refused(path: &Path) -> Error {
-    super::malformed(
-        path,
-        None,
-        "a LAZ file (LAS compressed with LASzip), which zeroset does not read: decompress it \
-         first (`laszip -i scan.laz -o scan.las` or `pdal translate scan.laz scan.las`)",
-    )
-}
-
 /// The reader's error for a `las` error in `path`.
 fn las_error(path: &Path, e: las::Error) -> Error {
     match e {
         las::Error::Io(source) => io_error(path)(source),
-        las::Error::LaszipNotEnabled => laz_refused(path),
         e => super::malformed(path, None, format!("not a readable LAS/LAZ file: {e}")),
     }
 }

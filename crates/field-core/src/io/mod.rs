@@ -8,7 +8,7 @@
 //! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored; fields separated by commas, or by semicolons or tabs where the header has more of them | columns `nx ny nz` or `normal_x normal_y normal_z`, all three or none |
 //! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
 //! | [`Format::Pcd`] | `.pcd` | PCL's PCD v0.5–0.7: `DATA ascii`, `binary` or `binary_compressed` (LZF); fields `x y z` of any type; other fields skipped; points whose `x y z` are all NaN (an organised cloud's gaps) left out; see [`pcd`] | `normal_x normal_y normal_z` (or `nx ny nz`), all three or none |
-//! | [`Format::Las`] | `.las` `.laz` | ASPRS LAS 1.0–1.4, any point format; `x y z` scaled and offset as the header says; withheld points left out; LAZ refused with how to decompress it; see [`las`] | none (LAS has no standard normals) |
+//! | [`Format::Las`] | `.las` `.laz` | ASPRS LAS 1.0–1.4, any point format; `x y z` scaled and offset as the header says; withheld points left out; LAZ (LASzip) too; see [`las`] | none (LAS has no standard normals) |
 //!
 //! [`read_point_cloud`] picks the format with [`detect_format`] (the extension, then the CSV
 //! header) and returns a [`PointCloud3`]; [`read_point_cloud_with`] takes [`ReadOptions`] to force
@@ -74,7 +74,7 @@ pub enum Format {
     /// The Point Cloud Library's PCD: a text header, then the points as text, binary or
     /// LZF-compressed binary; see [`pcd`].
     Pcd,
-    /// The ASPRS LiDAR format LAS (positions only; LAZ refused with how to decompress it); see
+    /// The ASPRS LiDAR format LAS, and LAZ (positions only); see
     /// [`las`].
     Las,
 }
@@ -540,6 +540,15 @@ pub(crate) fn normal_columns(
         }
     }
     partial.map_or(Ok(None), Err)
+}
+
+/// The names of a file's normal components for error messages: the set of [`NORMAL_NAMES`]
+/// whose first name is `first` (any case), else [`NORMAL_FIELDS`].
+pub(crate) fn normal_field_names(first: &str) -> [&'static str; 3] {
+    NORMAL_NAMES
+        .into_iter()
+        .find(|names| names[0].eq_ignore_ascii_case(first))
+        .unwrap_or(NORMAL_FIELDS)
 }
 
 /// Rejects non-finite values unless allowed, naming the file, record, line and field.

@@ -171,9 +171,12 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
         Ok(i)
     };
     let position = [slot("x")?, slot("y")?, slot("z")?];
-    let normal = match super::normal_columns(|name| header.find(name)) {
-        Ok(None) => None,
-        Ok(Some((_, names))) => Some([slot(names[0])?, slot(names[1])?, slot(names[2])?]),
+    let (normal, normal_names) = match super::normal_columns(|name| header.find(name)) {
+        Ok(None) => (None, NORMAL_FIELDS),
+        Ok(Some((_, names))) => (
+            Some([slot(names[0])?, slot(names[1])?, slot(names[2])?]),
+            names,
+        ),
         Err(name) => return Err(missing(name)),
     };
     let body = &bytes[header.start..];
@@ -183,7 +186,8 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
             // Each value takes at least two bytes ("0 "): the count is capped by what the text
             // can hold, the file's end then telling how many there were.
             let fit = records_in(body.len() + 1, 2 * header.values());
-            let mut points = Points::new(path, check, header.points.min(fit), normals)?;
+            let mut points =
+                Points::new(path, check, header.points.min(fit), normals, normal_names)?;
             read_ascii(path, &header, body, position, normal, &mut points)?;
             points.finish(header.points)
         }
@@ -193,7 +197,7 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
             if available < header.points {
                 return Err(truncated(path, &header, available));
             }
-            let mut points = Points::new(path, check, header.points, normals)?;
+            let mut points = Points::new(path, check, header.points, normals, normal_names)?;
             for (r, chunk) in body
                 .chunks_exact(record.max(1))
                 .take(header.points)
@@ -209,7 +213,7 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
         }
         Data::Compressed => {
             let columns = decompress(path, &header, body)?;
-            let mut points = Points::new(path, check, header.points, normals)?;
+            let mut points = Points::new(path, check, header.points, normals, normal_names)?;
             // Field `i` of point `r` at `start_i + r · size_i` (each field's block in turn).
             let starts: Vec<usize> = header
                 .fields
@@ -239,6 +243,8 @@ struct Points<'a> {
     check: &'a FiniteCheck<'a>,
     positions: Vec<Point3>,
     normals: Option<Vec<Point3>>,
+    /// The normal's field names as the file gives them (for errors).
+    normal_names: [&'static str; 3],
 }
 
 impl<'a> Points<'a> {
@@ -249,6 +255,7 @@ impl<'a> Points<'a> {
         check: &'a FiniteCheck<'a>,
         count: usize,
         normals: bool,
+        normal_names: [&'static str; 3],
     ) -> Result<Self> {
         let what = format!("the points of {}", path.display());
         let per_point = if normals { 48 } else { 24 };
@@ -258,6 +265,7 @@ impl<'a> Points<'a> {
             check,
             positions: Vec::with_capacity(count),
             normals: normals.then(|| Vec::with_capacity(count)),
+            normal_names,
         })
     }
 
@@ -276,7 +284,7 @@ impl<'a> Points<'a> {
             .check(record, line, &POSITION_FIELDS, &position)?;
         self.positions.push(position);
         if let (Some(normals), Some(n)) = (self.normals.as_mut(), normal) {
-            self.check.check(record, line, &NORMAL_FIELDS, &n)?;
+            self.check.check(record, line, &self.normal_names, &n)?;
             normals.push(n);
         }
         Ok(())

@@ -236,8 +236,11 @@ pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<Raw
         table.require(&["y"], "y")?,
         table.require(&["z"], "z")?,
     ];
-    let nrm = match super::normal_columns(|name| table.find(&[name])) {
-        Ok(found) => found.map(|(columns, _)| columns),
+    let (nrm, normal_names) = match super::normal_columns(|name| table.find(&[name])) {
+        Ok(found) => (
+            found.map(|(columns, _)| columns),
+            found.map_or(NORMAL_FIELDS, |(_, names)| names),
+        ),
         Err(name) => return Err(table.missing(name)),
     };
     let mut positions = Vec::new();
@@ -250,7 +253,7 @@ pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<Raw
         positions.push(p);
         if let (Some(cols), Some(normals)) = (nrm, normals.as_mut()) {
             let n = table.numbers(&row, cols)?;
-            check.check(row.record, Some(row.line), &NORMAL_FIELDS, &n)?;
+            check.check(row.record, Some(row.line), &normal_names, &n)?;
             crate::limits::grow(normals, 1, &what)?;
             normals.push(n);
         }

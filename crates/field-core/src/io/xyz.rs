@@ -35,6 +35,8 @@ struct Layout {
     position: [usize; 3],
     /// The columns of the normal, if the file has one.
     normal: Option<[usize; 3]>,
+    /// The normal's names as a header line gives them (for errors; `nx ny nz` without one).
+    normal_names: [&'static str; 3],
     /// Whether a header line named the columns (its normals are read as they are).
     named: bool,
 }
@@ -75,6 +77,7 @@ impl Layout {
             since: line,
             position,
             normal: normal.map(|(columns, _)| columns),
+            normal_names: normal.map_or(NORMAL_FIELDS, |(_, names)| names),
             named: true,
         })
     }
@@ -95,6 +98,7 @@ impl Layout {
             since: line,
             position: [0, 1, 2],
             normal: (count >= 6).then_some([3, 4, 5]),
+            normal_names: NORMAL_FIELDS,
             named: false,
         })
     }
@@ -159,7 +163,7 @@ pub(super) fn read(
         positions.push(position);
         if let (Some(n), Some(columns)) = (normals.as_mut(), layout.normal) {
             let normal = columns.map(|c| values[c]);
-            check.check(record, Some(line_no), &NORMAL_FIELDS, &normal)?;
+            check.check(record, Some(line_no), &layout.normal_names, &normal)?;
             if !layout.named {
                 normal_columns.see(record, line_no, &normal);
             }

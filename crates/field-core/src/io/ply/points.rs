@@ -42,6 +42,10 @@ pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoi
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = normal_slots.map(|_| Vec::with_capacity(capacity));
     let get = |record: &Record, slots: [usize; 3]| slots.map(|s| record.scalar(s));
+    // Errors name the normal's components as the file does (`nx` or PCL's `normal_x`).
+    let normal_names = normal_slots.map_or(NORMAL_FIELDS, |s| {
+        super::super::normal_field_names(&element.properties[s[0]].name)
+    });
     for r in 0..element.count {
         let line = records.read(element, r, &mut record).map_err(error)?.line();
         let p: Point3 = get(&record, xyz);
@@ -49,7 +53,7 @@ pub(in crate::io) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoi
         positions.push(p);
         if let (Some(slots), Some(normals)) = (normal_slots, normals.as_mut()) {
             let n: Point3 = get(&record, slots);
-            check.check(r, line, &NORMAL_FIELDS, &n)?;
+            check.check(r, line, &normal_names, &n)?;
             normals.push(n);
         }
     }

@@ -1,5 +1,6 @@
 //! LAS, the ASPRS LiDAR format (versions 1.0–1.4, every point format), and LAZ (LAS compressed
-//! with LASzip), read with the [`las`] crate (LAZ by the [`laz`] crate it uses).
+//! with LASzip), read with the [`las`] crate (LAZ by the [`laz`](https://docs.rs/laz) crate it
+//! uses).
 //!
 //! - Read: each point's `x y z`, the stored integers times the header's scale plus its offset
 //!   (so georeferenced coordinates keep their full precision in `f64`). LAS has no standard

@@ -6,7 +6,8 @@ wrote (not against zeroset's idea of the formats):
   default binary, compressed=True) of the first 300 points of data/bunny_2k.xyzn with their
   normals and random colours (seed 7);
 - bunny300.las (LAS 1.2, point format 0), bunny300_14.las (LAS 1.4, point format 6, one
-  extended VLR) and bunny300.laz (LAZ, point format 3): laspy 2.5.4 with lazrs, scale 1e-7;
+  extended VLR), bunny300.laz (LAZ, point format 3) and bunny300_14.laz (LAZ 1.4, point
+  format 6, layered chunks): laspy 2.5.4 with lazrs, scale 1e-7;
 - bunny300.xyzn: those 300 points as printed to 9 significant digits (each value's f32 exact).
 
 Usage (after `bash benches/peers/setup.sh --open3d`):
@@ -62,6 +63,10 @@ def main() -> None:
                            record_data=b"evlr payload 123"))
     extended.evlrs = evlrs
     extended.write(OUT / "bunny300_14.las")
+    # LAS 1.4 point format 6 compressed: LASzip's layered chunks (compressor 3).
+    layered = las("1.4", 6)
+    layered.gps_time = np.arange(len(d), dtype=float)
+    layered.write(OUT / "bunny300_14.laz")
     print(f"wrote the fixtures in {OUT}")
 
 

@@ -741,6 +741,8 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         (args.method == Method::Smc, "--method smc"),
         (args.close, "--close"),
         (args.ascii, "--ascii"),
+        (args.trim.is_some(), "--trim"),
+        (args.scan.is_some(), "--scan"),
     ];
     if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
         bail!(

@@ -920,6 +920,9 @@ fn cases() -> Vec<Case> {
         )
         .no_file()
         .says("--scan"),
+        cli("--trim for a 2-D field", "mesh disc.zsf -o out.svg --trim")
+            .no_file()
+            .says("3-D fields"),
         cli("--trim of zero", "mesh sphere.zsf -o out.ply --trim=0")
             .no_file()
             .says("finite positive"),

@@ -6,8 +6,9 @@
 //! `write_ascii=True`, the default binary, and `compressed=True`) from the first 300 points
 //! of `data/bunny_2k.xyzn` with random colours; `tests/data/bunny300.xyzn` holds those points
 //! as printed to 9 significant digits (so each value's `f32` is exact). `bunny300.las` (LAS
-//! 1.2, point format 0) and `bunny300.laz` (LAZ, point format 3 with GPS time and colour) were
-//! written from the same points by laspy 2.5.4 (with lazrs), scale 10⁻⁷.
+//! 1.2, point format 0), `bunny300.laz` (LAZ, point format 3 with GPS time and colour) and
+//! `bunny300_14.laz` (LAZ 1.4, point format 6) were written from the same points by laspy 2.5.4
+//! (with lazrs), scale 10⁻⁷ (`benches/peers/format_fixtures.py`).
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -601,6 +602,9 @@ fn laspy_written_las_and_laz_read_as_the_points_they_were_written_from() {
     let laz = read_point_cloud(data("bunny300.laz")).unwrap();
     assert_eq!(laz.positions(), las.positions());
     assert!(laz.normals().is_none());
+    // LAS 1.4's point format 6, compressed by LASzip's layered chunks.
+    let layered = read_point_cloud(data("bunny300_14.laz")).unwrap();
+    assert_eq!(layered.positions(), las.positions());
     for (got, want) in las.positions().iter().zip(truth.positions()) {
         // Stored as whole multiples of the scale, 10⁻⁷: within half of it.
         for a in 0..3 {

@@ -181,6 +181,7 @@ pub fn real_files(small: bool) -> Vec<Seed> {
         "bunny300.las",
         "bunny300_14.las",
         "bunny300.laz",
+        "bunny300_14.laz",
     ] {
         if let Some(b) = read(&format!("crates/field-core/tests/data/{name}")) {
             out.push(seed(name, b));

@@ -222,8 +222,8 @@ const SPURIOUS_VOXELS: f64 = 3.0;
 
 /// The share of a mesh's area beyond the scan's reach above which the report suggests --trim:
 /// a closed scan's small holes stay under it (the bunny's five: 0.3%), the surface a
-/// one-sided scan leaves to the field's guess does not (a half sphere's 9%, a terrain
-/// patch's 18%, the bunny's front's 56%).
+/// one-sided scan leaves to the field's guess does not (at the default reach: a half
+/// sphere's 10%, a terrain patch's 19%, the bunny's front's 57%).
 const OPEN_SCAN_SHARE: f64 = 0.05;
 
 /// The points of `path` for trimming: positions, stray points set aside (when the scan has

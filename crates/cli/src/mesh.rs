@@ -24,7 +24,6 @@
 //! level curve is traced by marching squares on square cells (`--resolution` along the longer
 //! axis, default 256, or `--voxel`) and written as an SVG (`-o OUT.svg`).
 
-use std::borrow::Cow;
 use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -383,17 +382,20 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut report = check(&mesh);
     // Components far from every input point (RBF and MRAS fields record their points).
-    let points = match &field {
-        AnyField::Rbf(f) => Some(Cow::Borrowed(f.centres())),
-        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(Cow::Owned(f.points())),
+    let recorded = match &field {
+        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
         _ => None,
+    };
+    let points = match &field {
+        AnyField::Rbf(f) => Some(f.centres()),
+        _ => recorded.as_deref(),
     };
     let mut mesh = mesh;
     match points {
         Some(points) if !mesh.is_empty() => {
             let (labels, count) = components(&mesh);
             let radius = SPURIOUS_VOXELS * h;
-            let far = unsupported_components(&mesh, &labels, count, &points, radius);
+            let far = unsupported_components(&mesh, &labels, count, points, radius);
             let spurious = far.iter().filter(|f| **f).count();
             if spurious > 0 {
                 let triangles = labels.iter().filter(|&&l| far[l as usize]).count();
@@ -429,10 +431,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         None => {}
     }
     // The scan's reach: trim to it, or say how much of the mesh lies beyond it.
-    let scan = scan.or_else(|| match &field {
-        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
-        _ => None,
-    });
+    let scan = scan.or(recorded);
     match (scan, args.trim) {
         (None, Some(_)) => bail!(
             "--trim needs the points the field was fitted to: give --scan SCAN ({} holds a {} \

@@ -306,17 +306,6 @@ fn smoothed(mesh: &TriMesh, mut values: Vec<f64>, passes: usize) -> Vec<f64> {
     values
 }
 
-/// The share of `mesh`'s area beyond `support`'s reach (0 for a mesh of no area): what
-/// [`trim`] would remove, measured without building the trimmed mesh's vertices.
-pub fn uncovered_area_fraction(mesh: &TriMesh, support: &ScanSupport) -> f64 {
-    let total = crate::check(mesh).area;
-    if total <= 0.0 {
-        return 0.0;
-    }
-    let kept = crate::check(&trim(mesh, support).mesh).area;
-    ((total - kept) / total).max(0.0)
-}
-
 /// The cut of [`trim`], by the coverage distance at each vertex.
 fn trim_by(mesh: &TriMesh, coverage: &[f64]) -> Trimmed {
     let inside = |v: u32| coverage[v as usize] < 1.0;

@@ -102,7 +102,7 @@ fn read_points(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
 /// in every version (ASPRS LAS 1.4 R15, table 3); a file too short for them is left to the
 /// crate, which reads the header with bounded reads.
 fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()> {
-    use std::io::{Read, Seek, SeekFrom};
+    use std::io::Read;
     let mut head = [0u8; 375];
     let have = usize::try_from(len).map_or(head.len(), |n| n.min(head.len()));
     if have < 227 {
@@ -135,11 +135,12 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
         count = count.max(u64_at(247));
     }
     let room = len.saturating_sub(start);
+    let mut bytes = Bounded { file, path, len };
     // Bit 7 of the point format marks LASzip compression: its points are smaller than the
     // record length says.
     if head[104] & 0x80 != 0 {
         let vlrs = (u16_at(94), u32_at(100));
-        check_laszip(path, &mut file, len, vlrs, start, record)?;
+        check_laszip(&mut bytes, vlrs, start, record)?;
     } else if count.checked_mul(record).is_none_or(|need| need > room) {
         return Err(truncated(path, count, room / record));
     }
@@ -147,8 +148,7 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
         let (mut at, evlrs) = (u64_at(235), u32_at(243));
         for i in 0..evlrs {
             let mut evlr = [0u8; 60];
-            let fits = at.checked_add(60).is_some_and(|end| end <= len);
-            if !fits {
+            if !bytes.read_at(at, &mut evlr)? {
                 return Err(super::malformed(
                     path,
                     None,
@@ -157,9 +157,6 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
                     ),
                 ));
             }
-            file.seek(SeekFrom::Start(at))
-                .and_then(|_| file.read_exact(&mut evlr))
-                .map_err(io_error(path))?;
             let length = u64::from_le_bytes(evlr[20..28].try_into().unwrap_or([0; 8]));
             let left = len - at - 60;
             if length > left {
@@ -185,30 +182,14 @@ fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()
 /// each); the points start with the chunk table's offset (`i64`; where it is not past that,
 /// the file's last 8 bytes hold it), and the table with a version and its count of chunks
 /// (`u32` each).
-fn check_laszip(
-    path: &Path,
-    file: &mut std::fs::File,
-    len: u64,
-    vlrs: (u64, u64),
-    start: u64,
-    record: u64,
-) -> Result<()> {
-    use std::io::{Read, Seek, SeekFrom};
+fn check_laszip(bytes: &mut Bounded<'_>, vlrs: (u64, u64), start: u64, record: u64) -> Result<()> {
+    let (path, len) = (bytes.path, bytes.len);
     let bad = |reason: String| super::malformed(path, None, format!("LAZ: {reason}"));
-    let mut read_at = |at: u64, buf: &mut [u8]| -> Result<bool> {
-        if at.checked_add(buf.len() as u64).is_none_or(|end| end > len) {
-            return Ok(false);
-        }
-        file.seek(SeekFrom::Start(at))
-            .and_then(|_| file.read_exact(buf))
-            .map_err(io_error(path))?;
-        Ok(true)
-    };
     let (mut at, count) = vlrs;
     let mut items = None;
     for _ in 0..count.min(65_536) {
         let mut head = [0u8; 54];
-        if !read_at(at, &mut head)? {
+        if !bytes.read_at(at, &mut head)? {
             break;
         }
         let length = u64::from(u16::from_le_bytes([head[20], head[21]]));
@@ -216,7 +197,7 @@ fn check_laszip(
         let id = u16::from_le_bytes([head[18], head[19]]);
         if user.starts_with(b"laszip encoded") && id == 22204 {
             let mut data = vec![0u8; usize::try_from(length).unwrap_or(0)];
-            if !read_at(at + 54, &mut data)? {
+            if !bytes.read_at(at + 54, &mut data)? {
                 return Err(bad(format!(
                     "the LASzip record claims {length} bytes past the file's end"
                 )));
@@ -264,14 +245,14 @@ fn check_laszip(
     // The chunk table: its count sizes an allocation of 16 bytes a chunk. Every chunk holds a
     // point, its first stored raw: at most one chunk per record's bytes of compressed data.
     let mut offset = [0u8; 8];
-    if compressor >= 2 && read_at(start, &mut offset)? {
+    if compressor >= 2 && bytes.read_at(start, &mut offset)? {
         let mut table = i64::from_le_bytes(offset);
-        if table <= start as i64 && read_at(len.saturating_sub(8), &mut offset)? {
+        if table <= start as i64 && bytes.read_at(len.saturating_sub(8), &mut offset)? {
             table = i64::from_le_bytes(offset);
         }
         if table > start as i64 {
             let mut head = [0u8; 8];
-            if !read_at(table as u64, &mut head)? {
+            if !bytes.read_at(table as u64, &mut head)? {
                 return Err(bad(format!(
                     "the chunk table is said to start at byte {table}, past the file's end ({len} \
                      bytes)"
@@ -289,6 +270,31 @@ fn check_laszip(
         }
     }
     Ok(())
+}
+
+/// Reads at given bytes of a file of `len` bytes, never past its end.
+struct Bounded<'a> {
+    file: std::fs::File,
+    path: &'a Path,
+    len: u64,
+}
+
+impl Bounded<'_> {
+    /// Fills `buf` from byte `at`: `Ok(false)`, reading nothing, where it would run past the end.
+    fn read_at(&mut self, at: u64, buf: &mut [u8]) -> Result<bool> {
+        use std::io::{Read, Seek, SeekFrom};
+        if at
+            .checked_add(buf.len() as u64)
+            .is_none_or(|end| end > self.len)
+        {
+            return Ok(false);
+        }
+        self.file
+            .seek(SeekFrom::Start(at))
+            .and_then(|_| self.file.read_exact(buf))
+            .map_err(io_error(self.path))?;
+        Ok(true)
+    }
 }
 
 /// [`Error::Truncated`] for `expected` points of which the file holds `got`.

@@ -193,7 +193,7 @@ const SAMPLED_BYTES_PER_SAMPLE: u64 = 24;
 #[derive(Debug, Args)]
 pub struct FitArgs {
     /// An oriented point cloud: .ply (with nx ny nz), .pcd (PCL, with normal_x normal_y
-    /// normal_z), .xyzn/.xyz/.txt/.pts/.asc/.pwn (x y z nx ny nz per line, or columns named by
+    /// normal_z), .e57 (laser scans with the surface-normals extension), .xyzn/.xyz/.txt/.pts/.asc/.pwn (x y z nx ny nz per line, or columns named by
     /// a first line) or .csv (header with x,y,z,nx,ny,nz); or a mesh (.ply with faces, .obj,
     /// .stl, .off), read as its vertices with the triangles' normals. Normals point out of the
     /// solid. Or a value-constraint file: .xyv (x y value per line, a 2-D curve) or .xyzv (x y

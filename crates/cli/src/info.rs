@@ -37,7 +37,8 @@ NaN and infinite values do not stop the report: they are counted and the first i
 /// Arguments of `zeroset info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The point-cloud file: .ply (ascii or binary), .pcd (PCL), .las (LiDAR),
+    /// The point-cloud file: .ply (ascii or binary), .pcd (PCL), .las/.laz (LiDAR), .e57
+    /// (laser scans),
     /// .xyz/.xyzn/.txt/.pts/.asc/.pwn (x y z [nx ny nz] per line, or columns named by a first
     /// line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file (told
     /// by its contents); or a mesh: .ply with faces, .obj, .stl or .off.
@@ -63,6 +64,8 @@ pub enum FormatArg {
     Pcd,
     /// LiDAR LAS or LAZ.
     Las,
+    /// ASTM E57 laser scans.
+    E57,
 }
 
 impl From<FormatArg> for Format {
@@ -74,6 +77,7 @@ impl From<FormatArg> for Format {
             FormatArg::Gempy => Format::GemPy,
             FormatArg::Pcd => Format::Pcd,
             FormatArg::Las => Format::Las,
+            FormatArg::E57 => Format::E57,
         }
     }
 }

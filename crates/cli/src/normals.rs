@@ -36,7 +36,7 @@ Examples:
 /// `zeroset normals`' arguments.
 #[derive(Debug, Args)]
 pub struct NormalsArgs {
-    /// A point cloud: .ply, .pcd, .las (LiDAR), .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a
+    /// A point cloud: .ply, .pcd, .las/.laz (LiDAR), .e57 (laser scans), .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a
     /// mesh (.ply with faces, .obj, .stl, .off). Only its positions are used; normals it has
     /// are compared with the estimate, not used.
     pub scan: PathBuf,

@@ -50,7 +50,7 @@ pub enum ReconstructMethod {
 /// `zeroset reconstruct`'s arguments.
 #[derive(Debug, Args)]
 pub struct ReconstructArgs {
-    /// A point cloud: .ply, .pcd, .las, .xyzn/.xyz/.txt/.pts/.asc/.pwn or .csv, with normals
+    /// A point cloud: .ply, .pcd, .las/.laz, .e57, .xyzn/.xyz/.txt/.pts/.asc/.pwn or .csv, with normals
     /// pointing out of the solid or without (then estimated); or a mesh (.ply with faces,
     /// .obj, .stl, .off).
     pub scan: PathBuf,

@@ -130,8 +130,13 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         b"0 0 0 0 0 1\n\xff\xfe 1 0 0 0 1\n",
     );
     m.put(
-        "bunny.e57",
-        "the text of `bunny.xyzn` under an extension no reader knows (E57, a laser-scanner format zeroset does not read)",
+        "bunny.rcp",
+        "the text of `bunny.xyzn` under an extension no reader knows (`.rcp`, Autodesk ReCap's project format)",
+        bunny.as_bytes(),
+    );
+    m.put(
+        "text.e57",
+        "the text of `bunny.xyzn` named as an E57 laser scan",
         bunny.as_bytes(),
     );
     m.put(
@@ -432,6 +437,23 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         "the first 400 bytes after the header of `bunny300.laz` (its points cut short)",
         &laz[..start + 400],
     );
+    let e57 = fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../field-core/tests/data/bunny300.e57"
+    ))
+    .unwrap();
+    m.put(
+        "bunny300.e57",
+        "300 bunny points with normals as E57, two scans with poses, written by libE57Format (pye57 0.4.19)",
+        &e57,
+    );
+    let mut flipped = e57.clone();
+    flipped[3000] ^= 0x20;
+    m.put(
+        "flipped.e57",
+        "`bunny300.e57` with one bit of byte 3000 (its third page) changed",
+        &flipped,
+    );
     let las = fs::read(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../field-core/tests/data/bunny300.las"
@@ -699,7 +721,7 @@ fn cases() -> Vec<Case> {
         cli("not UTF-8", "info latin1.xyzn").says("UTF-8"),
         cli("missing file", "info missing.xyzn"),
         cli("directory instead of file", "info folder.xyzn"),
-        cli("wrong extension", "info bunny.e57").says("unknown point-cloud format"),
+        cli("wrong extension", "info bunny.rcp").says("unknown point-cloud format"),
         cli("a point cloud named .stl", "info cloud.stl").says("not ASCII STL"),
         cli("truncated binary PLY", "info cloud_trunc.ply").says("truncated"),
         cli("header count larger than the file", "info cloud_count.ply"),
@@ -717,6 +739,9 @@ fn cases() -> Vec<Case> {
         cli("LAZ (compressed LAS)", "info bunny300.laz").accepted("300"),
         cli("LAZ with a crafted chunk table", "info chunks.laz").says("chunk table lists"),
         cli("LAZ cut short", "info cut.laz").names("cut.laz"),
+        cli("E57 (laser scans with normals)", "info bunny300.e57").accepted("300"),
+        cli("E57 with a changed byte", "info flipped.e57").says("checksum"),
+        cli("text named .e57", "info text.e57").says("E57"),
         cli("truncated LAS", "info cut.las").says("truncated"),
         cli("PCD gaps only", "info gaps.pcd").says("NaN"),
         cli("header line without z", "info named_noz.xyz").says("'z'"),
@@ -748,7 +773,7 @@ fn cases() -> Vec<Case> {
         cli("duplicate points", "fit dup.xyzn --method rbf --quiet").accepted("merged"),
         cli("not UTF-8", "fit latin1.xyzn --method rbf").says("UTF-8"),
         cli("missing file", "fit missing.xyzn --method rbf"),
-        cli("wrong extension", "fit bunny.e57 --method rbf"),
+        cli("wrong extension", "fit bunny.rcp --method rbf"),
         cli("truncated OFF mesh", "fit tet_short.off --method rbf").says("truncated"),
         cli("corrupt LZF in PCD", "fit lzf.pcd --method rbf").says("decompress"),
         cli(
@@ -1081,7 +1106,7 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "not UTF-8", "latin1.xyzn"),
         reader(CloudReader, "missing file", "missing.xyzn"),
         reader(CloudReader, "directory instead of file", "folder.xyzn"),
-        reader(CloudReader, "wrong extension", "bunny.e57"),
+        reader(CloudReader, "wrong extension", "bunny.rcp"),
         reader(CloudReader, "truncated binary PLY", "cloud_trunc.ply").says("truncated"),
         reader(
             CloudReader,
@@ -1101,6 +1126,8 @@ fn cases() -> Vec<Case> {
         reader(CloudReader, "truncated binary PCD", "short.pcd").says("truncated"),
         reader(CloudReader, "LAZ with a crafted chunk table", "chunks.laz").says("4294967295"),
         reader(CloudReader, "LAZ cut short", "cut.laz"),
+        reader(CloudReader, "E57 with a changed byte", "flipped.e57").says("checksum"),
+        reader(CloudReader, "text named .e57", "text.e57").says("E57"),
         reader(CloudReader, "truncated LAS", "cut.las").says("truncated"),
         reader(CloudReader, "corrupt LZF in PCD", "lzf.pcd").says("decompress"),
         reader(CloudReader, "PCD gaps only", "gaps.pcd").says("NaN"),

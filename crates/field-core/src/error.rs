@@ -109,7 +109,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// A file whose format is not recognised from its extension or content.
-    #[error("{}: unknown point-cloud format (expected .ply, .pcd, .las, .laz, .xyz, .xyzn, .txt, .pts, .asc, .pwn or .csv)", path.display())]
+    #[error("{}: unknown point-cloud format (expected .ply, .pcd, .las, .laz, .e57, .xyz, .xyzn, .txt, .pts, .asc, .pwn or .csv)", path.display())]
     UnknownFormat {
         /// The file.
         path: PathBuf,

@@ -8,7 +8,10 @@
 //! as printed to 9 significant digits (so each value's `f32` is exact). `bunny300.las` (LAS
 //! 1.2, point format 0), `bunny300.laz` (LAZ, point format 3 with GPS time and colour) and
 //! `bunny300_14.laz` (LAZ 1.4, point format 6) were written from the same points by laspy 2.5.4
-//! (with lazrs), scale 10⁻⁷ (`benches/peers/format_fixtures.py`).
+//! (with lazrs), scale 10⁻⁷ (`benches/peers/format_fixtures.py`). `bunny300.e57` (two scans
+//! with poses, normals, scaled integers and invalid records) and `bunny300_spherical.e57` (one
+//! scan in spherical coordinates) were written from them by libE57Format through pye57 0.4.19
+//! (the same script says what each scan holds).
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -777,4 +780,173 @@ fn las_1_4_with_an_extended_vlr_reads_and_crafted_lengths_are_refused_before_any
     // Not LAS at all under the extension.
     let e = read_err("x.las", [b"PLYF".as_slice(), &[0u8; 400]].concat());
     assert!(e.to_string().contains("signature LASF"), "{e}");
+}
+
+/// Points within `tol` of the truth, in order (and normals, if `normals`).
+fn assert_close(cloud: &PointCloud3, truth: &PointCloud3, tol: f64, normals: bool) {
+    assert_eq!(cloud.len(), truth.len());
+    for (got, want) in cloud.positions().iter().zip(truth.positions()) {
+        for a in 0..3 {
+            assert!((got[a] - want[a]).abs() <= tol, "{got:?} vs {want:?}");
+        }
+    }
+    if normals {
+        let (got, want) = (cloud.normals().unwrap(), truth.normals().unwrap());
+        for (g, w) in got.iter().zip(want) {
+            for a in 0..3 {
+                // f32 components, rotated: within a few f32 ulps of 1.
+                assert!((g[a] - w[a]).abs() <= 1e-6, "{g:?} vs {w:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn libe57_written_files_read_as_the_points_they_were_written_from() {
+    let truth = read_point_cloud(data("bunny300.xyzn")).unwrap();
+    // Two scans, the second under a pose, stored as integers scaled by 1e-7 with four invalid
+    // records among them: each point within the scale (rotated) of the truth, normals rotated
+    // back with it, the invalid records left out.
+    let scans = read_point_cloud(data("bunny300.e57")).unwrap();
+    assert_eq!(detect_format(data("bunny300.e57")).unwrap(), Format::E57);
+    assert_close(&scans, &truth, 2e-7, true);
+    // Spherical coordinates seen from a scanner under a pose, three invalid records.
+    let spherical = read_point_cloud(data("bunny300_spherical.e57")).unwrap();
+    assert!(spherical.normals().is_none());
+    assert_close(&spherical, &truth, 1e-12, false);
+    // Told by its magic `ASTM-E57` under another name.
+    let (_dir, path) = temp_file("scan.bin", fs::read(data("bunny300.e57")).unwrap());
+    assert_eq!(detect_format(&path).unwrap(), Format::E57);
+}
+
+/// An E57 file written by the `e57` crate: one scan per entry of `scans`, each with its
+/// prototype and records; `xml` may edit the XML section before it is written.
+fn e57_bytes(
+    scans: Vec<(Vec<e57::Record>, Vec<Vec<e57::RecordValue>>)>,
+    xml: impl Fn(String) -> String,
+) -> Vec<u8> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    {
+        let mut writer = e57::E57Writer::new(&mut bytes, "{test}").unwrap();
+        writer
+            .register_extension(e57::Extension {
+                namespace: "nor".into(),
+                url: zeroset_field_core::io::e57::NORMALS_URI.into(),
+            })
+            .unwrap();
+        for (i, (prototype, records)) in scans.into_iter().enumerate() {
+            let mut pc = writer
+                .add_pointcloud(&format!("{{scan {i}}}"), prototype)
+                .unwrap();
+            for r in records {
+                pc.add_point(r).unwrap();
+            }
+            pc.finalize().unwrap();
+        }
+        writer.finalize_customized_xml(|x| Ok(xml(x))).unwrap();
+    }
+    bytes.into_inner()
+}
+
+fn normal_record(name: &str) -> e57::Record {
+    e57::Record {
+        name: e57::RecordName::Unknown {
+            namespace: "nor".into(),
+            name: name.into(),
+        },
+        data_type: e57::RecordDataType::F32,
+    }
+}
+
+/// A scan of `n` points along a line, with normals if `normals`, its first x `first`.
+fn e57_scan(n: usize, normals: bool, first: f64) -> (Vec<e57::Record>, Vec<Vec<e57::RecordValue>>) {
+    use e57::{Record, RecordValue};
+    let mut prototype = vec![
+        Record::CARTESIAN_X_F64,
+        Record::CARTESIAN_Y_F64,
+        Record::CARTESIAN_Z_F64,
+    ];
+    if normals {
+        prototype.extend(["normalX", "normalY", "normalZ"].map(normal_record));
+    }
+    let records = (0..n)
+        .map(|i| {
+            let mut r = vec![
+                RecordValue::Double(if i == 0 { first } else { i as f64 }),
+                RecordValue::Double(0.5),
+                RecordValue::Double(-1.0),
+            ];
+            if normals {
+                r.extend([0.0, 0.0, 1.0].map(RecordValue::Single));
+            }
+            r
+        })
+        .collect();
+    (prototype, records)
+}
+
+#[test]
+fn e57_files_the_reader_cannot_use_are_named_errors() {
+    let reason = |name: &str, bytes: Vec<u8>| match read_err(name, bytes) {
+        Error::Malformed { reason, path, .. } => {
+            assert!(path.ends_with(name));
+            reason
+        }
+        other => panic!("{name}: expected Malformed, got {other}"),
+    };
+    let plain = |x: String| x;
+    // The e57 crate's own writer, read back.
+    let two = read(
+        "two.e57",
+        e57_bytes(vec![e57_scan(5, true, 0.0), e57_scan(4, true, 0.0)], plain),
+    );
+    assert_eq!((two.len(), two.normals().map(<[_]>::len)), (9, Some(9)));
+    // Normals in some scans only.
+    let mixed = e57_bytes(
+        vec![
+            e57_scan(5, true, 0.0),
+            e57_scan(5, false, 0.0),
+            e57_scan(3, true, 0.0),
+        ],
+        plain,
+    );
+    let r = reason("mixed.e57", mixed);
+    assert!(
+        r.contains("scans 0, 2 have normals and scans 1 do not"),
+        "{r}"
+    );
+    // A scan whose records hold no coordinate the reader knows.
+    let renamed = e57_bytes(vec![e57_scan(5, false, 0.0)], |x| {
+        x.replace("cartesianX", "cartesianQ")
+    });
+    assert!(reason("renamed.e57", renamed).contains("scan 0 has neither Cartesian"));
+    // No scan at all, and a NaN coordinate.
+    assert!(reason("empty.e57", e57_bytes(vec![], plain)).contains("holds no point"));
+    let e = read_err(
+        "nan.e57",
+        e57_bytes(vec![e57_scan(5, false, f64::NAN)], plain),
+    );
+    assert!(
+        matches!(
+            e,
+            Error::NonFinite {
+                record: 0,
+                field: "x",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A changed byte breaks its page's checksum; a file cut anywhere is not whole pages.
+    let good = fs::read(data("bunny300.e57")).unwrap();
+    for at in [0, 100, 2000, good.len() / 2, good.len() - 10] {
+        let mut bad = good.clone();
+        bad[at] ^= 0x20;
+        let e = read_err("flipped.e57", bad);
+        assert!(e.to_string().contains("flipped.e57"), "{at}: {e}");
+    }
+    for cut in [4, 48, 1024, 5000, good.len() - 1] {
+        let e = read_err("cut.e57", &good[..cut]);
+        assert!(e.to_string().contains("cut.e57"), "{cut}: {e}");
+    }
 }

@@ -342,7 +342,7 @@ impl Fuzzer {
                 &mut self.rng,
                 &lane.corpus[a].bytes,
                 &lane.corpus[b].bytes,
-                target.is_zsf(),
+                target.seal(),
             );
             Entry {
                 bytes,

@@ -347,9 +347,21 @@ pub fn mutate_once(rng: &mut SplitMix64, data: &mut Vec<u8>, other: &[u8]) {
     }
 }
 
-/// `data` mutated 1–6 times (stacked, as AFL's havoc stage does), kept under [`MAX_LEN`]; a
-/// `.zsf` input (`zsf`) usually gets its sizes and checksum fixed afterwards.
-pub fn mutate(rng: &mut SplitMix64, data: &[u8], other: &[u8], zsf: bool) -> Vec<u8> {
+/// The checksums a format keeps, which a mutated input usually gets repaired so that the
+/// mutation reaches the decoder behind them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Seal {
+    /// None.
+    None,
+    /// A `.zsf` field file's sizes and trailing CRC-32 ([`fix_zsf_sizes`], [`reseal_zsf`]).
+    Zsf,
+    /// An E57 file's page checksums ([`reseal_e57`]).
+    E57,
+}
+
+/// `data` mutated 1–6 times (stacked, as AFL's havoc stage does), kept under [`MAX_LEN`]; an
+/// input of a format with checksums (`seal`) usually gets them repaired afterwards.
+pub fn mutate(rng: &mut SplitMix64, data: &[u8], other: &[u8], seal: Seal) -> Vec<u8> {
     let mut out = data.to_vec();
     let most = if rng.next_u64() & 3 == 0 { 6 } else { 2 };
     let n = 1 + rng.below(most);
@@ -357,16 +369,36 @@ pub fn mutate(rng: &mut SplitMix64, data: &[u8], other: &[u8], zsf: bool) -> Vec
         mutate_once(rng, &mut out, other);
         out.truncate(MAX_LEN);
     }
-    if zsf {
-        let r = rng.below(10);
-        if r < 5 {
-            fix_zsf_sizes(&mut out);
+    let r = rng.below(10);
+    match seal {
+        Seal::None => {}
+        Seal::Zsf => {
+            if r < 5 {
+                fix_zsf_sizes(&mut out);
+            }
+            if r < 9 {
+                reseal_zsf(&mut out);
+            }
         }
-        if r < 9 {
-            reseal_zsf(&mut out);
-        }
+        Seal::E57 if r < 9 => reseal_e57(&mut out),
+        Seal::E57 => {}
     }
     out
+}
+
+/// The page size of E57 files (ASTM E2807 §7: the last 4 bytes of each page are its CRC-32C).
+const E57_PAGE: usize = 1024;
+
+/// Recomputes the checksum of every whole page of an E57 file (CRC-32C of its first 1020
+/// bytes, stored big-endian in its last 4, as libE57Format writes it).
+pub fn reseal_e57(data: &mut [u8]) {
+    if !data.starts_with(b"ASTM-E57") {
+        return;
+    }
+    for page in data.chunks_exact_mut(E57_PAGE) {
+        let crc = crc32c(&page[..E57_PAGE - 4]);
+        page[E57_PAGE - 4..].copy_from_slice(&crc.to_be_bytes());
+    }
 }
 
 /// Sets a version-2 `.zsf` header's payload length to what the file holds (keeping the
@@ -395,22 +427,31 @@ pub fn reseal_zsf(data: &mut [u8]) {
     data[n - 4..].copy_from_slice(&crc.to_le_bytes());
 }
 
-/// CRC-32 (IEEE), bitwise: the root package does not depend on `crc32fast`.
+/// CRC-32 (IEEE), by table: the root package does not depend on `crc32fast`.
 pub fn crc32(bytes: &[u8]) -> u32 {
     static TABLE: std::sync::OnceLock<[u32; 256]> = std::sync::OnceLock::new();
-    let table = TABLE.get_or_init(|| {
-        std::array::from_fn(|i| {
-            let mut c = i as u32;
-            for _ in 0..8 {
-                c = if c & 1 != 0 {
-                    0xEDB8_8320 ^ (c >> 1)
-                } else {
-                    c >> 1
-                };
-            }
-            c
-        })
-    });
+    reflected_crc(bytes, TABLE.get_or_init(|| crc_table(0xEDB8_8320)))
+}
+
+/// CRC-32C (Castagnoli), E57's page checksum.
+pub fn crc32c(bytes: &[u8]) -> u32 {
+    static TABLE: std::sync::OnceLock<[u32; 256]> = std::sync::OnceLock::new();
+    reflected_crc(bytes, TABLE.get_or_init(|| crc_table(0x82F6_3B78)))
+}
+
+/// The byte table of the reflected CRC-32 of polynomial `poly` (bit-reversed).
+fn crc_table(poly: u32) -> [u32; 256] {
+    std::array::from_fn(|i| {
+        let mut c = i as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { poly ^ (c >> 1) } else { c >> 1 };
+        }
+        c
+    })
+}
+
+/// A reflected CRC-32 by `table` (initial and final value all ones).
+fn reflected_crc(bytes: &[u8], table: &[u32; 256]) -> u32 {
     let mut c = !0u32;
     for &b in bytes {
         c = table[((c ^ b as u32) & 0xFF) as usize] ^ (c >> 8);

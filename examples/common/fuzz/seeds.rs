@@ -172,8 +172,8 @@ pub fn real_files(small: bool) -> Vec<Seed> {
     if let Some(b) = read("samples/curve.xyv") {
         out.push(seed("curve.xyv", b));
     }
-    // PCD as Open3D writes it, in its three encodings, and LAS / LAZ as laspy does (300
-    // points each, under 22 kB).
+    // PCD as Open3D writes it, in its three encodings, LAS / LAZ as laspy does and E57 as
+    // libE57Format does (300 points each, under 22 kB).
     for name in [
         "bunny300_ascii.pcd",
         "bunny300_binary.pcd",
@@ -182,6 +182,8 @@ pub fn real_files(small: bool) -> Vec<Seed> {
         "bunny300_14.las",
         "bunny300.laz",
         "bunny300_14.laz",
+        "bunny300.e57",
+        "bunny300_spherical.e57",
     ] {
         if let Some(b) = read(&format!("crates/field-core/tests/data/{name}")) {
             out.push(seed(name, b));
@@ -459,6 +461,7 @@ pub fn for_target(target: Target, seeds: &[Seed]) -> Vec<Seed> {
         Target::Xyz => by_ext(&["xyz", "xyzn", "txt"]),
         Target::Pcd => by_ext(&["pcd"]),
         Target::Las => by_ext(&["las", "laz"]),
+        Target::E57 => by_ext(&["e57"]),
         Target::Csv | Target::GemPy => by_ext(&["csv"]),
         Target::Xyv => by_ext(&["xyv"]),
         Target::Xyzv => by_ext(&["xyzv"]),

@@ -37,6 +37,9 @@ pub enum Target {
     Pcd,
     /// LiDAR LAS and LAZ: `read_point_cloud_with(Format::Las)`, strict and lenient.
     Las,
+    /// ASTM E57 laser scans: `read_point_cloud_with(Format::E57)`, strict and lenient, most
+    /// inputs with their page checksums repaired after mutation.
+    E57,
     /// CSV with a header: `read_point_cloud_with(Format::Csv)` and `detect_format`.
     Csv,
     /// GemPy tables: `read_gempy_file`, `read_surface_points`, `read_orientations` and the
@@ -63,7 +66,7 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 17] = [
+    pub const ALL: [Target; 18] = [
         Target::PlyCloud,
         Target::PlyMesh,
         Target::StlMesh,
@@ -72,6 +75,7 @@ impl Target {
         Target::Xyz,
         Target::Pcd,
         Target::Las,
+        Target::E57,
         Target::Csv,
         Target::GemPy,
         Target::Xyv,
@@ -94,6 +98,7 @@ impl Target {
             Target::Xyz => "xyz",
             Target::Pcd => "pcd",
             Target::Las => "las",
+            Target::E57 => "e57",
             Target::Csv => "csv",
             Target::GemPy => "gempy",
             Target::Xyv => "xyv",
@@ -122,6 +127,7 @@ impl Target {
             Target::Xyz => "xyz",
             Target::Pcd => "pcd",
             Target::Las => "las",
+            Target::E57 => "e57",
             Target::Csv | Target::GemPy => "csv",
             Target::Xyv => "xyv",
             Target::Xyzv => "xyzv",
@@ -130,12 +136,14 @@ impl Target {
         }
     }
 
-    /// Whether inputs are `.zsf` files (their checksum is resealed after mutation).
-    pub fn is_zsf(self) -> bool {
-        matches!(
-            self,
-            Target::ZsfBspline | Target::ZsfRbf | Target::ZsfNeural | Target::ZsfMras
-        )
+    /// The checksums the target's inputs keep, repaired after mutation.
+    pub fn seal(self) -> super::mutate::Seal {
+        use super::mutate::Seal;
+        match self {
+            Target::ZsfBspline | Target::ZsfRbf | Target::ZsfNeural | Target::ZsfMras => Seal::Zsf,
+            Target::E57 => Seal::E57,
+            _ => Seal::None,
+        }
     }
 }
 
@@ -310,6 +318,11 @@ pub fn run(target: Target, path: &Path, bytes: &[u8]) -> String {
         Target::Las => [
             read_cloud(path, Format::Las, false, false),
             read_cloud(path, Format::Las, true, true),
+        ]
+        .join(" | "),
+        Target::E57 => [
+            read_cloud(path, Format::E57, false, false),
+            read_cloud(path, Format::E57, true, true),
         ]
         .join(" | "),
         Target::Xyz => [

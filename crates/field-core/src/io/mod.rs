@@ -1,4 +1,5 @@
-//! Point-cloud files: readers for PLY, XYZ text, CSV and GemPy geology tables, and an atomic
+//! Point-cloud files: readers for PLY, XYZ text, CSV, GemPy geology tables, PCD, LAS/LAZ and
+//! E57, and an atomic
 //! PLY writer; value constraints (`x y value`, `x y z value`) in [`values`].
 //!
 //! | [`Format`] | Extensions | What is read | Normals |
@@ -9,6 +10,7 @@
 //! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
 //! | [`Format::Pcd`] | `.pcd` | PCL's PCD v0.5–0.7: `DATA ascii`, `binary` or `binary_compressed` (LZF); fields `x y z` of any type; other fields skipped; points whose `x y z` are all NaN (an organised cloud's gaps) left out; see [`pcd`] | `normal_x normal_y normal_z` (or `nx ny nz`), all three or none |
 //! | [`Format::Las`] | `.las` `.laz` | ASPRS LAS 1.0–1.4, any point format; `x y z` scaled and offset as the header says; withheld points left out; LAZ (LASzip) too; see [`las`] | none (LAS has no standard normals) |
+//! | [`Format::E57`] | `.e57` | ASTM E57 (terrestrial laser scanners): every scan, each moved into the file's frame by its pose; Cartesian or spherical coordinates; records flagged invalid left out; see [`e57`](mod@e57) | the surface-normals extension (`nor:normalX ...`), if every scan has it |
 //!
 //! [`read_point_cloud`] picks the format with [`detect_format`] (the extension, then the CSV
 //! header) and returns a [`PointCloud3`]; [`read_point_cloud_with`] takes [`ReadOptions`] to force
@@ -48,6 +50,7 @@ use crate::cloud::PointCloud3;
 use crate::error::{Error, Result};
 use crate::geometry::Point3;
 
+pub mod e57;
 pub mod gempy;
 pub mod las;
 pub mod pcd;
@@ -77,23 +80,27 @@ pub enum Format {
     /// The ASPRS LiDAR format LAS, and LAZ (positions only); see
     /// [`las`].
     Las,
+    /// ASTM E57, terrestrial laser scans (every scan in the file's frame); see
+    /// [`e57`](mod@e57).
+    E57,
 }
 
 impl Format {
     /// Every format, in the order of the module table.
-    pub const ALL: [Format; 6] = [
+    pub const ALL: [Format; 7] = [
         Format::Ply,
         Format::Xyz,
         Format::Csv,
         Format::GemPy,
         Format::Pcd,
         Format::Las,
+        Format::E57,
     ];
 
     /// The format implied by the file extension (case-insensitive), without reading the file:
     /// `.ply` → [`Format::Ply`]; `.xyz`, `.xyzn`, `.txt`, `.pts`, `.asc`, `.pwn` →
     /// [`Format::Xyz`]; `.csv` → [`Format::Csv`]; `.pcd` → [`Format::Pcd`]; `.las`, `.laz` →
-    /// [`Format::Las`]. A `.csv` file may
+    /// [`Format::Las`]; `.e57` → [`Format::E57`]. A `.csv` file may
     /// hold a GemPy table: [`detect_format`] reads the header to tell. `None` for any other
     /// extension.
     pub fn from_path(path: impl AsRef<Path>) -> Option<Format> {
@@ -104,12 +111,13 @@ impl Format {
             "csv" => Some(Format::Csv),
             "pcd" => Some(Format::Pcd),
             "las" | "laz" => Some(Format::Las),
+            "e57" => Some(Format::E57),
             _ => None,
         }
     }
 
-    /// The lower-case name used on the command line: `ply`, `xyz`, `csv`, `gempy`, `pcd` or
-    /// `las`.
+    /// The lower-case name used on the command line: `ply`, `xyz`, `csv`, `gempy`, `pcd`,
+    /// `las` or `e57`.
     pub fn name(self) -> &'static str {
         match self {
             Format::Ply => "ply",
@@ -118,6 +126,7 @@ impl Format {
             Format::GemPy => "gempy",
             Format::Pcd => "pcd",
             Format::Las => "las",
+            Format::E57 => "e57",
         }
     }
 }
@@ -130,13 +139,13 @@ impl fmt::Display for Format {
 
 /// The error of [`Format::from_str`]: the name given is not a format.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown format '{0}' (expected ply, xyz, csv, gempy, pcd or las)")]
+#[error("unknown format '{0}' (expected ply, xyz, csv, gempy, pcd, las or e57)")]
 pub struct UnknownFormatName(pub String);
 
 impl FromStr for Format {
     type Err = UnknownFormatName;
 
-    /// Parses `ply`, `xyz`, `csv`, `gempy`, `pcd` or `las` (case-insensitive).
+    /// Parses `ply`, `xyz`, `csv`, `gempy`, `pcd`, `las` or `e57` (case-insensitive).
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         Format::ALL
             .into_iter()
@@ -149,7 +158,8 @@ impl FromStr for Format {
 /// header names `formation` or `surface`, or all of `dip`, `azimuth` and `polarity`, is
 /// [`Format::GemPy`]. A file with an unknown extension that starts with the PLY magic line
 /// `ply` is [`Format::Ply`]; one that starts as PCL writes PCD files (`# .PCD` or `VERSION`) is
-/// [`Format::Pcd`]; one that starts with `LASF` is [`Format::Las`].
+/// [`Format::Pcd`]; one that starts with `LASF` is [`Format::Las`]; one that starts with
+/// `ASTM-E57` is [`Format::E57`].
 ///
 /// # Errors
 /// [`Error::UnknownFormat`] when neither the extension nor the content tells;
@@ -176,6 +186,7 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
                 [b'#', b' ', b'.', b'P', b'C', b'D', ..]
                 | [b'V', b'E', b'R', b'S', b'I', b'O', b'N', ..] => Ok(Format::Pcd),
                 [b'L', b'A', b'S', b'F', ..] => Ok(Format::Las),
+                b"ASTM-E57" => Ok(Format::E57),
                 _ => Err(Error::UnknownFormat {
                     path: path.to_owned(),
                 }),
@@ -301,6 +312,7 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         Format::GemPy => gempy::read_cloud(path, &checker)?,
         Format::Pcd => pcd::read(path, &checker)?,
         Format::Las => las::read(path, &checker)?,
+        Format::E57 => e57::read(path, &checker)?,
     };
     if positions.is_empty() {
         return Err(malformed(path, None, "the file holds no point"));

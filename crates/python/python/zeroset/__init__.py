@@ -279,7 +279,7 @@ def _as_field(
 
 def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     """Reads a point cloud: ``(points, normals)``, each ``(n, 3)``; normals ``None`` when the
-    file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), LAS, xyz /
+    file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), LAS / LAZ, E57, xyz /
     xyzn / pts / asc / pwn text (columns ``x y z [nx ny nz]`` or named by a first line), CSV
     with a header, GemPy tables; or a mesh (OBJ, STL, OFF, PLY with faces): the vertices its
     triangles use, with normals from the file or the triangles' winding (closed parts wound inward turned over), ``None``

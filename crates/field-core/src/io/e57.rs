@@ -1,0 +1,327 @@
+//! ASTM E57, the format terrestrial laser scanners (FARO, Leica, Trimble, Z+F) and
+//! photogrammetry exports write, read with the [`e57`] crate.
+//!
+//! An E57 file holds one or more scans (the `data3D` list), each with its own pose: a unit
+//! quaternion `q = (w, x, y, z)` and a translation `t` that take the scan's own coordinates
+//! `p` to the file's common frame, `R(q) p + t` (ASTM E2807 §8.4.8). All of them are read, in
+//! file order, into one cloud in that common frame:
+//!
+//! - Positions: `cartesianX/Y/Z` (floats or scaled integers, converted with their scale and
+//!   offset), or where a scan has no Cartesian coordinates, `sphericalRange`, `Azimuth` and
+//!   `Elevation` `(r, θ, φ)`: `(r cos φ cos θ, r cos φ sin θ, r sin φ)` (§8.4.20).
+//! - A record whose `cartesianInvalidState` (or, for spherical scans, `sphericalInvalidState`)
+//!   is not 0 is left out: 1 is a direction without a range (a beam that returned nothing), 2
+//!   no coordinate at all. Scanners write such records to keep their row/column grid.
+//! - Normals: the surface-normals extension (`normalX normalY normalZ`, namespace
+//!   [`NORMALS_URI`], written by libE57Format's simple API and CloudCompare under the prefix
+//!   `nor`), rotated by the scan's pose. Read when every scan has them; a file where some scans
+//!   have normals and some do not is an [`Error::Malformed`](crate::Error::Malformed) naming the scans.
+//! - Intensity, colour, row/column indices, time stamps and images are skipped.
+//! - Every page's CRC is checked by the crate; errors name the file. A pose whose quaternion
+//!   is zero or not finite is an error naming the scan; one of any other length is normalised.
+//!   A panic in the decoder (none known: fuzzing with each mutated file's page checksums
+//!   repaired found none) would be reported as the file's error, not a crash.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+use e57::{E57Reader, PointCloud, RecordDataType, RecordName, RecordValue};
+
+use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints};
+use crate::error::Result;
+use crate::geometry::Point3;
+use crate::limits;
+
+/// The namespace URI of the E57 surface-normals extension (libE57Format's
+/// `E57_EXT_surface_normals`).
+pub const NORMALS_URI: &str = "http://www.libe57.org/E57_EXT_surface_normals.txt";
+
+/// The names of the normal's components in the surface-normals extension.
+const NORMAL_RECORDS: [&str; 3] = ["normalX", "normalY", "normalZ"];
+
+/// Reads an E57 file; see the [module docs](self).
+pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+    let (file, _) = super::open_nonempty(path)?;
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        read_scans(path, file, check)
+    }))
+    .unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic".to_owned());
+        Err(super::malformed(
+            path,
+            None,
+            format!("not a readable E57 file: its decoder failed ({what})"),
+        ))
+    })
+}
+
+/// Where a scan's fields are in its records.
+struct Layout {
+    /// `x y z`, with the invalid-state field if any.
+    cartesian: Option<([usize; 3], Option<usize>)>,
+    /// Range, azimuth, elevation, with the invalid-state field if any.
+    spherical: Option<([usize; 3], Option<usize>)>,
+    normals: Option<[usize; 3]>,
+}
+
+impl Layout {
+    fn of(pc: &PointCloud) -> Self {
+        let find = |name: &RecordName| pc.prototype.iter().position(|r| &r.name == name);
+        let three = |names: [RecordName; 3]| match names.map(|n| find(&n)) {
+            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+            _ => None,
+        };
+        let cartesian = three([
+            RecordName::CartesianX,
+            RecordName::CartesianY,
+            RecordName::CartesianZ,
+        ])
+        .map(|at| (at, find(&RecordName::CartesianInvalidState)));
+        let spherical = three([
+            RecordName::SphericalRange,
+            RecordName::SphericalAzimuth,
+            RecordName::SphericalElevation,
+        ])
+        .map(|at| (at, find(&RecordName::SphericalInvalidState)));
+        let normal = |name: &str| {
+            pc.prototype
+                .iter()
+                .position(|r| matches!(&r.name, RecordName::Unknown { name: n, .. } if n == name))
+        };
+        let normals = match NORMAL_RECORDS.map(normal) {
+            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+            _ => None,
+        };
+        Self {
+            cartesian,
+            spherical,
+            normals,
+        }
+    }
+}
+
+/// A scan's pose as a rotation matrix (rows) and a translation.
+struct Pose {
+    rotation: [[f64; 3]; 3],
+    translation: [f64; 3],
+}
+
+impl Pose {
+    /// The pose of `pc` (the identity if it has none); an error for a quaternion that is zero
+    /// or not finite, or a translation that is not finite.
+    fn of(pc: &PointCloud, scan: usize, path: &Path) -> Result<Self> {
+        let Some(t) = &pc.transform else {
+            return Ok(Self {
+                rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                translation: [0.0; 3],
+            });
+        };
+        let q = &t.rotation;
+        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+        let translation = [t.translation.x, t.translation.y, t.translation.z];
+        if !(norm.is_finite() && norm > 1e-12) || translation.iter().any(|v| !v.is_finite()) {
+            return Err(super::malformed(
+                path,
+                None,
+                format!(
+                    "scan {scan}'s pose is not a rotation and translation: quaternion ({}, {}, {}, {}), translation ({}, {}, {})",
+                    q.w, q.x, q.y, q.z, translation[0], translation[1], translation[2]
+                ),
+            ));
+        }
+        let (w, x, y, z) = (q.w / norm, q.x / norm, q.y / norm, q.z / norm);
+        Ok(Self {
+            rotation: [
+                [
+                    1.0 - 2.0 * (y * y + z * z),
+                    2.0 * (x * y - w * z),
+                    2.0 * (x * z + w * y),
+                ],
+                [
+                    2.0 * (x * y + w * z),
+                    1.0 - 2.0 * (x * x + z * z),
+                    2.0 * (y * z - w * x),
+                ],
+                [
+                    2.0 * (x * z - w * y),
+                    2.0 * (y * z + w * x),
+                    1.0 - 2.0 * (x * x + y * y),
+                ],
+            ],
+            translation,
+        })
+    }
+
+    fn rotate(&self, v: [f64; 3]) -> [f64; 3] {
+        self.rotation
+            .map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
+    }
+
+    fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = self.rotate(p);
+        [
+            r[0] + self.translation[0],
+            r[1] + self.translation[1],
+            r[2] + self.translation[2],
+        ]
+    }
+}
+
+/// Every scan's valid points, in the file's frame.
+fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+    let bad = |e: e57::Error| super::malformed(path, None, format!("not a readable E57 file: {e}"));
+    let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
+    let scans = reader.pointclouds();
+    let layouts: Vec<Layout> = scans.iter().map(Layout::of).collect();
+    for (i, layout) in layouts.iter().enumerate() {
+        if layout.cartesian.is_none() && layout.spherical.is_none() {
+            return Err(super::malformed(
+                path,
+                None,
+                format!(
+                    "scan {i} has neither Cartesian (cartesianX/Y/Z) nor spherical (sphericalRange/Azimuth/Elevation) coordinates"
+                ),
+            ));
+        }
+    }
+    let with_normals: Vec<usize> = (0..scans.len())
+        .filter(|&i| layouts[i].normals.is_some())
+        .collect();
+    if !with_normals.is_empty() && with_normals.len() < scans.len() {
+        let without: Vec<String> = (0..scans.len())
+            .filter(|i| !with_normals.contains(i))
+            .map(|i| i.to_string())
+            .collect();
+        let with: Vec<String> = with_normals.iter().map(|i| i.to_string()).collect();
+        return Err(super::malformed(
+            path,
+            None,
+            format!(
+                "scans {} have normals and scans {} do not: zeroset reads normals for every scan or none (export the scans with normals alone, or without normals)",
+                with.join(", "),
+                without.join(", ")
+            ),
+        ));
+    }
+    let mut positions: Vec<Point3> = Vec::new();
+    let mut normals: Option<Vec<Point3>> = (!with_normals.is_empty()).then(Vec::new);
+    let what = format!("the points of {}", path.display());
+    let mut record = 0usize;
+    for (scan, (pc, layout)) in scans.iter().zip(&layouts).enumerate() {
+        let pose = Pose::of(pc, scan, path)?;
+        let types: Vec<RecordDataType> = pc.prototype.iter().map(|r| r.data_type.clone()).collect();
+        let value = |values: &[RecordValue], at: usize| -> Result<f64> {
+            let v = values.get(at).ok_or_else(|| {
+                super::malformed(
+                    path,
+                    None,
+                    format!("scan {scan}: a record is missing fields"),
+                )
+            })?;
+            v.to_f64(&types[at]).map_err(bad)
+        };
+        let valid = |values: &[RecordValue], state: Option<usize>| -> Result<bool> {
+            Ok(match state {
+                Some(at) => value(values, at)? == 0.0,
+                None => true,
+            })
+        };
+        for raw in reader.pointcloud_raw(pc).map_err(bad)? {
+            let values = raw.map_err(bad)?;
+            let here = record;
+            record += 1;
+            let local = match (layout.cartesian, layout.spherical) {
+                (Some((at, state)), _) if valid(&values, state)? => [
+                    value(&values, at[0])?,
+                    value(&values, at[1])?,
+                    value(&values, at[2])?,
+                ],
+                (_, Some((at, state))) if valid(&values, state)? => {
+                    let (r, azimuth, elevation) = (
+                        value(&values, at[0])?,
+                        value(&values, at[1])?,
+                        value(&values, at[2])?,
+                    );
+                    [
+                        r * elevation.cos() * azimuth.cos(),
+                        r * elevation.cos() * azimuth.sin(),
+                        r * elevation.sin(),
+                    ]
+                }
+                _ => continue,
+            };
+            check.check(here, None, &POSITION_FIELDS, &local)?;
+            limits::grow(&mut positions, 1, &what)?;
+            positions.push(pose.apply(local));
+            if let (Some(normals), Some(at)) = (normals.as_mut(), layout.normals) {
+                let n = [
+                    value(&values, at[0])?,
+                    value(&values, at[1])?,
+                    value(&values, at[2])?,
+                ];
+                check.check(here, None, &NORMAL_FIELDS, &n)?;
+                limits::grow(normals, 1, &what)?;
+                normals.push(pose.rotate(n));
+            }
+        }
+    }
+    Ok((positions, normals))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use e57::{Quaternion, Transform, Translation};
+
+    fn cloud_with_pose(q: [f64; 4], t: [f64; 3]) -> PointCloud {
+        let mut pc = PointCloud::default();
+        pc.transform = Some(Transform {
+            rotation: Quaternion {
+                w: q[0],
+                x: q[1],
+                y: q[2],
+                z: q[3],
+            },
+            translation: Translation {
+                x: t[0],
+                y: t[1],
+                z: t[2],
+            },
+        });
+        pc
+    }
+
+    #[test]
+    fn a_pose_rotates_then_translates() {
+        // A quarter turn about z (q = (cos 45°, 0, 0, sin 45°)), given at twice unit length.
+        let h = std::f64::consts::FRAC_1_SQRT_2 * 2.0;
+        let pc = cloud_with_pose([h, 0.0, 0.0, h], [1.0, 2.0, 3.0]);
+        let pose = Pose::of(&pc, 0, Path::new("x.e57")).unwrap();
+        let p = pose.apply([1.0, 0.0, 5.0]);
+        for (got, want) in p.iter().zip([1.0, 3.0, 8.0]) {
+            assert!((got - want).abs() < 1e-12, "{p:?}");
+        }
+        let n = pose.rotate([0.0, 1.0, 0.0]);
+        for (got, want) in n.iter().zip([-1.0, 0.0, 0.0]) {
+            assert!((got - want).abs() < 1e-12, "{n:?}");
+        }
+    }
+
+    #[test]
+    fn a_degenerate_pose_is_an_error_naming_the_scan() {
+        for (q, t) in [
+            ([0.0; 4], [0.0; 3]),
+            ([f64::NAN, 0.0, 0.0, 0.0], [0.0; 3]),
+            ([1.0, 0.0, 0.0, 0.0], [f64::INFINITY, 0.0, 0.0]),
+        ] {
+            let pc = cloud_with_pose(q, t);
+            let e = Pose::of(&pc, 3, Path::new("x.e57")).err().unwrap();
+            assert!(e.to_string().contains("scan 3's pose"), "{e}");
+        }
+    }
+}

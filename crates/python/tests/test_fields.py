@@ -436,3 +436,20 @@ def test_read_points_takes_pcd_and_named_text_columns(tmp_path):
     read_p, read_n = zeroset.read_points(text)
     assert np.array_equal(read_p, points.astype(np.float64))
     assert np.array_equal(read_n, normals.astype(np.float64))
+
+
+def test_read_points_takes_e57_laser_scans():
+    # Written by libE57Format (benches/peers/format_fixtures.py): two scans, the second under a
+    # pose, as integers scaled by 1e-7, with four records flagged invalid; normals rotated with
+    # the scan. Read back into the file's frame, they are the text file's points.
+    from conftest import REPO
+
+    data = REPO / "crates/field-core/tests/data"
+    want = np.loadtxt(data / "bunny300.xyzn")
+    points, normals = zeroset.read_points(data / "bunny300.e57")
+    assert points.shape == (300, 3)
+    assert np.abs(points - want[:, :3]).max() < 2e-7
+    assert np.abs(normals - want[:, 3:6]).max() < 1e-6
+    points, normals = zeroset.read_points(data / "bunny300_spherical.e57")
+    assert normals is None
+    assert np.abs(points - want[:, :3]).max() < 1e-12

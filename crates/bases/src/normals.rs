@@ -54,7 +54,10 @@
 //! inside to read, its divergence about 0: its sign is arbitrary. A scan from inside a closed
 //! space (a room) comes out facing away from the scanner, as the outside of that space. For
 //! both, give where the scanner stood ([`NormalOptions::viewpoint`]): each large piece then
-//! faces it.
+//! faces it. A scene taken from several stations (rooms, a building's sides) faces each
+//! station's own points best: [`estimate_normals_from_scanners`] takes, for each point, where
+//! the scanner that recorded it stood (an E57 file's scan origins), and turns each large piece
+//! so that its normals face those scanners on average.
 //! Thin parts sampled more coarsely than their thickness mix the two sheets in their planes
 //! (the 2,000-point bunny sample: one ear, 2.85% of its points, turned inward).
 //!
@@ -204,6 +207,14 @@ pub enum NormalError {
         /// Its coordinates.
         value: Point<3>,
     },
+    /// Scanner positions that are not one per point.
+    #[error("{got} scanner positions for {points} points: give one per point")]
+    Scanners {
+        /// Positions given.
+        got: usize,
+        /// Points.
+        points: usize,
+    },
     /// A neighbour count outside its range.
     #[error(
         "neighbours = {got}: a plane is fitted to a point and its neighbours, from \
@@ -243,15 +254,62 @@ pub fn estimate_normals(
     positions: &[Point<3>],
     options: &NormalOptions,
 ) -> Result<EstimatedNormals, NormalError> {
+    let facing = match options.viewpoint {
+        Some(v) => Facing::Viewpoint(v),
+        None => Facing::Outward,
+    };
+    estimate(positions, options.neighbours, &facing)
+}
+
+/// Unit normals for `positions`, each large piece turned so that its normals face, on average,
+/// the scanners that recorded its points: `scanners[i]` is where the scanner stood that
+/// recorded point `i` (for a scene taken from several stations; see the
+/// [module docs](self)). `options.viewpoint` is not used.
+///
+/// # Errors
+/// As [`estimate_normals`]; [`NormalError::Scanners`] unless there is one scanner position per
+/// point, [`NormalError::Viewpoint`] for one that is not finite.
+pub fn estimate_normals_from_scanners(
+    positions: &[Point<3>],
+    scanners: &[Point<3>],
+    options: &NormalOptions,
+) -> Result<EstimatedNormals, NormalError> {
+    if scanners.len() != positions.len() {
+        return Err(NormalError::Scanners {
+            got: scanners.len(),
+            points: positions.len(),
+        });
+    }
+    estimate(positions, options.neighbours, &Facing::Scanners(scanners))
+}
+
+/// Which way each large piece is turned.
+enum Facing<'a> {
+    /// Outward, by its divergence.
+    Outward,
+    /// Towards one viewpoint.
+    Viewpoint(Point<3>),
+    /// Each point towards its own scanner.
+    Scanners(&'a [Point<3>]),
+}
+
+/// [`estimate_normals`] with `k` neighbours, each large piece turned as `facing` says.
+fn estimate(
+    positions: &[Point<3>],
+    k: usize,
+    facing: &Facing<'_>,
+) -> Result<EstimatedNormals, NormalError> {
     let n = positions.len();
-    let k = options.neighbours;
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
     }
-    if let Some(v) = options.viewpoint
-        && !v.iter().all(|x| x.is_finite())
-    {
-        return Err(NormalError::Viewpoint { value: v });
+    let viewpoints: &[Point<3>] = match facing {
+        Facing::Outward => &[],
+        Facing::Viewpoint(v) => std::slice::from_ref(v),
+        Facing::Scanners(all) => all,
+    };
+    if let Some(v) = viewpoints.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
+        return Err(NormalError::Viewpoint { value: *v });
     }
     if n < 3 {
         return Err(NormalError::TooFewPoints { needed: 3, got: n });
@@ -282,7 +340,7 @@ pub fn estimate_normals(
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
-    let (signed, attached) = sign_pieces(positions, &pieces, options.viewpoint, &mut normals);
+    let (signed, attached) = sign_pieces(positions, &pieces, facing, &mut normals);
     Ok(EstimatedNormals {
         normals,
         pieces: signed,
@@ -455,13 +513,13 @@ fn orient_pieces(
     pieces
 }
 
-/// Turns each large piece outward by its divergence (or to face `viewpoint`) and each small
-/// piece to agree with its points' nearest points in the large pieces. Returns the large pieces' count and the small
-/// pieces' points.
+/// Turns each large piece outward by its divergence (or as `facing` says) and each small
+/// piece to agree with its points' nearest points in the large pieces. Returns the large
+/// pieces' count and the small pieces' points.
 fn sign_pieces(
     positions: &[Point<3>],
     pieces: &[Vec<u32>],
-    viewpoint: Option<Point<3>>,
+    facing: &Facing<'_>,
     normals: &mut [Point<3>],
 ) -> (usize, usize) {
     // A piece whose root has no plane has none at all (roots are taken from the points with
@@ -496,22 +554,26 @@ fn sign_pieces(
             .iter()
             .fold([0.0; 3], |s, &i| geometry::add(&s, &positions[i as usize]))
             .map(|x| x / piece.len() as f64);
-        // Outward: Σ (p − c)·n > 0; towards the viewpoint v: Σ n·(v − p)/‖v − p‖ > 0.
+        // Outward: Σ (p − c)·n > 0; towards the viewpoints v_i: Σ n·(v_i − p)/‖v_i − p‖ > 0.
+        let cosine_towards = |v: &Point<3>, i: usize| {
+            let towards = geometry::sub(v, &positions[i]);
+            let length = geometry::norm(&towards);
+            if length > 0.0 {
+                geometry::dot(&towards, &normals[i]) / length
+            } else {
+                0.0
+            }
+        };
         let divergence: f64 = piece
             .iter()
             .map(|&i| {
                 let i = i as usize;
-                match viewpoint {
-                    None => geometry::dot(&geometry::sub(&positions[i], &centroid), &normals[i]),
-                    Some(v) => {
-                        let towards = geometry::sub(&v, &positions[i]);
-                        let length = geometry::norm(&towards);
-                        if length > 0.0 {
-                            geometry::dot(&towards, &normals[i]) / length
-                        } else {
-                            0.0
-                        }
+                match facing {
+                    Facing::Outward => {
+                        geometry::dot(&geometry::sub(&positions[i], &centroid), &normals[i])
                     }
+                    Facing::Viewpoint(v) => cosine_towards(v, i),
+                    Facing::Scanners(all) => cosine_towards(&all[i], i),
                 }
             })
             .sum();

@@ -5,6 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, NormalError, NormalOptions, estimate_normals,
+    estimate_normals_from_scanners,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -261,6 +262,48 @@ fn a_viewpoint_turns_flat_and_inside_scans_towards_the_scanner() {
     let nan = NormalOptions::default().viewpoint([0.0, f64::NAN, 0.0]);
     assert!(matches!(
         estimate_normals(&room, &nan),
+        Err(NormalError::Viewpoint { .. })
+    ));
+}
+
+#[test]
+fn each_piece_faces_the_scanners_that_recorded_it() {
+    // Two stations: one inside a room (the inside of a sphere of radius 3 about the origin),
+    // one at x = 8 facing a wall outside it (a curved 2 × 2 sheet about x = 5). From each
+    // station its own points face it: the room inward, the wall towards +x.
+    let (room, outward) = sphere(2000, [0.0; 3], 3.0);
+    let wall: Vec<P> = (0..1600)
+        .map(|i| {
+            let (y, z) = ((i % 40) as f64 * 0.05 - 1.0, (i / 40) as f64 * 0.05 - 1.0);
+            [5.0 + 0.1 * (2.0 * y).sin() * z.cos(), y, z]
+        })
+        .collect();
+    let points: Vec<P> = room.iter().chain(&wall).copied().collect();
+    let (inside, outside) = ([0.2, -0.1, 0.3], [8.0, 0.0, 0.0]);
+    let scanners: Vec<P> = (0..points.len())
+        .map(|i| if i < room.len() { inside } else { outside })
+        .collect();
+    let options = NormalOptions::default();
+    let estimated = estimate_normals_from_scanners(&points, &scanners, &options).unwrap();
+    let (room_normals, wall_normals) = estimated.normals.split_at(room.len());
+    assert_eq!(against(room_normals, &outward).0, 1.0);
+    assert!(wall_normals.iter().all(|n| n[0] > 0.8));
+    // One viewpoint for both (the room's station) sees the wall from behind: it turns the
+    // wall away from the scanner that recorded it.
+    let one = estimate_normals(&points, &options.viewpoint(inside)).unwrap();
+    assert!(one.normals[room.len()..].iter().all(|n| n[0] < -0.8));
+    // One scanner position per point, each finite.
+    assert_eq!(
+        estimate_normals_from_scanners(&points, &scanners[1..], &options),
+        Err(NormalError::Scanners {
+            got: points.len() - 1,
+            points: points.len()
+        })
+    );
+    let mut nan = scanners.clone();
+    nan[7] = [0.0, f64::NAN, 0.0];
+    assert!(matches!(
+        estimate_normals_from_scanners(&points, &nan, &options),
         Err(NormalError::Viewpoint { .. })
     ));
 }

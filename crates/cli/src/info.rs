@@ -127,8 +127,9 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     let (cloud, first_non_finite) = match io::read_point_cloud_with(path, &options) {
         Ok(cloud) => (cloud, None),
         Err(e @ Error::NonFinite { .. }) => {
-            let cloud = io::read_point_cloud_with(path, &options.with_allow_non_finite(true))
-                .context("cannot read point cloud")?;
+            let cloud =
+                io::read_point_cloud_with(path, &options.clone().with_allow_non_finite(true))
+                    .context("cannot read point cloud")?;
             (cloud, Some(e))
         }
         Err(e) => return Err(anyhow::Error::new(e).context("cannot read point cloud")),
@@ -141,6 +142,12 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     line(&mut s, "format", format.name());
     let n = stats.count;
     line(&mut s, "points", &format!("{n} point{}", plural(n)));
+    if format == Format::E57 {
+        // The points above were read with the same options; this adds what each scan held.
+        let e57 = io::e57::read_e57(path, &options.clone().with_allow_non_finite(true))
+            .context("cannot read point cloud")?;
+        write_scans(&mut s, &e57.scans);
+    }
     write_bounds(&mut s, &cloud);
     write_normals(&mut s, &stats);
     if let Some(Error::NotNormals { colours, .. }) = &not_normals {
@@ -441,8 +448,54 @@ fn more(s: &mut String, value: &str) {
     let _ = writeln!(s, "{:<LABEL_WIDTH$} {value}", "");
 }
 
-fn plural(n: usize) -> &'static str {
+pub(crate) fn plural(n: usize) -> &'static str {
     if n == 1 { "" } else { "s" }
+}
+
+/// An E57 file's scans: one row each.
+fn write_scans(s: &mut String, scans: &[io::e57::Scan]) {
+    use io::e57::Coordinates;
+    let n = scans.len();
+    line(
+        s,
+        "scans",
+        &format!(
+            "{n} scan{}, each moved into the file's frame by its pose; origin: the scan's own \
+             origin there (where a terrestrial scanner stood)",
+            plural(n)
+        ),
+    );
+    more(
+        s,
+        " scan  records   points  coordinates  normals  pose  origin                    name",
+    );
+    for (i, scan) in scans.iter().enumerate() {
+        let invalid = scan.records.saturating_sub(scan.points as u64);
+        more(
+            s,
+            &format!(
+                "{i:>5}  {:>7}  {:>7}  {:<11}  {:<7}  {:<4}  {:<24}  {}{}",
+                scan.records,
+                scan.points,
+                match scan.coordinates {
+                    Coordinates::Cartesian => "Cartesian",
+                    Coordinates::Spherical => "spherical",
+                },
+                if scan.normals { "yes" } else { "no" },
+                if scan.posed { "yes" } else { "no" },
+                point(scan.origin),
+                scan.name.as_deref().unwrap_or("-"),
+                if invalid > 0 {
+                    format!(
+                        " ({invalid} invalid record{} left out)",
+                        plural(invalid as usize)
+                    )
+                } else {
+                    String::new()
+                }
+            ),
+        );
+    }
 }
 
 fn write_bounds(s: &mut String, cloud: &PointCloud3) {

@@ -11,13 +11,15 @@ use anyhow::Context;
 use clap::Args;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS, NormalOptions,
-    estimate_normals,
+    estimate_normals, estimate_normals_from_scanners,
 };
 use zeroset_field_core::geometry;
-use zeroset_field_core::io::{ReadOptions, read_point_cloud_with, write_atomic, write_ply};
+use zeroset_field_core::io::{
+    self, Format, ReadOptions, read_point_cloud_with, write_atomic, write_ply,
+};
 use zeroset_field_core::{Error, PointCloud3};
 
-use crate::info::g;
+use crate::info::{g, plural};
 use crate::progress::{seconds, spinner};
 
 /// Shown after `zeroset normals --help`.
@@ -30,15 +32,17 @@ Examples:
   zeroset normals scan.xyz --neighbours 30 -o scan_oriented.xyzn
   # terrain scanned from the air: face the sensor, far above
   zeroset normals terrain.xyz --viewpoint 0,0,10000 -o terrain_oriented.ply
+  # a building scanned from several stations (E57): each part faces its own stations
+  zeroset normals site.e57 --viewpoint scanners -o site_oriented.ply
   # a scan that has normals: estimate them anyway and report how far they differ
   zeroset normals samples/bunny_2k.xyzn -o /tmp/bunny_estimated.ply";
 
 /// `zeroset normals`' arguments.
 #[derive(Debug, Args)]
 pub struct NormalsArgs {
-    /// A point cloud: .ply, .pcd, .las/.laz (LiDAR), .e57 (laser scans), .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a
-    /// mesh (.ply with faces, .obj, .stl, .off). Only its positions are used; normals it has
-    /// are compared with the estimate, not used.
+    /// A point cloud: .ply, .pcd, .las/.laz (LiDAR), .e57 (laser scans),
+    /// .xyz/.xyzn/.txt/.pts/.asc/.pwn or .csv, or a mesh (.ply with faces, .obj, .stl, .off).
+    /// Only its positions are used; normals it has are compared with the estimate, not used.
     pub scan: PathBuf,
 
     /// The oriented cloud, in input order: .ply (binary little-endian, double x y z nx ny nz)
@@ -53,9 +57,11 @@ pub struct NormalsArgs {
 
     /// Where the scanner stood: each piece is turned to face it instead of outward — for
     /// one-sided scans of flat surfaces (a wall, terrain), which have no inside to read, and
-    /// scans from inside a room.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_viewpoint, allow_hyphen_values = true)]
-    pub viewpoint: Option<[f64; 3]>,
+    /// scans from inside a room. `scanners` (an E57 file): each piece faces the stations that
+    /// recorded its points, each scan's origin in the file's frame.
+    #[arg(long, value_name = "X,Y,Z|scanners", value_parser = parse_viewpoint,
+          allow_hyphen_values = true)]
+    pub viewpoint: Option<Viewpoint>,
 
     /// Read the scan as this format whatever its extension: ply, xyz, csv.
     #[arg(long)]
@@ -92,7 +98,8 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
             ""
         }
     );
-    let (oriented, _) = orient(&cloud, args.neighbours, args.viewpoint, args.quiet)?;
+    let facing = facing(args.viewpoint, &args.scan, &options, &cloud)?;
+    let (oriented, _) = orient(&cloud, args.neighbours, &facing, args.quiet)?;
     if let (Some(given), Some(estimated)) = (cloud.normals(), oriented.normals()) {
         outln!("{:<14}{}", "compared", compare(estimated, given));
     }
@@ -183,13 +190,94 @@ pub(crate) fn read_positions(
     }
 }
 
-/// `--viewpoint`: three finite comma-separated numbers.
-pub(crate) fn parse_viewpoint(s: &str) -> Result<[f64; 3], String> {
-    let v: [f64; 3] = crate::restore::parse_triple(s, "--viewpoint")?;
+/// `--viewpoint`: where the scanner stood, or each point's scanner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Viewpoint {
+    /// One position for every point.
+    Point([f64; 3]),
+    /// Each point's scan's origin (an E57 file).
+    Scanners,
+}
+
+impl std::fmt::Display for Viewpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Viewpoint::Point(v) => write!(f, "{v:?}"),
+            Viewpoint::Scanners => f.write_str("scanners"),
+        }
+    }
+}
+
+/// `--viewpoint`: three finite comma-separated numbers, or `scanners`.
+pub(crate) fn parse_viewpoint(s: &str) -> Result<Viewpoint, String> {
+    if s.trim().eq_ignore_ascii_case("scanners") {
+        return Ok(Viewpoint::Scanners);
+    }
+    let v: [f64; 3] = crate::restore::parse_triple(s, "--viewpoint")
+        .map_err(|e| format!("{e} (or `scanners`: each point's E57 scan origin)"))?;
     if v.iter().all(|x| x.is_finite()) {
-        Ok(v)
+        Ok(Viewpoint::Point(v))
     } else {
         Err(format!("--viewpoint must be finite, got {s:?}"))
+    }
+}
+
+/// Which way the estimated normals are turned.
+pub(crate) enum Facing {
+    /// Outward (each piece by its divergence).
+    Outward,
+    /// Towards one viewpoint.
+    Point([f64; 3]),
+    /// Each point towards its scan's origin; the count of scans.
+    Scanners(Vec<[f64; 3]>, usize),
+}
+
+/// The facing `--viewpoint` asks for on the scan `path` (read with `options` as `cloud`):
+/// `scanners` reads the origins of an E57 file's scans, one per point.
+pub(crate) fn facing(
+    viewpoint: Option<Viewpoint>,
+    path: &Path,
+    options: &ReadOptions,
+    cloud: &PointCloud3,
+) -> anyhow::Result<Facing> {
+    match viewpoint {
+        None => Ok(Facing::Outward),
+        Some(Viewpoint::Point(v)) => Ok(Facing::Point(v)),
+        Some(Viewpoint::Scanners) => {
+            let format = match options.format {
+                Some(f) => f,
+                None => io::detect_format(path)?,
+            };
+            if format != Format::E57 {
+                anyhow::bail!(
+                    "--viewpoint scanners takes where each point's scanner stood from an E57 \
+                     file's scans (their poses); {} is {format}: give --viewpoint X,Y,Z",
+                    path.display()
+                );
+            }
+            let read = options.clone().with_positions_only(true);
+            let e57 = io::e57::read_e57(path, &read)
+                .with_context(|| format!("reading the scans of {}", path.display()))?;
+            let origins = e57.origins();
+            if origins.len() != cloud.len() {
+                anyhow::bail!(
+                    "{}: {} points read, but its scans hold {}",
+                    path.display(),
+                    cloud.len(),
+                    origins.len()
+                );
+            }
+            for (i, scan) in e57.scans.iter().enumerate() {
+                if !scan.posed && scan.coordinates == io::e57::Coordinates::Cartesian {
+                    outln!(
+                        "{:<14}scan {i} has Cartesian coordinates and no pose: its scanner is \
+                         taken to stand at the file's origin (0, 0, 0)",
+                        "note"
+                    );
+                }
+            }
+            Ok(Facing::Scanners(origins, e57.scans.len()))
+        }
     }
 }
 
@@ -209,7 +297,7 @@ pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
 pub(crate) fn orient(
     cloud: &PointCloud3,
     neighbours: usize,
-    viewpoint: Option<[f64; 3]>,
+    facing: &Facing,
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
@@ -217,13 +305,14 @@ pub(crate) fn orient(
     let used = neighbours.min(cloud.len().saturating_sub(1));
     let bar = spinner(quiet);
     bar.set_message("estimating normals: planes of neighbours, signs along a spanning forest");
-    let estimated = estimate_normals(
-        cloud.positions(),
-        &NormalOptions {
-            neighbours: neighbours.min(MAX_NEIGHBOURS),
-            viewpoint,
-        },
-    );
+    let options = NormalOptions::default().neighbours(neighbours.min(MAX_NEIGHBOURS));
+    let estimated = match facing {
+        Facing::Outward => estimate_normals(cloud.positions(), &options),
+        Facing::Point(v) => estimate_normals(cloud.positions(), &options.viewpoint(*v)),
+        Facing::Scanners(origins, _) => {
+            estimate_normals_from_scanners(cloud.positions(), origins, &options)
+        }
+    };
     bar.finish_and_clear();
     let mut estimated = estimated.context("estimating normals")?;
     // A clause for a count that is not zero.
@@ -248,9 +337,11 @@ pub(crate) fn orient(
         "normals",
         estimated.pieces,
         if estimated.pieces == 1 { "" } else { "s" },
-        match viewpoint {
-            Some(v) => format!("towards the viewpoint {v:?}"),
-            None => "outward".to_owned(),
+        match facing {
+            Facing::Point(v) => format!("towards the viewpoint {v:?}"),
+            Facing::Scanners(_, scans) =>
+                format!("towards the scanners of its {scans} scan{}", plural(*scans)),
+            Facing::Outward => "outward".to_owned(),
         },
         seconds(t.elapsed())
     );

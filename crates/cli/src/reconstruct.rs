@@ -103,10 +103,11 @@ pub struct ReconstructArgs {
 
     /// Where the scanner stood, for a scan without normals taken from one side (a room, a
     /// facade, terrain): the estimated normals are turned to face it instead of outward (as
-    /// `zeroset normals --viewpoint`). Refused for a scan with normals of its own.
-    #[arg(long, value_name = "X,Y,Z", value_parser = crate::normals::parse_viewpoint,
+    /// `zeroset normals --viewpoint`; `scanners` for an E57 file: each piece faces the stations
+    /// that recorded it). Refused for a scan with normals of its own.
+    #[arg(long, value_name = "X,Y,Z|scanners", value_parser = crate::normals::parse_viewpoint,
           allow_hyphen_values = true)]
-    pub viewpoint: Option<[f64; 3]>,
+    pub viewpoint: Option<crate::normals::Viewpoint>,
 
     /// Write no PNG preview.
     #[arg(long)]
@@ -191,7 +192,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // beside the output, removed however the command ends).
     if let (Some(v), Some(_)) = (args.viewpoint, cloud.normals()) {
         bail!(
-            "--viewpoint {v:?} turns estimated normals, but {} has normals of its own, which \
+            "--viewpoint {v} turns estimated normals, but {} has normals of its own, which \
              the fit uses as they are (drop --viewpoint, or give the positions only to have \
              them estimated)",
             args.scan.display()
@@ -204,8 +205,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             "normals",
             args.scan.display()
         );
+        let facing =
+            crate::normals::facing(args.viewpoint, &args.scan, &Default::default(), &cloud)?;
         let (oriented, _) =
-            crate::normals::orient(&cloud, args.normal_neighbours, args.viewpoint, args.quiet)?;
+            crate::normals::orient(&cloud, args.normal_neighbours, &facing, args.quiet)?;
         drop(cloud);
         let path = temporary_file(&args.output, "ply");
         let temporary = Temporary(Some(path.clone()));

@@ -1091,6 +1091,12 @@ fn cases() -> Vec<Case> {
         )
         .no_file(),
         cli(
+            "the scanners' viewpoints of a file without scans",
+            "normals positions.xyz -o out.ply --viewpoint scanners --quiet",
+        )
+        .no_file()
+        .says("E57"),
+        cli(
             "bad input with an existing output and --force",
             "normals nan.xyzn -o out.ply --force --quiet",
         )

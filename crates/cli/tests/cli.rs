@@ -2804,6 +2804,113 @@ fn reconstruct_and_mesh_trim_an_open_scan_to_its_points() {
     );
 }
 
+/// An E57 file of two stations: scan 0 from inside a room (the inside of a sphere of radius 3
+/// about the origin), its scanner at `(0.2, −0.1, 0.3)`; scan 1 of a wall outside it (a curved
+/// 2 × 2 sheet about x = 5), its scanner at `(8, 0, 0)` and turned a quarter about z. Each
+/// scan stores its points in its own frame, as a scanner does. Returns the file's points in
+/// the common frame, scan after scan.
+fn two_station_e57(path: &Path) -> Vec<[f64; 3]> {
+    use e57::{Quaternion, Record, RecordValue, Transform, Translation};
+    let room: Vec<[f64; 3]> = sphere_points(2000)
+        .into_iter()
+        .map(|(_, n)| n.map(|x| 3.0 * x))
+        .collect();
+    let wall: Vec<[f64; 3]> = (0..1600)
+        .map(|i| {
+            let (y, z) = ((i % 40) as f64 * 0.05 - 1.0, (i / 40) as f64 * 0.05 - 1.0);
+            [5.0 + 0.1 * (2.0 * y).sin() * z.cos(), y, z]
+        })
+        .collect();
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // (station, quaternion (w, x, y, z) of its rotation, its points).
+    let stations = [
+        ([0.2, -0.1, 0.3], [1.0, 0.0, 0.0, 0.0], &room),
+        ([8.0, 0.0, 0.0], [h, 0.0, 0.0, h], &wall),
+    ];
+    let mut writer = e57::E57Writer::from_file(path, "{two stations}").unwrap();
+    for (i, (t, q, points)) in stations.iter().enumerate() {
+        let prototype = vec![
+            Record::CARTESIAN_X_F64,
+            Record::CARTESIAN_Y_F64,
+            Record::CARTESIAN_Z_F64,
+        ];
+        let mut scan = writer
+            .add_pointcloud(&format!("{{scan {i}}}"), prototype)
+            .unwrap();
+        scan.set_transform(Some(Transform {
+            rotation: Quaternion {
+                w: q[0],
+                x: q[1],
+                y: q[2],
+                z: q[3],
+            },
+            translation: Translation {
+                x: t[0],
+                y: t[1],
+                z: t[2],
+            },
+        }));
+        // A rotation about z by 0 or a quarter turn: local = Rᵀ (p − t).
+        let quarter = q[3] != 0.0;
+        for p in points.iter() {
+            let d = [p[0] - t[0], p[1] - t[1], p[2] - t[2]];
+            let local = if quarter { [d[1], -d[0], d[2]] } else { d };
+            scan.add_point(local.map(RecordValue::Double).to_vec())
+                .unwrap();
+        }
+        scan.finalize().unwrap();
+    }
+    writer.finalize().unwrap();
+    room.iter().chain(&wall).copied().collect()
+}
+
+#[test]
+fn normals_turns_each_e57_scan_towards_its_own_scanner() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.e57");
+    let points = two_station_e57(&scene);
+    let o = info(&scene, &[]);
+    assert!(stdout(&o).contains("2 scans"), "{}", stdout(&o));
+    let normals = |viewpoint: &str| {
+        let out = dir.path().join("out.xyzn");
+        let o = zeroset([
+            OsStr::new("normals"),
+            scene.as_os_str(),
+            OsStr::new("--viewpoint"),
+            OsStr::new(viewpoint),
+            OsStr::new("--force"),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let rows: Vec<Vec<f64>> = fs::read_to_string(&out)
+            .unwrap()
+            .lines()
+            .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+            .collect();
+        (stdout(&o), rows)
+    };
+    // Each station's points face it: the room inward (against the radius), the wall towards +x.
+    let (out, rows) = normals("scanners");
+    assert!(out.contains("towards the scanners of its 2 scans"), "{out}");
+    assert_eq!(rows.len(), points.len());
+    for (row, p) in rows.iter().zip(&points) {
+        for a in 0..3 {
+            assert!((row[a] - p[a]).abs() < 1e-12, "{row:?} vs {p:?}");
+        }
+        let facing = if p[0] < 4.0 {
+            -(0..3).map(|a| row[3 + a] * p[a]).sum::<f64>() / 3.0
+        } else {
+            row[3]
+        };
+        assert!(facing > 0.8, "{row:?}");
+    }
+    // One viewpoint for both (the room's scanner) sees the wall from behind and turns it away
+    // from the scanner that recorded it.
+    let (_, rows) = normals("0.2,-0.1,0.3");
+    assert!(rows[2000..].iter().all(|row| row[3] < -0.8));
+}
+
 #[test]
 fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,11 +1,13 @@
-//! Point clouds in: every format `zeroset` reads (PLY, PCD, LAS, xyz / xyzn / pts text, CSV, GemPy
-//! tables, and meshes' vertices).
+//! Point clouds in: every format `zeroset` reads (PLY, PCD, LAS/LAZ, E57, xyz / xyzn / pts
+//! text, CSV, GemPy tables, and meshes' vertices).
 
 use std::path::PathBuf;
 
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
-use zeroset_bases::normals::{NormalOptions, estimate_normals as estimate};
+use zeroset_bases::normals::{
+    NormalOptions, estimate_normals as estimate, estimate_normals_from_scanners,
+};
 use zeroset_field_core::io::read_point_cloud;
 
 use crate::arrays::{points as rows, rows_array};
@@ -40,20 +42,29 @@ pub(crate) fn sample_xyzn() -> &'static str {
     include_str!("../samples/bunny_2k.xyzn")
 }
 
-/// Outward unit normals for `points` (see `zeroset.estimate_normals`).
+/// Outward unit normals for `points` (see `zeroset.estimate_normals`); with `scanners`, each
+/// piece faces the scanners of its points.
 #[pyfunction]
-#[pyo3(signature = (points, neighbours, viewpoint=None))]
+#[pyo3(signature = (points, neighbours, viewpoint=None, scanners=None))]
 pub(crate) fn estimate_normals<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
     neighbours: usize,
     viewpoint: Option<[f64; 3]>,
+    scanners: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let positions = rows(&points, "points", true)?;
     let options = NormalOptions {
         neighbours,
         viewpoint,
     };
-    let estimated = py.detach(|| estimate(positions, &options)).map_err(to_py)?;
+    let estimated = match &scanners {
+        None => py.detach(|| estimate(positions, &options)),
+        Some(scanners) => {
+            let scanners = rows(scanners, "scanners", true)?;
+            py.detach(|| estimate_normals_from_scanners(positions, scanners, &options))
+        }
+    }
+    .map_err(to_py)?;
     Ok(rows_array(py, estimated.normals))
 }

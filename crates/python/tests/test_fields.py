@@ -376,6 +376,9 @@ def test_estimated_normals_are_outward_and_the_commands(tmp_path, zeroset_bin):
     # Seen from the centre (a room scanned from inside): every normal faces it.
     inward = zeroset.estimate_normals(points, viewpoint=(0.0, 0.0, 0.0))
     np.testing.assert_array_equal(inward, -estimated)
+    # The same scanner given for every point is that viewpoint.
+    scanners = np.zeros_like(points)
+    np.testing.assert_array_equal(zeroset.estimate_normals(points, scanners=scanners), inward)
     # The estimate fits like a scan's own normals.
     field = zeroset.fit(points, estimated)
     assert field(np.zeros(3)) < -0.5 and field(np.array([1.2, 0, 0])) > 0
@@ -399,6 +402,10 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(points[:, :2])
     with pytest.raises(ValueError, match="viewpoint"):
         zeroset.estimate_normals(points, viewpoint=(0.0, float("nan"), 0.0))
+    with pytest.raises(ValueError, match="99 scanner positions for 100 points"):
+        zeroset.estimate_normals(points, scanners=np.zeros((99, 3)))
+    with pytest.raises(ValueError, match="not both"):
+        zeroset.estimate_normals(points, viewpoint=(0, 0, 0), scanners=np.zeros((100, 3)))
 
 
 def test_read_points_takes_pcd_and_named_text_columns(tmp_path):

@@ -15,12 +15,17 @@
 //! - Normals: the surface-normals extension (`normalX normalY normalZ`, namespace
 //!   [`NORMALS_URI`], written by libE57Format's simple API and CloudCompare under the prefix
 //!   `nor`), rotated by the scan's pose. Read when every scan has them; a file where some scans
-//!   have normals and some do not is an [`Error::Malformed`](crate::Error::Malformed) naming the scans.
+//!   have normals and some do not is an [`Error::Malformed`](crate::Error::Malformed) naming
+//!   the scans.
 //! - Intensity, colour, row/column indices, time stamps and images are skipped.
 //! - Every page's CRC is checked by the crate; errors name the file. A pose whose quaternion
 //!   is zero or not finite is an error naming the scan; one of any other length is normalised.
 //!   A panic in the decoder (none known: fuzzing with each mutated file's page checksums
 //!   repaired found none) would be reported as the file's error, not a crash.
+//!
+//! [`read_point_cloud`](super::read_point_cloud) gives the points; [`read_e57`] gives them with
+//! what each scan held ([`Scan`]: its name, records, the points kept, its coordinates and its
+//! origin in the file's frame, where a terrestrial scanner stood).
 
 use std::fs::File;
 use std::io::BufReader;
@@ -28,7 +33,8 @@ use std::path::Path;
 
 use e57::{E57Reader, PointCloud, RecordDataType, RecordName, RecordValue};
 
-use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints};
+use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, ReadOptions};
+use crate::cloud::PointCloud3;
 use crate::error::Result;
 use crate::geometry::Point3;
 use crate::limits;
@@ -40,24 +46,90 @@ pub const NORMALS_URI: &str = "http://www.libe57.org/E57_EXT_surface_normals.txt
 /// The names of the normal's components in the surface-normals extension.
 const NORMAL_RECORDS: [&str; 3] = ["normalX", "normalY", "normalZ"];
 
+/// How a scan stores its points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coordinates {
+    /// `cartesianX/Y/Z`.
+    Cartesian,
+    /// `sphericalRange/Azimuth/Elevation` (a scanner's own measurements).
+    Spherical,
+}
+
+/// One scan of an E57 file, as [`read_e57`] read it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scan {
+    /// Its name, if the file gives one.
+    pub name: Option<String>,
+    /// The records the file announces for it.
+    pub records: u64,
+    /// The points kept: the records not flagged invalid.
+    pub points: usize,
+    /// How its points are stored (Cartesian where it has both).
+    pub coordinates: Coordinates,
+    /// Whether it has normals (the surface-normals extension).
+    pub normals: bool,
+    /// Whether the file gives it a pose (without one, its frame is the file's).
+    pub posed: bool,
+    /// Its own origin in the file's frame (its pose's translation): where a terrestrial
+    /// scanner stood, when the scan is stored in the scanner's frame (spherical coordinates
+    /// always are; Cartesian ones usually are when the file gives each scan a pose).
+    pub origin: Point3,
+}
+
+/// The points of an E57 file (every scan, in file order) and what each scan held.
+#[derive(Debug, Clone)]
+pub struct E57Cloud {
+    /// The points, scan after scan.
+    pub cloud: PointCloud3,
+    /// The scans, in file order; scan `i`'s [`Scan::points`] follow scan `i − 1`'s.
+    pub scans: Vec<Scan>,
+}
+
+impl E57Cloud {
+    /// For each point, the origin of the scan it came from ([`Scan::origin`]).
+    pub fn origins(&self) -> Vec<Point3> {
+        self.scans
+            .iter()
+            .flat_map(|scan| std::iter::repeat_n(scan.origin, scan.points))
+            .collect()
+    }
+}
+
+/// Reads an E57 file with each scan's summary; `options.format` is ignored (the file is read
+/// as E57), the rest applies as for [`read_point_cloud_with`](super::read_point_cloud_with).
+///
+/// # Errors
+/// As [`read_point_cloud_with`](super::read_point_cloud_with) for an E57 file.
+pub fn read_e57(path: impl AsRef<Path>, options: &ReadOptions) -> Result<E57Cloud> {
+    let path = path.as_ref();
+    let check = FiniteCheck {
+        path,
+        allow: options.allow_non_finite,
+    };
+    let ((positions, normals), scans) = read_with_scans(path, &check)?;
+    if positions.is_empty() {
+        return Err(super::malformed(path, None, "the file holds no point"));
+    }
+    let normals = if options.positions_only {
+        None
+    } else {
+        normals
+    };
+    Ok(E57Cloud {
+        cloud: PointCloud3::from_raw(positions, normals)?,
+        scans,
+    })
+}
+
 /// Reads an E57 file; see the [module docs](self).
 pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+    read_with_scans(path, check).map(|(points, _)| points)
+}
+
+/// The points of an E57 file and its scans' summaries.
+fn read_with_scans(path: &Path, check: &FiniteCheck<'_>) -> Result<(RawPoints, Vec<Scan>)> {
     let (file, _) = super::open_nonempty(path)?;
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        read_scans(path, file, check)
-    }))
-    .unwrap_or_else(|panic| {
-        let what = panic
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic".to_owned());
-        Err(super::malformed(
-            path,
-            None,
-            format!("not a readable E57 file: its decoder failed ({what})"),
-        ))
-    })
+    super::guard_decoder(path, "E57", || read_scans(path, file, check))
 }
 
 /// Where a scan's fields are in its records.
@@ -129,7 +201,8 @@ impl Pose {
                 path,
                 None,
                 format!(
-                    "scan {scan}'s pose is not a rotation and translation: quaternion ({}, {}, {}, {}), translation ({}, {}, {})",
+                    "scan {scan}'s pose is not a rotation and translation: quaternion \
+                     ({}, {}, {}, {}), translation ({}, {}, {})",
                     q.w, q.x, q.y, q.z, translation[0], translation[1], translation[2]
                 ),
             ));
@@ -172,48 +245,61 @@ impl Pose {
     }
 }
 
-/// Every scan's valid points, in the file's frame.
-fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<RawPoints> {
-    let bad = |e: e57::Error| super::malformed(path, None, format!("not a readable E57 file: {e}"));
-    let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
-    let scans = reader.pointclouds();
-    let layouts: Vec<Layout> = scans.iter().map(Layout::of).collect();
-    for (i, layout) in layouts.iter().enumerate() {
-        if layout.cartesian.is_none() && layout.spherical.is_none() {
-            return Err(super::malformed(
-                path,
-                None,
-                format!(
-                    "scan {i} has neither Cartesian (cartesianX/Y/Z) nor spherical (sphericalRange/Azimuth/Elevation) coordinates"
-                ),
-            ));
-        }
-    }
-    let with_normals: Vec<usize> = (0..scans.len())
-        .filter(|&i| layouts[i].normals.is_some())
-        .collect();
-    if !with_normals.is_empty() && with_normals.len() < scans.len() {
-        let without: Vec<String> = (0..scans.len())
-            .filter(|i| !with_normals.contains(i))
-            .map(|i| i.to_string())
-            .collect();
-        let with: Vec<String> = with_normals.iter().map(|i| i.to_string()).collect();
+/// Checks that every scan has coordinates, and normals in every scan or none; returns whether
+/// they have normals.
+fn check_layouts(path: &Path, layouts: &[Layout]) -> Result<bool> {
+    if let Some(i) = layouts
+        .iter()
+        .position(|l| l.cartesian.is_none() && l.spherical.is_none())
+    {
         return Err(super::malformed(
             path,
             None,
             format!(
-                "scans {} have normals and scans {} do not: zeroset reads normals for every scan or none (export the scans with normals alone, or without normals)",
-                with.join(", "),
-                without.join(", ")
+                "scan {i} has neither Cartesian (cartesianX/Y/Z) nor spherical \
+                 (sphericalRange/Azimuth/Elevation) coordinates"
             ),
         ));
     }
+    let list = |normals: bool| {
+        let scans: Vec<String> = (0..layouts.len())
+            .filter(|&i| layouts[i].normals.is_some() == normals)
+            .map(|i| i.to_string())
+            .collect();
+        scans.join(", ")
+    };
+    let (with, without) = (list(true), list(false));
+    if !with.is_empty() && !without.is_empty() {
+        return Err(super::malformed(
+            path,
+            None,
+            format!(
+                "scans {with} have normals and scans {without} do not: zeroset reads normals \
+                 for every scan or none (export the scans with normals alone, or without \
+                 normals)"
+            ),
+        ));
+    }
+    Ok(!with.is_empty())
+}
+
+/// Every scan's valid points, in the file's frame, and the scans' summaries.
+fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<(RawPoints, Vec<Scan>)> {
+    let bad = |e: e57::Error| {
+        let reason = format!("not a readable E57 file: {e}");
+        super::malformed(path, None, reason)
+    };
+    let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
+    let scans = reader.pointclouds();
+    let layouts: Vec<Layout> = scans.iter().map(Layout::of).collect();
     let mut positions: Vec<Point3> = Vec::new();
-    let mut normals: Option<Vec<Point3>> = (!with_normals.is_empty()).then(Vec::new);
+    let mut normals: Option<Vec<Point3>> = check_layouts(path, &layouts)?.then(Vec::new);
     let what = format!("the points of {}", path.display());
     let mut record = 0usize;
+    let mut summaries = Vec::with_capacity(scans.len());
     for (scan, (pc, layout)) in scans.iter().zip(&layouts).enumerate() {
         let pose = Pose::of(pc, scan, path)?;
+        let before = positions.len();
         let types: Vec<RecordDataType> = pc.prototype.iter().map(|r| r.data_type.clone()).collect();
         let value = |values: &[RecordValue], at: usize| -> Result<f64> {
             let v = values.get(at).ok_or_else(|| {
@@ -269,8 +355,21 @@ fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<RawPoi
                 normals.push(pose.rotate(n));
             }
         }
+        summaries.push(Scan {
+            name: pc.name.clone(),
+            records: pc.records,
+            points: positions.len() - before,
+            coordinates: if layout.cartesian.is_some() {
+                Coordinates::Cartesian
+            } else {
+                Coordinates::Spherical
+            },
+            normals: layout.normals.is_some(),
+            posed: pc.transform.is_some(),
+            origin: pose.translation,
+        });
     }
-    Ok((positions, normals))
+    Ok(((positions, normals), summaries))
 }
 
 #[cfg(test)]

@@ -38,19 +38,7 @@ pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     check_raw_header(path, file, len)?;
     // The checks above rule out what fuzzing found; a panic in the decoders beyond them is the
     // file's error, not the caller's crash.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_points(path, check)))
-        .unwrap_or_else(|panic| {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| (*s).to_owned())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "a panic".to_owned());
-            Err(super::malformed(
-                path,
-                None,
-                format!("not a readable LAS/LAZ file: its decoder failed ({what})"),
-            ))
-        })
+    super::guard_decoder(path, "LAS/LAZ", || read_points(path, check))
 }
 
 /// The points of a file that passed [`check_raw_header`].

@@ -611,6 +611,28 @@ pub(crate) fn malformed(path: &Path, line: Option<usize>, reason: impl Into<Stri
     }
 }
 
+/// Runs a third-party decoder on `path`: a panic in it becomes the file's
+/// [`Error::Malformed`] ("not a readable `format` file: its decoder failed (…)"), not the
+/// caller's crash.
+pub(crate) fn guard_decoder<T>(
+    path: &Path,
+    format: &str,
+    decode: impl FnOnce() -> Result<T>,
+) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode)).unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic".to_owned());
+        Err(malformed(
+            path,
+            None,
+            format!("not a readable {format} file: its decoder failed ({what})"),
+        ))
+    })
+}
+
 /// Opens a file for reading; a 0-byte file is [`Error::Malformed`]. Returns the file and its
 /// length in bytes.
 pub(crate) fn open_nonempty(path: &Path) -> Result<(File, u64)> {

@@ -288,7 +288,11 @@ def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
 
 
 def estimate_normals(
-    points: Any, neighbours: int = 16, *, viewpoint: Optional[Sequence[float]] = None
+    points: Any,
+    neighbours: int = 16,
+    *,
+    viewpoint: Optional[Sequence[float]] = None,
+    scanners: Any = None,
 ) -> np.ndarray:
     """Outward unit normals ``(n, 3)`` for points ``(n, 3)`` that have none (a scan of
     positions only), in the points' order: each point's plane through its ``neighbours``
@@ -296,7 +300,9 @@ def estimate_normals(
     neighbour graph (Hoppe et al. 1992) and each connected piece turned outward. The result
     feeds :func:`fit` like a scan's own normals. With ``viewpoint=(x, y, z)``, where the
     scanner stood, each piece faces it instead (one-sided scans of flat surfaces, which have
-    no inside to read, and scans from inside a room).
+    no inside to read, and scans from inside a room). With ``scanners`` ``(n, 3)``, where the
+    scanner stood that recorded each point (a scene taken from several stations, such as an
+    E57 file's scans), each piece faces the scanners of its points.
 
     >>> import zeroset
     >>> points, normals = zeroset.sample_points()
@@ -305,12 +311,16 @@ def estimate_normals(
     True
 
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
-    out of range, or a cloud whose neighbourhoods mostly span no plane (points on a line)."""
+    out of range, a cloud whose neighbourhoods mostly span no plane (points on a line), both
+    ``viewpoint`` and ``scanners``, or ``scanners`` not one finite position per point."""
     k = int(neighbours)
     if k < 0:
         raise ValueError(f"neighbours = {k}: from 2 to 256")
+    if viewpoint is not None and scanners is not None:
+        raise ValueError("give viewpoint (one scanner) or scanners (one per point), not both")
     v = None if viewpoint is None else _triple(viewpoint, "viewpoint")
-    return _native.estimate_normals(_rows(points, "points"), k, v)
+    s = None if scanners is None else _rows(scanners, "scanners")
+    return _native.estimate_normals(_rows(points, "points"), k, v, s)
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:

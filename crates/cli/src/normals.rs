@@ -255,7 +255,11 @@ pub(crate) fn facing(
                     path.display()
                 );
             }
-            let read = options.clone().with_positions_only(true);
+            // The positions were checked when the cloud was read; normals are not read.
+            let read = options
+                .clone()
+                .with_positions_only(true)
+                .with_allow_non_finite(true);
             let e57 = io::e57::read_e57(path, &read)
                 .with_context(|| format!("reading the scans of {}", path.display()))?;
             let origins = e57.origins();

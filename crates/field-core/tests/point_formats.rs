@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 
 use zeroset_field_core::Error;
 use zeroset_field_core::cloud::PointCloud3;
-use zeroset_field_core::io::{Format, detect_format, read_point_cloud};
+use zeroset_field_core::io::{
+    Format, ReadOptions, detect_format, read_point_cloud, read_point_cloud_with,
+};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -937,6 +939,30 @@ fn e57_files_the_reader_cannot_use_are_named_errors() {
         ),
         "{e}"
     );
+    // A NaN normal: named as a normal, and not read (nor checked) for the positions alone.
+    let (prototype, mut records) = e57_scan(5, true, 0.0);
+    records[3][4] = e57::RecordValue::Single(f32::NAN);
+    let (_dir, path) = temp_file(
+        "nan_normal.e57",
+        e57_bytes(vec![(prototype, records)], plain),
+    );
+    let e = read_point_cloud(&path).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::NonFinite {
+                record: 3,
+                field: "ny",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let positions = ReadOptions::default().with_positions_only(true);
+    let cloud = read_point_cloud_with(&path, &positions).unwrap();
+    assert_eq!((cloud.len(), cloud.normals().is_none()), (5, true));
+    let scans = zeroset_field_core::io::e57::read_e57(&path, &positions).unwrap();
+    assert_eq!((scans.scans.len(), scans.scans[0].points), (1, 5));
     // A changed byte breaks its page's checksum; a file cut anywhere is not whole pages.
     let good = fs::read(data("bunny300.e57")).unwrap();
     for at in [0, 100, 2000, good.len() / 2, good.len() - 10] {

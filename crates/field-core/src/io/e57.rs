@@ -106,30 +106,30 @@ pub fn read_e57(path: impl AsRef<Path>, options: &ReadOptions) -> Result<E57Clou
         path,
         allow: options.allow_non_finite,
     };
-    let ((positions, normals), scans) = read_with_scans(path, &check)?;
+    let ((positions, normals), scans) = read_with_scans(path, &check, !options.positions_only)?;
     if positions.is_empty() {
         return Err(super::malformed(path, None, "the file holds no point"));
     }
-    let normals = if options.positions_only {
-        None
-    } else {
-        normals
-    };
     Ok(E57Cloud {
         cloud: PointCloud3::from_raw(positions, normals)?,
         scans,
     })
 }
 
-/// Reads an E57 file; see the [module docs](self).
-pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
-    read_with_scans(path, check).map(|(points, _)| points)
+/// Reads an E57 file (its normals too with `with_normals`, unchecked otherwise); see the
+/// [module docs](self).
+pub(super) fn read(path: &Path, check: &FiniteCheck<'_>, with_normals: bool) -> Result<RawPoints> {
+    read_with_scans(path, check, with_normals).map(|(points, _)| points)
 }
 
 /// The points of an E57 file and its scans' summaries.
-fn read_with_scans(path: &Path, check: &FiniteCheck<'_>) -> Result<(RawPoints, Vec<Scan>)> {
+fn read_with_scans(
+    path: &Path,
+    check: &FiniteCheck<'_>,
+    with_normals: bool,
+) -> Result<(RawPoints, Vec<Scan>)> {
     let (file, _) = super::open_nonempty(path)?;
-    super::guard_decoder(path, "E57", || read_scans(path, file, check))
+    super::guard_decoder(path, "E57", || read_scans(path, file, check, with_normals))
 }
 
 /// Where a scan's fields are in its records.
@@ -283,8 +283,14 @@ fn check_layouts(path: &Path, layouts: &[Layout]) -> Result<bool> {
     Ok(!with.is_empty())
 }
 
-/// Every scan's valid points, in the file's frame, and the scans' summaries.
-fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<(RawPoints, Vec<Scan>)> {
+/// Every scan's valid points (and normals, with `with_normals`), in the file's frame, and the
+/// scans' summaries.
+fn read_scans(
+    path: &Path,
+    file: File,
+    check: &FiniteCheck<'_>,
+    with_normals: bool,
+) -> Result<(RawPoints, Vec<Scan>)> {
     let bad = |e: e57::Error| {
         let reason = format!("not a readable E57 file: {e}");
         super::malformed(path, None, reason)
@@ -293,7 +299,8 @@ fn read_scans(path: &Path, file: File, check: &FiniteCheck<'_>) -> Result<(RawPo
     let scans = reader.pointclouds();
     let layouts: Vec<Layout> = scans.iter().map(Layout::of).collect();
     let mut positions: Vec<Point3> = Vec::new();
-    let mut normals: Option<Vec<Point3>> = check_layouts(path, &layouts)?.then(Vec::new);
+    let has_normals = check_layouts(path, &layouts)?;
+    let mut normals: Option<Vec<Point3>> = (has_normals && with_normals).then(Vec::new);
     let what = format!("the points of {}", path.display());
     let mut record = 0usize;
     let mut summaries = Vec::with_capacity(scans.len());

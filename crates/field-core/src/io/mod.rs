@@ -312,7 +312,7 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         Format::GemPy => gempy::read_cloud(path, &checker)?,
         Format::Pcd => pcd::read(path, &checker)?,
         Format::Las => las::read(path, &checker)?,
-        Format::E57 => e57::read(path, &checker)?,
+        Format::E57 => e57::read(path, &checker, !options.positions_only)?,
     };
     if positions.is_empty() {
         return Err(malformed(path, None, "the file holds no point"));

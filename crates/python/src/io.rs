@@ -42,6 +42,61 @@ pub(crate) fn sample_xyzn() -> &'static str {
     include_str!("../samples/bunny_2k.xyzn")
 }
 
+/// One E57 scan's summary: name, records, points kept, coordinates (`"cartesian"` or
+/// `"spherical"`), normals, posed, origin.
+type ScanRow = (
+    Option<String>,
+    u64,
+    usize,
+    &'static str,
+    bool,
+    bool,
+    [f64; 3],
+);
+
+/// Reads an E57 file: `(points, normals or None, origins, scans)`, `origins[i]` the origin of
+/// point `i`'s scan (see `zeroset.read_e57`).
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+pub(crate) fn read_e57(
+    py: Python<'_>,
+    path: PathBuf,
+) -> PyResult<(
+    Bound<'_, PyArray2<f64>>,
+    Option<Bound<'_, PyArray2<f64>>>,
+    Bound<'_, PyArray2<f64>>,
+    Vec<ScanRow>,
+)> {
+    use zeroset_field_core::io::e57::Coordinates;
+    let read = py
+        .detach(|| zeroset_field_core::io::e57::read_e57(&path, &Default::default()))
+        .map_err(to_py)?;
+    let origins = rows_array(py, read.origins());
+    let scans = read
+        .scans
+        .iter()
+        .map(|s| {
+            let coordinates = match s.coordinates {
+                Coordinates::Cartesian => "cartesian",
+                Coordinates::Spherical => "spherical",
+            };
+            let name = s.name.clone();
+            (
+                name,
+                s.records,
+                s.points,
+                coordinates,
+                s.normals,
+                s.posed,
+                s.origin,
+            )
+        })
+        .collect();
+    let normals = read.cloud.normals().map(|n| rows_array(py, n.to_vec()));
+    let points = rows_array(py, read.cloud.positions().to_vec());
+    Ok((points, normals, origins, scans))
+}
+
 /// Outward unit normals for `points` (see `zeroset.estimate_normals`); with `scanners`, each
 /// piece faces the scanners of its points.
 #[pyfunction]

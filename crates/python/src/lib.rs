@@ -30,6 +30,7 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit::fit_neural, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_mras_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_points, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_e57, m)?)?;
     m.add_function(wrap_pyfunction!(io::estimate_normals, m)?)?;
     m.add_function(wrap_pyfunction!(io::sample_xyzn, m)?)?;
     m.add_function(wrap_pyfunction!(linalg::lstsq_native, m)?)?;

@@ -460,3 +460,15 @@ def test_read_points_takes_e57_laser_scans():
     points, normals = zeroset.read_points(data / "bunny300_spherical.e57")
     assert normals is None
     assert np.abs(points - want[:, :3]).max() < 1e-12
+    # With each scan's summary and each point's scan origin (its pose's translation).
+    points, normals, origins, scans = zeroset.read_e57(data / "bunny300.e57")
+    assert points.shape == normals.shape == origins.shape == (300, 3)
+    assert [(s["records"], s["points"], s["coordinates"], s["normals"]) for s in scans] == [
+        (150, 150, "cartesian", True),
+        (154, 150, "cartesian", True),
+    ]
+    np.testing.assert_array_equal(origins[:150], 0.0)
+    np.testing.assert_array_equal(origins[150:], [[0.5, -0.25, 1.75]] * 150)
+    assert scans[1]["origin"] == (0.5, -0.25, 1.75)
+    inward = zeroset.estimate_normals(points, scanners=origins)
+    assert inward.shape == (300, 3)

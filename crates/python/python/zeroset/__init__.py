@@ -48,6 +48,7 @@ __all__ = [
     "lstsq",
     "marching_cubes",
     "mesh",
+    "read_e57",
     "read_mesh",
     "read_points",
     "restore",
@@ -285,6 +286,23 @@ def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     triangles use, with normals from the file or the triangles' winding (closed parts wound inward turned over), ``None``
     where the winding is inconsistent (``estimate_normals`` then)."""
     return _native.read_points(os.fspath(path))
+
+
+def read_e57(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarray, list]:
+    """Reads an E57 laser-scan file: ``(points, normals, origins, scans)``. Every scan is moved
+    into the file's frame by its pose, records flagged invalid are left out, and normals (the
+    surface-normals extension) are ``None`` unless every scan has them, as :func:`read_points`
+    reads them. ``origins`` ``(n, 3)`` holds, for each point, its scan's origin in the file's
+    frame — where a terrestrial scanner stood, for ``estimate_normals(points,
+    scanners=origins)``. ``scans`` lists one dict per scan: ``name`` (or ``None``),
+    ``records`` (announced), ``points`` (kept), ``coordinates`` (``"cartesian"`` or
+    ``"spherical"``), ``normals``, ``posed`` and ``origin``."""
+    points, normals, origins, rows = _native.read_e57(os.fspath(path))
+    keys = ("name", "records", "points", "coordinates", "normals", "posed", "origin")
+    scans = [dict(zip(keys, row)) for row in rows]
+    for scan in scans:
+        scan["origin"] = tuple(scan["origin"])
+    return points, normals, origins, scans
 
 
 def estimate_normals(

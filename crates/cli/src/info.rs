@@ -496,6 +496,13 @@ fn write_scans(s: &mut String, scans: &[io::e57::Scan]) {
             ),
         );
     }
+    if scans.iter().all(|scan| !scan.normals) {
+        more(
+            s,
+            "no normals: `--viewpoint scanners` (zeroset normals, reconstruct) turns the \
+             estimated ones towards the scanners that recorded each part",
+        );
+    }
 }
 
 fn write_bounds(s: &mut String, cloud: &PointCloud3) {

@@ -244,14 +244,11 @@ pub(crate) fn facing(
         None => Ok(Facing::Outward),
         Some(Viewpoint::Point(v)) => Ok(Facing::Point(v)),
         Some(Viewpoint::Scanners) => {
-            let format = match options.format {
-                Some(f) => f,
-                None => io::detect_format(path)?,
-            };
-            if format != Format::E57 {
+            let format = options.format.or_else(|| io::detect_format(path).ok());
+            if format != Some(Format::E57) {
                 anyhow::bail!(
                     "--viewpoint scanners takes where each point's scanner stood from an E57 \
-                     file's scans (their poses); {} is {format}: give --viewpoint X,Y,Z",
+                     file's scans (their poses); {} is not an E57 file: give --viewpoint X,Y,Z",
                     path.display()
                 );
             }

@@ -115,22 +115,31 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         return mesh_report(path, "ply");
     }
     let mut options = ReadOptions::default().with_format(format);
-    // Columns 4–6 of an xyz file that are not normals (colours): describe the positions and
-    // say why the rest is left out, rather than refuse the file.
+    // An E57 file is read with its scans' summaries, in the same pass.
+    let read = |options: &ReadOptions| {
+        if format == Format::E57 {
+            io::e57::read_e57(path, options).map(|e57| (e57.cloud, e57.scans))
+        } else {
+            io::read_point_cloud_with(path, options).map(|cloud| (cloud, Vec::new()))
+        }
+    };
+    // Read strictly first, so that a non-finite value is named with its line; then read again
+    // accepting it, to count them all. Columns 4–6 of an xyz file that are not normals
+    // (colours): describe the positions and say why the rest is left out, rather than refuse
+    // the file.
+    let mut strict = read(&options);
     let mut not_normals = None;
-    if let Err(e @ Error::NotNormals { .. }) = io::read_point_cloud_with(path, &options) {
+    if let Err(e @ Error::NotNormals { .. }) = strict {
         not_normals = Some(e);
         options = options.with_positions_only(true);
+        strict = read(&options);
     }
-    // Read strictly first, so that a non-finite value is named with its line; then read again
-    // accepting it, to count them all.
-    let (cloud, first_non_finite) = match io::read_point_cloud_with(path, &options) {
-        Ok(cloud) => (cloud, None),
+    let ((cloud, scans), first_non_finite) = match strict {
+        Ok(read) => (read, None),
         Err(e @ Error::NonFinite { .. }) => {
-            let cloud =
-                io::read_point_cloud_with(path, &options.clone().with_allow_non_finite(true))
-                    .context("cannot read point cloud")?;
-            (cloud, Some(e))
+            let lenient = read(&options.clone().with_allow_non_finite(true))
+                .context("cannot read point cloud")?;
+            (lenient, Some(e))
         }
         Err(e) => return Err(anyhow::Error::new(e).context("cannot read point cloud")),
     };
@@ -143,10 +152,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     let n = stats.count;
     line(&mut s, "points", &format!("{n} point{}", plural(n)));
     if format == Format::E57 {
-        // The points above were read with the same options; this adds what each scan held.
-        let e57 = io::e57::read_e57(path, &options.clone().with_allow_non_finite(true))
-            .context("cannot read point cloud")?;
-        write_scans(&mut s, &e57.scans);
+        write_scans(&mut s, &scans);
     }
     write_bounds(&mut s, &cloud);
     write_normals(&mut s, &stats);

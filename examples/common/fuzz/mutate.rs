@@ -357,6 +357,9 @@ pub enum Seal {
     Zsf,
     /// An E57 file's page checksums ([`reseal_e57`]).
     E57,
+    /// Whichever of the above the input's signature names (inputs of any format, as
+    /// `zeroset info` reads them).
+    Any,
 }
 
 /// `data` mutated 1–6 times (stacked, as AFL's havoc stage does), kept under [`MAX_LEN`]; an
@@ -370,18 +373,17 @@ pub fn mutate(rng: &mut SplitMix64, data: &[u8], other: &[u8], seal: Seal) -> Ve
         out.truncate(MAX_LEN);
     }
     let r = rng.below(10);
-    match seal {
-        Seal::None => {}
-        Seal::Zsf => {
-            if r < 5 {
-                fix_zsf_sizes(&mut out);
-            }
-            if r < 9 {
-                reseal_zsf(&mut out);
-            }
+    // Each repair leaves an input without its format's signature as it is.
+    if matches!(seal, Seal::Zsf | Seal::Any) {
+        if r < 5 {
+            fix_zsf_sizes(&mut out);
         }
-        Seal::E57 if r < 9 => reseal_e57(&mut out),
-        Seal::E57 => {}
+        if r < 9 {
+            reseal_zsf(&mut out);
+        }
+    }
+    if matches!(seal, Seal::E57 | Seal::Any) && r < 9 {
+        reseal_e57(&mut out);
     }
     out
 }

@@ -142,6 +142,7 @@ impl Target {
         match self {
             Target::ZsfBspline | Target::ZsfRbf | Target::ZsfNeural | Target::ZsfMras => Seal::Zsf,
             Target::E57 => Seal::E57,
+            Target::Info => Seal::Any,
             _ => Seal::None,
         }
     }

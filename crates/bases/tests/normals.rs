@@ -267,7 +267,7 @@ fn a_viewpoint_turns_flat_and_inside_scans_towards_the_scanner() {
 }
 
 #[test]
-fn each_piece_faces_the_scanners_that_recorded_it() {
+fn each_point_faces_the_scanner_that_recorded_it() {
     // Two stations: one inside a room (the inside of a sphere of radius 3 about the origin),
     // one at x = 8 facing a wall outside it (a curved 2 × 2 sheet about x = 5). From each
     // station its own points face it: the room inward, the wall towards +x.
@@ -415,4 +415,67 @@ fn bad_input_gets_specific_errors() {
     for n in &estimated.normals {
         assert!(n[2].abs() > 1.0 - 1e-12, "{n:?}");
     }
+}
+
+#[test]
+fn a_board_scanned_from_both_faces_faces_each_scanner() {
+    // A board 1.5 spacings thick (two 50 × 50 sheets 0.02 apart in x and y, 0.03 apart in z),
+    // one station above it and one below: each point's neighbours reach the other sheet, and
+    // the spanning forest joins the two into one piece.
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (h, t) = (0.02, 0.03);
+    let (mut points, mut truth, mut scanners) = (Vec::new(), Vec::new(), Vec::new());
+    for side in [1.0, -1.0] {
+        for i in 0..50 {
+            for j in 0..50 {
+                let (dx, dy): (f64, f64) = (rng.random(), rng.random());
+                let (x, y) = (i as f64 + 0.2 * (dx - 0.5), j as f64 + 0.2 * (dy - 0.5));
+                points.push([x * h, y * h, side * t / 2.0]);
+                truth.push([0.0, 0.0, side]);
+                scanners.push([0.5, 0.4, 2.0 * side]);
+            }
+        }
+    }
+    let options = NormalOptions::default();
+    let estimated = estimate_normals_from_scanners(&points, &scanners, &options).unwrap();
+    assert_eq!(estimated.pieces, 1);
+    assert_eq!(against(&estimated.normals, &truth).0, 0.0);
+    // Signed as one piece, one face is turned inward: the case per-point signing is for.
+    let (wrong, _) = against(&estimate(&points).normals, &truth);
+    assert!(wrong > 0.4, "{wrong}");
+}
+
+#[test]
+fn a_floor_seen_at_grazing_incidence_takes_its_sign_from_the_near_floor() {
+    // A rough floor (12 × 12, spacing 0.1, heights jittered by up to ±0.02) under a scanner 0.3
+    // above its middle: beyond 1.2 the line of sight is within 14.5° of the floor, and a plane
+    // tilted by the roughness can face away from the scanner. Signed from the near floor along
+    // the forest, every normal is up.
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let points: Vec<P> = (0..120 * 120)
+        .map(|i| {
+            let (x, y) = ((i % 120) as f64 * 0.1 - 6.0, (i / 120) as f64 * 0.1 - 6.0);
+            let z: f64 = 0.02 * (rng.random::<f64>() - 0.5) * 2.0;
+            [x, y, z]
+        })
+        .collect();
+    let scanner = [0.05, 0.05, 0.3];
+    let scanners = vec![scanner; points.len()];
+    let estimated =
+        estimate_normals_from_scanners(&points, &scanners, &NormalOptions::default()).unwrap();
+    assert!(estimated.normals.iter().all(|n| n[2] > 0.5));
+    assert!(estimated.facing_scanner < points.len());
+    // Some of those up normals face away from the scanner: signed each by its own line of
+    // sight, they would have been turned down.
+    let away = points
+        .iter()
+        .zip(&estimated.normals)
+        .filter(|(p, n)| {
+            dot(
+                n,
+                &[scanner[0] - p[0], scanner[1] - p[1], scanner[2] - p[2]],
+            ) < 0.0
+        })
+        .count();
+    assert!(away > 100, "{away} planes face away from the scanner");
 }

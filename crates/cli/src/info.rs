@@ -505,8 +505,8 @@ fn write_scans(s: &mut String, scans: &[io::e57::Scan]) {
     if scans.iter().all(|scan| !scan.normals) {
         more(
             s,
-            "no normals: `--viewpoint scanners` (zeroset normals, reconstruct) turns the \
-             estimated ones towards the scanners that recorded each part",
+            "no normals: `--viewpoint scanners` (zeroset normals, reconstruct) turns each \
+             estimated one towards the scanner that recorded it",
         );
     }
 }

@@ -57,8 +57,9 @@ pub struct NormalsArgs {
 
     /// Where the scanner stood: each piece is turned to face it instead of outward — for
     /// one-sided scans of flat surfaces (a wall, terrain), which have no inside to read, and
-    /// scans from inside a room. `scanners` (an E57 file): each piece faces the stations that
-    /// recorded its points, each scan's origin in the file's frame.
+    /// scans from inside a room. `scanners` (an E57 file): each point faces the station that
+    /// recorded it (its scan's origin in the file's frame); points seen at grazing incidence
+    /// (beyond 75.5°) take their neighbours' sign.
     #[arg(long, value_name = "X,Y,Z|scanners", value_parser = parse_viewpoint,
           allow_hyphen_values = true)]
     pub viewpoint: Option<Viewpoint>,
@@ -333,16 +334,21 @@ pub(crate) fn orient(
         "whose neighbours span no plane took a neighbour's",
     );
     outln!(
-        "{:<14}estimated from {used} neighbours each: {} piece{} turned {}{small}{lines} \
-         ({})",
+        "{:<14}estimated from {used} neighbours each: {} piece{} {}{small}{lines} ({})",
         "normals",
         estimated.pieces,
         if estimated.pieces == 1 { "" } else { "s" },
         match facing {
-            Facing::Point(v) => format!("towards the viewpoint {v:?}"),
-            Facing::Scanners(_, scans) =>
-                format!("towards the scanners of its {scans} scan{}", plural(*scans)),
-            Facing::Outward => "outward".to_owned(),
+            Facing::Point(v) => format!("turned towards the viewpoint {v:?}"),
+            Facing::Scanners(_, scans) => format!(
+                "with each point turned towards the scanner of its scan ({scans} scan{}; {} of {} \
+                 points by their line of sight, the others, seen at grazing incidence or not \
+                 at all, by their neighbours)",
+                plural(*scans),
+                estimated.facing_scanner,
+                estimated.normals.len()
+            ),
+            Facing::Outward => "turned outward".to_owned(),
         },
         seconds(t.elapsed())
     );

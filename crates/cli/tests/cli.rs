@@ -2892,7 +2892,10 @@ fn normals_turns_each_e57_scan_towards_its_own_scanner() {
     };
     // Each station's points face it: the room inward (against the radius), the wall towards +x.
     let (out, rows) = normals("scanners");
-    assert!(out.contains("towards the scanners of its 2 scans"), "{out}");
+    assert!(
+        out.contains("towards the scanner of its scan (2 scans; "),
+        "{out}"
+    );
     assert_eq!(rows.len(), points.len());
     for (row, p) in rows.iter().zip(&points) {
         for a in 0..3 {

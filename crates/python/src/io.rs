@@ -98,7 +98,7 @@ pub(crate) fn read_e57(
 }
 
 /// Outward unit normals for `points` (see `zeroset.estimate_normals`); with `scanners`, each
-/// piece faces the scanners of its points.
+/// point faces its own scanner.
 #[pyfunction]
 #[pyo3(signature = (points, neighbours, viewpoint=None, scanners=None))]
 pub(crate) fn estimate_normals<'py>(

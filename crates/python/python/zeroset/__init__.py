@@ -320,7 +320,8 @@ def estimate_normals(
     scanner stood, each piece faces it instead (one-sided scans of flat surfaces, which have
     no inside to read, and scans from inside a room). With ``scanners`` ``(n, 3)``, where the
     scanner stood that recorded each point (a scene taken from several stations, such as an
-    E57 file's scans), each piece faces the scanners of its points.
+    E57 file's scans), each point faces its own scanner (those seen at grazing incidence take
+    their neighbours' sign).
 
     >>> import zeroset
     >>> points, normals = zeroset.sample_points()

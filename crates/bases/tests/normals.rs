@@ -4,8 +4,8 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zeroset_bases::normals::{
-    EstimatedNormals, MAX_NEIGHBOURS, NormalError, NormalOptions, estimate_normals,
-    estimate_normals_from_scanners,
+    EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
+    NormalOptions, default_neighbours, estimate_normals, estimate_normals_from_scanners,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -478,4 +478,40 @@ fn a_floor_seen_at_grazing_incidence_takes_its_sign_from_the_near_floor() {
         })
         .count();
     assert!(away > 100, "{away} planes face away from the scanner");
+}
+
+#[test]
+fn a_noisy_scan_is_estimated_from_more_neighbours() {
+    // The unit sphere's 4,000 lattice points, moved along the radius by Gaussian noise of 0.03
+    // (0.37 of the point spacing as measured; Box–Muller from a seeded generator).
+    let (points, outward) = sphere(4000, [0.0; 3], 1.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let noisy: Vec<P> = points
+        .iter()
+        .map(|p| {
+            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            let r = 1.0 + 0.03 * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+            p.map(|x| x * r)
+        })
+        .collect();
+    assert_eq!(default_neighbours(&points).0, NORMAL_NEIGHBOURS);
+    let (k, noise) = default_neighbours(&noisy);
+    assert_eq!(k, NOISY_NORMAL_NEIGHBOURS);
+    assert!(noise.unwrap().relative() > 0.3, "{noise:?}");
+    // More neighbours tilt the planes less: the median angle to the true normal drops.
+    let median_angle = |k: usize| {
+        let options = NormalOptions::default().neighbours(k);
+        let estimated = estimate_normals(&noisy, &options).unwrap();
+        assert_eq!(against(&estimated.normals, &outward).0, 0.0);
+        let mut angles: Vec<f64> = estimated
+            .normals
+            .iter()
+            .zip(&outward)
+            .map(|(a, b)| dot(a, b).clamp(-1.0, 1.0).acos())
+            .collect();
+        angles.sort_by(f64::total_cmp);
+        angles[angles.len() / 2]
+    };
+    let (few, many) = (median_angle(NORMAL_NEIGHBOURS), median_angle(k));
+    assert!(many < 0.8 * few, "{many} vs {few}");
 }

@@ -9,9 +9,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
+use zeroset_bases::noise::NOISY_SCATTER;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS, NormalOptions,
-    estimate_normals, estimate_normals_from_scanners,
+    default_neighbours, estimate_normals, estimate_normals_from_scanners,
 };
 use zeroset_field_core::geometry;
 use zeroset_field_core::io::{
@@ -51,9 +52,11 @@ pub struct NormalsArgs {
     pub output: PathBuf,
 
     /// Neighbours of each point in its plane and in the orientation graph (2 to 256). More
-    /// average noise and bridge gaps; fewer follow fine detail and thin parts.
-    #[arg(long, value_name = "K", default_value_t = NORMAL_NEIGHBOURS)]
-    pub neighbours: usize,
+    /// average noise and bridge gaps; fewer follow fine detail and thin parts. Default: 16, or
+    /// 32 for a noisy scan (scatter about the surface above 0.2 of the point spacing, as
+    /// `zeroset info` measures it).
+    #[arg(long, value_name = "K")]
+    pub neighbours: Option<usize>,
 
     /// Where the scanner stood: each piece is turned to face it instead of outward — for
     /// one-sided scans of flat surfaces (a wall, terrain), which have no inside to read, and
@@ -80,7 +83,9 @@ pub struct NormalsArgs {
 /// Runs `zeroset normals`.
 pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
     crate::output::check_output(&args.output, &[&args.scan], args.force, &["ply", "xyzn"])?;
-    check_neighbours(args.neighbours)?;
+    if let Some(k) = args.neighbours {
+        check_neighbours(k)?;
+    }
     let start = Instant::now();
     let mut options = ReadOptions::default();
     if let Some(format) = &args.format {
@@ -233,6 +238,25 @@ pub(crate) enum Facing {
     Scanners(Vec<[f64; 3]>, usize),
 }
 
+impl Facing {
+    /// The same facing for the cloud without the points at `indices` (increasing).
+    pub(crate) fn without(self, indices: &[usize]) -> Self {
+        match self {
+            Facing::Scanners(origins, scans) => {
+                let mut dropped = indices.iter().peekable();
+                let kept = origins
+                    .into_iter()
+                    .enumerate()
+                    .filter(|(i, _)| dropped.next_if_eq(&i).is_none())
+                    .map(|(_, o)| o)
+                    .collect();
+                Facing::Scanners(kept, scans)
+            }
+            other => other,
+        }
+    }
+}
+
 /// The facing `--viewpoint` asks for on the scan `path` (read with `options` as `cloud`):
 /// `scanners` reads the origins of an E57 file's scans, one per point.
 pub(crate) fn facing(
@@ -295,14 +319,28 @@ pub(crate) fn check_neighbours(k: usize) -> anyhow::Result<()> {
 }
 
 /// `cloud`'s positions with estimated outward normals, and what the estimate found (its counts;
-/// the normals are in the cloud); prints the `normals` line.
+/// the normals are in the cloud); prints the `normals` line. Without `neighbours`, as many as
+/// [`default_neighbours`] says for the positions (more for a noisy scan).
 pub(crate) fn orient(
     cloud: &PointCloud3,
-    neighbours: usize,
+    neighbours: Option<usize>,
     facing: &Facing,
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
+    let (neighbours, why) = match neighbours {
+        Some(k) => (k, String::new()),
+        None => match default_neighbours(cloud.positions()) {
+            (k, Some(noise)) if k != NORMAL_NEIGHBOURS => (
+                k,
+                format!(
+                    " (a noisy scan: scatter {:.3} of the point spacing, above {NOISY_SCATTER})",
+                    noise.relative()
+                ),
+            ),
+            (k, _) => (k, String::new()),
+        },
+    };
     // Fewer points than the neighbours asked for: each takes all the others.
     let used = neighbours.min(cloud.len().saturating_sub(1));
     let bar = spinner(quiet);
@@ -334,7 +372,7 @@ pub(crate) fn orient(
         "whose neighbours span no plane took a neighbour's",
     );
     outln!(
-        "{:<14}estimated from {used} neighbours each: {} piece{} {}{small}{lines} ({})",
+        "{:<14}estimated from {used} neighbours each{why}: {} piece{} {}{small}{lines} ({})",
         "normals",
         estimated.pieces,
         if estimated.pieces == 1 { "" } else { "s" },

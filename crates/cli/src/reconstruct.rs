@@ -7,9 +7,10 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Parser, ValueEnum};
-use zeroset_bases::outliers::remove_outliers;
+use zeroset_bases::outliers::{find_isolated, remove_outliers, without};
 
 use crate::fit::{FitArgs, SmoothingArg};
+use crate::info::{g, plural};
 use crate::mesh::{DetailArg, MeshArgs};
 use crate::preview::PreviewArgs;
 use crate::progress::seconds;
@@ -97,9 +98,9 @@ pub struct ReconstructArgs {
     pub outliers: crate::outliers::OutlierArgs,
 
     /// Neighbours of each point when the scan has no normals and they are estimated (as
-    /// `zeroset normals --neighbours`).
-    #[arg(long, value_name = "K", default_value_t = zeroset_bases::normals::NORMAL_NEIGHBOURS)]
-    pub normal_neighbours: usize,
+    /// `zeroset normals --neighbours`; default 16, or 32 for a noisy scan).
+    #[arg(long, value_name = "K")]
+    pub normal_neighbours: Option<usize>,
 
     /// Where the scanner stood, for a scan without normals taken from one side (a room, a
     /// facade, terrain): the estimated normals are turned to face it instead of outward (as
@@ -167,7 +168,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     args.outliers.ratio()?;
     args.outliers.check(&args.scan, None, args.force)?;
     crate::fit::check_mu(args.smoothing)?;
-    crate::normals::check_neighbours(args.normal_neighbours)?;
+    if let Some(k) = args.normal_neighbours {
+        crate::normals::check_neighbours(k)?;
+    }
     if let Some(reach) = args.trim
         && !(reach.is_finite() && reach > 0.0)
     {
@@ -207,6 +210,24 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         );
         let facing =
             crate::normals::facing(args.viewpoint, &args.scan, &Default::default(), &cloud)?;
+        // Isolated points first: estimated from the planes of other stray points, their
+        // normals would agree with their neighbours' and pass the fit's test for a sparse patch
+        // of surface.
+        let isolated = find_isolated(cloud.positions(), args.outliers.ratio()?);
+        let (cloud, facing) = if isolated.indices.is_empty() {
+            (cloud, facing)
+        } else {
+            outln!(
+                "{:<14}{} isolated point{} set aside before the estimate (spacing > {}× the \
+                 median; not fitted, and not in --outliers-out, which lists the fit's)",
+                "outliers",
+                isolated.isolated,
+                plural(isolated.isolated),
+                g(args.outliers.ratio()?)
+            );
+            let kept = without(&cloud, &isolated.indices)?;
+            (kept, facing.without(&isolated.indices))
+        };
         let (oriented, _) =
             crate::normals::orient(&cloud, args.normal_neighbours, &facing, args.quiet)?;
         drop(cloud);

@@ -3060,6 +3060,48 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         "{}",
         volume(&patched)
     );
+    // Stray points far from the sphere, positions only: set aside before the estimate (their
+    // estimated normals would agree with each other's and pass for a sparse patch).
+    let strays = dir.path().join("strays.xyz");
+    let mut text: String = sphere_xyzn(1500)
+        .lines()
+        .map(|line| {
+            line.split_whitespace()
+                .take(3)
+                .collect::<Vec<_>>()
+                .join(" ")
+                + "\n"
+        })
+        .collect();
+    let mut state = 12345u64;
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1);
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let mut added = 0;
+    while added < 30 {
+        let q = [uniform(), uniform(), uniform()];
+        if ((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt() - RADIUS).abs() > 0.25 {
+            let p: Vec<String> = (0..3).map(|a| (q[a] + CENTRE[a]).to_string()).collect();
+            text += &(p.join(" ") + "\n");
+            added += 1;
+        }
+    }
+    fs::write(&strays, text).unwrap();
+    let cleaned = dir.path().join("cleaned.ply");
+    let o = reconstruct(&strays, &cleaned, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("30 isolated points set aside before the estimate"),
+        "{out}"
+    );
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
     // A scan with normals of its own keeps them: a viewpoint is refused, before any work.
     let o = zeroset([
         OsStr::new("reconstruct"),
@@ -3083,6 +3125,7 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
     assert_eq!(
         names,
         [
+            "cleaned.ply",
             "compared.ply",
             "given.xyzn",
             "holes.xyzn",
@@ -3091,7 +3134,8 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
             "patched.ply",
             "room.ply",
             "sphere.xyz",
-            "sphere.xyzn"
+            "sphere.xyzn",
+            "strays.xyz"
         ]
     );
 }

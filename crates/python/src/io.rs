@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use zeroset_bases::normals::{
-    NormalOptions, estimate_normals as estimate, estimate_normals_from_scanners,
+    NormalOptions, default_neighbours, estimate_normals as estimate, estimate_normals_from_scanners,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -104,11 +104,15 @@ pub(crate) fn read_e57(
 pub(crate) fn estimate_normals<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
-    neighbours: usize,
+    neighbours: Option<usize>,
     viewpoint: Option<[f64; 3]>,
     scanners: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let positions = rows(&points, "points", true)?;
+    let neighbours = match neighbours {
+        Some(k) => k,
+        None => py.detach(|| default_neighbours(positions).0),
+    };
     let options = NormalOptions {
         neighbours,
         viewpoint,

@@ -307,14 +307,15 @@ def read_e57(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarr
 
 def estimate_normals(
     points: Any,
-    neighbours: int = 16,
+    neighbours: Optional[int] = None,
     *,
     viewpoint: Optional[Sequence[float]] = None,
     scanners: Any = None,
 ) -> np.ndarray:
     """Outward unit normals ``(n, 3)`` for points ``(n, 3)`` that have none (a scan of
     positions only), in the points' order: each point's plane through its ``neighbours``
-    nearest (2 to 256), the signs propagated along a minimum spanning forest of the
+    nearest (2 to 256; by default 16, or 32 where the points measure noisy, as
+    ``zeroset normals`` chooses), the signs propagated along a minimum spanning forest of the
     neighbour graph (Hoppe et al. 1992) and each connected piece turned outward. The result
     feeds :func:`fit` like a scan's own normals. With ``viewpoint=(x, y, z)``, where the
     scanner stood, each piece faces it instead (one-sided scans of flat surfaces, which have
@@ -332,8 +333,8 @@ def estimate_normals(
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
     out of range, a cloud whose neighbourhoods mostly span no plane (points on a line), both
     ``viewpoint`` and ``scanners``, or ``scanners`` not one finite position per point."""
-    k = int(neighbours)
-    if k < 0:
+    k = None if neighbours is None else int(neighbours)
+    if k is not None and k < 0:
         raise ValueError(f"neighbours = {k}: from 2 to 256")
     if viewpoint is not None and scanners is not None:
         raise ValueError("give viewpoint (one scanner) or scanners (one per point), not both")

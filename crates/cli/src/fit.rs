@@ -257,8 +257,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "L,M,N", value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
-    /// Force the point-cloud format (ply, xyz, csv) when the extension says nothing.
-    #[arg(long)]
+    #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
 
     /// No progress spinner or bar.
@@ -632,7 +631,7 @@ impl<const D: usize> KernelJob for ValueFit<'_, D> {
             Some(SmoothingArg::Fixed(mu)) => mu,
             _ => 0.0,
         };
-        let field = solve(kernel, self.args, self.constraints, smoothing)?;
+        let field = solve(kernel, self.args, self.constraints, smoothing, &[])?;
         if let Some(output) = &self.args.output {
             save_rbf(&field, output)?;
         }
@@ -818,6 +817,8 @@ fn auto_smoothing(
 fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()> {
     let (args, cloud) = (job.args, job.cloud);
     let n = cloud.len();
+    // Warnings about the input, repeated on the report's `warnings` line.
+    let mut warnings = Vec::new();
     let constraints = if args.hermite {
         let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
         line(
@@ -847,10 +848,10 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
                 c.len() - (n - report.merged)
             ),
         );
-        print_offset(args.offset.is_none(), &report);
+        warnings.extend(print_offset(args.offset.is_none(), &report));
         c
     };
-    let field = solve(kernel, args, &constraints, job.smoothing)?;
+    let field = solve(kernel, args, &constraints, job.smoothing, &warnings)?;
     print_check(&field, job.input, job.outliers);
     if let Some(output) = &args.output {
         if args.sampled {
@@ -863,12 +864,13 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
 }
 
 /// Fits `constraints` with `kernel` and the `--solver`, showing the iterative solver's steps,
-/// and prints the report.
+/// and prints the report (its `warnings` line with `input_warnings` first).
 fn solve<K: StoredKernel, const D: usize>(
     kernel: K,
     args: &FitArgs,
     constraints: &Constraints<D>,
     smoothing: f64,
+    input_warnings: &[String],
 ) -> anyhow::Result<RbfField<K, D>> {
     line(
         "kernel",
@@ -919,7 +921,7 @@ fn solve<K: StoredKernel, const D: usize>(
         let fitted = fit.fit(constraints);
         spinner.finish_and_clear();
         let fitted = fitted.context(context)?;
-        print_report(&fitted.report);
+        print_report(&fitted.report, input_warnings, Scope::All);
         return Ok(fitted.field);
     };
     // Greedy centre reduction to a tolerance given as a fraction of the constraints' diagonal
@@ -937,7 +939,7 @@ fn solve<K: StoredKernel, const D: usize>(
     let result = fit.fit_greedy(constraints, &GreedyOptions::new(tolerance));
     spinner.finish_and_clear();
     let (fitted, greedy) = result.context(context)?;
-    print_report(&fitted.report);
+    print_report(&fitted.report, input_warnings, Scope::Centres);
     let first = greedy.rounds.first().map_or(0, |r| r.centres);
     line(
         "greedy",
@@ -970,7 +972,8 @@ fn kernel_words(name: &str) -> &'static str {
     }
 }
 
-fn print_offset(auto: bool, r: &OffsetReport) {
+/// Prints the offsets' report; returns its warning, if any, for the report's `warnings` line.
+fn print_offset(auto: bool, r: &OffsetReport) -> Option<String> {
     let how = if auto {
         "auto, starting at 1% of the diagonal"
     } else {
@@ -994,19 +997,19 @@ fn print_offset(auto: bool, r: &OffsetReport) {
             if r.dropped == 1 { "" } else { "s" }
         ));
     }
-    if r.opposed_normals > 0 {
-        more(&format!(
-            "warning: {} normal{} point{} against most of {} nearest neighbours' (flipped?): \
-             the surface bulges or grows a bubble there",
+    let warning = (r.opposed_normals > 0).then(|| {
+        let one = r.opposed_normals == 1;
+        format!(
+            "{} normal{} point{} against most of {} nearest neighbours' (flipped?): the surface \
+             bulges or grows a bubble there",
             r.opposed_normals,
-            if r.opposed_normals == 1 { "" } else { "s" },
-            if r.opposed_normals == 1 { "s" } else { "" },
-            if r.opposed_normals == 1 {
-                "its"
-            } else {
-                "their"
-            },
-        ));
+            if one { "" } else { "s" },
+            if one { "s" } else { "" },
+            if one { "its" } else { "their" },
+        )
+    });
+    if let Some(w) = &warning {
+        more(&format!("warning: {w}"));
     }
     if r.merged > 0 {
         more(&format!(
@@ -1017,9 +1020,19 @@ fn print_offset(auto: bool, r: &OffsetReport) {
             zeroset_bases::rbf::MERGE_DISTANCE
         ));
     }
+    warning
 }
 
-fn print_report(r: &FitReport) {
+/// Which constraints a fit's residual was measured over.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Scope {
+    /// Every constraint (each is a centre).
+    All,
+    /// The constraints at the centres a greedy fit kept (the `greedy` line gives all).
+    Centres,
+}
+
+fn print_report(r: &FitReport, input_warnings: &[String], scope: Scope) {
     line("solver", r.solver);
     line("iterations", &r.iterations.to_string());
     line("unknowns", &r.unknowns.to_string());
@@ -1032,8 +1045,12 @@ fn print_report(r: &FitReport) {
     line(
         "max residual",
         &format!(
-            "{:.2e} (the largest |target − field| over the constraints{smoothed}{refined}{by})",
+            "{:.2e} (the largest |target − field| over the {over}{smoothed}{refined}{by})",
             r.max_residual,
+            over = match scope {
+                Scope::All => "constraints",
+                Scope::Centres => "centres' constraints; over all of them, below",
+            },
             smoothed = if r.misfit_max > 0.0 {
                 ", of the smoothed system: its targets less the misfit below"
             } else {
@@ -1058,7 +1075,8 @@ fn print_report(r: &FitReport) {
         format!("{:.2e} (a lower bound)", r.condition_estimate)
     };
     line("condition", &condition);
-    match r.warnings.split_first() {
+    let warnings: Vec<&String> = input_warnings.iter().chain(&r.warnings).collect();
+    match warnings.split_first() {
         None => line("warnings", "none"),
         Some((first, rest)) => {
             line("warnings", first);

@@ -67,8 +67,7 @@ pub struct NormalsArgs {
           allow_hyphen_values = true)]
     pub viewpoint: Option<Viewpoint>,
 
-    /// Read the scan as this format whatever its extension: ply, xyz, csv.
-    #[arg(long)]
+    #[arg(long, value_name = "FORMAT", help = FORMAT_HELP)]
     pub format: Option<String>,
 
     /// Overwrite an existing output.
@@ -79,6 +78,11 @@ pub struct NormalsArgs {
     #[arg(long)]
     pub quiet: bool,
 }
+
+/// The help of every command's `--format` (the names `Format` parses).
+pub(crate) const FORMAT_HELP: &str = "Read the point cloud as this format whatever its \
+    extension: ply, xyz (any text of x y z [nx ny nz] columns: .xyzn, .pts, .txt, .asc, .pwn), \
+    csv, gempy, pcd, las (LAS or LAZ) or e57";
 
 /// Runs `zeroset normals`.
 pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {

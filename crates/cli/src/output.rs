@@ -61,7 +61,36 @@ pub(crate) fn check_output(
             output.display()
         );
     }
-    Ok(())
+    check_writable(dir, output)
+}
+
+/// Whether a file can be created in `dir` (as the atomic write of `output` will, beside it):
+/// a probe file is created and removed, so that a read-only or otherwise refusing directory is
+/// an error before any work rather than after it.
+fn check_writable(dir: &Path, output: &Path) -> anyhow::Result<()> {
+    static PROBES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let probe = dir.join(format!(
+        ".zeroset-probe-{}-{}",
+        std::process::id(),
+        PROBES.fetch_add(1, Ordering::Relaxed)
+    ));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(file) => {
+            drop(file);
+            // A probe that cannot be removed is left behind, hidden; the write may still work.
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => bail!(
+            "cannot write {}: creating a file in {} fails ({e})",
+            output.display(),
+            dir.display()
+        ),
+    }
 }
 
 /// Set once stdout has refused a line: nothing more is printed.

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Parser, ValueEnum};
 use zeroset_bases::outliers::{find_isolated, remove_outliers, without};
+use zeroset_field_core::io::ReadOptions;
 
 use crate::fit::{FitArgs, SmoothingArg};
 use crate::info::{g, plural};
@@ -104,11 +105,14 @@ pub struct ReconstructArgs {
 
     /// Where the scanner stood, for a scan without normals taken from one side (a room, a
     /// facade, terrain): the estimated normals are turned to face it instead of outward (as
-    /// `zeroset normals --viewpoint`; `scanners` for an E57 file: each piece faces the stations
+    /// `zeroset normals --viewpoint`; `scanners` for an E57 file: each point faces the station
     /// that recorded it). Refused for a scan with normals of its own.
     #[arg(long, value_name = "X,Y,Z|scanners", value_parser = crate::normals::parse_viewpoint,
           allow_hyphen_values = true)]
     pub viewpoint: Option<crate::normals::Viewpoint>,
+
+    #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
+    pub format: Option<String>,
 
     /// Write no PNG preview.
     #[arg(long)]
@@ -184,12 +188,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     };
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
-    let cloud = crate::normals::read_positions(
-        &args.scan,
-        &Default::default(),
-        "zeroset reconstruct",
-        true,
-    )?;
+    let mut options = ReadOptions::default();
+    if let Some(format) = &args.format {
+        options = options.with_format(format.parse().context("--format")?);
+    }
+    let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
@@ -208,8 +211,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             "normals",
             args.scan.display()
         );
-        let facing =
-            crate::normals::facing(args.viewpoint, &args.scan, &Default::default(), &cloud)?;
+        let facing = crate::normals::facing(args.viewpoint, &args.scan, &options, &cloud)?;
         // Isolated points first: estimated from the planes of other stray points, their
         // normals would agree with their neighbours' and pass the fit's test for a sparse patch
         // of surface.
@@ -236,6 +238,13 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::write_cloud(&path, &oriented)
             .with_context(|| format!("writing the oriented scan {}", path.display()))?;
         (oriented, path, temporary)
+    } else if args.format.is_some() {
+        // The stages read the scan by its extension: give them a copy that has the right one.
+        let path = temporary_file(&args.output, "ply");
+        let temporary = Temporary(Some(path.clone()));
+        crate::normals::write_cloud(&path, &cloud)
+            .with_context(|| format!("writing a copy of the scan, {}", path.display()))?;
+        (cloud, path, temporary)
     } else {
         (cloud, args.scan.clone(), Temporary(None))
     };

@@ -67,8 +67,7 @@ pub struct Source {
     #[arg(long, default_value_t = 8)]
     pub neighbours: usize,
 
-    /// Force the point-cloud format (ply, xyz, xyzn, pts, csv) when the extension says nothing.
-    #[arg(long)]
+    #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
 
     /// The data are positive inside (zeroset's convention is negative inside).

@@ -459,6 +459,97 @@ fn fit_refuses_bad_requests_with_a_message() {
 }
 
 #[test]
+fn flipped_normals_are_on_the_fit_reports_warnings_line() {
+    // Two of the sphere's 300 normals turned inward.
+    let text: String = sphere_points(300)
+        .iter()
+        .enumerate()
+        .map(|(i, (p, q))| {
+            let s = if i == 40 || i == 200 { -1.0 } else { 1.0 };
+            format!(
+                "{} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                s * q[0],
+                s * q[1],
+                s * q[2]
+            )
+        })
+        .collect();
+    let (_d, path) = temp_file("flipped.xyzn", &text);
+    let o = fit(&path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("warnings:     2 normals point against most of their nearest"),
+        "{out}"
+    );
+}
+
+#[test]
+fn an_output_that_cannot_be_written_is_refused_before_any_work() {
+    // /proc takes no new files, whoever runs the test.
+    let (_d, scan) = temp_file("sphere.xyzn", &sphere_xyzn(300));
+    for (command, output) in [("fit", "/proc/x.zsf"), ("reconstruct", "/proc/x.ply")] {
+        let mut args = vec![command, scan.to_str().unwrap(), "-o", output];
+        if command == "fit" {
+            args.extend(["--method", "rbf"]);
+        }
+        let o = zeroset(args);
+        assert_clean_failure(&o);
+        let err = stderr(&o);
+        assert!(
+            err.contains(&format!(
+                "cannot write {output}: creating a file in /proc fails"
+            )),
+            "{err}"
+        );
+        assert!(!stdout(&o).contains("fit time"), "{}", stdout(&o));
+    }
+}
+
+#[test]
+fn reconstruct_reads_a_scan_whose_extension_says_nothing_by_format() {
+    let (dir, scan) = temp_file("sphere.dat", &sphere_xyzn(400));
+    let mesh = dir.path().join("mesh.ply");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "reconstruct",
+            scan.to_str().unwrap(),
+            "-o",
+            mesh.to_str().unwrap(),
+            "--no-preview",
+            "--quiet",
+            "--force",
+        ];
+        args.extend(extra);
+        zeroset(args)
+    };
+    let o = run(&[]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("unknown point-cloud format"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&["--format", "xyz"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("report: closed, Euler characteristic 2"),
+        "{}",
+        stdout(&o)
+    );
+    // The copy the stages read is gone.
+    let mut names: Vec<_> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["mesh.ply", "sphere.dat"]);
+}
+
+#[test]
 fn fit_names_a_non_finite_coordinate_and_missing_normals() {
     let (_d, path) = temp_file(
         "nan.xyzn",

@@ -274,6 +274,15 @@ pub struct Solution {
     pub info: SolveInfo,
 }
 
+/// `, relative normal-equation residual …` where it was measured.
+fn normal_clause(rel_normal_residual: f64) -> String {
+    if rel_normal_residual.is_nan() {
+        String::new()
+    } else {
+        format!(", relative normal-equation residual {rel_normal_residual:.3e}")
+    }
+}
+
 /// Why a solve failed. Every variant carries what a user needs to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -331,14 +340,16 @@ pub enum SolveError {
     },
     /// An iterative solver stopped at its iteration limit before meeting its tolerance.
     #[error(
-        "no convergence after {iterations} iterations: relative residual {rel_residual:.3e}, relative normal-equation residual {rel_normal_residual:.3e}"
+        "no convergence after {iterations} iterations: relative residual {rel_residual:.3e}{}",
+        normal_clause(*.rel_normal_residual)
     )]
     NoConvergence {
         /// Iterations taken.
         iterations: usize,
         /// `‖b − A x‖/‖b‖` at the last iterate.
         rel_residual: f64,
-        /// `‖Aᵀr‖/(‖A‖‖r‖)` at the last iterate.
+        /// `‖Aᵀr‖/(‖A‖‖r‖)` at the last iterate (NaN where the solver was asked not to measure
+        /// it: for an expensive operator it costs a norm estimate).
         rel_normal_residual: f64,
         /// The last iterate, so that the work is not lost.
         x: Vec<f64>,

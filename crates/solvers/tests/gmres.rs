@@ -534,6 +534,62 @@ fn two_iterations_are_not_enough_and_the_error_says_so() {
 }
 
 #[test]
+fn without_the_normal_residual_a_failure_costs_no_extra_products() {
+    // An operator that counts its products (both ways).
+    struct Counted<'a>(&'a Mat<f64>, AtomicUsize);
+    impl LinearOperator for Counted<'_> {
+        fn nrows(&self) -> usize {
+            self.0.nrows()
+        }
+        fn ncols(&self) -> usize {
+            self.0.ncols()
+        }
+        fn apply(&self, x: &[f64], y: &mut [f64]) {
+            self.1.fetch_add(1, Ordering::Relaxed);
+            LsqMatrix::from(self.0).apply(x, y);
+        }
+        fn apply_transpose(&self, y: &[f64], x: &mut [f64]) {
+            self.1.fetch_add(1, Ordering::Relaxed);
+            LsqMatrix::from(self.0).apply_transpose(y, x);
+        }
+    }
+    let a = to_dense(&convection_diffusion(10, 20.0));
+    let b = vec![1.0; a.nrows()];
+    let run = |measure: bool| {
+        let op = Counted(&a, Default::default());
+        let result = Gmres::default()
+            .with_max_iterations(3)
+            .with_normal_residual(measure)
+            .solve(LsqMatrix::Operator(&op), &b, None, None);
+        let Err(SolveError::NoConvergence {
+            rel_residual,
+            rel_normal_residual,
+            x,
+            ..
+        }) = result
+        else {
+            panic!("{result:?}")
+        };
+        let products = op.1.load(Ordering::Relaxed);
+        (rel_residual, rel_normal_residual, x, products)
+    };
+    let (r1, n1, x1, p1) = run(true);
+    let (r0, n0, x0, p0) = run(false);
+    assert_eq!((x0, r0), (x1, r1));
+    assert!(n1.is_finite() && n0.is_nan());
+    // The norm estimate's 60 products and the residual's two are not paid.
+    assert!(p0 + 60 <= p1, "{p0} vs {p1}");
+    let message = SolveError::NoConvergence {
+        iterations: 3,
+        rel_residual: r0,
+        rel_normal_residual: n0,
+        x: Vec::new(),
+    }
+    .to_string();
+    assert!(!message.contains("normal-equation"), "{message}");
+}
+
+#[test]
 fn the_monitor_sees_every_step_and_can_cancel() {
     let a = to_dense(&convection_diffusion(8, 10.0));
     let b = vec![1.0; a.nrows()];

@@ -78,6 +78,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     crate::info::run(&crate::info::InfoArgs {
         file: sample.path.clone(),
         format: None,
+        quiet: args.quiet,
     })?;
     solve_all(args.k as usize, args.quiet)?;
     remove_ears(&sample.path)?;

@@ -200,6 +200,11 @@ pub struct FitArgs {
     /// z value); values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,
 
+    /// What the report calls the points (`zeroset reconstruct` passes the user's scan when it
+    /// fits an oriented copy of it).
+    #[arg(long, value_name = "NAME", hide = true)]
+    pub points_shown_as: Option<String>,
+
     /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel
     /// low-rank splines).
     #[arg(long, value_enum)]
@@ -243,7 +248,7 @@ pub struct FitArgs {
     #[arg(short, long, value_name = "FIELD")]
     pub output: Option<PathBuf>,
 
-    /// With -o: overwrite an existing output file.
+    /// Overwrite an existing output file (-o, --outliers-out).
     #[arg(long)]
     pub force: bool,
 
@@ -753,7 +758,9 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
         "points",
         &format!(
             "{}: {n} point{} with normals",
-            args.points.display(),
+            args.points_shown_as
+                .clone()
+                .unwrap_or_else(|| args.points.display().to_string()),
             if n == 1 { "" } else { "s" }
         ),
     );

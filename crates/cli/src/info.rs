@@ -47,6 +47,10 @@ pub struct InfoArgs {
     /// Read the file as this format instead of detecting it from the extension and header.
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
+
+    /// Accepted for symmetry with the other subcommands (info shows no progress spinner).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The `--format` values.
@@ -435,11 +439,26 @@ fn mesh_report(path: &Path, format: &str) -> anyhow::Result<String> {
 fn mesh_bounds(s: &mut String, mesh: &zeroset_mesh::TriMesh) {
     match mesh.bounds() {
         None => line(s, "bounds", "none (no vertex)"),
-        Some(b) => {
-            line(s, "bounds", &format!("min {}", point(b.min())));
-            more(s, &format!("max {}", point(b.max())));
-        }
+        Some(b) => corners(s, b.min(), b.max()),
     }
+}
+
+/// The `bounds:` min and max lines. Coordinates far from the origin (georeferenced) get the
+/// decimals that resolve 10⁻⁴ of the box's diagonal, which 7 significant digits would hide.
+fn corners(s: &mut String, lo: [f64; 3], hi: [f64; 3]) {
+    let d = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+    let far = lo.iter().chain(&hi).map(|v| v.abs()).fold(0.0, f64::max) > 1e3 * d;
+    let corner = |p: [f64; 3]| {
+        if far && d > 0.0 {
+            let decimals = (4 - d.log10().floor() as i32).clamp(0, 17) as usize;
+            let parts: Vec<String> = p.iter().map(|v| format!("{v:.decimals$}")).collect();
+            format!("({})", parts.join(", "))
+        } else {
+            point(p)
+        }
+    };
+    line(s, "bounds", &format!("min {}", corner(lo)));
+    more(s, &format!("max {}", corner(hi)));
 }
 
 const LABEL_WIDTH: usize = 12;
@@ -515,8 +534,7 @@ fn write_bounds(s: &mut String, cloud: &PointCloud3) {
     match cloud.bounds() {
         None => line(s, "bounds", "none (no finite point)"),
         Some(b) => {
-            line(s, "bounds", &format!("min {}", point(b.min())));
-            more(s, &format!("max {}", point(b.max())));
+            corners(s, b.min(), b.max());
             more(
                 s,
                 &format!("extent {}, diagonal {}", point(b.extent()), g(b.diagonal())),
@@ -625,7 +643,7 @@ pub(crate) fn g(v: f64) -> String {
     }
 }
 
-fn trim_zeros(text: String) -> String {
+pub(crate) fn trim_zeros(text: String) -> String {
     if text.contains('.') {
         text.trim_end_matches('0').trim_end_matches('.').to_owned()
     } else {

@@ -20,7 +20,7 @@ use zeroset_field_core::io::{
 };
 use zeroset_field_core::{Error, PointCloud3};
 
-use crate::info::{g, plural};
+use crate::info::{plural, trim_zeros};
 use crate::progress::{seconds, spinner};
 
 /// Shown after `zeroset normals --help`.
@@ -426,11 +426,22 @@ fn compare(estimated: &[[f64; 3]], given: &[[f64; 3]]) -> String {
         "with the file's normals: {opposite} of {} ({}%) point the other way; the lines differ \
          by {:.2}° (median), {:.2}° (90%), {:.2}° (99%)",
         angles.len(),
-        g(100.0 * opposite as f64 / angles.len() as f64),
+        percent(opposite, angles.len()),
         at(0.5),
         at(0.9),
         at(0.99)
     )
+}
+
+/// `part` of `whole` in percent, to 3 significant digits (0 exactly for none).
+fn percent(part: usize, whole: usize) -> String {
+    let p = 100.0 * part as f64 / whole.max(1) as f64;
+    if part == 0 {
+        "0".to_owned()
+    } else {
+        let decimals = (2 - p.log10().floor() as i32).clamp(0, 6) as usize;
+        trim_zeros(format!("{p:.decimals$}"))
+    }
 }
 
 /// Writes an oriented cloud as binary PLY or xyzn text by `path`'s extension, atomically.

@@ -204,7 +204,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.scan.display()
         );
     }
-    let (cloud, scan, _oriented) = if cloud.normals().is_none() {
+    let estimated = cloud.normals().is_none();
+    let (cloud, scan, _oriented) = if estimated {
         crate::fit::check_extent(&args.scan, &cloud)?;
         outln!(
             "{:<14}{} has no normals: estimating them (as zeroset normals)",
@@ -323,6 +324,18 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     outln!("\n== 1/3 fit");
     let t = Instant::now();
     let mut argv = vec![os("fit"), scan.as_os_str(), os("--method"), os(fit_method)];
+    let shown = format!(
+        "{}{}",
+        args.scan.display(),
+        if estimated {
+            " (its normals estimated above)"
+        } else {
+            ""
+        }
+    );
+    if scan != args.scan {
+        argv.extend([os("--points-shown-as"), std::ffi::OsStr::new(&shown)]);
+    }
     argv.extend([os("-o"), field.as_os_str()]);
     let ratio = args.outliers.outlier_ratio.map(|r| r.to_string());
     if let Some(r) = &ratio {

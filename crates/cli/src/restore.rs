@@ -115,6 +115,10 @@ pub struct RestoreArgs {
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
+
+    /// Accepted for symmetry with the other subcommands (restore shows no progress spinner).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 impl RestoreArgs {

@@ -185,7 +185,7 @@ pub fn estimate_noise(positions: &[Point<3>], normals: Option<&[Point<3>]>) -> O
 }
 
 /// [`estimate_noise`] fitting at most `max_patches` patches.
-fn estimate_noise_over(
+pub(crate) fn estimate_noise_over(
     positions: &[Point<3>],
     normals: Option<&[Point<3>]>,
     max_patches: usize,

@@ -111,7 +111,7 @@ use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{self, Point};
 
-use crate::noise::{Noise, Tree, estimate_noise, root};
+use crate::noise::{Noise, Tree, estimate_noise_over, root};
 
 /// The neighbours each point's plane is fitted to by default (the point itself makes 17).
 pub const NORMAL_NEIGHBOURS: usize = 16;
@@ -124,6 +124,11 @@ pub const NORMAL_NEIGHBOURS: usize = 16;
 /// 9 / 3, 508 / 91, 2,197 / 408, 6,387 / 1,658; the kitten (5,210 points) at the same σ
 /// (0.15 to 0.58): 0 / 0, 0 / 0, 5 / 1, 12 / 5. (48 and 64 did no better over both.)
 pub const NOISY_NORMAL_NEIGHBOURS: usize = 32;
+
+/// The patches [`default_neighbours`] measures the noise on, at most: a quantile needs no more
+/// (10,000 of them give the scatter within a few percent), and the measure stays a small part
+/// of the estimate (without a cap it doubled `zeroset normals` on the 34,834-point bunny).
+pub const NOISE_PATCHES: usize = 10_000;
 
 /// The fewest neighbours [`NormalOptions::neighbours`] takes: a plane needs three points.
 pub const MIN_NEIGHBOURS: usize = 2;
@@ -269,8 +274,10 @@ pub enum NormalError {
 
 /// The neighbour count to estimate `positions`' normals from where none is asked for:
 /// [`NOISY_NORMAL_NEIGHBOURS`] where the positions measure noisy (their scatter about the
-/// surface above [`NOISY_SCATTER`](crate::noise::NOISY_SCATTER) of their spacing, [`estimate_noise`] without normals),
-/// [`NORMAL_NEIGHBOURS`] otherwise; and the measure (`None` for a cloud too small to measure).
+/// surface above [`NOISY_SCATTER`](crate::noise::NOISY_SCATTER) of their spacing,
+/// [`estimate_noise`](crate::noise::estimate_noise) without normals, on at most
+/// [`NOISE_PATCHES`] patches spread over the cloud), [`NORMAL_NEIGHBOURS`] otherwise; and the
+/// measure (`None` for a cloud too small to measure).
 ///
 /// ```
 /// use zeroset_bases::normals::{default_neighbours, NORMAL_NEIGHBOURS};
@@ -280,7 +287,7 @@ pub enum NormalError {
 /// assert_eq!(default_neighbours(&grid).0, NORMAL_NEIGHBOURS);
 /// ```
 pub fn default_neighbours(positions: &[Point<3>]) -> (usize, Option<Noise>) {
-    let noise = estimate_noise(positions, None);
+    let noise = estimate_noise_over(positions, None, NOISE_PATCHES);
     let k = if noise.is_some_and(|n| n.is_noisy()) {
         NOISY_NORMAL_NEIGHBOURS
     } else {

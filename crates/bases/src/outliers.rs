@@ -106,11 +106,7 @@ pub struct Outliers {
 /// another length: nothing is found.
 pub fn find_outliers(positions: &[Point<3>], normals: &[Point<3>], ratio: f64) -> Outliers {
     let n = positions.len();
-    if ratio.is_nan() || ratio <= 0.0 || n < MIN_POINTS_FOR_OUTLIERS || normals.len() != n {
-        return Outliers::none(0.0);
-    }
-    // Only more than u32::MAX points fail to index.
-    let Ok(tree) = Tree::new_from_slice(positions) else {
+    let Some(tree) = index(positions, ratio).filter(|_| normals.len() == n) else {
         return Outliers::none(0.0);
     };
     let local: Vec<Neighbourhood> = (0..n)
@@ -121,9 +117,7 @@ pub fn find_outliers(positions: &[Point<3>], normals: &[Point<3>], ratio: f64) -
             Neighbourhood::new(&positions[i], &unit(&normals[i]), others)
         })
         .collect();
-    let mut sorted: Vec<f64> = local.iter().map(|l| l.spacing).collect();
-    sorted.sort_by(f64::total_cmp);
-    let median = 0.5 * (sorted[(n - 1) / 2] + sorted[n / 2]);
+    let median = median(local.iter().map(|l| l.spacing).collect());
     let limit = ratio * median;
     let mut found = Outliers::none(median);
     for (i, l) in local.iter().enumerate() {
@@ -168,10 +162,7 @@ pub fn find_outliers(positions: &[Point<3>], normals: &[Point<3>], ratio: f64) -
 /// ```
 pub fn find_isolated(positions: &[Point<3>], ratio: f64) -> Outliers {
     let n = positions.len();
-    if ratio.is_nan() || ratio <= 0.0 || n < MIN_POINTS_FOR_OUTLIERS {
-        return Outliers::none(0.0);
-    }
-    let Ok(tree) = Tree::new_from_slice(positions) else {
+    let Some(tree) = index(positions, ratio) else {
         return Outliers::none(0.0);
     };
     let spacing: Vec<f64> = (0..n)
@@ -183,13 +174,28 @@ pub fn find_isolated(positions: &[Point<3>], ratio: f64) -> Outliers {
             others.iter().sum::<f64>() / others.len().max(1) as f64
         })
         .collect();
-    let mut sorted = spacing.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = 0.5 * (sorted[(n - 1) / 2] + sorted[n / 2]);
+    let median = median(spacing.clone());
     let mut found = Outliers::none(median);
     found.indices = (0..n).filter(|&i| spacing[i] > ratio * median).collect();
     found.isolated = found.indices.len();
     found
+}
+
+/// The search tree of `positions`, or `None` where nothing is to be found: `ratio` off (≤ 0 or
+/// NaN), fewer than [`MIN_POINTS_FOR_OUTLIERS`] points, or more than `u32::MAX` (the only
+/// clouds that fail to index).
+fn index(positions: &[Point<3>], ratio: f64) -> Option<Tree> {
+    if ratio.is_nan() || ratio <= 0.0 || positions.len() < MIN_POINTS_FOR_OUTLIERS {
+        return None;
+    }
+    Tree::new_from_slice(positions).ok()
+}
+
+/// The median of `values` (not empty), the mean of the middle two for an even count.
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    0.5 * (values[(n - 1) / 2] + values[n / 2])
 }
 
 /// The (at most) [`OUTLIER_NEIGHBOURS`] nearest other points of point `i`.

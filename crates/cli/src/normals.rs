@@ -464,3 +464,30 @@ pub(crate) fn write_cloud(path: &Path, cloud: &PointCloud3) -> anyhow::Result<()
     })?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_facing_without_points_keeps_the_other_points_scanners_in_order() {
+        let origins = (0..6).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let Facing::Scanners(kept, scans) = Facing::Scanners(origins, 2).without(&[0, 3, 5]) else {
+            panic!("not scanners")
+        };
+        assert_eq!(kept, [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [4.0, 0.0, 0.0]]);
+        assert_eq!(scans, 2);
+        assert!(matches!(
+            Facing::Point([1.0, 2.0, 3.0]).without(&[0]),
+            Facing::Point([1.0, 2.0, 3.0])
+        ));
+    }
+
+    #[test]
+    fn percentages_keep_three_digits() {
+        assert_eq!(percent(0, 10), "0");
+        assert_eq!(percent(981, 34_834), "2.82");
+        assert_eq!(percent(9, 34_834), "0.0258");
+        assert_eq!(percent(10, 10), "100");
+    }
+}

@@ -397,13 +397,8 @@ fn estimate(
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
-    let (signed, attached) = sign_pieces(positions, &pieces, facing, &mut normals);
-    let facing_scanner = match facing {
-        Facing::Scanners(scanners) => {
-            face_scanners(positions, scanners, &planes, &forest, &mut normals)
-        }
-        Facing::Outward | Facing::Viewpoint(_) => 0,
-    };
+    let (signed, attached, facing_scanner) =
+        sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
     Ok(EstimatedNormals {
         normals,
         pieces: signed,
@@ -586,14 +581,15 @@ fn agreeing(plane: Option<Point<3>>, reference: &Point<3>) -> Point<3> {
 /// Signs every point whose plane is seen at an incidence of at most `acos(`[`GRAZING_COSINE`]`)`
 /// from its scanner towards that scanner, then the others from them along `forest`,
 /// breadth-first (sources in index order); points of trees without such a point keep their
-/// normals. Returns the points signed by their scanner.
+/// normals. Returns the points signed by their scanner, and which points were signed (whole
+/// trees).
 fn face_scanners(
     positions: &[Point<3>],
     scanners: &[Point<3>],
     planes: &[Option<Point<3>>],
     forest: &[Vec<u32>],
     normals: &mut [Point<3>],
-) -> usize {
+) -> (usize, Vec<bool>) {
     let mut seen = vec![false; positions.len()];
     let mut queue = VecDeque::new();
     for (i, plane) in planes.iter().enumerate() {
@@ -619,18 +615,21 @@ fn face_scanners(
             }
         }
     }
-    sources
+    (sources, seen)
 }
 
-/// Turns each large piece outward by its divergence (or as `facing` says) and each small
-/// piece to agree with its points' nearest points in the large pieces. Returns the large
-/// pieces' count and the small pieces' points.
+/// Turns each large piece outward by its divergence (or as `facing` says), then — facing the
+/// scanners — every point it can by its own scanner ([`face_scanners`]), then each small piece
+/// not signed so to agree with its points' nearest points in the large pieces. Returns the large
+/// pieces' count, the small pieces' points attached so, and the points signed by their scanner.
 fn sign_pieces(
     positions: &[Point<3>],
     pieces: &[Vec<u32>],
     facing: &Facing<'_>,
+    planes: &[Option<Point<3>>],
+    forest: &[Vec<u32>],
     normals: &mut [Point<3>],
-) -> (usize, usize) {
+) -> (usize, usize, usize) {
     // A piece whose root has no plane has none at all (roots are taken from the points with
     // planes first): its normals are zero until it takes its nearest large piece's.
     let planar = |piece: &Vec<u32>| normals[piece[0] as usize] != [0.0; 3];
@@ -690,14 +689,20 @@ fn sign_pieces(
             flip(normals, piece);
         }
     }
+    // Before the small pieces are attached: they take the large pieces' final signs.
+    let (facing_scanner, signed) = match facing {
+        Facing::Scanners(scanners) => face_scanners(positions, scanners, planes, forest, normals),
+        Facing::Outward | Facing::Viewpoint(_) => (0, vec![false; positions.len()]),
+    };
+    // A tree the scanners reached is signed whole.
     let small: Vec<&Vec<u32>> = pieces
         .iter()
         .zip(&is_large)
-        .filter(|(_, l)| !**l)
+        .filter(|(p, l)| !**l && !signed[p[0] as usize])
         .map(|(p, _)| p)
         .collect();
     if small.is_empty() {
-        return (large, 0);
+        return (large, 0, facing_scanner);
     }
     let anchors: Vec<u32> = pieces
         .iter()
@@ -734,5 +739,5 @@ fn sign_pieces(
             flip(normals, piece);
         }
     }
-    (large, attached)
+    (large, attached, facing_scanner)
 }

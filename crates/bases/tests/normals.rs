@@ -440,9 +440,23 @@ fn a_board_scanned_from_both_faces_faces_each_scanner() {
     let estimated = estimate_normals_from_scanners(&points, &scanners, &options).unwrap();
     assert_eq!(estimated.pieces, 1);
     assert_eq!(against(&estimated.normals, &truth).0, 0.0);
-    // Signed as one piece, one face is turned inward: the case per-point signing is for.
+    // Without the scanners (outward, the one piece signed as a whole) one face is turned
+    // inward: the case per-point signing is for.
     let (wrong, _) = against(&estimate(&points).normals, &truth);
     assert!(wrong > 0.4, "{wrong}");
+    // A heap of 20 copies of one point above the board, recorded by the upper station: a piece
+    // of its own without a plane, it takes the normal of its nearest point on the board — as
+    // that point ends up, facing the upper station.
+    let heap = points.len();
+    points.extend(std::iter::repeat_n([0.5, 0.4, 0.3], 20));
+    scanners.extend(std::iter::repeat_n([0.5, 0.4, 2.0], 20));
+    let estimated = estimate_normals_from_scanners(&points, &scanners, &options).unwrap();
+    assert_eq!(estimated.attached, 20);
+    assert!(
+        estimated.normals[heap..].iter().all(|n| n[2] > 0.9),
+        "{:?}",
+        &estimated.normals[heap..]
+    );
 }
 
 #[test]

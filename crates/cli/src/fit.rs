@@ -200,9 +200,9 @@ pub struct FitArgs {
     /// z value); values negative inside, 0 on the curve, positive outside.
     pub points: PathBuf,
 
-    /// What the report calls the points (`zeroset reconstruct` passes the user's scan when it
-    /// fits an oriented copy of it).
-    #[arg(long, value_name = "NAME", hide = true)]
+    /// What the report calls the points (`zeroset reconstruct` sets the user's scan when it
+    /// fits a copy of it); not an option.
+    #[arg(skip)]
     pub points_shown_as: Option<String>,
 
     /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel

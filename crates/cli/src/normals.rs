@@ -439,7 +439,7 @@ fn percent(part: usize, whole: usize) -> String {
     if part == 0 {
         "0".to_owned()
     } else {
-        let decimals = (2 - p.log10().floor() as i32).clamp(0, 6) as usize;
+        let decimals = (2 - p.log10().floor() as i32).clamp(0, 15) as usize;
         trim_zeros(format!("{p:.decimals$}"))
     }
 }

@@ -25,7 +25,9 @@ pub struct OutlierArgs {
     #[arg(long, value_name = "R", help_heading = HEADING)]
     pub outlier_ratio: Option<f64>,
     /// Write the stray points set aside to this .xyzn file (x y z nx ny nz per line, in input
-    /// order; empty if there are none), written atomically.
+    /// order; empty if there are none), written atomically. (`zeroset reconstruct` of a scan
+    /// without normals reports the isolated points it sets aside before estimating them; this
+    /// file lists the fit's.)
     #[arg(long, value_name = "FILE.xyzn", help_heading = HEADING)]
     pub outliers_out: Option<PathBuf>,
 }

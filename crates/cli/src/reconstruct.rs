@@ -204,8 +204,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.scan.display()
         );
     }
-    let estimated = cloud.normals().is_none();
-    let (cloud, scan, _oriented) = if estimated {
+    // The isolated points set aside before normals are estimated (`None`: the scan has its own).
+    let mut isolated_count = None;
+    let (cloud, scan, _oriented) = if cloud.normals().is_none() {
         crate::fit::check_extent(&args.scan, &cloud)?;
         outln!(
             "{:<14}{} has no normals: estimating them (as zeroset normals)",
@@ -217,12 +218,14 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         // normals would agree with their neighbours' and pass the fit's test for a sparse patch
         // of surface.
         let isolated = find_isolated(cloud.positions(), args.outliers.ratio()?);
+        isolated_count = Some(isolated.isolated);
         let (cloud, facing) = if isolated.indices.is_empty() {
             (cloud, facing)
         } else {
             outln!(
                 "{:<14}{} isolated point{} set aside before the estimate (spacing > {}× the \
-                 median; not fitted, and not in --outliers-out, which lists the fit's)",
+                 median, not on a plane with their neighbours; not fitted, and not in \
+                 --outliers-out, which lists the fit's)",
                 "outliers",
                 isolated.isolated,
                 plural(isolated.isolated),
@@ -327,15 +330,13 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let shown = format!(
         "{}{}",
         args.scan.display(),
-        if estimated {
-            " (its normals estimated above)"
-        } else {
-            ""
+        match &isolated_count {
+            Some(0) => " (its normals estimated above)".to_owned(),
+            Some(k) => format!(" (its normals estimated above, less the {k} isolated points)"),
+            None => String::new(),
         }
     );
-    if scan != args.scan {
-        argv.extend([os("--points-shown-as"), std::ffi::OsStr::new(&shown)]);
-    }
+
     argv.extend([os("-o"), field.as_os_str()]);
     let ratio = args.outliers.outlier_ratio.map(|r| r.to_string());
     if let Some(r) = &ratio {
@@ -348,7 +349,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         argv.extend([os("--smoothing"), std::ffi::OsStr::new(mu)]);
     }
     common(&mut argv, true);
-    crate::fit::run(&stage::<FitArgs>(&argv)?).context("reconstruct, stage 1 (fit)")?;
+    let mut fit_args = stage::<FitArgs>(&argv)?;
+    if scan != args.scan {
+        fit_args.points_shown_as = Some(shown);
+    }
+    crate::fit::run(&fit_args).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));
 
     outln!("\n== 2/3 mesh");

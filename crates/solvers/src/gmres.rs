@@ -253,20 +253,19 @@ impl Gmres {
         self
     }
 
-    /// The error for an `x` that missed the tolerance, `r_norm` its residual's norm where known:
-    /// [`no_convergence`], or without the normal residual (no product, or one without `r_norm`).
+    /// The error for an `x` that missed the tolerance, `r_norm` the norm of its (true) residual:
+    /// [`no_convergence`], or without the normal residual (no product at all).
     fn no_convergence(
         &self,
         a: &Prepared<'_>,
         x: Vec<f64>,
         b: &[f64],
-        r_norm: Option<f64>,
+        r_norm: f64,
         iterations: usize,
     ) -> SolveError {
         if self.normal_residual {
             return no_convergence(a, x, b, iterations);
         }
-        let r_norm = r_norm.unwrap_or_else(|| residual(a, &x, b, &mut vec![0.0; b.len()]));
         let b_norm = norm2(b);
         SolveError::NoConvergence {
             iterations,
@@ -399,7 +398,7 @@ impl Gmres {
         let mut cycles = 0usize;
         loop {
             if state.iterations >= self.max_iterations {
-                return Err(self.no_convergence(&a, x, b, Some(r_norm), state.iterations));
+                return Err(self.no_convergence(&a, x, b, r_norm, state.iterations));
             }
             cycles += 1;
             let cycle = self.cycle(&a, preconditioner, &r, r_norm, &mut state)?;
@@ -427,7 +426,7 @@ impl Gmres {
             }
             if r_try_norm.is_nan() || r_try_norm >= r_norm {
                 // Stagnation (or a NaN): the previous iterate is the best.
-                return Err(self.no_convergence(&a, x, b, Some(r_norm), state.iterations));
+                return Err(self.no_convergence(&a, x, b, r_norm, state.iterations));
             }
             std::mem::swap(&mut x, &mut x_try);
             std::mem::swap(&mut r, &mut r_try);

@@ -46,8 +46,8 @@ use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, trim};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{
-    McOptions, MeshFormat, TriMesh, boundary_loops, check, components, mesh_field,
-    unsupported_components, write_mesh,
+    McOptions, MeshFormat, TriMesh, boundary_loops, check, component_support, components,
+    mesh_field, unsupported_components, write_mesh,
 };
 
 use crate::info::{g, point};
@@ -179,8 +179,11 @@ pub struct MeshArgs {
     #[arg(long)]
     pub close: bool,
 
-    /// Remove the components of the mesh with no input point within 3 voxels (RBF fields
-    /// record their points; the report lists such components either way).
+    /// Remove the components of the mesh with no input point within 3 voxels, and those
+    /// fitted to fewer than 4 input points (blobs around stray points near the surface; the
+    /// points nearer to them than to any other component). RBF and MRAS fields record their
+    /// points (an RBF field's centres; --scan counts the scan's); the report lists such
+    /// components either way.
     #[arg(long)]
     pub drop_spurious: bool,
 
@@ -218,6 +221,23 @@ pub struct MeshArgs {
 
 /// A mesh component with no input point within this many voxels is reported as spurious.
 const SPURIOUS_VOXELS: f64 = 3.0;
+
+/// A component fitted to fewer input points than this (the points nearer to it than to any
+/// other component, within [`SPURIOUS_VOXELS`]) is reported as weak: a closed surface through
+/// three points or fewer is the field's guess, not a shape the scan measured — it is what an
+/// implicit fit grows around a stray point a few spacings off the surface, which no spacing
+/// rule tells from a point of the surface. An RBF field's centres (used without `--scan`)
+/// put about three around each point, so there a lone stray's blob counts 3.
+const MIN_SUPPORT: usize = 4;
+
+/// The components [`MIN_SUPPORT`] calls weak, given each one's support and which are spurious
+/// already: never the best-supported one, so that a mesh is never emptied by this rule.
+fn weak_components(support: &[usize], far: &[bool]) -> Vec<bool> {
+    let best = (0..support.len()).max_by_key(|&l| (support[l], std::cmp::Reverse(l)));
+    (0..support.len())
+        .map(|l| !far[l] && support[l] < MIN_SUPPORT && Some(l) != best)
+        .collect()
+}
 
 /// The share of a mesh's area beyond the scan's reach above which the report suggests --trim:
 /// a closed scan's small holes stay under it (the bunny's five: 0.3%), the surface a
@@ -396,29 +416,60 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             let (labels, count) = components(&mesh);
             let radius = SPURIOUS_VOXELS * h;
             let far = unsupported_components(&mesh, &labels, count, points, radius);
+            // The points each component is fitted to: the scan's when given (an RBF field's
+            // centres include its off-surface points), else the field's.
+            let support = component_support(
+                &mesh,
+                &labels,
+                count,
+                scan.as_deref().unwrap_or(points),
+                radius,
+            );
+            let weak = weak_components(&support, &far);
+            let triangles_in =
+                |which: &[bool]| labels.iter().filter(|&&l| which[l as usize]).count();
+            let removal = if args.drop_spurious {
+                "; dropped"
+            } else {
+                "; --drop-spurious removes them"
+            };
             let spurious = far.iter().filter(|f| **f).count();
             if spurious > 0 {
-                let triangles = labels.iter().filter(|&&l| far[l as usize]).count();
                 say!(
                     out,
-                    "spurious: {spurious} of {count} component(s), {triangles} triangles, have no \
-                     input point within {SPURIOUS_VOXELS} voxels ({}){}",
+                    "spurious: {spurious} of {count} component(s), {} triangles, have no \
+                     input point within {SPURIOUS_VOXELS} voxels ({}){removal}",
+                    triangles_in(&far),
                     g(radius),
-                    if args.drop_spurious {
-                        "; dropped"
-                    } else {
-                        "; --drop-spurious removes them"
-                    }
                 )?;
-                if args.drop_spurious {
-                    mesh = mesh.retain_triangles(|t| !far[labels[t] as usize]);
-                    report = check(&mesh);
-                }
             } else {
                 say!(
                     out,
                     "spurious: none (every component has an input point within {SPURIOUS_VOXELS} voxels)"
                 )?;
+            }
+            let weak_count = weak.iter().filter(|w| **w).count();
+            if weak_count > 0 {
+                let most = (0..count)
+                    .filter(|&l| weak[l])
+                    .map(|l| support[l])
+                    .max()
+                    .unwrap_or(0);
+                say!(
+                    out,
+                    "weak: {weak_count} of {count} component(s), {} triangles, are fitted to \
+                     at most {most} input point{} each (fewer than {MIN_SUPPORT}: blobs around \
+                     stray points near the surface?){removal}",
+                    triangles_in(&weak),
+                    if most == 1 { "" } else { "s" },
+                )?;
+            }
+            if args.drop_spurious && (spurious > 0 || weak_count > 0) {
+                mesh = mesh.retain_triangles(|t| {
+                    let l = labels[t] as usize;
+                    !far[l] && !weak[l]
+                });
+                report = check(&mesh);
             }
         }
         Some(_) => {}
@@ -915,5 +966,15 @@ mod tests {
     fn spinner_returns_the_work() {
         assert_eq!(with_spinner(true, "x", || 3), 3);
         assert_eq!(with_spinner(false, "x", || 4), 4);
+    }
+
+    #[test]
+    fn weak_components_spare_the_best_supported_and_the_spurious() {
+        // Fewer than MIN_SUPPORT points, not already spurious, not the best supported.
+        let weak = weak_components(&[500, 1, 3, 4, 0], &[false, false, false, false, true]);
+        assert_eq!(weak, vec![false, true, true, false, false]);
+        // A mesh of weakly supported pieces keeps its best one (the first of a tie).
+        assert_eq!(weak_components(&[2, 2, 1], &[false; 3]), vec![false, true, true]);
+        assert_eq!(weak_components(&[], &[]), Vec::<bool>::new());
     }
 }

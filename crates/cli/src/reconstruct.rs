@@ -76,8 +76,8 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "FIELD.zsf")]
     pub field: Option<PathBuf>,
 
-    /// Remove the mesh's components with no input point within 3 voxels (the fitted field
-    /// records the points, RBF and MRAS alike).
+    /// Remove the mesh's components with no input point within 3 voxels, and those fitted to
+    /// fewer than 4 input points (blobs around stray points near the surface).
     #[arg(long)]
     pub drop_spurious: bool,
 

@@ -2579,6 +2579,84 @@ fn reconstruct_goes_from_a_scan_to_a_mesh_and_its_preview() {
 }
 
 #[test]
+fn mesh_reports_and_drops_blobs_around_stray_points_near_the_surface() {
+    // The sample and one stray point 3.5 spacings (0.02) outside it, along the normal of the
+    // point farthest along +x: an implicit fit wraps a small closed blob around it, which the
+    // spurious rule cannot see (the stray is an input point) but the support count can.
+    let dir = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(sample()).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let side = rows
+        .iter()
+        .max_by(|a, b| a[0].total_cmp(&b[0]))
+        .unwrap()
+        .clone();
+    let stray: Vec<f64> = (0..3).map(|a| side[a] + 0.02 * side[3 + a]).collect();
+    let points = dir.path().join("stray.xyzn");
+    let extra = format!(
+        "{} {} {} {} {} {}\n",
+        stray[0], stray[1], stray[2], side[3], side[4], side[5]
+    );
+    fs::write(&points, text + &extra).unwrap();
+    let field = dir.path().join("stray.zsf");
+    let mesh = dir.path().join("stray.ply");
+    let (p, f, m) = (
+        points.to_str().unwrap(),
+        field.to_str().unwrap(),
+        mesh.to_str().unwrap(),
+    );
+    // The fit would set the stray aside (its spacing is 3.5 times the median): keep it.
+    let out = zeroset([
+        "fit",
+        p,
+        "--method",
+        "rbf",
+        "--outlier-ratio",
+        "0",
+        "-o",
+        f,
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Counted against the field's centres (about three around each point), then the scan's.
+    for scan in [None, Some(p)] {
+        let mut args = vec![
+            "mesh", f, "-o", m, "--force", "--quiet", "--detail", "fine", "--method", "smc",
+        ];
+        args.extend(
+            scan.iter()
+                .flat_map(|s| ["--scan", *s, "--scan-outlier-ratio", "0"]),
+        );
+        let out = zeroset(&args);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            text.contains("spurious: none")
+                && text.contains("weak: 1 of 2 component(s)")
+                && text.contains("--drop-spurious removes them")
+                && text.contains("2 component(s)"),
+            "{scan:?}: {text}"
+        );
+        if scan.is_some() {
+            assert!(text.contains("at most 1 input point each"), "{text}");
+        }
+        args.push("--drop-spurious");
+        let out = zeroset(&args);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            text.contains("; dropped") && text.contains("1 component(s)"),
+            "{scan:?}: {text}"
+        );
+    }
+}
+
+#[test]
 fn mesh_reports_and_drops_components_no_point_supports() {
     // A unit sphere of value constraints, and far from it a cluster of negative values: the
     // RBF's zero set also wraps around the cluster, a surface no point lies on.

@@ -327,6 +327,87 @@ pub fn unsupported_components(
     supported.into_iter().map(|s| !s).collect()
 }
 
+/// How many of `points` each component of `mesh` (labels and count from [`components`]) is
+/// fitted to: a point counts for the component of its nearest vertex, if that vertex lies
+/// within `radius`. A point near two components counts once, for the nearer, so a small
+/// closed piece beside the surface is credited only with the points nearer to it than to the
+/// surface — a blob an implicit fit grows around a stray point a few spacings off the surface
+/// gets 1. The nearest vertex stands for the nearest surface, which takes vertices about as
+/// dense as a marching-cubes mesh's (one per voxel crossed) and `radius` a few of its voxels.
+/// Non-finite points count for none; a vertex that no triangle uses is not searched.
+///
+/// `O((V + P) log V)`, the points in parallel; the same counts on any number of threads (each
+/// point's nearest vertex is found exactly, in a tree built the same way every time).
+///
+/// ```
+/// use zeroset_mesh::{TriMesh, checks::{component_support, components}};
+///
+/// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+/// let m = TriMesh::new(v, vec![[0, 1, 2], [3, 4, 5]])?;
+/// let (labels, count) = components(&m);
+/// let points = [[0.1, 0.1, 0.0], [0.9, 0.0, 0.1], [5.2, 5.1, 5.0], [20.0, 0.0, 0.0]];
+/// assert_eq!(component_support(&m, &labels, count, &points, 0.5), vec![2, 1]);
+/// # Ok::<(), zeroset_mesh::MeshError>(())
+/// ```
+pub fn component_support(
+    mesh: &TriMesh,
+    labels: &[u32],
+    count: usize,
+    points: &[Point<3>],
+    radius: f64,
+) -> Vec<usize> {
+    use kiddo::SquaredEuclidean;
+    use kiddo::kd_tree::KdTree;
+    use kiddo::leaf_strategies::FlatVec;
+    use kiddo::stem_strategies::Eytzinger;
+    use rayon::prelude::*;
+    type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
+
+    let mut support = vec![0; count];
+    // The label of each vertex a triangle uses (a vertex shared by two components, touching
+    // at it only, takes the first triangle's).
+    let mut label_of = vec![u32::MAX; mesh.num_vertices()];
+    for (tri, &l) in mesh.triangles().iter().zip(labels) {
+        for &v in tri {
+            if label_of[v as usize] == u32::MAX {
+                label_of[v as usize] = l;
+            }
+        }
+    }
+    let (used, used_labels): (Vec<Point<3>>, Vec<u32>) = mesh
+        .vertices()
+        .iter()
+        .zip(&label_of)
+        .filter(|(p, l)| **l != u32::MAX && p.iter().all(|v| v.is_finite()))
+        .map(|(p, &l)| (*p, l))
+        .unzip();
+    if used.is_empty() || !(radius > 0.0 && radius.is_finite()) || used.len() > u32::MAX as usize {
+        return support;
+    }
+    let Ok(tree) = Tree::new_from_slice(&used) else {
+        return support;
+    };
+    let nearest: Vec<Option<u32>> = points
+        .par_iter()
+        .map(|p| {
+            if !p.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            let found = tree
+                .query(p)
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute();
+            (found.distance <= radius * radius).then(|| used_labels[found.item as usize])
+        })
+        .collect();
+    for l in nearest.into_iter().flatten() {
+        if let Some(s) = support.get_mut(l as usize) {
+            *s += 1;
+        }
+    }
+    support
+}
+
 /// The number of boundary loops (holes): the connected components of the graph of boundary
 /// edges (edges with one triangle). Two holes that touch at a vertex count as one loop.
 pub fn boundary_loops(mesh: &TriMesh) -> usize {
@@ -411,5 +492,62 @@ mod tests {
         assert_eq!(r.non_manifold_edges, 1);
         assert_eq!(r.components, 1);
         assert!(!r.closed);
+    }
+
+    #[test]
+    fn support_credits_each_point_to_the_nearest_component_only() {
+        // A square sheet z = 1 triangulated every 0.1 (vertices as dense as a marching-cubes
+        // mesh's, as the function assumes) sampled by a 5 × 5 grid, and a small cube 0.2 above
+        // it (a blob around one stray point at its centre): the grid points under the blob lie
+        // within the radius of both, but nearer to the sheet.
+        let mut vertices: Vec<Point<3>> = (0..121)
+            .map(|k| [0.1 * (k % 11) as f64, 0.1 * (k / 11) as f64, 1.0])
+            .collect();
+        let mut triangles = Vec::new();
+        for j in 0..10 {
+            for i in 0..10 {
+                let v = j * 11 + i;
+                triangles.push([v, v + 1, v + 12]);
+                triangles.push([v, v + 12, v + 11]);
+            }
+        }
+        let blob = unit_cube();
+        vertices.extend(
+            blob.vertices()
+                .iter()
+                .map(|p| [0.45 + 0.1 * p[0], 0.45 + 0.1 * p[1], 1.2 + 0.1 * p[2]]),
+        );
+        triangles.extend(blob.triangles().iter().map(|t| t.map(|v| v + 121)));
+        let mesh = TriMesh::new(vertices, triangles).unwrap();
+        let (labels, count) = components(&mesh);
+        assert_eq!(count, 2);
+        let mut points: Vec<Point<3>> = (0..25)
+            .map(|k| [0.25 * (k % 5) as f64, 0.25 * (k / 5) as f64, 1.0])
+            .collect();
+        points.push([0.5, 0.5, 1.25]);
+        points.push([f64::NAN, 0.0, 0.0]);
+        points.push([9.0, 9.0, 9.0]);
+        assert_eq!(
+            component_support(&mesh, &labels, count, &points, 0.5),
+            vec![25, 1]
+        );
+        // Both are supported in the sense of unsupported_components (a point within reach).
+        let far = unsupported_components(&mesh, &labels, count, &points, 0.5);
+        assert_eq!(far, vec![false, false]);
+        // A radius (0.08) within which every grid point has a sheet vertex (at most 0.071
+        // away) but the stray no blob corner (0.087): it counts for none.
+        assert_eq!(
+            component_support(&mesh, &labels, count, &points, 0.08),
+            vec![25, 0]
+        );
+        // No radius: nothing counts.
+        assert_eq!(
+            component_support(&mesh, &labels, count, &points, 0.0),
+            vec![0, 0]
+        );
+        assert_eq!(
+            component_support(&mesh, &labels, count, &points, f64::NAN),
+            vec![0, 0]
+        );
     }
 }

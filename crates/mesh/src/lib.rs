@@ -99,7 +99,9 @@ pub mod trim;
 pub mod trimesh;
 pub mod voxel;
 
-pub use checks::{MeshReport, boundary_loops, check, components, unsupported_components};
+pub use checks::{
+    MeshReport, boundary_loops, check, component_support, components, unsupported_components,
+};
 pub use cubes::{McOptions, marching_cubes, marching_cubes_with_cell_max, mesh_field};
 pub use error::{MeshError, Result};
 pub use io::{

@@ -974,7 +974,10 @@ mod tests {
         let weak = weak_components(&[500, 1, 3, 4, 0], &[false, false, false, false, true]);
         assert_eq!(weak, vec![false, true, true, false, false]);
         // A mesh of weakly supported pieces keeps its best one (the first of a tie).
-        assert_eq!(weak_components(&[2, 2, 1], &[false; 3]), vec![false, true, true]);
+        assert_eq!(
+            weak_components(&[2, 2, 1], &[false; 3]),
+            vec![false, true, true]
+        );
         assert_eq!(weak_components(&[], &[]), Vec::<bool>::new());
     }
 }

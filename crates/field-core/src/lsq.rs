@@ -300,7 +300,8 @@ pub enum SolveError {
     /// A NaN or infinity in the input.
     #[error("non-finite value ({value}) in {what} at index {index}")]
     NonFinite {
-        /// `"matrix"` or `"right-hand side"`.
+        /// `"matrix"` or `"right-hand side"`; or what a solver found non-finite in its own
+        /// work (the solution, a product of a user's operator or preconditioner).
         what: &'static str,
         /// The position (stored-entry index for a sparse matrix).
         index: usize,

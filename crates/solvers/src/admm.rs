@@ -166,6 +166,21 @@ pub enum AdmmError {
         /// `k`, the number of terms.
         terms: usize,
     },
+    /// The iterates ran away (a proximal operator failed on them, or they left the finite
+    /// numbers) and `H` is not positive semi-definite: the objective is unbounded below, so
+    /// ADMM has no minimiser to reach. Found by a Cholesky factorisation of `H + δI`,
+    /// `δ = 10⁻¹⁰ max |H_ii|`, made only once the iterates have run away.
+    #[error(
+        "H is not positive semi-definite (the Cholesky factorisation of H + δI, δ = 1e-10 · \
+         max |H_ii|, fails at pivot {pivot}): the objective is unbounded below and ADMM \
+         diverged (at iteration {iteration})"
+    )]
+    NotPositiveSemiDefinite {
+        /// The index of the failing pivot.
+        pivot: usize,
+        /// The iteration at which the iterates ran away.
+        iteration: usize,
+    },
     /// An error from the tensor machinery (a shape, a mode, an SVD that did not converge, a
     /// NaN reaching the SVD).
     #[error(transparent)]
@@ -655,6 +670,13 @@ impl<'a> Quadratic<'a> {
             }
             rhs.copy_from_slice(&c);
             solve_in_place(factor.as_ref(), &mut c);
+            if let Some(index) = c.iter().position(|v| !v.is_finite()) {
+                let e = AdmmError::NonFiniteVector {
+                    what: "the iterate c",
+                    index,
+                };
+                return Err(runaway(h, e, iteration));
+            }
 
             // z-step and dual step, with the residuals' ingredients.
             let (mut r2, mut pc2, mut z2) = (0.0, 0.0, 0.0);
@@ -668,7 +690,8 @@ impl<'a> Quadratic<'a> {
                     work[i][j] = relaxed(j, &z[i]) + alpha[i][j] / eta;
                 }
                 std::mem::swap(&mut z[i], &mut z_prev[i]);
-                term.prox(&work[i], 1.0 / eta, &mut z[i])?;
+                term.prox(&work[i], 1.0 / eta, &mut z[i])
+                    .map_err(|e| runaway(h, e, iteration))?;
                 for j in 0..dims[i] {
                     alpha[i][j] += eta * (relaxed(j, &z_prev[i]) - z[i][j]);
                     let ri = pc[i][j] - z[i][j];
@@ -682,6 +705,15 @@ impl<'a> Quadratic<'a> {
             }
             r = r2.sqrt();
             s = eta * norm(&dual);
+            if !(r.is_finite() && s.is_finite() && pc2.is_finite() && z2.is_finite()) {
+                // Squares past f64's range: the tolerances, scaled by the iterates, would be
+                // infinite too and take the run for converged.
+                let e = AdmmError::NonFiniteVector {
+                    what: "the residuals of the iterates",
+                    index: 0,
+                };
+                return Err(runaway(h, e, iteration));
+            }
             let report = AdmmProgress {
                 iteration,
                 primal_residual: r,
@@ -972,6 +1004,19 @@ fn factor_shifted(h: MatRef<'_, f64>, shift: f64, terms: usize) -> Result<Mat<f6
         l.col_as_slice_mut(col)[..col].fill(0.0);
     }
     Ok(l)
+}
+
+/// The error to report when the iterates ran away with `error` at `iteration`:
+/// [`AdmmError::NotPositiveSemiDefinite`] where `H + δI` has no Cholesky factor (the cause),
+/// else `error` itself.
+fn runaway(h: MatRef<'_, f64>, error: AdmmError, iteration: usize) -> AdmmError {
+    let largest = (0..h.nrows()).fold(0.0f64, |a, i| a.max(h[(i, i)].abs()));
+    match factor_shifted(h, 1e-10 * largest, 0) {
+        Err(AdmmError::NotPositiveDefinite { pivot, .. }) => {
+            AdmmError::NotPositiveSemiDefinite { pivot, iteration }
+        }
+        _ => error,
+    }
 }
 
 /// `x ← (L Lᵀ)⁻¹ x`, sequentially.

@@ -53,6 +53,11 @@ pub(crate) fn residuals(a: &Prepared<'_>, a_norm: f64, x: &[f64], b: &[f64]) -> 
 
 /// Builds the report after a solve: residuals are re-measured on the original `A`, so every
 /// solver's report means the same thing.
+///
+/// # Errors
+/// [`SolveError::NonFinite`] where the answer or its residual is NaN or infinite (checked
+/// input cannot make one; a user's operator or preconditioner that returns one can, and the
+/// answer must not pass for a solution).
 pub(crate) fn finish(
     solver: &'static str,
     a: &Prepared<'_>,
@@ -61,12 +66,40 @@ pub(crate) fn finish(
     iterations: usize,
     start: Instant,
     details: Vec<(&'static str, f64)>,
-) -> zeroset_field_core::lsq::Solution {
+) -> Result<zeroset_field_core::lsq::Solution, SolveError> {
+    check_answer(&x)?;
     let a_norm = a.norm_estimate();
     let (rel, normal) = residuals(a, a_norm, &x, b);
+    check_residual(rel)?;
     let mut info = SolveInfo::new(solver, iterations, rel, normal, start.elapsed());
     info.details = details;
-    zeroset_field_core::lsq::Solution { x, info }
+    Ok(zeroset_field_core::lsq::Solution { x, info })
+}
+
+/// [`SolveError::NonFinite`] for the first NaN or infinity in an answer.
+pub(crate) fn check_answer(x: &[f64]) -> Result<(), SolveError> {
+    match x.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(SolveError::NonFinite {
+            what: "the solution (a NaN or infinity from the operator or preconditioner?)",
+            index,
+            value: x[index],
+        }),
+        None => Ok(()),
+    }
+}
+
+/// [`SolveError::NonFinite`] for a NaN or infinite relative residual `‖b − Ax‖/‖b‖` of a
+/// finite answer (the operator returned one).
+pub(crate) fn check_residual(rel: f64) -> Result<(), SolveError> {
+    if rel.is_finite() {
+        Ok(())
+    } else {
+        Err(SolveError::NonFinite {
+            what: "the residual b − A x of the solution (a NaN or infinity from the operator?)",
+            index: 0,
+            value: rel,
+        })
+    }
 }
 
 /// Parameters shared by the iterative least-squares solvers (CGLS, LSQR).
@@ -74,6 +107,12 @@ pub(crate) fn finish(
 /// The stopping rule is Paige and Saunders': stop when
 /// `‖r‖ ≤ btol·‖b‖ + atol·‖A‖·‖x‖` (a compatible system is solved) or when
 /// `‖Aᵀr‖ ≤ atol·‖A‖·‖r‖` (a least-squares solution is found).
+///
+/// The first test grows with `‖x‖`: on an ill-conditioned problem whose answer is large (a
+/// column scaled by 1e-7, `‖x‖ ≈ 4·10⁷`) it stops where `Aᵀr` is still far from 0, as SciPy's
+/// `lsqr` does. The report's [`SolveInfo::rel_normal_residual`](zeroset_field_core::lsq::SolveInfo)
+/// (3e-2 there; 1e-10 and below for a least-squares solution) says which kind of answer it is:
+/// check it, or use a direct solver, on such problems.
 #[derive(Clone, Debug)]
 pub struct IterativeParams {
     /// Relative accuracy of `A` (default `1e-10`).

@@ -87,7 +87,7 @@ impl LeastSquaresSolver for DenseQr {
         stage(&self.params.monitor, name, Stage::Solve, 1)?;
         let sol = qr.solve_lstsq(column(b));
         let x: Vec<f64> = (0..n).map(|i| sol[(i, 0)]).collect();
-        Ok(finish(name, &prepared, x, b, 0, start, vec![]))
+        finish(name, &prepared, x, b, 0, start, vec![])
     }
 }
 
@@ -137,6 +137,6 @@ impl LeastSquaresSolver for NormalLu {
         stage(&self.params.monitor, name, Stage::Solve, 1)?;
         let sol = lu.solve(rhs);
         let x: Vec<f64> = (0..n).map(|i| sol[(i, 0)]).collect();
-        Ok(finish(name, &prepared, x, b, 0, start, vec![]))
+        finish(name, &prepared, x, b, 0, start, vec![])
     }
 }

@@ -113,7 +113,7 @@ use zeroset_field_core::lsq::{
     LinearOperator, LsqMatrix, Monitor, Solution, SolveError, SolveInfo, Stage,
 };
 
-use crate::common::{finish, no_convergence, prepare, report};
+use crate::common::{check_answer, check_residual, finish, no_convergence, prepare, report};
 use crate::kernels::{axpy, dot, norm2, scale};
 use crate::operator::Prepared;
 use crate::precond::Preconditioner;
@@ -289,17 +289,19 @@ impl Gmres {
         iterations: usize,
         start: Instant,
         details: Vec<(&'static str, f64)>,
-    ) -> Solution {
+    ) -> Result<Solution, SolveError> {
         if self.normal_residual {
             return finish(NAME, a, x, b, iterations, start, details);
         }
+        check_answer(&x)?;
         let mut r = vec![0.0; b.len()];
         let b_norm = norm2(b);
         let r_norm = residual(a, &x, b, &mut r);
         let rel = if b_norm > 0.0 { r_norm / b_norm } else { 0.0 };
+        check_residual(rel)?;
         let mut info = SolveInfo::new(NAME, iterations, rel, f64::NAN, start.elapsed());
         info.details = details;
-        Solution { x, info }
+        Ok(Solution { x, info })
     }
 
     /// Solves the square system `A x = b` from `x0` (zero if `None`), with `preconditioner` `M`
@@ -361,7 +363,7 @@ impl Gmres {
         let mut details = vec![("restart", restart as f64)];
         let b_norm = norm2(b);
         if b_norm == 0.0 {
-            return Ok(self.report(&a, vec![0.0; n], b, 0, start, details));
+            return self.report(&a, vec![0.0; n], b, 0, start, details);
         }
         let target = self.tolerance * b_norm;
 
@@ -375,7 +377,7 @@ impl Gmres {
             }
         };
         if r_norm <= target {
-            return Ok(self.report(&a, x, b, 0, start, details));
+            return self.report(&a, x, b, 0, start, details);
         }
 
         let mut state = State {
@@ -422,7 +424,7 @@ impl Gmres {
                     ("reorthogonalisations", state.reorthogonalisations as f64),
                     ("estimated_rel_residual", cycle.estimate / b_norm),
                 ]);
-                return Ok(self.report(&a, x_try, b, state.iterations, start, details));
+                return self.report(&a, x_try, b, state.iterations, start, details);
             }
             if r_try_norm.is_nan() || r_try_norm >= r_norm {
                 // Stagnation (or a NaN): the previous iterate is the best.

@@ -123,13 +123,13 @@ impl LeastSquaresSolver for Cgls {
             let mut gamma = dot(&s, &s);
             let (mut q, mut mdir) = (vec![0.0; m], vec![0.0; n]);
             if b_norm == 0.0 || norm2(&atr) == 0.0 {
-                return Ok(finish(name, &a, x, b, 0, start, vec![]));
+                return finish(name, &a, x, b, 0, start, vec![]);
             }
             for it in 1..=max_it {
                 op.apply(&dir, &mut mdir, &mut q);
                 let qq = dot(&q, &q);
                 if qq == 0.0 {
-                    return Ok(finish(name, &a, x, b, it - 1, start, vec![]));
+                    return finish(name, &a, x, b, it - 1, start, vec![]);
                 }
                 let alpha = gamma / qq;
                 axpy(alpha, &mdir, &mut x);
@@ -145,7 +145,7 @@ impl LeastSquaresSolver for Cgls {
                 };
                 report(&p.monitor, name, Stage::Iterate, it, max_it, rel, normal)?;
                 if r_norm <= p.btol * b_norm + p.atol * a_norm * x_norm || normal <= p.atol {
-                    return Ok(finish(name, &a, x, b, it, start, vec![]));
+                    return finish(name, &a, x, b, it, start, vec![]);
                 }
                 xpby(&s, gamma_new / gamma, &mut dir);
                 gamma = gamma_new;
@@ -197,14 +197,14 @@ impl LeastSquaresSolver for Lsqr {
             let b_norm = norm2(&u);
             let mut beta = b_norm;
             if beta == 0.0 {
-                return Ok(finish(name, &a, y, b, 0, start, vec![]));
+                return finish(name, &a, y, b, 0, start, vec![]);
             }
             scale(1.0 / beta, &mut u);
             let (mut atu, mut v, mut tmp_n) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             op.apply_transpose(&u, &mut atu, &mut v);
             let mut alpha = norm2(&v);
             if alpha == 0.0 {
-                return Ok(finish(name, &a, y, b, 0, start, vec![]));
+                return finish(name, &a, y, b, 0, start, vec![]);
             }
             scale(1.0 / alpha, &mut v);
             let mut w = v.clone();
@@ -254,15 +254,7 @@ impl LeastSquaresSolver for Lsqr {
                     || alpha == 0.0
                 {
                     let x = op.unprecondition(y);
-                    return Ok(finish(
-                        name,
-                        &a,
-                        x,
-                        b,
-                        it,
-                        start,
-                        vec![("norm_estimate", anorm)],
-                    ));
+                    return finish(name, &a, x, b, it, start, vec![("norm_estimate", anorm)]);
                 }
             }
             let x = op.unprecondition(y);

@@ -104,7 +104,7 @@ impl Pcg {
         }
         let k = prepare(k, f)?;
         match self.iterate("pcg", &k, f)? {
-            Outcome::Converged(x, it) => Ok(finish("pcg", &k, x, f, it, start, vec![])),
+            Outcome::Converged(x, it) => finish("pcg", &k, x, f, it, start, vec![]),
             Outcome::Exhausted(x, it) => Err(no_convergence(&k, x, f, it)),
         }
     }
@@ -147,7 +147,15 @@ impl Pcg {
         for it in 1..=max_it {
             k.apply(&dir, &mut q);
             let pq = dot(&dir, &q);
-            if pq.is_nan() || pq <= 0.0 {
+            if !pq.is_finite() {
+                return Err(SolveError::NonFinite {
+                    what: "pᵀKp, a product of the operator (a NaN or infinity from the operator \
+                           or preconditioner?)",
+                    index: it,
+                    value: pq,
+                });
+            }
+            if pq <= 0.0 {
                 return Err(SolveError::NotPositiveDefinite {
                     index: it,
                     value: pq,
@@ -185,7 +193,7 @@ impl LeastSquaresSolver for Pcg {
             a.apply_transpose(b, &mut rhs);
             let normal = NormalOperator { a: &a };
             match self.iterate(self.name(), &normal, &rhs)? {
-                Outcome::Converged(x, it) => Ok(finish(self.name(), &a, x, b, it, start, vec![])),
+                Outcome::Converged(x, it) => finish(self.name(), &a, x, b, it, start, vec![]),
                 Outcome::Exhausted(x, it) => Err(no_convergence(&a, x, b, it)),
             }
         })

@@ -116,7 +116,7 @@ impl LeastSquaresSolver for SparseQr {
         }
         stage(&self.params.monitor, NAME, Stage::Solve, 2)?;
         rhs.truncate(n);
-        Ok(finish(
+        finish(
             NAME,
             &prepared,
             rhs,
@@ -124,6 +124,6 @@ impl LeastSquaresSolver for SparseQr {
             0,
             start,
             vec![("factor_len", val.len() as f64)],
-        ))
+        )
     }
 }

@@ -461,6 +461,15 @@ fn admm_bad_inputs_are_specific_errors() {
         run(&neg, &b, &t, &o),
         AdmmError::NotPositiveDefinite { pivot: 0, terms: 3 }
     );
+    // H = −I: H + 3ηI = 2I factors (η = 1), but the objective is unbounded below and the
+    // iterates run away; the error says why.
+    let neg_one = Mat::from_fn(24, 24, |i, j| if i == j { -1.0 } else { 0.0 });
+    let e = run(&neg_one, &b, &t, &o);
+    assert!(
+        matches!(e, AdmmError::NotPositiveSemiDefinite { pivot: 0, .. }),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("not positive semi-definite"), "{e}");
     // With no terms a singular H has no Cholesky factor.
     assert!(matches!(
         run(&Mat::zeros(24, 24), &b, &[], &o),

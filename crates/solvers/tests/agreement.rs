@@ -388,6 +388,44 @@ fn iterative_solvers_that_run_out_of_iterations_say_how_far_they_got() {
     }
 }
 
+/// An operator that returns NaN in its first output entry.
+struct Poisoned;
+impl LinearOperator for Poisoned {
+    fn nrows(&self) -> usize {
+        4
+    }
+    fn ncols(&self) -> usize {
+        3
+    }
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().enumerate().for_each(|(i, v)| *v = x[i % 3]);
+        y[0] = f64::NAN;
+    }
+    fn apply_transpose(&self, y: &[f64], x: &mut [f64]) {
+        x.fill(0.0);
+        y.iter().enumerate().for_each(|(i, v)| x[i % 3] += v);
+    }
+}
+
+#[test]
+fn an_operator_that_returns_nan_is_an_error_not_a_solution() {
+    let b = [1.0; 4];
+    let solvers: Vec<Box<dyn LeastSquaresSolver>> = vec![
+        Box::new(Cgls::default()),
+        Box::new(Lsqr::default()),
+        Box::new(Pcg::default()),
+    ];
+    for s in solvers {
+        match s.solve(LsqMatrix::Operator(&Poisoned), &b) {
+            Err(SolveError::NonFinite { what, .. }) => {
+                assert!(what.contains("operator"), "{}: {what}", s.name());
+            }
+            Err(SolveError::NoConvergence { .. }) => {}
+            other => panic!("{}: expected an error, got {other:?}", s.name()),
+        }
+    }
+}
+
 #[test]
 fn poisson_preconditioned_lsqr_agrees_in_a_fraction_of_the_iterations() {
     let k = 8;

@@ -24,13 +24,21 @@
 //!
 //! ## Adaptive rank (paper 004, §5.4, Algorithm 2)
 //!
-//! Start at `R⁰ = ⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` (`γᵢ = 1/3`; the trace norm as a convex surrogate of the
-//! rank), fit, and while the absolute error `‖X − X̂‖` exceeds `ε` grow
+//! Start at `R⁰ = ⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_* / ‖X‖_F⌉` (`γᵢ = 1/3`; the trace norm as a convex surrogate
+//! of the rank), fit, and while the absolute error `‖X − X̂‖` exceeds `ε` grow
 //! `R ← R + ⌈3 ln(‖X − X̂‖/ε)⌉` (the paper does not name the logarithm's base; the natural one
 //! is used, and the step is at least 1). The paper uses `ε = 10^{−k−1}` at octree level `k`.
 //! `R` is capped at the largest rank a tensor of its shape can need, `min(I₀I₁, I₀I₂, I₁I₂)`.
 //! Because the step can overshoot, [`AdaptiveOptions::refine`] optionally bisects between the
 //! last rank that failed and the first that met `ε`, returning the smallest rank meeting it.
+//!
+//! The paper starts at `⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` ([`paper_initial_rank`]), which depends on the
+//! tensor's units: a planted rank-3 tensor `30 × 40 × 50` of norm 494 starts there at rank 827
+//! (and stops there, the bound met, after 72 s), the same tensor divided by 1000 at rank 1.
+//! Divided by `‖X‖_F` the start lies between 1 and `√min(Iₙ)` whatever the scale — the
+//! nuclear norm over the Frobenius norm is at most the square root of the rank — so zeroset
+//! starts there; pass [`paper_initial_rank`] as [`AdaptiveOptions::initial_rank`] for the
+//! paper's.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
@@ -475,12 +483,20 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
     let shape = x.shape();
     match &options.init {
         CpInit::Given(k) => {
-            if k.rank() != rank || k.shape() != shape {
-                return Err(TensorError::Dimensions {
-                    what: "cp_als: the given factors (rows of the first, rank)",
-                    expected: (shape[0], rank),
-                    got: (k.shape()[0], k.rank()),
-                });
+            const WHAT: [&str; 3] = [
+                "cp_als: the given factor of mode 0 (rows, rank)",
+                "cp_als: the given factor of mode 1 (rows, rank)",
+                "cp_als: the given factor of mode 2 (rows, rank)",
+            ];
+            for (n, what) in WHAT.into_iter().enumerate() {
+                let got = (k.shape()[n], k.rank());
+                if got != (shape[n], rank) {
+                    return Err(TensorError::Dimensions {
+                        what,
+                        expected: (shape[n], rank),
+                        got,
+                    });
+                }
             }
             let mut f = k.factors().clone();
             for r in 0..rank {
@@ -613,16 +629,26 @@ fn error_from(norm2: f64, inner: f64, g: &Mat<f64>) -> f64 {
 /// ```
 ///
 /// # Errors
-/// [`TensorError::EmptyShape`] for a zero extent or a rank of 0; [`TensorError::Memory`] for
-/// a tensor larger than the memory available.
+/// [`TensorError::EmptyShape`] for a zero extent, [`TensorError::Rank`] for a rank of 0,
+/// [`TensorError::Noise`] for a negative or non-finite noise level, [`TensorError::Memory`]
+/// for a tensor larger than the memory available.
 pub fn planted(
     shape: [usize; 3],
     rank: usize,
     noise: f64,
     seed: u64,
 ) -> Result<(Kruskal, Tensor3), TensorError> {
-    if rank == 0 || shape.contains(&0) {
+    if shape.contains(&0) {
         return Err(TensorError::EmptyShape { shape });
+    }
+    if rank == 0 {
+        return Err(TensorError::Rank {
+            rank,
+            max: max_rank(shape),
+        });
+    }
+    if !(noise.is_finite() && noise >= 0.0) {
+        return Err(TensorError::Noise { noise });
     }
     let entries = shape.iter().fold(1usize, |a, &n| a.saturating_mul(n));
     zeroset_field_core::limits::check_alloc("a planted tensor", entries.saturating_mul(2), 8)
@@ -646,7 +672,8 @@ pub fn planted(
 pub struct AdaptiveOptions {
     /// The absolute error `‖X − X̂‖` to reach (paper 004: `ε_cp = 10^{−k−1}` at level `k`).
     pub epsilon: f64,
-    /// The first rank; `None`: `⌈Σ γᵢ ‖X₍ᵢ₎‖_*⌉` with `γᵢ = 1/3` (at least 1).
+    /// The first rank; `None`: `⌈Σ γᵢ ‖X₍ᵢ₎‖_* / ‖X‖_F⌉` with `γᵢ = 1/3` (at least 1; see the
+    /// [module docs](self) for why not the paper's [`paper_initial_rank`]).
     pub initial_rank: Option<usize>,
     /// The largest rank tried (at most [`max_rank`] of the shape).
     pub max_rank: Option<usize>,
@@ -657,7 +684,8 @@ pub struct AdaptiveOptions {
 }
 
 impl AdaptiveOptions {
-    /// Error bound `epsilon`, the paper's initial rank, no refinement, default CP-ALS options.
+    /// Error bound `epsilon`, the scale-free initial rank, no refinement, default CP-ALS
+    /// options.
     pub fn new(epsilon: f64) -> Self {
         Self {
             epsilon,
@@ -687,6 +715,35 @@ pub struct AdaptiveResult {
     pub met: bool,
 }
 
+/// `Σᵢ γᵢ ‖X₍ᵢ₎‖_*`, `γᵢ = 1/3`: the mean trace norm of the three unfoldings.
+fn mean_trace_norm(x: &Tensor3) -> Result<f64, TensorError> {
+    let mut s = 0.0;
+    for mode in 0..3 {
+        s += lowrank::trace_norm(x.unfold(mode)?.as_ref())? / 3.0;
+    }
+    Ok(s)
+}
+
+/// Paper 004's first rank for Algorithm 2, `⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` (`γᵢ = 1/3`, at least 1), which
+/// grows with the tensor's units (see the [module docs](self)); [`cp_adaptive`] starts at
+/// this divided by `‖X‖_F` unless given it as [`AdaptiveOptions::initial_rank`].
+///
+/// ```
+/// use zeroset_tensor::cp::{paper_initial_rank, planted};
+/// let (_, x) = planted([6, 7, 8], 2, 0.0, 3)?;
+/// let scaled = zeroset_tensor::Tensor3::new(x.shape(), x.as_slice().iter().map(|v| 100.0 * v).collect())?;
+/// assert!(paper_initial_rank(&scaled)? > 50 * paper_initial_rank(&x)?);
+/// # Ok::<(), zeroset_tensor::TensorError>(())
+/// ```
+///
+/// # Errors
+/// [`TensorError::NonFinite`] for a NaN or infinite entry, [`TensorError::EmptyShape`] for an
+/// empty tensor, [`TensorError::Svd`] if an SVD does not converge.
+pub fn paper_initial_rank(x: &Tensor3) -> Result<usize, TensorError> {
+    check_input(x, 1)?;
+    Ok((mean_trace_norm(x)?.ceil() as usize).max(1))
+}
+
 /// The adaptive-rank CP decomposition of paper 004, Algorithm 2 (see the module docs);
 /// `progress` is passed to every CP-ALS run.
 ///
@@ -710,11 +767,12 @@ pub fn cp_adaptive(
     let mut rank = match options.initial_rank {
         Some(r) => r,
         None => {
-            let mut s = 0.0;
-            for mode in 0..3 {
-                s += lowrank::trace_norm(x.unfold(mode)?.as_ref())? / 3.0;
+            let norm = x.frobenius_norm();
+            if norm > 0.0 {
+                (mean_trace_norm(x)? / norm).ceil() as usize
+            } else {
+                1
             }
-            s.ceil() as usize
         }
     }
     .clamp(1, cap.max(1));

@@ -14,13 +14,24 @@ pub struct Tensor3 {
     data: Vec<f64>,
 }
 
+/// `I₀ I₁ I₂`, or `None` where it overflows `usize`.
+fn entries(shape: [usize; 3]) -> Option<usize> {
+    shape.iter().try_fold(1usize, |a, &n| a.checked_mul(n))
+}
+
+fn entries_or_panic(shape: [usize; 3]) -> usize {
+    entries(shape)
+        .unwrap_or_else(|| panic!("a tensor of shape {shape:?} has more entries than usize holds"))
+}
+
 impl Tensor3 {
     /// The tensor of `shape` whose row-major entries are `data`.
     ///
     /// # Errors
-    /// [`TensorError::Length`] if `data` has not `I₀ I₁ I₂` entries.
+    /// [`TensorError::Length`] if `data` has not `I₀ I₁ I₂` entries (or that product overflows
+    /// `usize`).
     pub fn new(shape: [usize; 3], data: Vec<f64>) -> Result<Self, TensorError> {
-        if data.len() != shape.iter().product::<usize>() {
+        if entries(shape) != Some(data.len()) {
             return Err(TensorError::Length {
                 shape,
                 len: data.len(),
@@ -36,16 +47,22 @@ impl Tensor3 {
     }
 
     /// The zero tensor of `shape`.
+    ///
+    /// # Panics
+    /// If `I₀ I₁ I₂` overflows `usize` (as `vec!` does when memory runs out).
     pub fn zeros(shape: [usize; 3]) -> Self {
         Self {
             shape,
-            data: vec![0.0; shape.iter().product()],
+            data: vec![0.0; entries_or_panic(shape)],
         }
     }
 
     /// The tensor with entries `f(i₀, i₁, i₂)`.
+    ///
+    /// # Panics
+    /// If `I₀ I₁ I₂` overflows `usize` (as `Vec::with_capacity` does when memory runs out).
     pub fn from_fn(shape: [usize; 3], mut f: impl FnMut(usize, usize, usize) -> f64) -> Self {
-        let mut data = Vec::with_capacity(shape.iter().product());
+        let mut data = Vec::with_capacity(entries_or_panic(shape));
         for i in 0..shape[0] {
             for j in 0..shape[1] {
                 for k in 0..shape[2] {

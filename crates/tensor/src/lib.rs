@@ -44,7 +44,7 @@ pub mod weighted;
 
 pub use cp::{
     AdaptiveOptions, AdaptiveResult, CpInit, CpOptions, CpProgress, CpResult, CpStop, Kruskal,
-    cp_adaptive, cp_als, planted,
+    cp_adaptive, cp_als, paper_initial_rank, planted,
 };
 pub use dense::{Tensor3, khatri_rao};
 pub use lowrank::{ThinSvd, svt, thin_svd, trace_norm};
@@ -75,7 +75,7 @@ pub enum TensorError {
         mode: usize,
     },
     /// Matrix dimensions that do not match the operation.
-    #[error("{what}: expected {expected:?}, got {got:?}")]
+    #[error("{what}: expected {}, got {}", dims(*expected), dims(*got))]
     Dimensions {
         /// The operation and operand.
         what: &'static str,
@@ -119,6 +119,12 @@ pub enum TensorError {
         /// The weight given.
         value: f64,
     },
+    /// A noise level that is negative or not finite ([`planted`]).
+    #[error("the noise level must be finite and non-negative, not {noise}")]
+    Noise {
+        /// The value given.
+        noise: f64,
+    },
     /// The SVD did not converge.
     #[error("the singular value decomposition did not converge")]
     Svd,
@@ -126,4 +132,16 @@ pub enum TensorError {
     /// ([`zeroset_field_core::limits`]); the message names what, the amount and the limit.
     #[error("{0}")]
     Memory(String),
+}
+
+/// `(rows, columns)` for messages, `usize::MAX` (any) as "any".
+fn dims((rows, columns): (usize, usize)) -> String {
+    let show = |n: usize| {
+        if n == usize::MAX {
+            "any".to_owned()
+        } else {
+            n.to_string()
+        }
+    };
+    format!("({} × {})", show(rows), show(columns))
 }

@@ -2,7 +2,7 @@
 
 use faer::Mat;
 use proptest::prelude::*;
-use zeroset_tensor::cp::max_rank;
+use zeroset_tensor::cp::{max_rank, paper_initial_rank};
 use zeroset_tensor::{
     AdaptiveOptions, CpInit, CpOptions, CpStop, Kruskal, Tensor3, TensorError, cp_adaptive, cp_als,
 };
@@ -159,21 +159,26 @@ fn the_adaptive_rank_meets_the_bound_and_refinement_finds_the_planted_rank() {
     let refined = cp_adaptive(&x, &options, |_| true).unwrap();
     assert_eq!(refined.rank, 4, "{:?}", refined.history);
     assert!(refined.fit.abs_error <= eps);
-    // The paper's starting guess ⌈Σ γᵢ‖X₍ᵢ₎‖_*⌉ on a tensor of unit norm.
-    let unit = Tensor3::new(
-        x.shape(),
-        x.as_slice()
-            .iter()
-            .map(|v| v / x.frobenius_norm())
-            .collect(),
-    )
-    .unwrap();
+    // The default start ⌈Σ γᵢ‖X₍ᵢ₎‖_* / ‖X‖_F⌉ does not depend on the tensor's units: the
+    // same ranks are tried for X and 1000 X (with the bound scaled alike). The paper's start
+    // is that times ‖X‖_F.
+    let scaled = |factor: f64| {
+        Tensor3::new(x.shape(), x.as_slice().iter().map(|v| v * factor).collect()).unwrap()
+    };
     let mut o = AdaptiveOptions::new(1e-6);
     o.cp = o.cp.clone().with_tol(1e-15).with_max_iter(3000);
     o.refine = true;
+    let unit = scaled(1.0 / x.frobenius_norm());
     let r = cp_adaptive(&unit, &o, |_| true).unwrap();
     assert!((1..=2).contains(&r.history[0].0), "{:?}", r.history);
     assert_eq!(r.rank, 4, "{:?}", r.history);
+    assert_eq!(paper_initial_rank(&unit).unwrap(), r.history[0].0);
+    o.epsilon = 1e-3;
+    let large = scaled(1000.0 / x.frobenius_norm());
+    let l = cp_adaptive(&large, &o, |_| true).unwrap();
+    assert_eq!(l.history[0].0, r.history[0].0, "{:?}", l.history);
+    assert_eq!(l.rank, 4, "{:?}", l.history);
+    assert!(paper_initial_rank(&large).unwrap() > 500);
 }
 
 #[test]
@@ -220,6 +225,44 @@ fn bad_input_gives_specific_errors() {
     assert!(matches!(
         cp_adaptive(&x, &AdaptiveOptions::new(0.0), |_| true),
         Err(TensorError::Tolerance { .. })
+    ));
+    // The messages name what is wrong: the rank, the noise, the mode whose factor differs,
+    // "any" for a free extent.
+    assert_eq!(
+        zeroset_tensor::planted([30, 40, 50], 0, 0.0, 1).unwrap_err(),
+        TensorError::Rank { rank: 0, max: 1200 }
+    );
+    assert!(matches!(
+        zeroset_tensor::planted([3, 4, 5], 1, f64::NAN, 1),
+        Err(TensorError::Noise { .. })
+    ));
+    let wrong_last = Kruskal::new(
+        vec![1.0; 2],
+        [Mat::zeros(3, 2), Mat::zeros(4, 2), Mat::zeros(6, 2)],
+    )
+    .unwrap();
+    let e = cp_als(
+        &x,
+        &CpOptions::new(2).with_init(CpInit::Given(wrong_last)),
+        |_| true,
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        e,
+        "cp_als: the given factor of mode 2 (rows, rank): expected (5 × 2), got (6 × 2)"
+    );
+    let e = Kruskal::new(
+        vec![1.0; 2],
+        [Mat::zeros(3, 2), Mat::zeros(4, 3), Mat::zeros(5, 2)],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("expected (any × 2), got (4 × 3)"), "{e}");
+    // A shape whose entry count overflows is a length error, not an empty tensor.
+    assert!(matches!(
+        Tensor3::new([1 << 32, 1 << 32, 1], Vec::new()),
+        Err(TensorError::Length { .. })
     ));
 }
 

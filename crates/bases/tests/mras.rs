@@ -421,6 +421,64 @@ fn compression_never_drops_the_offsets_a_coarse_level_needs() {
     }
 }
 
+/// Regression: the CP bound and the rank-0 screen bounded value changes, the tolerance the
+/// Sampson distance. With a loose tolerance the coarse field is flat in places (`|∇f| ≪ 1`),
+/// where small values are far surfaces: at 0.02 every cell from level 4 on was dropped at
+/// rank 0 and 8,029 points stayed beyond the tolerance, the farthest at 0.104 of the
+/// diagonal. Now 45, the farthest at 0.026. The report counts them exactly.
+#[test]
+fn a_loose_tolerance_is_not_met_by_dropping_every_cell() {
+    let (points, normals) = bunny();
+    let tolerance = 0.02;
+    let fit = fit(
+        &points,
+        &normals,
+        &MrasOptions {
+            tolerance,
+            ..MrasOptions::default()
+        },
+    );
+    assert!(
+        fit.points_over_tolerance < 200 && fit.max_error() < 1.5 * tolerance,
+        "{} points beyond {tolerance}, the farthest at {}",
+        fit.points_over_tolerance,
+        fit.max_error()
+    );
+    assert_eq!(fit.tolerance, tolerance);
+    assert_eq!(fit.tolerance_met(), fit.max_error() <= tolerance);
+    assert_eq!(fit.capped_cells, 0);
+    // The count is of the Sampson distances |f|/|∇f| beyond the tolerance, recomputed here
+    // from the field (unit-cube arithmetic inside the fit: a margin of 1e-9 either side).
+    let sampson: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            let g = fit.field.gradient(p);
+            fit.field.value(p).abs() / g.iter().map(|v| v * v).sum::<f64>().sqrt() / fit.diagonal
+        })
+        .collect();
+    let over = |t: f64| sampson.iter().filter(|&&d| d > t).count();
+    assert!(
+        (over(tolerance * (1.0 + 1e-9))..=over(tolerance * (1.0 - 1e-9)))
+            .contains(&fit.points_over_tolerance),
+        "{} against {}",
+        fit.points_over_tolerance,
+        over(tolerance)
+    );
+    // The level cap is counted where it stops the subdivision.
+    let capped = fit_mras(
+        &points,
+        &normals,
+        &MrasOptions::default().max_level(3),
+        &|_| {},
+    )
+    .expect("fit");
+    assert!(
+        capped.capped_cells > 0 && !capped.tolerance_met(),
+        "{}",
+        capped.capped_cells
+    );
+}
+
 #[test]
 fn stray_points_are_set_aside_not_made_surface() {
     // A sphere of 3,000 points and 60 points scattered in its box, at least 0.3 off the

@@ -224,6 +224,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             uncompressed
         ),
     );
+    line("tolerance", &tolerance_summary(&fit, &options));
     line("time", &format!("{:.2} s", fit.seconds));
     print_check(field, &cloud, &fit.outliers);
     if let Some(output) = &args.output {
@@ -239,4 +240,35 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Whether the fit met its tolerance, and if not, what stopped the subdivision short of it.
+fn tolerance_summary(fit: &zeroset_bases::mras::MrasFit, options: &MrasOptions) -> String {
+    if fit.tolerance_met() {
+        return format!(
+            "met: every point's Sampson distance within {} of the diagonal",
+            g(fit.tolerance)
+        );
+    }
+    let over = fit.points_over_tolerance;
+    // The cap is the reason a user can act on; without it, N_min stopped every split.
+    let why = if fit.capped_cells > 0 {
+        format!(
+            "{} cell(s) at the level cap would split further (--max-level {})",
+            fit.capped_cells, options.max_level
+        )
+    } else {
+        format!(
+            "the cells around them hold {} points or fewer, too few to fit an offset to, and \
+             are not split",
+            options.n_min
+        )
+    };
+    format!(
+        "not met: {over} point{} farther than {} of the diagonal (largest {}); {}",
+        if over == 1 { "" } else { "s" },
+        g(fit.tolerance),
+        g(fit.max_error()),
+        why
+    )
 }

@@ -403,6 +403,11 @@ pub(crate) fn fit_mras_cloud<'py>(
         let normals = cloud.normals().unwrap_or_default();
         let fit = fit_mras(cloud.positions(), normals, &options, &report_cell).map_err(to_py)?;
         let max_error = fit.levels.last().map_or(f64::NAN, |l| l.max_error);
+        let (met, over, capped) = (
+            fit.tolerance_met(),
+            fit.points_over_tolerance,
+            fit.capped_cells,
+        );
         let report = vec![
             ("method", ReportValue::Str("mras".into())),
             ("levels", ReportValue::Int(fit.levels.len())),
@@ -420,6 +425,9 @@ pub(crate) fn fit_mras_cloud<'py>(
             ("outliers", ReportValue::Ints(fit.outliers.clone())),
             ("kept_sparse", ReportValue::Int(fit.kept_sparse)),
             ("tolerance", ReportValue::Float(options.tolerance)),
+            ("tolerance_met", ReportValue::Bool(met)),
+            ("points_over_tolerance", ReportValue::Int(over)),
+            ("capped_cells", ReportValue::Int(capped)),
             ("seconds", ReportValue::Float(fit.seconds)),
         ];
         Ok((AnyField::Mras(fit.field), report))

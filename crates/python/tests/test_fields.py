@@ -141,6 +141,7 @@ def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
     r = f.report
     assert r.method == "mras" and r.levels >= 1 and r.storage > 0
     assert r.max_error <= 2e-3
+    assert r.tolerance_met and r.points_over_tolerance == 0 and r.capped_cells == 0
     # the report's error is the field's largest Sampson distance |f|/|∇f| at the points,
     # relative to the box diagonal: recompute it from the field
     v, g = f(points), f.gradient(points)

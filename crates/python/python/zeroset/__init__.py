@@ -483,7 +483,10 @@ def fit(
 
     ``method="mras"``: multilevel low-rank spline offsets (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
-    ``compress=False`` keeps full coefficient tensors.
+    ``compress=False`` keeps full coefficient tensors. ``report["tolerance_met"]`` says whether
+    every point's Sampson distance is within it; ``report["points_over_tolerance"]`` counts
+    those that are not (cells of 16 points or fewer are not split further), and
+    ``report["capped_cells"]`` the cells the level cap kept from splitting.
 
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
     blob or a sheet of surface): those whose mean distance to their 8 nearest exceeds

@@ -77,7 +77,9 @@ impl<const D: usize> Grid<D> {
     /// # Errors
     /// [`Error::GridTooSmall`] for fewer than one cell (cell-centred) or two vertices
     /// (vertex-centred) on some axis; [`Error::InvalidBounds`] for a box that is flat on an axis
-    /// carrying more than one sample.
+    /// carrying more than one sample; [`Error::SizeOverflow`] for more samples than one `f64`
+    /// each can address (whether the machine has the memory for a grid's samples is checked
+    /// by those that allocate them: [`crate::limits::check_alloc`]).
     pub fn new(bounds: Aabb<D>, counts: [usize; D], centering: Centering) -> Result<Self> {
         let needed = match centering {
             Centering::Cell => 1,
@@ -104,6 +106,19 @@ impl<const D: usize> Grid<D> {
                 Centering::Cell => extent[axis] / counts[axis] as f64,
                 Centering::Vertex => extent[axis] / (counts[axis] - 1) as f64,
             };
+        }
+        // Every sample must be countable and addressable as one f64 each: a grid beyond that
+        // is no grid any machine can sample (len() would wrap to a small number).
+        let samples = counts.iter().try_fold(1usize, |a, &n| a.checked_mul(n));
+        if samples
+            .and_then(|n| n.checked_mul(8))
+            .is_none_or(|b| b > isize::MAX as usize)
+        {
+            return Err(Error::SizeOverflow {
+                what: format!("a grid of {counts:?} samples"),
+                count: counts.iter().fold(1u64, |a, &n| a.saturating_mul(n as u64)),
+                bytes_each: 8,
+            });
         }
         Ok(Self {
             bounds,
@@ -207,6 +222,9 @@ impl<const D: usize> Grid<D> {
 
     /// Samples `field` at every grid point, in linear order, calling the field's batched
     /// [`ScalarField::values`] on chunks (so positions are never all held at once).
+    ///
+    /// Allocates `8 · len()` bytes, which aborts the process where the memory is not there:
+    /// [`Grid::try_sample`] checks it first.
     pub fn sample<F: ScalarField<D> + ?Sized>(&self, field: &F) -> Vec<f64> {
         let mut out = vec![0.0; self.len()];
         let mut points = Vec::with_capacity(SAMPLE_CHUNK.min(self.len()));
@@ -218,12 +236,38 @@ impl<const D: usize> Grid<D> {
         }
         out
     }
+
+    /// [`Grid::sample`] after checking that its `8 · len()` bytes are available
+    /// ([`crate::limits::check_alloc`]).
+    ///
+    /// # Errors
+    /// [`Error::Memory`] naming the grid, the amount and the limit.
+    pub fn try_sample<F: ScalarField<D> + ?Sized>(&self, field: &F) -> Result<Vec<f64>> {
+        crate::limits::check_alloc(
+            &format!("the samples of a grid of {:?}", self.counts),
+            self.len(),
+            8,
+        )?;
+        Ok(self.sample(field))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::analytic::Sphere;
+
+    #[test]
+    fn a_grid_whose_sample_count_overflows_is_refused() {
+        let cube = Aabb::new([-1.0; 3], [1.0; 3]).unwrap();
+        // 2⁶⁶ samples: len() would have wrapped to 0.
+        let e = Grid::cell_centered(cube, [1 << 22; 3]).unwrap_err();
+        assert!(matches!(e, Error::SizeOverflow { .. }), "{e}");
+        // 10¹⁵ samples are addressable, but try_sample refuses them before allocating.
+        let g = Grid::vertex_centered(cube, [100_000; 3]).unwrap();
+        let e = g.try_sample(&Sphere::new([0.0; 3], 0.5)).unwrap_err();
+        assert!(matches!(e, Error::Memory { .. }), "{e}");
+    }
 
     #[test]
     fn cell_and_vertex_positions() {

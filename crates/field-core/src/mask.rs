@@ -199,8 +199,17 @@ impl<const D: usize> BoxMask<D> {
         (0..D).all(|a| self.lo[a] <= index[a] && index[a] <= self.hi[a])
     }
 
-    /// Whether the mask reaches the grid border on `face` (so no sample lies beyond it there).
+    /// Samples per axis of the grid the mask was made for.
+    pub fn grid_counts(&self) -> [usize; D] {
+        self.counts
+    }
+
+    /// Whether the mask reaches the grid border on `face` (so no sample lies beyond it there);
+    /// false for a face whose axis the grid does not have (`face.axis ≥ D`).
     pub fn touches(&self, face: Face) -> bool {
+        if face.axis >= D {
+            return false;
+        }
         match face.side {
             Side::Lower => self.lo[face.axis] == 0,
             Side::Upper => self.hi[face.axis] + 1 == self.counts[face.axis],

@@ -245,7 +245,7 @@ pub fn contour_field<F: ScalarField<2> + ?Sized>(
     level: f64,
 ) -> Result<Contour> {
     samples::check(grid, None, level, SAMPLES)?;
-    let values = grid.sample(field);
+    let values = grid.try_sample(field)?;
     marching_squares(grid, &values, level)
 }
 

@@ -106,6 +106,11 @@ fn fit_kernel<K: StoredKernel>(
         ("centres", ReportValue::Int(fitted.field.num_centres())),
         ("max_residual", ReportValue::Float(r.max_residual)),
         ("residual_exact", ReportValue::Bool(r.residual_exact)),
+        // NaN where GMRES reached its 1e-12 target (or the solve was direct).
+        (
+            "gmres_stalled_at",
+            ReportValue::Float(r.stalled_at.unwrap_or(f64::NAN)),
+        ),
         ("smoothing", ReportValue::Float(request.smoothing)),
         ("misfit_rms", ReportValue::Float(r.misfit_rms)),
         ("misfit_max", ReportValue::Float(r.misfit_max)),

@@ -163,7 +163,7 @@ impl<const D: usize> Denoise<D> {
         grid: &Grid<D>,
         mask: &BoxMask<D>,
     ) -> Result<Restored<D, Report>> {
-        let f = grid.sample(field);
+        let f = grid.try_sample(field)?;
         let start = Instant::now();
         let g = self.restore_samples(field, grid, &f, mask)?;
         let coarse_fit = start.elapsed();

@@ -127,6 +127,15 @@ pub(crate) fn check_samples<const D: usize>(
     }
     let (lo, hi) = (mask.lo(), mask.hi());
     for axis in 0..D {
+        if mask.grid_counts()[axis] != counts[axis] {
+            return Err(zeroset_field_core::Error::ShapeMismatch {
+                what: "the samples on an axis of the grid the mask was made for (a mask for \
+                       another grid: make it with BoxMask::from_corners on this one)",
+                expected: counts[axis],
+                got: mask.grid_counts()[axis],
+            }
+            .into());
+        }
         if hi[axis] >= counts[axis] {
             return Err(zeroset_field_core::Error::MaskIndexOutOfRange {
                 axis,

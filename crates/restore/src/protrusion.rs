@@ -259,7 +259,7 @@ impl Protrusion {
         grid: &Grid<D>,
         mask: &BoxMask<D>,
     ) -> Result<Restored<D, Report>> {
-        let f = grid.sample(field);
+        let f = grid.try_sample(field)?;
         let (g, mut report) = self.restore_samples(grid, &f, mask)?;
         let (field, interpolation) = crate::interpolate(grid, g)?;
         report.interpolation = interpolation;

@@ -40,6 +40,36 @@ fn a_mask_covering_the_whole_grid_is_refused() {
 }
 
 #[test]
+fn a_mask_made_for_another_grid_is_refused() {
+    // Indices 2..=15 of a 40³ grid would be a different box on a 20³ one.
+    let (big, small) = (grid(40), grid(20));
+    let mask = BoxMask::from_corners(&big, [-0.9; 3], [-0.2; 3]).unwrap();
+    assert_eq!(mask.grid_counts(), [40; 3]);
+    let s = Sphere::new([0.0; 3], 0.5);
+    let e = Protrusion::new(Face::new(2, Side::Lower))
+        .apply(&s, &small, &mask)
+        .unwrap_err();
+    assert!(e.to_string().contains("another grid"), "{e}");
+    let e = Denoise::new([2, 2, 2])
+        .apply(&s, &small, &mask)
+        .unwrap_err();
+    assert!(e.to_string().contains("another grid"), "{e}");
+    // A face of an axis the grid does not have touches nothing (it was an index panic).
+    assert!(!mask.touches(Face::new(5, Side::Upper)));
+}
+
+#[test]
+fn a_grid_no_machine_holds_is_refused_before_it_is_sampled() {
+    let g = Grid::cell_centered(Aabb::centered_cube(1.0).unwrap(), [100_000; 3]).unwrap();
+    let mask = BoxMask::from_indices(&g, [10; 3], [20; 3]).unwrap();
+    let s = Sphere::new([0.0; 3], 0.5);
+    let e = Protrusion::new(Face::new(2, Side::Lower))
+        .apply(&s, &g, &mask)
+        .unwrap_err();
+    assert!(e.to_string().contains("memory"), "{e}");
+}
+
+#[test]
 fn grids_under_three_cells_are_refused() {
     let g = Grid::cell_centered(Aabb::centered_cube(1.0).unwrap(), [2, 8, 8]).unwrap();
     let mask = BoxMask::from_indices(&g, [0, 2, 2], [0, 4, 4]).unwrap();
@@ -146,7 +176,7 @@ fn non_finite_samples_and_wrong_lengths_are_refused() {
         matches!(e, RestoreError::Field(FieldError::ShapeMismatch { .. })),
         "{e}"
     );
-    // A mask made for a bigger grid.
+    // A mask made for a bigger grid: refused for its grid before its indices are read.
     let big = grid(12);
     let far = BoxMask::from_indices(&big, [8; 3], [10; 3]).unwrap();
     let f = vec![0.5; g.len()];
@@ -156,7 +186,11 @@ fn non_finite_samples_and_wrong_lengths_are_refused() {
     assert!(
         matches!(
             e,
-            RestoreError::Field(FieldError::MaskIndexOutOfRange { .. })
+            RestoreError::Field(FieldError::ShapeMismatch {
+                expected: 6,
+                got: 12,
+                ..
+            })
         ),
         "{e}"
     );

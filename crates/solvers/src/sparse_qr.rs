@@ -8,6 +8,12 @@
 //! column shows as a tiny `|r_kk|` in elimination order. The test is `|r_kk| ≤ τ·‖A e_{P[k]}‖`
 //! (relative to the column's own norm, so invariant under column scaling), default
 //! `τ = 1000·max(m, n)·ε`, and the error names column `P[k]`.
+//!
+//! The simplicial factorisation is slow on large problems: the 14,400 × 13,824 protrusion
+//! system of `problems::protrusion_problem(24)` takes 15.9 s against 0.46 s for
+//! [`SparseCholesky`](crate::SparseCholesky) and 0.10 s for [`Lsqr`](crate::Lsqr) (2 cores).
+//! It is the accurate reference for moderately sized or ill-conditioned problems; for large
+//! well-conditioned ones use those.
 
 use std::time::Instant;
 

@@ -47,6 +47,9 @@ pub use cp::{
     cp_adaptive, cp_als, paper_initial_rank, planted,
 };
 pub use dense::{Tensor3, khatri_rao};
+/// The `faer` this crate is built with (its `Mat` and `MatRef` appear in the API: factors,
+/// unfoldings, SVDs): use it through this re-export to get the same version.
+pub use faer;
 pub use lowrank::{ThinSvd, svt, thin_svd, trace_norm};
 pub use weighted::{WeightedOptions, WeightedResult, cp_als_weighted};
 

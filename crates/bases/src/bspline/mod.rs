@@ -232,7 +232,7 @@ impl<const D: usize> BSplineField<D> {
         grid: Grid<D>,
         degree: Degree,
     ) -> Result<Self, Error> {
-        Self::interpolate(grid, grid.sample(field), degree)
+        Self::interpolate(grid, grid.try_sample(field)?, degree)
     }
 
     /// The spline with the given coefficients (no prefilter), in the grid's C order.

@@ -1045,9 +1045,9 @@ fn print_report(r: &FitReport, input_warnings: &[String], scope: Scope) {
         "iterations",
         &match r.stalled_at {
             Some(rel) => format!(
-                "{} (GMRES stopped at a relative residual of {rel:.1e}, short of its 1e-12 \
-                 target by rounding in the direct sums; the max residual below is measured \
-                 after)",
+                "{} (GMRES stopped at a relative residual of {rel:.1e}, short of its target \
+                 by rounding, and was accepted: up to 1e-10 is; the max residual below is \
+                 measured after)",
                 r.iterations
             ),
             None => r.iterations.to_string(),

@@ -252,17 +252,18 @@ fn tolerance_summary(fit: &zeroset_bases::mras::MrasFit, options: &MrasOptions) 
     }
     let over = fit.points_over_tolerance;
     // The cap is the reason a user can act on; without it, N_min stopped every split.
+    let stops = format!(
+        "the subdivision stops at cells of {} points or fewer (too few to fit an offset to) \
+         and at cells whose points were within the tolerance when their level was fitted",
+        options.n_min
+    );
     let why = if fit.capped_cells > 0 {
         format!(
-            "{} cell(s) at the level cap would split further (--max-level {})",
+            "{} cell(s) at the level cap would split further (--max-level {}); elsewhere {stops}",
             fit.capped_cells, options.max_level
         )
     } else {
-        format!(
-            "the cells around them hold {} points or fewer, too few to fit an offset to, and \
-             are not split",
-            options.n_min
-        )
+        stops
     };
     format!(
         "not met: {over} point{} farther than {} of the diagonal (largest {}); {}",

@@ -181,9 +181,10 @@ pub struct MeshArgs {
 
     /// Remove the components of the mesh with no input point within 3 voxels, and those
     /// fitted to fewer than 4 input points (blobs around stray points near the surface; the
-    /// points nearer to them than to any other component). RBF and MRAS fields record their
-    /// points (an RBF field's centres; --scan counts the scan's); the report lists such
-    /// components either way.
+    /// points nearer to them than to any other component: the scan's with --scan, else those
+    /// an MRAS field records; an RBF field's are counted only with --scan). RBF and MRAS
+    /// fields record their points (an RBF field's centres); the report lists such components
+    /// either way.
     #[arg(long)]
     pub drop_spurious: bool,
 
@@ -226,14 +227,18 @@ const SPURIOUS_VOXELS: f64 = 3.0;
 /// other component, within [`SPURIOUS_VOXELS`]) is reported as weak: a closed surface through
 /// three points or fewer is the field's guess, not a shape the scan measured — it is what an
 /// implicit fit grows around a stray point a few spacings off the surface, which no spacing
-/// rule tells from a point of the surface. An RBF field's centres (used without `--scan`)
-/// put about three around each point, so there a lone stray's blob counts 3.
+/// rule tells from a point of the surface. Counted over the scan's points (`--scan`) or the
+/// points an MRAS field records; not for an RBF field without `--scan`, whose centres are no
+/// count of points.
 const MIN_SUPPORT: usize = 4;
 
 /// The components [`MIN_SUPPORT`] calls weak, given each one's support and which are spurious
-/// already: never the best-supported one, so that a mesh is never emptied by this rule.
+/// already: never the best-supported of the others, so that the two rules together never
+/// empty a mesh that has a component with an input point in reach.
 fn weak_components(support: &[usize], far: &[bool]) -> Vec<bool> {
-    let best = (0..support.len()).max_by_key(|&l| (support[l], std::cmp::Reverse(l)));
+    let best = (0..support.len())
+        .filter(|&l| !far[l])
+        .max_by_key(|&l| (support[l], std::cmp::Reverse(l)));
     (0..support.len())
         .map(|l| !far[l] && support[l] < MIN_SUPPORT && Some(l) != best)
         .collect()
@@ -416,16 +421,18 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             let (labels, count) = components(&mesh);
             let radius = SPURIOUS_VOXELS * h;
             let far = unsupported_components(&mesh, &labels, count, points, radius);
-            // The points each component is fitted to: the scan's when given (an RBF field's
-            // centres include its off-surface points), else the field's.
-            let support = component_support(
-                &mesh,
-                &labels,
-                count,
-                scan.as_deref().unwrap_or(points),
-                radius,
-            );
-            let weak = weak_components(&support, &far);
+            // The input points each component is fitted to: the scan's when given, else those
+            // an MRAS field records. An RBF field's centres are no count of points (about 3
+            // per point off-surface, 4 at one position with --hermite, fewer than the points
+            // after a greedy fit), so without --scan its components are not counted.
+            let support = scan
+                .as_deref()
+                .or(recorded.as_deref())
+                .map(|input| component_support(&mesh, &labels, count, input, radius));
+            let weak = support
+                .as_deref()
+                .map_or_else(|| vec![false; count], |s| weak_components(s, &far));
+            let support = support.unwrap_or_default();
             let triangles_in =
                 |which: &[bool]| labels.iter().filter(|&&l| which[l as usize]).count();
             let removal = if args.drop_spurious {
@@ -979,5 +986,10 @@ mod tests {
             vec![false, true, true]
         );
         assert_eq!(weak_components(&[], &[]), Vec::<bool>::new());
+        // The best is chosen among the components that are not spurious.
+        assert_eq!(
+            weak_components(&[0, 2, 1], &[true, false, false]),
+            vec![false, false, true]
+        );
     }
 }

@@ -2625,35 +2625,37 @@ fn mesh_reports_and_drops_blobs_around_stray_points_near_the_surface() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // Counted against the field's centres (about three around each point), then the scan's.
-    for scan in [None, Some(p)] {
-        let mut args = vec![
-            "mesh", f, "-o", m, "--force", "--quiet", "--detail", "fine", "--method", "smc",
-        ];
-        args.extend(
-            scan.iter()
-                .flat_map(|s| ["--scan", *s, "--scan-outlier-ratio", "0"]),
-        );
-        let out = zeroset(&args);
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            text.contains("spurious: none")
-                && text.contains("weak: 1 of 2 component(s)")
-                && text.contains("--drop-spurious removes them")
-                && text.contains("2 component(s)"),
-            "{scan:?}: {text}"
-        );
-        if scan.is_some() {
-            assert!(text.contains("at most 1 input point each"), "{text}");
-        }
-        args.push("--drop-spurious");
-        let out = zeroset(&args);
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            text.contains("; dropped") && text.contains("1 component(s)"),
-            "{scan:?}: {text}"
-        );
-    }
+    let mut args = vec![
+        "mesh", f, "-o", m, "--force", "--quiet", "--detail", "fine", "--method", "smc",
+    ];
+    // An RBF field's centres are no count of input points: without --scan no component is
+    // called weak (the blob is still there: two components).
+    let out = zeroset(&args);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("spurious: none")
+            && !text.contains("weak:")
+            && text.contains("Euler characteristic 4, 2 component(s)"),
+        "{text}"
+    );
+    // With the scan, its points are counted: the blob is fitted to the stray alone.
+    args.extend(["--scan", p, "--scan-outlier-ratio", "0"]);
+    let out = zeroset(&args);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("weak: 1 of 2 component(s)")
+            && text.contains("at most 1 input point each")
+            && text.contains("--drop-spurious removes them")
+            && text.contains("Euler characteristic 4, 2 component(s)"),
+        "{text}"
+    );
+    args.push("--drop-spurious");
+    let out = zeroset(&args);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("; dropped") && text.contains("Euler characteristic 2, 1 component(s)"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -2700,7 +2702,7 @@ fn mesh_reports_and_drops_components_no_point_supports() {
     assert!(
         text.contains("spurious: 1 of 2 component(s)")
             && text.contains("--drop-spurious removes them")
-            && text.contains("2 component(s)"),
+            && text.contains(", 2 component(s)"),
         "{text}"
     );
     let out = zeroset(["mesh", f, "-o", m, "--force", "--drop-spurious", "--quiet"]);

@@ -130,7 +130,8 @@ pub(crate) fn check_samples<const D: usize>(
         if mask.grid_counts()[axis] != counts[axis] {
             return Err(zeroset_field_core::Error::ShapeMismatch {
                 what: "the samples on an axis of the grid the mask was made for (a mask for \
-                       another grid: make it with BoxMask::from_corners on this one)",
+                       another grid, of another size: make it with BoxMask::from_corners on \
+                       this one)",
                 expected: counts[axis],
                 got: mask.grid_counts()[axis],
             }

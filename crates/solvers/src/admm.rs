@@ -516,7 +516,8 @@ pub struct AdmmSolution {
 /// [`AdmmError::NotOrthogonal`], [`AdmmError::NonFiniteMatrix`],
 /// [`AdmmError::NonFiniteVector`], [`AdmmError::NotSymmetric`], [`AdmmError::Eta`],
 /// [`AdmmError::InvalidOption`] for bad input; [`AdmmError::NotPositiveDefinite`] if
-/// `H + kηI` has no Cholesky factor; whatever a term's prox returns
+/// `H + kηI` has no Cholesky factor; [`AdmmError::NotPositiveSemiDefinite`] when the iterates
+/// run away because `H` is not positive semi-definite; whatever a term's prox returns
 /// ([`AdmmError::Tensor`] for an SVD that fails).
 pub fn admm(
     h: MatRef<'_, f64>,
@@ -709,7 +710,7 @@ impl<'a> Quadratic<'a> {
                 // Squares past f64's range: the tolerances, scaled by the iterates, would be
                 // infinite too and take the run for converged.
                 let e = AdmmError::NonFiniteVector {
-                    what: "the residuals of the iterates",
+                    what: "the residual norms ‖P c − z‖, ‖P c‖, ‖z‖ (index 0: all of them)",
                     index: 0,
                 };
                 return Err(runaway(h, e, iteration));
@@ -1011,6 +1012,11 @@ fn factor_shifted(h: MatRef<'_, f64>, shift: f64, terms: usize) -> Result<Mat<f6
 /// else `error` itself.
 fn runaway(h: MatRef<'_, f64>, error: AdmmError, iteration: usize) -> AdmmError {
     let largest = (0..h.nrows()).fold(0.0f64, |a, i| a.max(h[(i, i)].abs()));
+    if largest == 0.0 {
+        // A zero diagonal: H is 0 (positive semi-definite) or indefinite; no shift to test
+        // with, so the error stands.
+        return error;
+    }
     match factor_shifted(h, 1e-10 * largest, 0) {
         Err(AdmmError::NotPositiveDefinite { pivot, .. }) => {
             AdmmError::NotPositiveSemiDefinite { pivot, iteration }

@@ -128,6 +128,14 @@ impl LeastSquaresSolver for Cgls {
             for it in 1..=max_it {
                 op.apply(&dir, &mut mdir, &mut q);
                 let qq = dot(&q, &q);
+                if !qq.is_finite() {
+                    return Err(SolveError::NonFinite {
+                        what: "‖A p‖², a product of the operator (a NaN or infinity from the \
+                               operator or preconditioner?)",
+                        index: it,
+                        value: qq,
+                    });
+                }
                 if qq == 0.0 {
                     return finish(name, &a, x, b, it - 1, start, vec![]);
                 }

@@ -35,8 +35,9 @@
 //! The paper starts at `⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` ([`paper_initial_rank`]), which depends on the
 //! tensor's units: a planted rank-3 tensor `30 × 40 × 50` of norm 494 starts there at rank 827
 //! (and stops there, the bound met, after 72 s), the same tensor divided by 1000 at rank 1.
-//! Divided by `‖X‖_F` the start lies between 1 and `√min(Iₙ)` whatever the scale — the
-//! nuclear norm over the Frobenius norm is at most the square root of the rank — so zeroset
+//! Divided by `‖X‖_F` the start lies between 1 and `√max(Iₙ)` whatever the scale — each
+//! unfolding's nuclear norm over its Frobenius norm is at most the square root of its rank,
+//! `√min(Iᵢ, IⱼIₖ)` — so zeroset
 //! starts there; pass [`paper_initial_rank`] as [`AdaptiveOptions::initial_rank`] for the
 //! paper's.
 

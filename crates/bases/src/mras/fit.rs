@@ -354,6 +354,7 @@ pub struct LevelReport {
 
 /// What [`fit_mras`] returns.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct MrasFit {
     /// The field.
     pub field: MrasField<3>,
@@ -373,7 +374,9 @@ pub struct MrasFit {
     /// The fitted points whose Sampson distance `|f|/|∇f|` to the final field exceeds the
     /// tolerance: 0 where it is met ([`MrasFit::tolerance_met`]). The subdivision stops short
     /// of it where a cell holds `N_min` points or fewer ([`MrasOptions::n_min`]: too few to fit
-    /// an offset to) or at the level cap.
+    /// an offset to), at the level cap, and where a cell's points were within the tolerance
+    /// when its level was fitted (a finer level beside it, blended in by the partition of
+    /// unity, can move them again; such a cell is not fitted again).
     pub points_over_tolerance: usize,
     /// Cells of the last level that would have been split further but for the level cap
     /// ([`MrasOptions::max_level`]).
@@ -424,7 +427,7 @@ pub fn fit_mras(
     let mut to_fit: Vec<[u64; 3]> = vec![[0, 0, 0]];
     let mut last_error = None;
     // After the last level: the points beyond ε₀, and the cells the level cap kept unsplit.
-    let (mut points_over, mut capped) = (0, 0);
+    let (mut points_over, mut capped) = (positions.len(), 0);
     // No slack: the screen before ADMM and the levels that nothing refines.
     let tight = vec![1.0; np];
     for level in 1..=options.max_level {
@@ -1002,8 +1005,12 @@ fn far_field(u: &[Point<3>]) -> Vec<Target> {
 /// noisy copies.
 const STEEP_FLOOR: f64 = 0.5;
 
+/// The smallest [`steepness_factor`]: a point where `∇f^{k−1}` vanishes still gets a bound
+/// (a factor of 0 would make its slack 0 and the bound at it infinite or NaN downstream).
+const MIN_STEEPNESS: f64 = 1e-3;
+
 fn steepness_factor(gradient: &Point<3>) -> f64 {
-    (geometry::norm(gradient) / STEEP_FLOOR).min(1.0)
+    (geometry::norm(gradient) / STEEP_FLOOR).clamp(MIN_STEEPNESS, 1.0)
 }
 
 /// `steepness`: scale each point's slack by [`steepness_factor`] (not at the root, before which

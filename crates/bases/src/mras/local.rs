@@ -115,8 +115,9 @@ impl ThinPlate {
 
 /// One data point of a local fit: unit-cube position, the value the offset must reach
 /// (`−f^{k−1}(p)`) and the gradient it must reach (`n − ∇f^{k−1}(p)`), and how many times
-/// [`CpBound::Points`]' `ε` the compression may change the offset there (`slack ≥ 1`: more
-/// where a finer level will fit the point again).
+/// [`CpBound::Points`]' `ε` the compression may change the offset there (`slack > 0`: more
+/// than 1 where a finer level will fit the point again, less where the field so far is flat,
+/// so that the bound is on the distance).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Target {
     pub u: Point<3>,
@@ -363,8 +364,9 @@ pub(crate) fn solve_cell(
     // A screen: where even the offset the data asks for without the trace norm stays within the
     // CP bound at every point, `φ = 0` will do (rank 0) and ADMM need not run. (On the bunny,
     // when the screen came, the ADMM offset then met the bound too in all but 1 of 728 cells.
-    // The fit screens with every slack at 1, the tightest bound compression may get, so a
-    // screened cell is one the compression would drop too.)
+    // The fit screens with the refinement slack at 1 — the tightest bound compression may get,
+    // both scaled by the same steepness — so a screened cell is one the compression would
+    // drop too.)
     if let Some(bound) = s.cp_bound {
         let rows: Vec<Row> = bases
             .iter()

@@ -141,6 +141,7 @@ pub enum Solver {
 
 /// What a fit did.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct FitReport {
     /// The solver used (`"dense-cholesky"` or `"gmres-cardinal"`).
     pub solver: &'static str,
@@ -170,10 +171,10 @@ pub struct FitReport {
     pub condition_estimate: f64,
     /// Iterative-refinement steps taken (0 or 1).
     pub refinement_steps: usize,
-    /// The relative residual `‖b − Ax‖/‖b‖` GMRES stopped at where rounding in the direct sums
-    /// kept it short of its 1e-12 target (it is accepted up to 1e-10, far below what matters
-    /// for a fit: `max_residual` is measured after); `None` where it reached the target or
-    /// the solve was direct. Not a warning: ordinary scans stop at a few 1e-12.
+    /// The relative residual `‖b − Ax‖/‖b‖` GMRES stopped at where rounding kept it short of
+    /// its target (it is accepted up to 1e-10, far below what matters for a fit:
+    /// `max_residual` is measured after); `None` where it reached the target or the solve was
+    /// direct. Not a warning: ordinary scans stop at a few 1e-12.
     pub stalled_at: Option<f64>,
     /// Things the user should know (an ill-conditioned system, …).
     pub warnings: Vec<String>,

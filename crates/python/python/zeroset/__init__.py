@@ -485,7 +485,8 @@ def fit(
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
     ``compress=False`` keeps full coefficient tensors. ``report["tolerance_met"]`` says whether
     every point's Sampson distance is within it; ``report["points_over_tolerance"]`` counts
-    those that are not (cells of 16 points or fewer are not split further), and
+    those that are not (the subdivision stops at cells of 16 points or fewer, at the level
+    cap, and at cells whose points were within it when their level was fitted), and
     ``report["capped_cells"]`` the cells the level cap kept from splitting.
 
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a

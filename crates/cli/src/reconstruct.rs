@@ -77,9 +77,14 @@ pub struct ReconstructArgs {
     pub field: Option<PathBuf>,
 
     /// Remove the mesh's components with no input point within 3 voxels, and those fitted to
-    /// fewer than 4 input points (blobs around stray points near the surface).
-    #[arg(long)]
+    /// fewer than 4 input points (blobs around stray points near the surface). The default;
+    /// accepted for scripts written before it was.
+    #[arg(long, conflicts_with = "keep_spurious")]
     pub drop_spurious: bool,
+
+    /// Keep the components --drop-spurious removes (the mesh stage still reports them).
+    #[arg(long)]
+    pub keep_spurious: bool,
 
     /// Cut the mesh where it leaves the scan's reach, REACH local point spacings (default 1.5)
     /// beyond its nearest points (as `zeroset mesh --trim`): for one-sided scans (a face, a
@@ -366,7 +371,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     ];
     argv.extend([os("--method"), os(mesh_method), os("--detail")]);
     argv.push(std::ffi::OsStr::new(&detail));
-    if args.drop_spurious {
+    // A scan's mesh wants neither sheets no point supports nor blobs around stray points:
+    // dropped unless the user keeps them (`zeroset mesh` only reports them by default).
+    if !args.keep_spurious {
         argv.push(os("--drop-spurious"));
     }
     let trim = args.trim.map(|r| format!("--trim={r}"));

@@ -2656,6 +2656,37 @@ fn mesh_reports_and_drops_blobs_around_stray_points_near_the_surface() {
         text.contains("; dropped") && text.contains("Euler characteristic 2, 1 component(s)"),
         "{text}"
     );
+    // reconstruct drops them by default (it gives the mesh stage the scan), and keeps them
+    // when asked.
+    let rebuilt = dir.path().join("rebuilt.ply");
+    let r = rebuilt.to_str().unwrap();
+    let mut args = vec![
+        "reconstruct",
+        p,
+        "-o",
+        r,
+        "--outlier-ratio",
+        "0",
+        "--no-preview",
+        "--quiet",
+    ];
+    let out = zeroset(&args);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("weak: 1 of 2 component(s)")
+            && text.contains("; dropped")
+            && text.contains("Euler characteristic 2, 1 component(s)"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    args.extend(["--keep-spurious", "--force"]);
+    let out = zeroset(&args);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("--drop-spurious removes them") && text.contains(", 2 component(s)"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]

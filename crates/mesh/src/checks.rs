@@ -356,12 +356,9 @@ pub fn component_support(
     points: &[Point<3>],
     radius: f64,
 ) -> Vec<usize> {
+    use crate::trim::Tree;
     use kiddo::SquaredEuclidean;
-    use kiddo::kd_tree::KdTree;
-    use kiddo::leaf_strategies::FlatVec;
-    use kiddo::stem_strategies::Eytzinger;
     use rayon::prelude::*;
-    type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
 
     let mut support = vec![0; count];
     // The label of each vertex a triangle uses (a vertex shared by two components, touching

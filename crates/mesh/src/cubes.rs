@@ -214,8 +214,8 @@ pub fn marching_cubes_with_cell_max(
 /// with [`signed_marching_cubes`](crate::signed::signed_marching_cubes) instead, which
 /// evaluates the accurate field only near the surface, on the two fast-multipole
 /// approximations of `zeroset_bases::rbf::fmm::OrderPair` — what `zeroset mesh` does (6,150
-/// centres on a 139 × 136 × 113 grid: 14.2 s this way, 1.9 s that way with the FMM's set-up,
-/// the same triangles at general detail):
+/// centres on a 139 × 136 × 113 grid, both on 2 threads: 14.2 s this way, 1.9 s that way
+/// with the FMM's set-up counted, the same triangles at general detail):
 ///
 /// ```ignore
 /// use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};

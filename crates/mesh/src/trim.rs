@@ -89,7 +89,8 @@ pub const DEFAULT_REACH: f64 = 1.5;
 /// The local spacings are clamped to `[SPACING_CLAMP.0, SPACING_CLAMP.1]` times their median.
 const SPACING_CLAMP: (f64, f64) = (0.25, 4.0);
 
-type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
+/// The k-d tree over 3-D points (`u32` indices) the mesh checks and the trim search.
+pub(crate) type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
 
 /// Where a scan reaches: its points, each with its reach `ρ·s(p)`; see the
 /// [module docs](self).

@@ -594,15 +594,9 @@ pub fn fit_mras(
         // promised the next level to its points (a cell not stored splits too).
         let mut next = Vec::new();
         points_over = sampson.iter().filter(|&&d| d > eps0).count();
-        if !may_refine {
-            // At the level cap: the cells that would split further.
-            capped = refined(&buckets, &fitted_indices, &sampson, eps0, options)
-                .iter()
-                .filter(|r| **r)
-                .count();
-        }
+        // The cells whose own points need a finer level; at the level cap, those it stops.
+        let late = refined(&buckets, &fitted_indices, &sampson, eps0, options);
         if may_refine {
-            let late = refined(&buckets, &fitted_indices, &sampson, eps0, options);
             for ((index, early), late) in fitted_indices.iter().zip(refined_early).zip(late) {
                 if early || late {
                     for child in 0..8u64 {
@@ -614,6 +608,8 @@ pub fn fit_mras(
                     }
                 }
             }
+        } else {
+            capped = late.iter().filter(|r| **r).count();
         }
         let to_rel = cloud.side / diagonal;
         let ranks: Vec<usize> = lvl.cells().iter().filter_map(|c| c.spline.rank()).collect();

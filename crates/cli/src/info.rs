@@ -133,7 +133,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     // the file.
     let mut strict = read(&options);
     let mut not_normals = None;
-    if let Err(e @ Error::NotNormals { .. }) = strict {
+    if let Err(e @ (Error::NotNormals { .. } | Error::PartialNormals { .. })) = strict {
         not_normals = Some(e);
         options = options.with_positions_only(true);
         strict = read(&options);
@@ -159,7 +159,20 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         write_scans(&mut s, &scans);
     }
     write_bounds(&mut s, &cloud);
-    write_normals(&mut s, &stats);
+    if let Some(Error::PartialNormals { with, without, .. }) = &not_normals {
+        line(
+            &mut s,
+            "normals",
+            &format!(
+                "in {} of the {} scans only: not read; zeroset fit and restore refuse this file \
+                 (zeroset normals and reconstruct estimate normals for every scan)",
+                with.len(),
+                with.len() + without.len()
+            ),
+        );
+    } else {
+        write_normals(&mut s, &stats);
+    }
     if let Some(Error::NotNormals { colours, .. }) = &not_normals {
         line(
             &mut s,

@@ -1,6 +1,7 @@
 //! Mesh files (`.obj`, `.stl`, and `.ply` with faces) where a point cloud is expected:
 //! `zeroset fit`, `normals`, `reconstruct` and `restore` take the mesh's vertices as the
-//! points, with normals from the file or the triangles' winding
+//! points (a PLY whose faces use fewer than half of its vertices is a point cloud with a few
+//! faces, and is read as one), with normals from the file or the triangles' winding
 //! ([`zeroset_mesh::points`]) — so that a broken mesh (holes, a ragged scan, STL from another
 //! program) is rebuilt into a closed one with `zeroset reconstruct broken.stl -o closed.stl`,
 //! and a mesh gives the same points and normals in each of the three formats. Where the
@@ -25,6 +26,18 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
         .with_context(|| format!("reading the mesh {}", path.display()))?;
     let (triangles, vertices) = (mesh.num_triangles(), mesh.num_vertices());
     let points = mesh_points(mesh);
+    let used = vertices - points.left_out;
+    if MeshFormat::from_path(path) == Some(MeshFormat::Ply) && points.left_out > used {
+        // A scan's PLY that carries a few faces (a marker, a patch) is still a point cloud:
+        // taking the triangles' vertices would drop most of the points.
+        outln!(
+            "{:<14}{}: its {triangles} faces use {used} of its {vertices} vertices: read as a \
+             point cloud of every vertex, the faces ignored",
+            "note",
+            path.display()
+        );
+        return Ok(None);
+    }
     let format = match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj) => "an OBJ",
         Some(MeshFormat::Ply) => "a PLY",

@@ -128,7 +128,8 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
 /// Reads `path` with its normals where it has some, or its positions only where an xyz file's
 /// columns 4–6 are not normals (colours: the note says so) — and, with `normals_optional`
 /// (the caller estimates normals where the file has none), where a normal is not finite (PCL
-/// writes NaN for the normals it could not estimate; the note says so). `command` names the caller in a
+/// writes NaN for the normals it could not estimate) or only some of an E57 file's scans have
+/// normals (the note says so). `command` names the caller in a
 /// non-finite value's error.
 pub(crate) fn read_positions(
     path: &Path,
@@ -164,6 +165,16 @@ pub(crate) fn read_positions(
                 values[0],
                 values[1],
                 values[2]
+            );
+            positions_only()
+        }
+        Err(Error::PartialNormals { without, .. }) if normals_optional => {
+            outln!(
+                "{:<14}{}: {} of its scans have no normals: the positions of every scan are \
+                 read, and normals estimated for all",
+                "note",
+                path.display(),
+                without.len()
             );
             positions_only()
         }

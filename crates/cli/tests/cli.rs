@@ -320,6 +320,32 @@ fn sphere_ply(n: usize) -> String {
     s
 }
 
+#[test]
+fn a_point_cloud_ply_with_a_few_faces_is_read_as_a_point_cloud() {
+    // 300 sphere points with normals, and one face on 3 of them.
+    let ply = sphere_ply(300).replace(
+        "end_header\n",
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n",
+    ) + "3 0 1 2\n";
+    let (dir, path) = temp_file("scan.ply", &ply);
+    let field = dir.path().join("s.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        path.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("-o"),
+        field.as_os_str(),
+    ]);
+    let out = stdout(&o);
+    assert!(o.status.success(), "{out}{}", stderr(&o));
+    assert!(
+        out.contains("its 1 faces use 3 of its 300 vertices: read as a point cloud"),
+        "{out}"
+    );
+    assert!(out.contains("300 points"), "{out}");
+}
+
 fn fit(path: &Path, extra: &[&str]) -> Output {
     let mut args: Vec<&OsStr> = vec![
         OsStr::new("fit"),

@@ -153,6 +153,25 @@ pub enum Error {
         /// merely not unit length.
         colours: bool,
     },
+    /// An E57 file in which some scans have normals and some do not, read with its normals
+    /// (read the positions only, [`ReadOptions::positions_only`](crate::io::ReadOptions), to
+    /// estimate normals for every scan).
+    #[error(
+        "{}: scans {} have normals and scans {} do not: a fit needs a normal at every point \
+         (`zeroset normals` estimates them for every scan, and `zeroset reconstruct` does so \
+         itself; or export the scans with normals alone)",
+        path.display(),
+        list(with),
+        list(without)
+    )]
+    PartialNormals {
+        /// The file.
+        path: PathBuf,
+        /// The scans (0-based) with normals.
+        with: Vec<usize>,
+        /// The scans without.
+        without: Vec<usize>,
+    },
     /// A PLY file without a required vertex property.
     #[error("{}: PLY element 'vertex' has no property '{property}'", path.display())]
     MissingProperty {
@@ -223,6 +242,15 @@ fn exceeds_input_message(what: &str, count: u64, min_bytes: u64, remaining: u64)
         "{what}: {count} announced, which need at least {need} ({min_bytes} each), but only \
          {remaining} bytes remain: the input is corrupt or truncated"
     )
+}
+
+/// `0, 2, 5`: scan numbers for a message (the first 20, then how many more).
+fn list(scans: &[usize]) -> String {
+    let mut text: Vec<String> = scans.iter().take(20).map(ToString::to_string).collect();
+    if scans.len() > 20 {
+        text.push(format!("and {} more", scans.len() - 20));
+    }
+    text.join(", ")
 }
 
 /// The message of [`Error::NotNormals`]: what was found, and what to do.

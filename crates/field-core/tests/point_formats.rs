@@ -291,6 +291,15 @@ fn bad_pcd_files_are_named_errors_not_panics_or_huge_allocations() {
     ascii.extend(b"0 0 0\n1 1\n");
     let message = pcd_error(&ascii, Some(13));
     assert!(message.contains("expected 3 values"), "{message}");
+    // A line of a million values is refused at the fourth (the line is not held as numbers).
+    let mut ascii = pcd_header(&xyz, 1, "ascii");
+    ascii.extend("1 ".repeat(1_000_000).as_bytes());
+    ascii.push(b'\n');
+    let message = pcd_error(&ascii, Some(12));
+    assert!(
+        message.contains("expected 3 values") && message.contains("found more"),
+        "{message}"
+    );
     let mut ascii = pcd_header(&xyz, 1, "ascii");
     ascii.extend(b"0 zero 0\n");
     assert!(pcd_error(&ascii, Some(12)).contains("not a number: 'zero'"));
@@ -887,6 +896,62 @@ fn e57_scan(n: usize, normals: bool, first: f64) -> (Vec<e57::Record>, Vec<Vec<e
     (prototype, records)
 }
 
+/// A scan of 6 records with Cartesian and spherical coordinates and both invalid states:
+/// record `i` is flagged in `cartesian[i]` and `spherical[i]`.
+fn e57_flagged_scan(
+    cartesian: [i64; 6],
+    spherical: [i64; 6],
+) -> (Vec<e57::Record>, Vec<Vec<e57::RecordValue>>) {
+    use e57::{Record, RecordValue};
+    let prototype = vec![
+        Record::CARTESIAN_X_F64,
+        Record::CARTESIAN_Y_F64,
+        Record::CARTESIAN_Z_F64,
+        Record::SPHERICAL_RANGE_F64,
+        Record::SPHERICAL_AZIMUTH_F64,
+        Record::SPHERICAL_ELEVATION_F64,
+        Record::CARTESIAN_INVALID_STATE,
+        Record::SPHERICAL_INVALID_STATE,
+    ];
+    let records = (0..6)
+        .map(|i| {
+            // A flagged record has no range: its coordinates are the scanner's origin.
+            let r = if cartesian[i] == 0 && spherical[i] == 0 {
+                2.0
+            } else {
+                0.0
+            };
+            let mut v = vec![r, 0.0, 0.0, r, 0.0, 0.0]
+                .into_iter()
+                .map(RecordValue::Double)
+                .collect::<Vec<_>>();
+            v.push(RecordValue::Integer(cartesian[i]));
+            v.push(RecordValue::Integer(spherical[i]));
+            v
+        })
+        .collect();
+    (prototype, records)
+}
+
+#[test]
+fn e57_records_flagged_in_either_coordinate_system_are_left_out() {
+    let plain = |x: String| x;
+    for (cartesian, spherical, kept) in [
+        ([0, 1, 2, 0, 0, 0], [0; 6], 4),
+        ([0; 6], [0, 1, 0, 2, 0, 0], 4),
+        ([1, 0, 0, 0, 0, 0], [0, 2, 0, 0, 0, 0], 4),
+        ([0; 6], [0; 6], 6),
+    ] {
+        let bytes = e57_bytes(vec![e57_flagged_scan(cartesian, spherical)], plain);
+        let cloud = read("flagged.e57", bytes);
+        assert_eq!(cloud.len(), kept, "{cartesian:?} {spherical:?}");
+        assert!(
+            cloud.positions().iter().all(|p| p[0] == 2.0),
+            "{cartesian:?}"
+        );
+    }
+}
+
 #[test]
 fn e57_files_the_reader_cannot_use_are_named_errors() {
     let reason = |name: &str, bytes: Vec<u8>| match read_err(name, bytes) {
@@ -912,11 +977,46 @@ fn e57_files_the_reader_cannot_use_are_named_errors() {
         ],
         plain,
     );
-    let r = reason("mixed.e57", mixed);
+    let e = read_err("mixed.e57", &mixed);
     assert!(
-        r.contains("scans 0, 2 have normals and scans 1 do not"),
-        "{r}"
+        matches!(&e, Error::PartialNormals { with, without, .. }
+            if with == &[0, 2] && without == &[1]),
+        "{e}"
     );
+    assert!(
+        e.to_string()
+            .contains("scans 0, 2 have normals and scans 1 do not"),
+        "{e}"
+    );
+    // Its positions are read (for `zeroset normals` to estimate the normals of every scan).
+    let (_dir, path) = temp_file("mixed.e57", &mixed);
+    let positions = ReadOptions::default().with_positions_only(true);
+    let cloud = read_point_cloud_with(&path, &positions).unwrap();
+    assert_eq!((cloud.len(), cloud.normals().is_none()), (13, true));
+    // Fields named like normals under another namespace are not normals.
+    let foreign = e57_bytes(vec![e57_scan(5, true, 0.0)], |x| {
+        x.replace(
+            zeroset_field_core::io::e57::NORMALS_URI,
+            "http://example.com/other",
+        )
+    });
+    assert!(read("foreign.e57", foreign).normals().is_none());
+    // Two scans naming one binary section.
+    let shared = e57_bytes(
+        vec![e57_scan(5, false, 0.0), e57_scan(5, false, 0.0)],
+        |x| {
+            let offsets: Vec<&str> = x
+                .split("fileOffset=\"")
+                .skip(1)
+                .map(|rest| &rest[..rest.find('"').unwrap()])
+                .collect();
+            x.replace(
+                &format!("fileOffset=\"{}\"", offsets[1]),
+                &format!("fileOffset=\"{}\"", offsets[0]),
+            )
+        },
+    );
+    assert!(reason("shared.e57", shared).contains("scans 0 and 1 name the same binary section"));
     // A scan whose records hold no coordinate the reader knows.
     let renamed = e57_bytes(vec![e57_scan(5, false, 0.0)], |x| {
         x.replace("cartesianX", "cartesianQ")

@@ -9,16 +9,19 @@
 //! - Positions: `cartesianX/Y/Z` (floats or scaled integers, converted with their scale and
 //!   offset), or where a scan has no Cartesian coordinates, `sphericalRange`, `Azimuth` and
 //!   `Elevation` `(r, θ, φ)`: `(r cos φ cos θ, r cos φ sin θ, r sin φ)` (§8.4.20).
-//! - A record whose `cartesianInvalidState` (or, for spherical scans, `sphericalInvalidState`)
-//!   is not 0 is left out: 1 is a direction without a range (a beam that returned nothing), 2
-//!   no coordinate at all. Scanners write such records to keep their row/column grid.
+//! - A record whose `cartesianInvalidState` or `sphericalInvalidState` (whichever the scan
+//!   has, both where it has both) is not 0 is left out: 1 is a direction without a range (a
+//!   beam that returned nothing), 2 no coordinate at all. Scanners write such records to keep
+//!   their row/column grid.
 //! - Normals: the surface-normals extension (`normalX normalY normalZ`, namespace
 //!   [`NORMALS_URI`], written by libE57Format's simple API and CloudCompare under the prefix
-//!   `nor`), rotated by the scan's pose. Read when every scan has them; a file where some scans
-//!   have normals and some do not is an [`Error::Malformed`](crate::Error::Malformed) naming
-//!   the scans.
+//!   `nor`; fields of those names under another namespace are not normals and are skipped),
+//!   rotated by the scan's pose. Read when every scan has them; a file where some scans
+//!   have normals and some do not is an [`Error::PartialNormals`](crate::Error::PartialNormals)
+//!   naming the scans, unless only the positions are read.
 //! - Intensity, colour, row/column indices, time stamps and images are skipped.
-//! - Every page's CRC is checked by the crate; errors name the file. A pose whose quaternion
+//! - Every page's CRC is checked by the crate; errors name the file. Two scans naming the
+//!   same binary section are an error. A pose whose quaternion
 //!   is zero or not finite is an error naming the scan; one of any other length is normalised.
 //!   A panic in the decoder (none known: fuzzing with each mutated file's page checksums
 //!   repaired found none) would be reported as the file's error, not a crash.
@@ -134,15 +137,21 @@ fn read_with_scans(
 
 /// Where a scan's fields are in its records.
 struct Layout {
-    /// `x y z`, with the invalid-state field if any.
-    cartesian: Option<([usize; 3], Option<usize>)>,
-    /// Range, azimuth, elevation, with the invalid-state field if any.
-    spherical: Option<([usize; 3], Option<usize>)>,
+    /// `x y z`.
+    cartesian: Option<[usize; 3]>,
+    /// Range, azimuth, elevation.
+    spherical: Option<[usize; 3]>,
+    /// The invalid-state fields it has (`cartesianInvalidState`, `sphericalInvalidState`):
+    /// a record is kept only where each of them is 0, whichever coordinates are read — both
+    /// describe the same point, and a writer may flag it in either.
+    states: Vec<usize>,
     normals: Option<[usize; 3]>,
 }
 
 impl Layout {
-    fn of(pc: &PointCloud) -> Self {
+    /// Where `pc`'s fields are; the normals are the extension's fields under `normals`, the
+    /// namespace prefix the file declares for [`NORMALS_URI`] (none without one).
+    fn of(pc: &PointCloud, normals: Option<&str>) -> Self {
         let find = |name: &RecordName| pc.prototype.iter().position(|r| &r.name == name);
         let three = |names: [RecordName; 3]| match names.map(|n| find(&n)) {
             [Some(a), Some(b), Some(c)] => Some([a, b, c]),
@@ -152,18 +161,24 @@ impl Layout {
             RecordName::CartesianX,
             RecordName::CartesianY,
             RecordName::CartesianZ,
-        ])
-        .map(|at| (at, find(&RecordName::CartesianInvalidState)));
+        ]);
         let spherical = three([
             RecordName::SphericalRange,
             RecordName::SphericalAzimuth,
             RecordName::SphericalElevation,
-        ])
-        .map(|at| (at, find(&RecordName::SphericalInvalidState)));
+        ]);
+        let states = [
+            RecordName::CartesianInvalidState,
+            RecordName::SphericalInvalidState,
+        ]
+        .iter()
+        .filter_map(find)
+        .collect();
         let normal = |name: &str| {
-            pc.prototype
-                .iter()
-                .position(|r| matches!(&r.name, RecordName::Unknown { name: n, .. } if n == name))
+            pc.prototype.iter().position(|r| {
+                matches!(&r.name, RecordName::Unknown { namespace, name: n }
+                    if n == name && Some(namespace.as_str()) == normals)
+            })
         };
         let normals = match NORMAL_RECORDS.map(normal) {
             [Some(a), Some(b), Some(c)] => Some([a, b, c]),
@@ -172,6 +187,7 @@ impl Layout {
         Self {
             cartesian,
             spherical,
+            states,
             normals,
         }
     }
@@ -245,9 +261,9 @@ impl Pose {
     }
 }
 
-/// Checks that every scan has coordinates, and normals in every scan or none; returns whether
-/// they have normals.
-fn check_layouts(path: &Path, layouts: &[Layout]) -> Result<bool> {
+/// Checks that every scan has coordinates and, `with_normals`, normals in every scan or none;
+/// returns whether they have normals (whether all do, where some do).
+fn check_layouts(path: &Path, layouts: &[Layout], with_normals: bool) -> Result<bool> {
     if let Some(i) = layouts
         .iter()
         .position(|l| l.cartesian.is_none() && l.spherical.is_none())
@@ -261,26 +277,41 @@ fn check_layouts(path: &Path, layouts: &[Layout]) -> Result<bool> {
             ),
         ));
     }
-    let list = |normals: bool| {
-        let scans: Vec<String> = (0..layouts.len())
-            .filter(|&i| layouts[i].normals.is_some() == normals)
-            .map(|i| i.to_string())
-            .collect();
-        scans.join(", ")
-    };
-    let (with, without) = (list(true), list(false));
-    if !with.is_empty() && !without.is_empty() {
-        return Err(super::malformed(
+    let (with, without): (Vec<usize>, Vec<usize>) =
+        (0..layouts.len()).partition(|&i| layouts[i].normals.is_some());
+    if with_normals && !with.is_empty() && !without.is_empty() {
+        return Err(crate::Error::PartialNormals {
+            path: path.to_owned(),
+            with,
+            without,
+        });
+    }
+    Ok(without.is_empty())
+}
+
+/// Refuses two scans whose records are one binary section: each scan's points are its own
+/// (a file of thousands of scans naming one section would otherwise be read thousands of
+/// times over).
+fn check_sections(path: &Path, scans: &[PointCloud]) -> Result<()> {
+    let mut offsets: Vec<(u64, usize)> = scans
+        .iter()
+        .enumerate()
+        .filter(|(_, pc)| pc.records > 0)
+        .map(|(i, pc)| (pc.file_offset, i))
+        .collect();
+    offsets.sort_unstable();
+    match offsets.windows(2).find(|w| w[0].0 == w[1].0) {
+        Some(w) => Err(super::malformed(
             path,
             None,
             format!(
-                "scans {with} have normals and scans {without} do not: zeroset reads normals \
-                 for every scan or none (export the scans with normals alone, or without \
-                 normals)"
+                "scans {} and {} name the same binary section (at byte {}): each scan's \
+                 records are its own",
+                w[0].1, w[1].1, w[0].0
             ),
-        ));
+        )),
+        None => Ok(()),
     }
-    Ok(!with.is_empty())
 }
 
 /// Every scan's valid points (and normals, with `with_normals`), in the file's frame, and the
@@ -297,9 +328,15 @@ fn read_scans(
     };
     let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
     let scans = reader.pointclouds();
-    let layouts: Vec<Layout> = scans.iter().map(Layout::of).collect();
+    let extensions = reader.extensions();
+    let prefix = extensions
+        .iter()
+        .find(|e| e.url == NORMALS_URI)
+        .map(|e| e.namespace.as_str());
+    let layouts: Vec<Layout> = scans.iter().map(|pc| Layout::of(pc, prefix)).collect();
+    check_sections(path, &scans)?;
     let mut positions: Vec<Point3> = Vec::new();
-    let has_normals = check_layouts(path, &layouts)?;
+    let has_normals = check_layouts(path, &layouts, with_normals)?;
     let mut normals: Option<Vec<Point3>> = (has_normals && with_normals).then(Vec::new);
     let what = format!("the points of {}", path.display());
     let mut record = 0usize;
@@ -318,23 +355,24 @@ fn read_scans(
             })?;
             v.to_f64(&types[at]).map_err(bad)
         };
-        let valid = |values: &[RecordValue], state: Option<usize>| -> Result<bool> {
-            Ok(match state {
-                Some(at) => value(values, at)? == 0.0,
-                None => true,
-            })
-        };
         for raw in reader.pointcloud_raw(pc).map_err(bad)? {
             let values = raw.map_err(bad)?;
             let here = record;
             record += 1;
+            let mut flagged = false;
+            for &at in &layout.states {
+                flagged |= value(&values, at)? != 0.0;
+            }
+            if flagged {
+                continue;
+            }
             let local = match (layout.cartesian, layout.spherical) {
-                (Some((at, state)), _) if valid(&values, state)? => [
+                (Some(at), _) => [
                     value(&values, at[0])?,
                     value(&values, at[1])?,
                     value(&values, at[2])?,
                 ],
-                (_, Some((at, state))) if valid(&values, state)? => {
+                (None, Some(at)) => {
                     let (r, azimuth, elevation) = (
                         value(&values, at[0])?,
                         value(&values, at[1])?,
@@ -346,7 +384,8 @@ fn read_scans(
                         r * elevation.sin(),
                     ]
                 }
-                _ => continue,
+                // check_layouts refuses a scan without coordinates.
+                (None, None) => continue,
             };
             check.check(here, None, &POSITION_FIELDS, &local)?;
             limits::grow(&mut positions, 1, &what)?;

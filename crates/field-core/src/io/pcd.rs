@@ -346,7 +346,9 @@ fn read_ascii(
             continue;
         }
         values.clear();
-        for token in text.split_whitespace() {
+        // At most one value past the expected count is parsed: a line of millions of
+        // numbers is refused without holding them.
+        for token in text.split_whitespace().take(values_per_line + 1) {
             let value = super::parse_number(token).ok_or_else(|| {
                 malformed(
                     path,
@@ -362,7 +364,11 @@ fn read_ascii(
                 Some(line_no),
                 format!(
                     "expected {values_per_line} values (the header's fields and counts), found {}",
-                    values.len()
+                    if values.len() > values_per_line {
+                        "more".to_owned()
+                    } else {
+                        values.len().to_string()
+                    }
                 ),
             ));
         }

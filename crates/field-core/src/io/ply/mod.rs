@@ -730,7 +730,18 @@ impl<'a> Records<'a> {
                     )
                 })
             };
-            read_properties(element, &here, out, &mut next)?;
+            // Each list item takes a value and a separator of the line.
+            let room = |name: &str, n: f64, _: Scalar| {
+                if n * 2.0 <= text.len() as f64 + 1.0 {
+                    Ok(())
+                } else {
+                    Err(syntax(
+                        here.clone(),
+                        format!("list '{name}' announces {n} items, more than the line holds"),
+                    ))
+                }
+            };
+            read_properties(element, &here, out, &mut next, &room)?;
             if let Some(extra) = tokens.next() {
                 return Err(syntax(
                     here,
@@ -745,13 +756,22 @@ impl<'a> Records<'a> {
             let here = place(None, Some(self.pos));
             let big = self.encoding == Encoding::BinaryBigEndian;
             let (bytes, pos) = (self.bytes, &mut self.pos);
+            // The record cannot extend past the file.
+            let left = bytes.len() - *pos;
             let mut take = |_: &str, t: Scalar| -> Result<f64, PlyError> {
                 let n = t.size();
                 let b = bytes.get(*pos..*pos + n).ok_or_else(truncated)?;
                 *pos += n;
                 Ok(t.decode(b, big))
             };
-            read_properties(element, &here, out, &mut take)?;
+            let room = |_: &str, n: f64, item: Scalar| {
+                if n * item.size() as f64 <= left as f64 {
+                    Ok(())
+                } else {
+                    Err(truncated())
+                }
+            };
+            read_properties(element, &here, out, &mut take, &room)?;
             Ok(here)
         }
     }
@@ -765,12 +785,15 @@ fn brief(token: &str) -> String {
     }
 }
 
-/// Reads the properties of one record with `next(name, type)`, one value at a time.
+/// Reads the properties of one record with `next(name, type)`, one value at a time;
+/// `room(name, n, item)` refuses a list of `n` items of type `item` that the rest of the
+/// record cannot hold, before any item is read or stored.
 fn read_properties(
     element: &Element,
     here: &Place,
     out: &mut Record,
     next: &mut impl FnMut(&str, Scalar) -> Result<f64, PlyError>,
+    room: &impl Fn(&str, f64, Scalar) -> Result<(), PlyError>,
 ) -> Result<(), PlyError> {
     for p in &element.properties {
         out.starts.push(out.values.len());
@@ -784,9 +807,9 @@ fn read_properties(
                         format!("list '{}' has a negative length {n}", p.name),
                     ));
                 }
+                room(&p.name, n, item)?;
                 out.values.push(n);
-                // Never reserved from `n`: the items are read one by one, so a huge count
-                // in a short file ends as `Truncated`.
+                // Never reserved from `n`: the items are read one by one.
                 for _ in 0..n as usize {
                     out.values.push(next(&p.name, item)?);
                 }
@@ -856,5 +879,45 @@ mod tests {
         assert_eq!(r.list(0), &[7.0, 8.0]);
         assert!(r.list(1).is_empty());
         assert!(Record::default().list(0).is_empty());
+    }
+
+    #[test]
+    fn a_list_longer_than_the_rest_of_the_file_is_refused_before_its_items_are_read() {
+        // Binary: 2³² − 1 one-byte items announced, 4 bytes follow.
+        let header = "ply\nformat binary_little_endian 1.0\nelement junk 1\n\
+                      property list uint uchar stuff\nend_header\n";
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(&u32::MAX.to_le_bytes());
+        bytes.extend_from_slice(&[1, 2, 3, 4]);
+        let h = Header::parse(&bytes).unwrap();
+        let mut record = Record::default();
+        let e = Records::new(&h, &bytes)
+            .read(&h.elements[0], 0, &mut record)
+            .unwrap_err();
+        assert!(matches!(e, PlyError::Truncated { record: 0, .. }), "{e}");
+        assert!(
+            record.values.capacity() < 16,
+            "{}",
+            record.values.capacity()
+        );
+        // The same list with its 4 items is read.
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(&4u32.to_le_bytes());
+        bytes.extend_from_slice(&[1, 2, 3, 4]);
+        Records::new(&h, &bytes)
+            .read(&h.elements[0], 0, &mut record)
+            .unwrap();
+        assert_eq!(record.list(0), &[1.0, 2.0, 3.0, 4.0]);
+        // ASCII: a line of 3 items cannot hold the 1000 announced.
+        let e = read_first(
+            "ply\nformat ascii 1.0\nelement face 1\nproperty list uint int ids\nend_header\n",
+            "1000 7 8 9\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("announces 1000 items, more than the line holds"),
+            "{e}"
+        );
     }
 }

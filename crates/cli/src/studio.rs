@@ -18,7 +18,9 @@ mod wire;
 use std::io::Write as _;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, PoisonError};
+use std::time::Duration;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
@@ -37,7 +39,12 @@ Examples:
   zeroset studio field.zsf --grid 128,128,128 -o fixed.zsf";
 
 /// How long requests in progress may finish after Ctrl-C.
-const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(2);
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
+
+/// How long a client may take to send a request's headers, and how long a kept-alive
+/// connection may wait idle for its next request: connections opened and left silent (or fed a
+/// byte at a time) are closed instead of piling up until the process has no file left.
+const HEADER_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The port tried first, and how many after it when it is taken.
 const DEFAULT_PORT: u16 = 7878;
@@ -62,9 +69,10 @@ pub struct StudioArgs {
     #[arg(long)]
     pub port: Option<u16>,
 
-    /// The address to listen on. Anything but a loopback address makes the studio reachable
-    /// from other machines (anyone with the token can then use it); it warns.
-    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
+    /// The address to listen on (an IP address, or localhost). Anything but a loopback address
+    /// makes the studio reachable from other machines (anyone with the token can then use it);
+    /// it warns.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), value_parser = parse_host)]
     pub host: IpAddr,
 
     /// Do not open a browser; just print the address.
@@ -87,20 +95,51 @@ pub fn run(args: &StudioArgs) -> anyhow::Result<()> {
     // a preview: refuse a grid the machine cannot hold before sampling it.
     crate::restore::check_grid_memory(&loaded.grid, args.source.grid.is_some(), 3, 0)?;
     let description = loaded.description.clone();
+    let counts = loaded.grid.counts();
+    if counts.iter().product::<usize>() > LARGE_GRID {
+        // The address is printed once the server answers; say what the wait is for.
+        eprintln!(
+            "sampling the field on the {}×{}×{} restoration grid...",
+            counts[0] + 1,
+            counts[1] + 1,
+            counts[2] + 1
+        );
+    }
     let session = session::Session::new(&args.source, loaded, args.output.clone());
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .context("starting the server's runtime")?;
-    runtime.block_on(serve(args, session, description))
+    let app = runtime.block_on(serve(args, session, description))?;
+    // A save in progress finishes (its files are written whole or not at all); any other
+    // computation still running is left behind: its answer has nowhere to go.
+    if app.saving.load(Ordering::SeqCst) {
+        outln!("finishing the save in progress...");
+        drop(app.session.lock().unwrap_or_else(PoisonError::into_inner));
+    }
+    runtime.shutdown_background();
+    outln!("zeroset studio stopped");
+    Ok(())
+}
+
+/// Grids of more cells than this take long enough to sample that startup says so.
+const LARGE_GRID: usize = 1 << 22;
+
+/// `--host`: an IP address, or `localhost` (127.0.0.1).
+fn parse_host(text: &str) -> Result<IpAddr, String> {
+    if text.eq_ignore_ascii_case("localhost") {
+        return Ok(IpAddr::V4(Ipv4Addr::LOCALHOST));
+    }
+    text.parse()
+        .map_err(|_| format!("{text:?} is not an IP address (e.g. 127.0.0.1, ::1, 0.0.0.0)"))
 }
 
 async fn serve(
     args: &StudioArgs,
     session: session::Session,
     description: String,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Arc<http::App>> {
     let listener = bind(args.host, args.port).await?;
     let port = listener
         .local_addr()
@@ -143,43 +182,86 @@ async fn serve(
         eprintln!(
             "warning: listening on {}: the studio is reachable from other machines; anyone \
              who has the address with its token can read the field and write the output",
-            args.host
+            SocketAddr::new(args.host, port)
         );
         None
     };
-    let app = Arc::new(http::App {
-        session: Mutex::new(session),
-        token,
-        hosts,
-    });
+    let app = Arc::new(http::App::new(session, token, hosts));
     let redirect = if args.no_browser {
         None
     } else {
         open_browser(&url)
     };
-    // Ctrl-C lets requests in progress finish, but not for longer than SHUTDOWN_GRACE: a client
-    // that keeps a connection half-open must not keep the server alive.
-    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    let server = axum::serve(listener, http::router(app)).with_graceful_shutdown(async move {
-        shutdown().await;
-        let _ = stop.send(());
-    });
-    let deadline = async move {
-        if stopped.await.is_ok() {
-            tokio::time::sleep(SHUTDOWN_GRACE).await;
-        } else {
-            std::future::pending::<()>().await;
+    // Ctrl-C (or SIGTERM) refuses new computations and lets requests in progress finish, but
+    // not for longer than SHUTDOWN_GRACE; a second one stops the process at once.
+    let stop = {
+        let app = app.clone();
+        async move {
+            shutdown().await;
+            app.stopping.store(true, Ordering::SeqCst);
+            tokio::spawn(async {
+                shutdown().await;
+                eprintln!("zeroset studio: stopped at once (second signal)");
+                std::process::exit(130);
+            });
         }
     };
-    tokio::select! {
-        served = server => served.context("serving")?,
-        () = deadline => {}
-    }
+    serve_connections(listener, http::router(app.clone()), stop).await;
     if let Some(path) = redirect {
         let _ = std::fs::remove_file(path);
     }
-    outln!("zeroset studio stopped");
-    Ok(())
+    Ok(app)
+}
+
+/// Serves HTTP/1 connections on `listener` until `stop` resolves, each with the
+/// [`HEADER_TIMEOUT`]; then lets those open finish their requests for up to
+/// [`SHUTDOWN_GRACE`].
+async fn serve_connections(
+    listener: tokio::net::TcpListener,
+    router: axum::Router,
+    stop: impl Future<Output = ()>,
+) {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    use hyper_util::service::TowerToHyperService;
+
+    let (closing, closed) = tokio::sync::watch::channel(false);
+    let mut connections = tokio::task::JoinSet::new();
+    let mut stop = std::pin::pin!(stop);
+    loop {
+        let stream = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok((stream, _)) => stream,
+                Err(_) => {
+                    // Out of file descriptors, or a connection reset before it was accepted:
+                    // wait a moment rather than spin.
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                }
+            },
+            () = &mut stop => break,
+        };
+        while connections.try_join_next().is_some() {}
+        let service = TowerToHyperService::new(router.clone());
+        let mut closed = closed.clone();
+        connections.spawn(async move {
+            let mut builder = hyper::server::conn::http1::Builder::new();
+            builder
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEADER_TIMEOUT);
+            let mut connection =
+                std::pin::pin!(builder.serve_connection(TokioIo::new(stream), service));
+            tokio::select! {
+                _ = connection.as_mut() => return,
+                _ = closed.changed() => connection.as_mut().graceful_shutdown(),
+            }
+            let _ = connection.await;
+        });
+    }
+    let _ = closing.send(true);
+    let _ = tokio::time::timeout(SHUTDOWN_GRACE, async {
+        while connections.join_next().await.is_some() {}
+    })
+    .await;
 }
 
 /// Listens on `host:port`; without `--port`, on the first free port from 7878 on.
@@ -195,11 +277,19 @@ async fn bind(host: IpAddr, port: Option<u16>) -> anyhow::Result<tokio::net::Tcp
             Err(e) => last = Some(e),
         }
     }
+    let not_here =
+        last.as_ref().map(std::io::Error::kind) == Some(std::io::ErrorKind::AddrNotAvailable);
     let e = last.map_or_else(|| "no port to try".to_owned(), |e| e.to_string());
+    if not_here {
+        bail!("cannot listen on {host}: {e} (--host must be an address of this machine)");
+    }
     match port {
-        Some(p) => bail!("cannot listen on {host}:{p}: {e} (choose another --port, or 0)"),
+        Some(p) => bail!(
+            "cannot listen on {}: {e} (choose another --port, or 0)",
+            SocketAddr::new(host, p)
+        ),
         None => bail!(
-            "cannot listen on {host}:{DEFAULT_PORT}..{}: {e} (choose a --port, or 0)",
+            "cannot listen on {host} ports {DEFAULT_PORT}..{}: {e} (choose a --port, or 0)",
             DEFAULT_PORT + PORTS_TRIED - 1
         ),
     }

@@ -817,7 +817,8 @@ async function saveNow() {
   if (page.dirty) await applyNow();
   const saved = await postJSON('api/save', { mesh: $('save-mesh').checked });
   const size = Number.isFinite(saved.bytes) ? ` (${saved.bytes.toLocaleString()} bytes)` : '';
-  setStatus(`saved ${saved.field}${size}${saved.mesh ? ` and ${saved.mesh}` : ''}`, 'ok');
+  const stale = saved.stale_mesh ? ` (${saved.stale_mesh} beside it is an earlier mesh: tick "also the mesh" to replace it)` : '';
+  setStatus(`saved ${saved.field}${size}${saved.mesh ? ` and ${saved.mesh}` : ''}${stale}`, 'ok');
 }
 
 $('apply').addEventListener('click', () => enqueueAction(applyNow));

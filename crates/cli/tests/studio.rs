@@ -75,6 +75,22 @@ fn the_token_is_required_and_other_origins_and_hosts_are_refused() {
         b"",
     );
     assert_eq!(site.status, 403);
+    // ...but the page itself opens from anywhere with its token: the browser's start page is a
+    // local file, whose redirect Chromium marks cross-site. Only a navigation, only the page.
+    let navigate = [
+        ("Sec-Fetch-Site", "cross-site"),
+        ("Sec-Fetch-Mode", "navigate"),
+        ("Sec-Fetch-Dest", "document"),
+    ];
+    let opened = studio.request("GET", &format!("/?token={token}"), &navigate, b"");
+    assert_eq!(opened.status, 200);
+    let api = studio.request("GET", &format!("/api/state?token={token}"), &navigate, b"");
+    assert_eq!(api.status, 403);
+    let no_token = studio.request("GET", "/", &navigate, b"");
+    assert_eq!(no_token.status, 401);
+    // Refusals carry the same protective headers as answers.
+    assert_eq!(api.headers["x-frame-options"], "DENY");
+    assert_eq!(no_token.headers["cache-control"], "no-store");
     // Paths: only the fixed asset table; no file-system path is reachable.
     for path in [
         "/assets/../Cargo.toml",
@@ -363,6 +379,35 @@ fn saved_field_and_mesh_equal_the_cli_byte_for_byte() {
         std::fs::read(&cli_mesh).unwrap(),
         "the saved mesh differs from zeroset mesh's"
     );
+
+    // Saving without the mesh says that the one beside it is an earlier state's.
+    assert_eq!(studio.post("/api/undo", "{}").status, 200);
+    let saved = studio.post("/api/save", r#"{"mesh":false}"#).json();
+    assert_eq!(saved["mesh"], serde_json::Value::Null);
+    assert_eq!(
+        saved["stale_mesh"].as_str(),
+        Some(mesh_path.to_str().unwrap())
+    );
+    // A mesh that cannot be written replaces neither file.
+    let field_before = std::fs::read(&out).unwrap();
+    std::fs::remove_file(&mesh_path).unwrap();
+    std::fs::create_dir(&mesh_path).unwrap();
+    std::fs::write(mesh_path.join("keep"), b"").unwrap();
+    assert_eq!(studio.post("/api/redo", "{}").status, 200);
+    let failed = studio.post("/api/save", r#"{"mesh":true}"#);
+    assert_eq!(failed.status, 500);
+    assert!(
+        failed.error().contains("was not replaced"),
+        "{}",
+        failed.error()
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), field_before);
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n.to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
 }
 
 #[cfg(unix)]
@@ -382,6 +427,26 @@ fn ctrl_c_stops_the_server_cleanly() {
     );
     assert!(status.success(), "{status:?}");
     assert!(rest.contains("stopped"), "{rest}");
+}
+
+#[test]
+fn a_connection_that_sends_nothing_is_closed() {
+    use std::io::Read;
+    let studio = Studio::start([sample()]);
+    let mut silent = std::net::TcpStream::connect(&studio.addr).unwrap();
+    std::io::Write::write_all(&mut silent, b"GET /api/state HTTP/1.1\r\n").unwrap();
+    silent
+        .set_read_timeout(Some(std::time::Duration::from_secs(30)))
+        .unwrap();
+    let start = std::time::Instant::now();
+    let mut rest = Vec::new();
+    // Closed by the server (end of stream, perhaps after a 408): not by our 30 s timeout.
+    let read = silent.read_to_end(&mut rest);
+    let waited = start.elapsed();
+    assert!(read.is_ok(), "{read:?} after {waited:?}");
+    assert!(waited.as_secs() < 20, "{waited:?}");
+    // Meanwhile, and after, the studio answers others.
+    assert_eq!(studio.get("/api/state").status, 200);
 }
 
 #[test]

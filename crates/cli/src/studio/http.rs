@@ -2,8 +2,11 @@
 //! `Host` the studio bound, no cross-origin request, the access token but for the page's static
 //! files, a body limit), JSON in,
 //! JSON or binary meshes out, errors as `{"error": "..."}` with a 4xx status. The computations
-//! run on tokio's blocking pool, one at a time, behind the session's mutex.
+//! run on tokio's blocking pool, one at a time, behind the session's mutex; one whose client has
+//! gone before its turn is skipped, and `GET /api/state` answers from a copy kept beside the
+//! session, without waiting for the computation in progress.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use axum::Router;
@@ -28,11 +31,39 @@ pub(crate) const BODY_LIMIT: usize = 64 * 1024;
 pub(crate) struct App {
     /// The session; requests that compute take turns.
     pub session: Mutex<Session>,
+    /// The session's state as `GET /api/state` answers it, updated by every change while the
+    /// session is locked.
+    state: Mutex<Value>,
     /// The access token.
     pub token: String,
     /// The `Host` header values accepted; `None` when the studio is bound beyond loopback (then
     /// the token alone admits, and `Origin` must still match `Host`).
     pub hosts: Option<Vec<String>>,
+    /// Set on Ctrl-C: computations not yet started are refused.
+    pub stopping: AtomicBool,
+    /// Set while a save writes its files (Ctrl-C waits for it).
+    pub saving: AtomicBool,
+}
+
+impl App {
+    /// The shared state of a server on `session`.
+    pub(crate) fn new(session: Session, token: String, hosts: Option<Vec<String>>) -> Self {
+        Self {
+            state: Mutex::new(session.state()),
+            session: Mutex::new(session),
+            token,
+            hosts,
+            stopping: AtomicBool::new(false),
+            saving: AtomicBool::new(false),
+        }
+    }
+
+    /// `session`'s state, kept for `GET /api/state`; call with the session locked.
+    fn publish(&self, session: &Session) -> Value {
+        let state = session.state();
+        *self.state.lock().unwrap_or_else(PoisonError::into_inner) = state.clone();
+        state
+    }
 }
 
 /// The studio's routes behind the guard.
@@ -69,12 +100,12 @@ fn refuse(status: u16, message: impl Into<String>) -> ApiError {
 }
 
 /// Admits a request or says why not; adds the headers that keep the page out of frames,
-/// caches and referrers.
+/// caches and referrers (to refusals too).
 async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Response {
-    if let Err(e) = admit(&app, request.headers(), request.uri()) {
-        return e.into_response();
-    }
-    let mut response = next.run(request).await;
+    let mut response = match admit(&app, request.method(), request.headers(), request.uri()) {
+        Ok(()) => next.run(request).await,
+        Err(e) => e.into_response(),
+    };
     let headers = response.headers_mut();
     for (name, value) in [
         ("cache-control", "no-store"),
@@ -97,7 +128,7 @@ async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Res
 /// (other web pages), the token, the declared body size. The page's static files under
 /// `/assets/` (its scripts, styles and three.js: nothing of the user's) need no token, so that no
 /// cookie is needed to load them (a cookie would go to every server on localhost).
-fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
+fn admit(app: &App, method: &Method, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
     let text = |name: header::HeaderName| headers.get(name).and_then(|v| v.to_str().ok());
     let host = text(header::HOST).unwrap_or("");
     if let Some(hosts) = &app.hosts
@@ -121,10 +152,23 @@ fn admit(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), ApiError> {
     }
     // A browser says where a request comes from: only the studio's own page (same-origin) or
     // the user (none: the address typed or opened) may drive it; another port on localhost is
-    // "same-site", and refused too.
+    // "same-site", and refused too. One exception: the page itself may be opened from anywhere
+    // (a top-level GET of `/`, which changes nothing and still needs the token) — the start
+    // page `zeroset studio` hands the browser is a local file, and Chromium calls its redirect
+    // to the studio "cross-site".
+    let is = |name: &str, value: &[u8]| {
+        headers
+            .get(name)
+            .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(value))
+    };
+    let opens_page = method == Method::GET
+        && uri.path() == "/"
+        && is("sec-fetch-mode", b"navigate")
+        && is("sec-fetch-dest", b"document");
     if let Some(site) = headers.get("sec-fetch-site")
         && !(site.as_bytes().eq_ignore_ascii_case(b"same-origin")
-            || site.as_bytes().eq_ignore_ascii_case(b"none"))
+            || site.as_bytes().eq_ignore_ascii_case(b"none")
+            || opens_page)
     {
         return Err(refuse(
             403,
@@ -195,17 +239,49 @@ fn same(a: &[u8], b: &[u8]) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
-/// Runs `work` on the session on tokio's blocking pool.
+/// Sets its flag when dropped armed: a request's handler dropped before its answer (the client
+/// closed the connection).
+struct Abandoned(Option<Arc<AtomicBool>>);
+
+impl Drop for Abandoned {
+    fn drop(&mut self) {
+        if let Some(flag) = self.0.take() {
+            flag.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+/// Whether a request's work is skipped when its client has gone before its turn.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum IfGone {
+    /// A preview or a mesh: nobody would read it.
+    Skip,
+    /// A change the user asked for (apply, undo, redo, save): done all the same.
+    Do,
+}
+
+/// Runs `work` on the session on tokio's blocking pool, in its turn — unless, by then, the
+/// studio is stopping, or (with [`IfGone::Skip`]) the client has gone.
 async fn with_session<T: Send + 'static>(
     app: Arc<App>,
-    work: impl FnOnce(&mut Session) -> Result<T, ApiError> + Send + 'static,
+    if_gone: IfGone,
+    work: impl FnOnce(&App, &mut Session) -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
-    tokio::task::spawn_blocking(move || {
+    let gone = Arc::new(AtomicBool::new(false));
+    let mut abandoned = Abandoned(Some(gone.clone()));
+    let result = tokio::task::spawn_blocking(move || {
         let mut session = app.session.lock().unwrap_or_else(PoisonError::into_inner);
-        work(&mut session)
+        if if_gone == IfGone::Skip && gone.load(Ordering::SeqCst) {
+            return Err(refuse(499, "the client closed the connection"));
+        }
+        if app.stopping.load(Ordering::SeqCst) {
+            return Err(refuse(503, "the studio is stopping"));
+        }
+        work(&app, &mut session)
     })
-    .await
-    .map_err(|e| refuse(500, format!("the computation failed: {e}")))?
+    .await;
+    abandoned.0 = None;
+    result.map_err(|e| refuse(500, format!("the computation failed: {e}")))?
 }
 
 /// Reads a JSON body: `application/json`, at most [`BODY_LIMIT`] bytes, well-formed.
@@ -267,16 +343,23 @@ async fn method_not_allowed(method: Method) -> Response {
     refuse(405, format!("{method} is not allowed here")).into_response()
 }
 
-async fn state(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
-    Ok(json_response(with_session(app, |s| Ok(s.state())).await?))
+async fn state(State(app): State<Arc<App>>) -> Response {
+    let state = app
+        .state
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .clone();
+    json_response(state)
 }
 
 async fn mesh(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
-    Ok(binary(with_session(app, |s| s.mesh()).await?))
+    Ok(binary(
+        with_session(app, IfGone::Skip, |_, s| s.mesh()).await?,
+    ))
 }
 
 async fn points(State(app): State<Arc<App>>) -> Result<Response, ApiError> {
-    let bytes = with_session(app, |s| {
+    let bytes = with_session(app, IfGone::Skip, |_, s| {
         s.points()
             .ok_or_else(|| refuse(404, "the input is a field file: it has no points"))
     })
@@ -294,7 +377,9 @@ async fn preview(
     body: Body,
 ) -> Result<Response, ApiError> {
     let r = restoration(&headers, body).await?;
-    Ok(binary(with_session(app, move |s| s.preview(&r)).await?))
+    Ok(binary(
+        with_session(app, IfGone::Skip, move |_, s| s.preview(&r)).await?,
+    ))
 }
 
 async fn apply(
@@ -303,9 +388,9 @@ async fn apply(
     body: Body,
 ) -> Result<Response, ApiError> {
     let r = restoration(&headers, body).await?;
-    let state = with_session(app, move |s| {
+    let state = with_session(app, IfGone::Do, move |app, s| {
         s.apply(&r)?;
-        Ok(s.state())
+        Ok(app.publish(s))
     })
     .await?;
     Ok(json_response(state))
@@ -324,9 +409,9 @@ async fn history(
     app: Arc<App>,
     step: fn(&mut Session) -> Result<(), ApiError>,
 ) -> Result<Response, ApiError> {
-    let state = with_session(app, move |s| {
+    let state = with_session(app, IfGone::Do, move |app, s| {
         step(s)?;
-        Ok(s.state())
+        Ok(app.publish(s))
     })
     .await?;
     Ok(json_response(state))
@@ -346,9 +431,14 @@ async fn save(
     body: Body,
 ) -> Result<Response, ApiError> {
     let request = read_json::<SaveJson>(&headers, body).await?;
-    Ok(json_response(
-        with_session(app, move |s| s.save(request.mesh)).await?,
-    ))
+    let saved = with_session(app, IfGone::Do, move |app, s| {
+        app.saving.store(true, Ordering::SeqCst);
+        let saved = s.save(request.mesh);
+        app.saving.store(false, Ordering::SeqCst);
+        saved
+    })
+    .await?;
+    Ok(json_response(saved))
 }
 
 #[cfg(test)]

@@ -139,8 +139,9 @@ pub(crate) struct Session {
 /// and redo are instant) ...
 const MAX_HISTORY: usize = 64;
 
-/// ... and the most memory they may take together: at 128³ cells that is 31 restorations, at
-/// 256³ three. A full history refuses Apply (save, and go on in a new studio on the result).
+/// ... and the most memory they may take together ([`crate::restore::state_bytes`] each: at
+/// 128³ cells 32 restorations, at 256³ four). A full history refuses Apply (save, and go on in
+/// a new studio on the result).
 const HISTORY_BYTES: u64 = 1 << 30;
 
 impl Session {
@@ -334,8 +335,11 @@ impl Session {
         Ok(())
     }
 
-    /// Writes the current field to the output atomically and, with `with_mesh`, its mesh as
-    /// `zeroset mesh OUT.zsf -o OUT.ply` makes it (marching cubes, general detail, binary PLY).
+    /// Writes the current field to the output and, with `with_mesh`, its mesh as `zeroset mesh
+    /// OUT.zsf -o OUT.ply` makes it (marching cubes, general detail, binary PLY) beside it: both
+    /// files are written in full under temporary names first and only then renamed over the
+    /// outputs, so that a failure replaces neither. The answer names a mesh beside the output
+    /// that this save did not write (`stale_mesh`: it shows another field).
     pub(crate) fn save(&self, with_mesh: bool) -> Result<Value, ApiError> {
         let Some(output) = &self.output else {
             return Err(ApiError::conflict(
@@ -347,20 +351,37 @@ impl Session {
                 "nothing to save yet: apply a restoration first",
             ));
         };
-        write_field(output, field)
-            .with_context(|| format!("writing {}", output.display()))
-            .map_err(|e| ApiError::internal(&e))?;
-        let bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
-        let mesh_path = if with_mesh {
-            let path = output.with_extension("ply");
-            save_mesh(field, &path).map_err(|e| ApiError::internal(&e))?;
-            Some(path)
-        } else {
-            None
+        let mesh_path = output.with_extension("ply");
+        let staged = |path: &Path| {
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            path.with_file_name(format!(".{name}.studio-save"))
         };
+        let (field_tmp, mesh_tmp) = (staged(output), staged(&mesh_path));
+        let written = (|| -> anyhow::Result<()> {
+            write_field(&field_tmp, field)
+                .with_context(|| format!("writing {}", output.display()))?;
+            if with_mesh {
+                save_mesh(field, &mesh_tmp)
+                    .with_context(|| format!("writing {}", mesh_path.display()))?;
+                std::fs::rename(&mesh_tmp, &mesh_path)
+                    .with_context(|| format!("writing {}", mesh_path.display()))?;
+            }
+            std::fs::rename(&field_tmp, output)
+                .with_context(|| format!("writing {}", output.display()))
+        })();
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&field_tmp);
+            let _ = std::fs::remove_file(&mesh_tmp);
+            return Err(ApiError::internal(
+                &e.context(format!("{} was not replaced", output.display())),
+            ));
+        }
+        let bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
+        let stale = !with_mesh && mesh_path.exists();
         Ok(json!({
             "field": output.display().to_string(),
-            "mesh": mesh_path.map(|p| p.display().to_string()),
+            "mesh": with_mesh.then(|| mesh_path.display().to_string()),
+            "stale_mesh": stale.then(|| mesh_path.display().to_string()),
             "bytes": bytes,
         }))
     }
@@ -501,9 +522,18 @@ fn save_mesh(field: &BSplineField<3>, path: &Path) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// `path` as one shell word: as it is when it holds only safe characters, else single-quoted.
+/// `path` as one shell word: as it is when it holds only safe characters, else single-quoted;
+/// `./` before a relative path that starts with `-` (else it reads as an option); a name that
+/// is not UTF-8 in bash's `$'…'` with its bytes escaped.
 fn shell_word(path: &Path) -> String {
-    let text = path.display().to_string();
+    let Some(text) = path.to_str() else {
+        return escaped_bytes(path);
+    };
+    let text = if text.starts_with('-') {
+        format!("./{text}")
+    } else {
+        text.to_owned()
+    };
     let safe = !text.is_empty()
         && text
             .chars()
@@ -512,5 +542,50 @@ fn shell_word(path: &Path) -> String {
         text
     } else {
         format!("'{}'", text.replace('\'', r"'\''"))
+    }
+}
+
+/// `path` as bash's `$'…'`, each byte outside printable ASCII as `\xHH`.
+fn escaped_bytes(path: &Path) -> String {
+    #[cfg(unix)]
+    let bytes = std::os::unix::ffi::OsStrExt::as_bytes(path.as_os_str()).to_vec();
+    #[cfg(not(unix))]
+    let bytes = path.to_string_lossy().into_owned().into_bytes();
+    let prefix = if bytes.first() == Some(&b'-') {
+        "./"
+    } else {
+        ""
+    };
+    let mut out = format!("{prefix}$'");
+    for b in bytes {
+        match b {
+            b'\'' | b'\\' => {
+                out.push('\\');
+                out.push(char::from(b));
+            }
+            0x20..=0x7e => out.push(char::from(b)),
+            _ => out.push_str(&format!("\\x{b:02x}")),
+        }
+    }
+    out.push('\'');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shell_words_run_as_the_file_they_name() {
+        assert_eq!(shell_word(Path::new("out/a.zsf")), "out/a.zsf");
+        assert_eq!(shell_word(Path::new("-b.xyzn")), "./-b.xyzn");
+        assert_eq!(shell_word(Path::new("my scan.ply")), "'my scan.ply'");
+        assert_eq!(shell_word(Path::new("it's.ply")), r"'it'\''s.ply'");
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let name = std::ffi::OsStr::from_bytes(b"b\xff'.xyzn");
+            assert_eq!(shell_word(Path::new(name)), r"$'b\xff\'.xyzn'");
+        }
     }
 }

@@ -27,9 +27,9 @@ fn mras_bench(c: &mut Criterion) {
     let (p, n) = shapes::torus(120, 48, 1.0, 0.4);
     let options = MrasOptions::default().max_level(3);
     group.bench_function("fit torus 5760 points, 3 levels", |b| {
-        b.iter(|| fit_mras(&p, &n, &options, &|_| {}).map(|f| f.field.storage()))
+        b.iter(|| fit_mras(&p, &n, &options, &|_| true).map(|f| f.field.storage()))
     });
-    let field = fit_mras(&p, &n, &options, &|_| {}).expect("fit").field;
+    let field = fit_mras(&p, &n, &options, &|_| true).expect("fit").field;
     let mut s = 0x2545_f491_4f6c_dd1du64;
     let mut next = || {
         s ^= s << 13;

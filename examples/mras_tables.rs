@@ -198,7 +198,7 @@ fn shapes(args: &Args) -> Res<()> {
     ] {
         for (label, o) in &variants {
             let t = Instant::now();
-            let fit = fit_mras(&p, &n, o, &|_| {})?;
+            let fit = fit_mras(&p, &n, o, &|_| true)?;
             let secs = t.elapsed().as_secs_f64();
             let (max, mean, _) = distances(&fit, &p);
             let level = &fit.field.levels()[0];
@@ -239,7 +239,7 @@ fn tables(args: &Args) -> Res<()> {
                 cloud.positions(),
                 cloud.normals().ok_or("no normals")?,
                 &o,
-                &|_| {},
+                &|_| true,
             )?;
             let secs = t.elapsed().as_secs_f64();
             let (a, b, _) = distances(&u, cloud.positions());
@@ -356,7 +356,7 @@ fn figure(args: &Args) -> Res<()> {
         cloud.positions(),
         cloud.normals().ok_or("no normals")?,
         &args.options,
-        &|_| {},
+        &|_| true,
     )?;
     let bounds = points_box(cloud.positions(), fit.diagonal)?;
     let grid = grid_for(&bounds, 160)?;
@@ -405,7 +405,7 @@ fn fit_and_report(path: &Path, opts: &MrasOptions) -> Res<MrasFit> {
     let cloud = read_point_cloud(path)?;
     let normals = cloud.normals().ok_or("no normals")?.to_vec();
     let t = Instant::now();
-    let fit = fit_mras(cloud.positions(), &normals, opts, &|_| {})?;
+    let fit = fit_mras(cloud.positions(), &normals, opts, &|_| true)?;
     let secs = t.elapsed().as_secs_f64();
     println!(
         "{}: {} points, fit {:.2} s, storage {} (the fitted cells uncompressed {})",

@@ -3,7 +3,7 @@
 //! bunny in `data/`, or `$ZEROSET_DATA`).
 
 use zeroset_bases::field_file::{AnyField, decode_any, encode_mras};
-use zeroset_bases::mras::{CellSpline, MrasError, MrasFit, MrasOptions, fit_mras};
+use zeroset_bases::mras::{CellSpline, MrasError, MrasFit, MrasOptions, MrasProgress, fit_mras};
 use zeroset_field_core::field::{ScalarField, central_difference_gradient, distance_to_zero_set};
 use zeroset_field_core::io::read_point_cloud;
 
@@ -15,7 +15,7 @@ use shapes::{sphere, torus};
 type P = [f64; 3];
 
 fn fit(points: &[P], normals: &[P], options: &MrasOptions) -> MrasFit {
-    fit_mras(points, normals, options, &|_| {}).expect("fit")
+    fit_mras(points, normals, options, &|_| true).expect("fit")
 }
 
 fn max_distance(fit: &MrasFit, points: &[P]) -> f64 {
@@ -216,7 +216,7 @@ fn same_bits_on_one_and_several_threads() {
 fn bad_clouds_get_specific_errors() {
     let (p, n) = sphere(200, 1.0);
     let o = MrasOptions::default().max_level(1);
-    let err = |p: &[P], n: &[P]| fit_mras(p, n, &o, &|_| {}).unwrap_err();
+    let err = |p: &[P], n: &[P]| fit_mras(p, n, &o, &|_| true).unwrap_err();
 
     assert!(matches!(
         err(&p[..10], &n[..10]),
@@ -241,7 +241,7 @@ fn bad_clouds_get_specific_errors() {
     ));
     // An outlier ratio that would call most of a surface isolated.
     assert!(matches!(
-        fit_mras(&p, &n, &o.clone().outlier_ratio(1.0), &|_| {}).unwrap_err(),
+        fit_mras(&p, &n, &o.clone().outlier_ratio(1.0), &|_| true).unwrap_err(),
         MrasError::Option {
             name: "outlier_ratio",
             ..
@@ -252,7 +252,7 @@ fn bad_clouds_get_specific_errors() {
     let mut m = n.clone();
     q.push(p[5]);
     m.push(n[5]);
-    let f = fit_mras(&q, &m, &o, &|_| {}).unwrap();
+    let f = fit_mras(&q, &m, &o, &|_| true).unwrap();
     assert_eq!(f.duplicates, 1);
     *m.last_mut().unwrap() = n[5].map(|v| -v);
     assert!(matches!(
@@ -287,7 +287,7 @@ fn bad_clouds_get_specific_errors() {
     // Options.
     let bad = MrasOptions::default().tolerance(0.0);
     assert!(matches!(
-        fit_mras(&p, &n, &bad, &|_| {}),
+        fit_mras(&p, &n, &bad, &|_| true),
         Err(MrasError::Option {
             name: "tolerance",
             ..
@@ -295,7 +295,7 @@ fn bad_clouds_get_specific_errors() {
     ));
     let bad = MrasOptions::default().max_level(0);
     assert!(matches!(
-        fit_mras(&p, &n, &bad, &|_| {}),
+        fit_mras(&p, &n, &bad, &|_| true),
         Err(MrasError::Option {
             name: "max_level",
             ..
@@ -469,7 +469,7 @@ fn a_loose_tolerance_is_not_met_by_dropping_every_cell() {
         &points,
         &normals,
         &MrasOptions::default().max_level(3),
-        &|_| {},
+        &|_| true,
     )
     .expect("fit");
     assert!(
@@ -602,4 +602,21 @@ fn the_zero_set_stays_near_the_points() {
         "a zero crossing {:.3} of the diagonal from every point",
         worst / f.diagonal
     );
+}
+
+#[test]
+fn a_progress_callback_answering_false_cancels_the_fit() {
+    let (points, normals) = sphere(600, 1.0);
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let stop_after_three =
+        |_: &MrasProgress| calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) < 3;
+    let result = fit_mras(
+        &points,
+        &normals,
+        &MrasOptions::default(),
+        &stop_after_three,
+    );
+    assert!(matches!(result, Err(MrasError::Cancelled)), "{result:?}");
+    // A few cells in progress may still report; the fit does not go on to its other levels.
+    assert!(calls.load(std::sync::atomic::Ordering::SeqCst) < 20);
 }

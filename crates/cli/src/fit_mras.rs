@@ -168,6 +168,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             b.0 = (p.level, p.compressing);
         }
         b.1.set_position(p.cells_done as u64);
+        true
     };
     let fit = fit_mras(cloud.positions(), normals, &options, &progress);
     bar.lock()

@@ -228,7 +228,7 @@ pub(crate) fn fit_rbf<'py>(
         hook: Arc::clone(&hook),
     };
     let kernel = kernel.to_owned();
-    let result = py.detach(|| -> PyResult<_> {
+    let result = hook.run(py, || -> PyResult<_> {
         let mut report = vec![
             ("method", ReportValue::Str("rbf".into())),
             ("outliers", ReportValue::Ints(outliers.indices)),
@@ -323,17 +323,16 @@ pub(crate) fn fit_neural<'py>(
         .with_seed(seed)
         .with_architecture(architecture);
     let hook = Hook::new(progress);
-    let result = py.detach(|| -> PyResult<_> {
+    let result = hook.run(py, || -> PyResult<_> {
         let offset = offset.map_or(Offset::default(), Offset::Fixed);
         let (constraints, o) = Constraints::off_surface(&cloud, offset).map_err(to_py)?;
         let (at, targets) = constraints.values();
         let fit = NeuralFit::new(params);
-        let every = (steps / 100).max(1);
+        // Every step reports (the hook passes one every 20 ms on to Python): a Ctrl-C stops
+        // the training at the next step.
         let trained = fit
             .fit_scaled(&at, &targets, o.initial, &mut |p| {
-                if (p.step % every != 0 && p.step != p.steps)
-                    || hook.report("neural", p.step, p.steps)
-                {
+                if hook.report("neural", p.step, p.steps) {
                     ControlFlow::Continue(())
                 } else {
                     ControlFlow::Break(())
@@ -392,7 +391,7 @@ pub(crate) fn fit_mras_cloud<'py>(
         options.outlier_ratio = r;
     }
     let hook = Hook::new(progress);
-    let result = py.detach(|| -> PyResult<_> {
+    let result = hook.run(py, || -> PyResult<_> {
         let report_cell = |p: &MrasProgress| {
             let stage = if p.compressing {
                 "compressing"
@@ -403,7 +402,7 @@ pub(crate) fn fit_mras_cloud<'py>(
                 &format!("mras level {} {stage}", p.level),
                 p.cells_done,
                 p.cells_total,
-            );
+            )
         };
         let normals = cloud.normals().unwrap_or_default();
         let fit = fit_mras(cloud.positions(), normals, &options, &report_cell).map_err(to_py)?;

@@ -22,6 +22,10 @@ mod restore;
 
 #[pymodule]
 fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // NumPy's C API is loaded on the first array made, by running Python code; made at import,
+    // not inside a long call, a pending Ctrl-C cannot strike there (rust-numpy turns the
+    // failed load into a panic).
+    numpy::PyArray1::<f64>::zeros(m.py(), [0], false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<field::NativeField>()?;
     m.add_function(wrap_pyfunction!(field::load, m)?)?;

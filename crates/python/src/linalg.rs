@@ -107,7 +107,7 @@ pub(crate) fn lstsq_native<'py>(
                 .as_slice()
                 .map_err(|_| value_error("A must be C-contiguous"))?;
             let a = MatRef::from_row_major_slice(data, m, n);
-            py.detach(|| s.solve(LsqMatrix::Dense(a), b))
+            hook.run(py, || s.solve(LsqMatrix::Dense(a), b))
         }
         (None, Some(((m, n), indptr, indices, data))) => {
             let to_usize = |a: &[i64], what: &str| -> PyResult<Vec<usize>> {
@@ -121,7 +121,7 @@ pub(crate) fn lstsq_native<'py>(
             let values = data.as_slice()?;
             let symbolic = SymbolicSparseRowMatRef::new_checked(m, n, &row_ptr, None, &col_idx);
             let a = SparseRowMatRef::new(symbolic, values);
-            py.detach(|| s.solve(LsqMatrix::SparseRow(a), b))
+            hook.run(py, || s.solve(LsqMatrix::SparseRow(a), b))
         }
         _ => return Err(value_error("give A as a dense array or a CSR matrix")),
     };
@@ -186,7 +186,7 @@ pub(crate) fn cp_als<'py>(
         .with_init(init)
         .with_line_search(line_search);
     let hook = Hook::new(progress);
-    let result = py.detach(|| {
+    let result = hook.run(py, || {
         cp_als_rust(&x, &options, |p| {
             hook.report("cp_als", p.iteration, max_iter)
         })

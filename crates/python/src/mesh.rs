@@ -215,7 +215,7 @@ pub(crate) fn mesh_native<'py>(
     let grid = field_grid(f, detail, resolution, voxel)?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
-    let result = py.detach(|| -> PyResult<MeshParts<i64>> {
+    let result = hook.run(py, || -> PyResult<MeshParts<i64>> {
         let mesh = match (method, f.as_ref()) {
             ("mc", f) => mesh_field(f, &grid, level, &options).map_err(to_py),
             ("smc", AnyField::Rbf(RbfAny::R(f))) => smc(f, &grid, level, &options, &hook),

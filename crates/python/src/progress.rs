@@ -1,6 +1,7 @@
-//! Long computations report to Python while the GIL is released: a report takes the GIL
-//! briefly, checks for signals (Ctrl-C stops the work with `KeyboardInterrupt`) and calls the
-//! user's `progress(stage, done, total)` if there is one. An exception raised there stops the
+//! Long computations run on a thread of their own with the GIL released ([`Hook::run`]) while
+//! the calling thread watches for Ctrl-C, and report to Python: a report takes the GIL briefly
+//! and calls the user's `progress(stage, done, total)` if there is one (from a worker thread,
+//! not Python's main thread). An exception raised there stops the
 //! computation and is raised from the call that started it. Reports closer than
 //! [`INTERVAL`] to the previous one are skipped (the first and the last of a stage never are):
 //! taking the GIL at every LSQR iteration cost 7% of a solve.
@@ -10,6 +11,9 @@ use std::time::{Duration, Instant};
 
 /// The shortest time between two reports that reach Python.
 pub(crate) const INTERVAL: Duration = Duration::from_millis(20);
+
+/// How often [`Hook::run`] checks for Ctrl-C while the work runs.
+const WATCH: Duration = Duration::from_millis(50);
 
 use pyo3::prelude::*;
 
@@ -59,6 +63,43 @@ impl Hook {
                 false
             }
         }
+    }
+
+    /// Runs `work` with the GIL released on a thread of its own, while the calling thread (the
+    /// one Python delivers signals to) watches for Ctrl-C every [`WATCH`]: a signal stops the
+    /// work at its next report ([`Hook::report`] answers `false`; work without reports runs to
+    /// its end) and is raised by [`Hook::finish`]. Reports from the worker threads cannot see
+    /// signals themselves: `PyErr_CheckSignals` does nothing off the main thread.
+    pub(crate) fn run<T: Send>(&self, py: Python<'_>, work: impl FnOnce() -> T + Send) -> T {
+        std::thread::scope(|scope| {
+            let (finished, waiting) = std::sync::mpsc::channel::<()>();
+            let worker = scope.spawn(move || {
+                let out = work();
+                let _ = finished.send(());
+                out
+            });
+            let mut waiting = Some(waiting);
+            let mut interrupted = false;
+            while let Some(rx) = waiting.take() {
+                let (outcome, rx) = py.detach(move || (rx.recv_timeout(WATCH), rx));
+                match outcome {
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => waiting = Some(rx),
+                    // Done (or the worker panicked before saying so: join reports it).
+                    Ok(()) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {}
+                }
+                if !interrupted && let Err(e) = py.check_signals() {
+                    interrupted = true;
+                    let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
+                    if error.is_none() {
+                        *error = Some(e);
+                    }
+                }
+            }
+            match py.detach(|| worker.join()) {
+                Ok(out) => out,
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        })
     }
 
     /// The computation's result, unless the hook stopped it: then the exception that did.

@@ -1,7 +1,10 @@
 """Fitting, evaluating, saving and loading fields, against analytic truth and the Rust
 command's own results."""
 
+import select
+import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -323,6 +326,71 @@ def test_progress_is_called_and_its_exception_stops_the_fit(sphere):
         zeroset.fit(points, normals, method="neural", steps=500, progress=stop)
     with pytest.raises(TypeError, match="progress must be"):
         zeroset.fit(points, normals, progress=3)
+
+
+def test_a_progress_callback_stops_an_mras_fit(sphere):
+    points, normals = sphere
+
+    class Stop(Exception):
+        pass
+
+    calls = []
+
+    def stop(stage, done, total):
+        calls.append(stage)
+        raise Stop("enough")
+
+    with pytest.raises(Stop):
+        zeroset.fit(points, normals, method="mras", progress=stop)
+    assert calls and calls[0].startswith("mras level 1")
+
+
+CHILD = """
+import sys, zeroset
+p, n = zeroset.sample_points()
+def started(stage, done, total):
+    if done == 1:
+        print("started", flush=True)
+try:
+    zeroset.fit(p, n, method="neural", steps=10**7, progress=started)
+except KeyboardInterrupt:
+    print("KeyboardInterrupt", flush=True)
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a child process")
+def test_ctrl_c_stops_a_fit_whose_reports_come_from_worker_threads():
+    # The neural fit reports from a worker thread, where Python cannot see signals: the
+    # calling thread watches for them.
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD], stdout=subprocess.PIPE, text=True
+    )
+    ready, _, _ = select.select([child.stdout], [], [], 60)
+    if not ready:
+        child.kill()
+        pytest.fail("the neural fit never reported")
+    assert child.stdout.readline().strip() == "started"
+    start = time.monotonic()
+    child.send_signal(signal.SIGINT)
+    out, _ = child.communicate(timeout=60)
+    assert out.strip() == "KeyboardInterrupt"
+    assert time.monotonic() - start < 10
+
+
+def test_reports_read_as_mappings_and_copy(sphere_field):
+    import copy
+    import pickle
+
+    r = sphere_field.report
+    assert r["method"] == r.method == "rbf"
+    assert "iterations" in r and "nothing" not in r
+    assert dict(r) == r.as_dict() and list(r) == list(r.keys())
+    assert r.get("nothing", 7) == 7
+    with pytest.raises(KeyError, match="has no 'nothing'"):
+        r["nothing"]
+    # (gmres_stalled_at is NaN, never equal to itself: compared by repr)
+    for copied in (copy.copy(r), copy.deepcopy(r), pickle.loads(pickle.dumps(r))):
+        assert isinstance(copied, zeroset.Report) and repr(copied) == repr(r)
 
 
 def test_the_gil_is_released_while_fitting():

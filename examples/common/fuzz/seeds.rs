@@ -372,7 +372,7 @@ fn generated(dir: &Path) -> Result<Vec<Seed>, String> {
     // MRAS: one and two levels.
     let (p, n) = sphere(400);
     for (levels, name) in [(1, "mras1.zsf"), (2, "mras2.zsf")] {
-        let f = fit_mras(&p, &n, &MrasOptions::default().max_level(levels), &|_| {})
+        let f = fit_mras(&p, &n, &MrasOptions::default().max_level(levels), &|_| true)
             .map_err(|x| e(&x))?;
         field_file::write_mras_field(file(name), &f.field).map_err(|x| e(&x))?;
     }

@@ -399,18 +399,20 @@ impl MrasFit {
 }
 
 /// Fits an MRAS field to points with outward normals (paper 004; see the module docs).
-/// `progress` is called from worker threads after each cell.
+/// `progress` is called from worker threads after each cell; when it answers `false` the fit
+/// stops ([`MrasError::Cancelled`]) as soon as the cells in progress are done.
 ///
 /// # Errors
 /// Bad input: [`MrasError::Normals`], [`MrasError::NonFinite`], [`MrasError::ZeroNormal`],
 /// [`MrasError::ConflictingDuplicates`], [`MrasError::TooFewPoints`] (fewer than `N_min`
 /// distinct points), [`MrasError::Degenerate`] (all points on a plane or line),
-/// [`MrasError::Option`]; numerical breakdowns as [`MrasError::Admm`] or [`MrasError::Tensor`].
+/// [`MrasError::Option`]; numerical breakdowns as [`MrasError::Admm`] or [`MrasError::Tensor`];
+/// [`MrasError::Cancelled`] when `progress` answers `false`.
 pub fn fit_mras(
     positions: &[Point<3>],
     normals: &[Point<3>],
     options: &MrasOptions,
-    progress: &(dyn Fn(&MrasProgress) + Sync),
+    progress: &(dyn Fn(&MrasProgress) -> bool + Sync),
 ) -> Result<MrasFit, MrasError> {
     let start = Instant::now();
     options.validate()?;
@@ -470,13 +472,18 @@ pub fn fit_mras(
         let done = AtomicUsize::new(0);
         let report = |compressing: bool| {
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(&MrasProgress {
+            let go_on = progress(&MrasProgress {
                 level,
                 compressing,
                 cells_done: d,
                 cells_total: total,
                 error: last_error,
             });
+            if go_on {
+                Ok(())
+            } else {
+                Err(MrasError::Cancelled)
+            }
         };
         // 1. Every cell's minimiser of eq. 14 (ADMM), the screen holding every point to the CP
         //    bound itself: its index, solution and number of targets.
@@ -490,7 +497,7 @@ pub fn fit_mras(
                     let solution = solve_cell(&g, index, &targets, &plate, &settings)?;
                     Some((index, solution, targets.len()))
                 };
-                report(false);
+                report(false)?;
                 Ok(out)
             })
             .collect::<Result<_, MrasError>>()?;
@@ -573,7 +580,7 @@ pub fn fit_mras(
                         compress_cell(&g, index, &targets, c, settings.cp_bound)?
                     }
                 };
-                report(true);
+                report(true)?;
                 let cell = spline.map(|spline| MrasCell {
                     index: index.map(|i| i as u32),
                     spline,

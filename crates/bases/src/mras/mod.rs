@@ -145,7 +145,7 @@
 //!     points.push(p);
 //!     normals.push(p);
 //! }
-//! let fit = fit_mras(&points, &normals, &MrasOptions::default().max_level(1), &|_| {})?;
+//! let fit = fit_mras(&points, &normals, &MrasOptions::default().max_level(1), &|_| true)?;
 //! let f = &fit.field;
 //! assert!(f.value(&[0.0, 0.0, 0.0]) < 0.0 && f.value(&[1.3, 0.0, 0.0]) > 0.0);
 //! assert!(f.value(&[0.0, 1.0, 0.0]).abs() < 0.01);

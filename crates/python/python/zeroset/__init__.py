@@ -64,7 +64,9 @@ Progress = Union[None, bool, Callable[[str, int, int], Any]]
 
 class Report:
     """What a computation did: read-only attributes (``report.iterations``,
-    ``report.max_residual``, ...), ``as_dict()`` for all of them."""
+    ``report.max_residual``, ...) that also read as a mapping (``report["iterations"]``,
+    ``"smoothing" in report``, ``dict(report)``), ``as_dict()`` for all of them. Reports copy
+    and pickle."""
 
     __slots__ = ("_items",)
 
@@ -72,12 +74,43 @@ class Report:
         object.__setattr__(self, "_items", dict(items))
 
     def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            # copy and pickle probe for special methods on an instance without `_items`.
+            raise AttributeError(name)
         try:
             return self._items[name]
         except KeyError:
             raise AttributeError(
                 f"the report has no {name!r}; it has {sorted(self._items)}"
             ) from None
+
+    def __getitem__(self, name: str) -> Any:
+        try:
+            return self._items[name]
+        except KeyError:
+            raise KeyError(
+                f"the report has no {name!r}; it has {sorted(self._items)}"
+            ) from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._items
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def keys(self):
+        """The report's names."""
+        return self._items.keys()
+
+    def get(self, name: str, default: Any = None) -> Any:
+        """The value of ``name``, or ``default``."""
+        return self._items.get(name, default)
+
+    def __reduce__(self):
+        return (Report, (self._items,))
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError("a report is read-only")
@@ -449,7 +482,7 @@ def fit(
     solver: str = "auto",
     radius: Optional[float] = None,
     steps: int = 3000,
-    lam: float = 0.05,
+    lam: float = 0.005,
     widths: Sequence[int] = (32, 32),
     activation: str = "tanh",
     seed: int = 0,
@@ -465,7 +498,8 @@ def fit(
     off-surface points (value 0 at each point, ±ε along its normal; ``offset`` fixes ε,
     by default 1% of the diagonal, shrunk per point where it would cross the surface) or,
     with ``hermite=True``, the normals as gradients. ``kernel`` is ``"r"`` (biharmonic,
-    default), ``"r3"``, ``"tps"`` or ``"wendland"`` (support ``radius``, default half the
+    default; ``"r3"`` with ``hermite=True``, which needs a twice-differentiable kernel),
+    ``"r3"``, ``"tps"`` or ``"wendland"`` (support ``radius``, default half the
     diagonal); ``solver`` ``"auto"``, ``"dense"``, ``"mixed"`` or ``"iterative"`` (GMRES with
     the fast multipole method: large clouds). ``tolerance`` (a fraction of the diagonal)
     keeps only the centres needed to meet it at every constraint (Carr's greedy fit).
@@ -479,7 +513,8 @@ def fit(
 
     ``method="neural"``: a small MLP (``widths``, ``activation``) trained by Adam for
     ``steps`` steps on the off-surface points with the thin-plate curvature weight ``lam``
-    (Jiang–Turk §3); ``seed`` fixes the initial weights.
+    (Jiang–Turk §3; 0.005 by default, as ``zeroset fit --method neural`` on a point cloud);
+    ``seed`` fixes the initial weights.
 
     ``method="mras"``: multilevel low-rank spline offsets (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
@@ -506,6 +541,21 @@ def fit(
     """
     p = _rows(points, "points")
     n = _rows(normals, "normals")
+    neural_given = [
+        name
+        for name, value, default in (
+            ("steps", steps, 3000),
+            ("lam", lam, 0.005),
+            ("widths", tuple(widths), (32, 32)),
+            ("activation", activation, "tanh"),
+            ("seed", seed, 0),
+        )
+        if value != default
+    ]
+    if method != "neural" and neural_given:
+        raise ValueError(f"{'=, '.join(neural_given)}= apply to method='neural'")
+    if method != "rbf" and solver != "auto":
+        raise ValueError("solver= applies to method='rbf'")
     if method == "rbf":
         if any(x is not None for x in (max_level,)) or not compress:
             raise ValueError("max_level= and compress= apply to method='mras'")
@@ -516,8 +566,8 @@ def fit(
         native, report = _run(
             progress,
             lambda cb: _native.fit_rbf(
-                p, n, kernel or "r", offset, bool(hermite), solver, tolerance, radius,
-                outlier_ratio, mu, auto, cb,
+                p, n, kernel or ("r3" if hermite else "r"), offset, bool(hermite), solver,
+                tolerance, radius, outlier_ratio, mu, auto, cb,
             ),
         )
         if auto and "scatter" not in report:
@@ -744,9 +794,14 @@ def mesh(
     runs marching cubes; ``method="smc"`` (RBF fields) runs the two-step signed marching
     cubes with fast multipole expansions of orders 5 and 10, which evaluates the exact
     field only near the surface. ``close=True`` caps the surface where it leaves the grid.
-    ``field`` may also be a callable (with ``bounds``) or a numpy grid of samples.
+    ``field`` may also be a callable (with ``bounds``), sampled on ``resolution`` cells along
+    the longest axis of ``bounds`` (64 without one) and interpolated by a quadratic B-spline,
+    or a numpy grid of samples (interpolated likewise); :func:`marching_cubes` meshes samples
+    as they are.
     """
-    f = _as_field(field, bounds=bounds, spacing=spacing, origin=origin)
+    f = _as_field(
+        field, bounds=bounds, spacing=spacing, origin=origin, resolution=resolution or 64
+    )
     return _run(
         progress,
         lambda cb: _native.mesh_native(

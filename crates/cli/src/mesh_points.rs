@@ -13,7 +13,7 @@ use std::path::Path;
 use anyhow::{Context, bail};
 use zeroset_field_core::PointCloud3;
 use zeroset_field_core::io::ReadOptions;
-use zeroset_mesh::points::mesh_points;
+use zeroset_mesh::points::{is_mostly_unused, mesh_points};
 use zeroset_mesh::{MeshFormat, is_mesh_file};
 
 /// The points of `path` if it is a mesh file ([`is_mesh_file`]; unless `options` name a
@@ -25,19 +25,17 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
     let mesh = zeroset_mesh::read_mesh(path)
         .with_context(|| format!("reading the mesh {}", path.display()))?;
     let (triangles, vertices) = (mesh.num_triangles(), mesh.num_vertices());
-    let points = mesh_points(mesh);
-    let used = vertices - points.left_out;
-    if MeshFormat::from_path(path) == Some(MeshFormat::Ply) && points.left_out > used {
-        // A scan's PLY that carries a few faces (a marker, a patch) is still a point cloud:
-        // taking the triangles' vertices would drop most of the points.
+    if MeshFormat::from_path(path) == Some(MeshFormat::Ply) && is_mostly_unused(&mesh) {
+        // A scan's PLY that carries a few faces is still a point cloud.
         outln!(
-            "{:<14}{}: its {triangles} faces use {used} of its {vertices} vertices: read as a \
-             point cloud of every vertex, the faces ignored",
+            "{:<14}{}: its {triangles} faces use fewer than half of its {vertices} vertices: \
+             read as a point cloud of every vertex, the faces ignored",
             "note",
             path.display()
         );
         return Ok(None);
     }
+    let points = mesh_points(mesh);
     let format = match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj) => "an OBJ",
         Some(MeshFormat::Ply) => "a PLY",

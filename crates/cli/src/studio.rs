@@ -100,9 +100,7 @@ pub fn run(args: &StudioArgs) -> anyhow::Result<()> {
         // The address is printed once the server answers; say what the wait is for.
         eprintln!(
             "sampling the field on the {}×{}×{} restoration grid...",
-            counts[0] + 1,
-            counts[1] + 1,
-            counts[2] + 1
+            counts[0], counts[1], counts[2]
         );
     }
     let session = session::Session::new(&args.source, loaded, args.output.clone());

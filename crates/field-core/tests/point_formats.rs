@@ -1017,6 +1017,15 @@ fn e57_files_the_reader_cannot_use_are_named_errors() {
         },
     );
     assert!(reason("shared.e57", shared).contains("scans 0 and 1 name the same binary section"));
+    // More records than the file's bytes can hold (each of these takes 24 bytes).
+    let inflated = e57_bytes(vec![e57_scan(5, false, 0.0)], |x| {
+        x.replace("recordCount=\"5\"", "recordCount=\"100000000\"")
+    });
+    let r = reason("inflated.e57", inflated);
+    assert!(
+        r.contains("announce 100000000 records, 2400000000 bytes of data"),
+        "{r}"
+    );
     // A scan whose records hold no coordinate the reader knows.
     let renamed = e57_bytes(vec![e57_scan(5, false, 0.0)], |x| {
         x.replace("cartesianX", "cartesianQ")

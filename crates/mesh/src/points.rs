@@ -139,6 +139,23 @@ impl fmt::Display for NormalSource {
     }
 }
 
+/// Whether `mesh`'s triangles use fewer than half of its vertices: a point cloud that carries
+/// a few faces (a marker, a patch some program added) rather than a mesh — taking the
+/// triangles' vertices ([`mesh_points`]) would drop most of its points. Readers of point
+/// clouds read such a file's vertices as a cloud.
+pub fn is_mostly_unused(mesh: &TriMesh) -> bool {
+    let mut used = vec![false; mesh.num_vertices()];
+    for t in mesh.triangles() {
+        for &v in t {
+            if let Some(u) = used.get_mut(v as usize) {
+                *u = true;
+            }
+        }
+    }
+    let used = used.iter().filter(|&&u| u).count();
+    mesh.num_triangles() > 0 && 2 * used < mesh.num_vertices()
+}
+
 /// The points of `mesh` and their normals; see the [module docs](self).
 pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
     let all = mesh.num_vertices();

@@ -26,9 +26,14 @@ pub(crate) fn read_points(
         let mesh = py
             .detach(|| zeroset_mesh::read_mesh(&path))
             .map_err(to_py)?;
-        let points = zeroset_mesh::points::mesh_points(mesh);
-        let normals = points.normals.map(|n| rows_array(py, n));
-        return Ok((rows_array(py, points.positions), normals));
+        let is_ply =
+            zeroset_mesh::MeshFormat::from_path(&path) == Some(zeroset_mesh::MeshFormat::Ply);
+        // A PLY whose few faces use under half its vertices is a point cloud (as the CLI reads it).
+        if !(is_ply && zeroset_mesh::points::is_mostly_unused(&mesh)) {
+            let points = zeroset_mesh::points::mesh_points(mesh);
+            let normals = points.normals.map(|n| rows_array(py, n));
+            return Ok((rows_array(py, points.positions), normals));
+        }
     }
     let cloud = py.detach(|| read_point_cloud(&path)).map_err(to_py)?;
     let normals = cloud.normals().map(|n| rows_array(py, n.to_vec()));
@@ -68,8 +73,18 @@ pub(crate) fn read_e57(
     Vec<ScanRow>,
 )> {
     use zeroset_field_core::io::e57::Coordinates;
+    // Normals where every scan has them; where only some do, the positions (for
+    // `estimate_normals(…, scanners=origins)`).
     let read = py
-        .detach(|| zeroset_field_core::io::e57::read_e57(&path, &Default::default()))
+        .detach(|| {
+            use zeroset_field_core::io::{ReadOptions, e57::read_e57};
+            match read_e57(&path, &ReadOptions::default()) {
+                Err(zeroset_field_core::Error::PartialNormals { .. }) => {
+                    read_e57(&path, &ReadOptions::default().with_positions_only(true))
+                }
+                read => read,
+            }
+        })
         .map_err(to_py)?;
     let origins = rows_array(py, read.origins());
     let scans = read

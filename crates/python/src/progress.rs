@@ -35,10 +35,10 @@ impl Hook {
     }
 
     /// Reports `done` of `total` in `stage`; `false` when the computation must stop (a signal,
-    /// or the callback raised; the exception is kept for [`Hook::finish`]).
+    /// or the callback raised; the exception is kept for [`Hook::finish`]). No lock is held
+    /// while the GIL is awaited: [`Hook::run`]'s thread takes the error lock holding the GIL.
     pub(crate) fn report(&self, stage: &str, done: usize, total: usize) -> bool {
-        let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
-        if error.is_some() {
+        if self.stopped() {
             return false;
         }
         {
@@ -57,11 +57,27 @@ impl Hook {
             Ok(())
         });
         match outcome {
-            Ok(()) => true,
+            Ok(()) => !self.stopped(),
             Err(e) => {
-                *error = Some(e);
+                self.stop(e);
                 false
             }
+        }
+    }
+
+    /// Whether an exception stopped the computation.
+    fn stopped(&self) -> bool {
+        self.error
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
+    }
+
+    /// Stops the computation with `e`, unless an earlier exception did.
+    fn stop(&self, e: PyErr) {
+        let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
+        if error.is_none() {
+            *error = Some(e);
         }
     }
 
@@ -73,11 +89,16 @@ impl Hook {
     pub(crate) fn run<T: Send>(&self, py: Python<'_>, work: impl FnOnce() -> T + Send) -> T {
         std::thread::scope(|scope| {
             let (finished, waiting) = std::sync::mpsc::channel::<()>();
-            let worker = scope.spawn(move || {
-                let out = work();
-                let _ = finished.send(());
-                out
-            });
+            // The stack of the thread the work had before (Python's main thread: 8 MiB on
+            // Linux), not a spawned thread's 2 MiB.
+            let worker = std::thread::Builder::new()
+                .stack_size(8 << 20)
+                .spawn_scoped(scope, move || {
+                    let out = work();
+                    let _ = finished.send(());
+                    out
+                })
+                .expect("a thread for the computation");
             let mut waiting = Some(waiting);
             let mut interrupted = false;
             while let Some(rx) = waiting.take() {
@@ -89,10 +110,7 @@ impl Hook {
                 }
                 if !interrupted && let Err(e) = py.check_signals() {
                     interrupted = true;
-                    let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
-                    if error.is_none() {
-                        *error = Some(e);
-                    }
+                    self.stop(e);
                 }
             }
             match py.detach(|| worker.join()) {

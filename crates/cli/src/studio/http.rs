@@ -104,7 +104,14 @@ fn refuse(status: u16, message: impl Into<String>) -> ApiError {
 async fn guard(State(app): State<Arc<App>>, request: Request, next: Next) -> Response {
     let mut response = match admit(&app, request.method(), request.headers(), request.uri()) {
         Ok(()) => next.run(request).await,
-        Err(e) => e.into_response(),
+        Err(e) => {
+            // A refused client does not keep its connection.
+            let mut refused = e.into_response();
+            refused
+                .headers_mut()
+                .insert(header::CONNECTION, HeaderValue::from_static("close"));
+            refused
+        }
     };
     let headers = response.headers_mut();
     for (name, value) in [

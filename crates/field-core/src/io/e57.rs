@@ -20,8 +20,9 @@
 //!   have normals and some do not is an [`Error::PartialNormals`](crate::Error::PartialNormals)
 //!   naming the scans, unless only the positions are read.
 //! - Intensity, colour, row/column indices, time stamps and images are skipped.
-//! - Every page's CRC is checked by the crate; errors name the file. Two scans naming the
-//!   same binary section are an error. A pose whose quaternion
+//! - Every page's CRC is checked by the crate; errors name the file. Scans whose records cannot
+//!   all be in the file are an error: two naming one binary section, records of no bits, or
+//!   more record bits than the file has. A pose whose quaternion
 //!   is zero or not finite is an error naming the scan; one of any other length is normalised.
 //!   A panic in the decoder (none known: fuzzing with each mutated file's page checksums
 //!   repaired found none) would be reported as the file's error, not a crash.
@@ -289,10 +290,33 @@ fn check_layouts(path: &Path, layouts: &[Layout], with_normals: bool) -> Result<
     Ok(without.is_empty())
 }
 
-/// Refuses two scans whose records are one binary section: each scan's points are its own
-/// (a file of thousands of scans naming one section would otherwise be read thousands of
-/// times over).
-fn check_sections(path: &Path, scans: &[PointCloud]) -> Result<()> {
+/// The bits one record of `pc` takes in its binary section (as the E57 bitpacked codec stores
+/// it: floats whole, integers in `⌈log₂(max − min + 1)⌉` bits).
+fn record_bits(pc: &PointCloud) -> u128 {
+    pc.prototype
+        .iter()
+        .map(|r| match r.data_type {
+            RecordDataType::Single { .. } => 32,
+            RecordDataType::Double { .. } => 64,
+            RecordDataType::ScaledInteger { min, max, .. }
+            | RecordDataType::Integer { min, max } => {
+                let range = i128::from(max) - i128::from(min);
+                if range > 0 {
+                    u128::from(range.ilog2()) + 1
+                } else {
+                    0
+                }
+            }
+        })
+        .sum()
+}
+
+/// Refuses scans whose records cannot all be in the file: two scans naming one binary section,
+/// records of no bits at all (every field a constant: the decoder would produce them without
+/// end), or more records than the file's bytes can hold — else a small file could announce
+/// any number of points (thousands of scans naming one section, or sections whose headers all
+/// point at one data area, read a 9.7 MB file as 20M points).
+fn check_sections(path: &Path, scans: &[PointCloud], file_bytes: u64) -> Result<()> {
     let mut offsets: Vec<(u64, usize)> = scans
         .iter()
         .enumerate()
@@ -300,8 +324,8 @@ fn check_sections(path: &Path, scans: &[PointCloud]) -> Result<()> {
         .map(|(i, pc)| (pc.file_offset, i))
         .collect();
     offsets.sort_unstable();
-    match offsets.windows(2).find(|w| w[0].0 == w[1].0) {
-        Some(w) => Err(super::malformed(
+    if let Some(w) = offsets.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(super::malformed(
             path,
             None,
             format!(
@@ -309,9 +333,33 @@ fn check_sections(path: &Path, scans: &[PointCloud]) -> Result<()> {
                  records are its own",
                 w[0].1, w[1].1, w[0].0
             ),
-        )),
-        None => Ok(()),
+        ));
     }
+    let mut bits = 0u128;
+    for (i, pc) in scans.iter().enumerate() {
+        let each = record_bits(pc);
+        if pc.records > 0 && each == 0 {
+            return Err(super::malformed(
+                path,
+                None,
+                format!("scan {i}'s records take no bits (every field is a constant)"),
+            ));
+        }
+        bits += u128::from(pc.records) * each;
+    }
+    if bits > u128::from(file_bytes) * 8 {
+        return Err(super::malformed(
+            path,
+            None,
+            format!(
+                "its scans announce {} records, {} bytes of data, more than the file's {file_bytes} \
+                 bytes",
+                scans.iter().map(|pc| pc.records).sum::<u64>(),
+                bits.div_ceil(8)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Every scan's valid points (and normals, with `with_normals`), in the file's frame, and the
@@ -326,6 +374,7 @@ fn read_scans(
         let reason = format!("not a readable E57 file: {e}");
         super::malformed(path, None, reason)
     };
+    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
     let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
     let scans = reader.pointclouds();
     let extensions = reader.extensions();
@@ -334,7 +383,7 @@ fn read_scans(
         .find(|e| e.url == NORMALS_URI)
         .map(|e| e.namespace.as_str());
     let layouts: Vec<Layout> = scans.iter().map(|pc| Layout::of(pc, prefix)).collect();
-    check_sections(path, &scans)?;
+    check_sections(path, &scans, file_bytes)?;
     let mut positions: Vec<Point3> = Vec::new();
     let has_normals = check_layouts(path, &layouts, with_normals)?;
     let mut normals: Option<Vec<Point3>> = (has_normals && with_normals).then(Vec::new);

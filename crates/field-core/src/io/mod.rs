@@ -289,6 +289,8 @@ pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
 ///   [`ReadOptions::allow_non_finite`].
 /// - [`Error::NotNormals`]: an xyz file whose columns 4–6 do not look like unit normals
 ///   (RGB colours, or lengths outside [`NORMAL_LENGTHS`]).
+/// - [`Error::PartialNormals`]: an E57 file whose scans have normals in part (unless
+///   [`ReadOptions::positions_only`]).
 pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<PointCloud3> {
     let path = path.as_ref();
     if path.is_dir() {

@@ -324,8 +324,8 @@ def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
 def read_e57(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarray, list]:
     """Reads an E57 laser-scan file: ``(points, normals, origins, scans)``. Every scan is moved
     into the file's frame by its pose, records flagged invalid are left out, and normals (the
-    surface-normals extension) are ``None`` unless every scan has them, as :func:`read_points`
-    reads them. ``origins`` ``(n, 3)`` holds, for each point, its scan's origin in the file's
+    surface-normals extension) are ``None`` unless every scan has them (:func:`read_points`
+    refuses a file whose scans have them in part: a fit needs them everywhere). ``origins`` ``(n, 3)`` holds, for each point, its scan's origin in the file's
     frame — where a terrestrial scanner stood, for ``estimate_normals(points,
     scanners=origins)``. ``scans`` lists one dict per scan: ``name`` (or ``None``),
     ``records`` (announced), ``points`` (kept), ``coordinates`` (``"cartesian"`` or

@@ -883,12 +883,13 @@ mod tests {
 
     #[test]
     fn a_list_longer_than_the_rest_of_the_file_is_refused_before_its_items_are_read() {
-        // Binary: 2³² − 1 one-byte items announced, 4 bytes follow.
+        // Binary: 2³² − 1 one-byte items announced, 1 MiB follows (read item by item, they
+        // took 8 MiB as values before the file ran out).
         let header = "ply\nformat binary_little_endian 1.0\nelement junk 1\n\
                       property list uint uchar stuff\nend_header\n";
         let mut bytes = header.as_bytes().to_vec();
         bytes.extend_from_slice(&u32::MAX.to_le_bytes());
-        bytes.extend_from_slice(&[1, 2, 3, 4]);
+        bytes.extend_from_slice(&[1; 1 << 20]);
         let h = Header::parse(&bytes).unwrap();
         let mut record = Record::default();
         let e = Records::new(&h, &bytes)
@@ -900,7 +901,7 @@ mod tests {
             "{}",
             record.values.capacity()
         );
-        // The same list with its 4 items is read.
+        // A list of 4 items is read.
         let mut bytes = header.as_bytes().to_vec();
         bytes.extend_from_slice(&4u32.to_le_bytes());
         bytes.extend_from_slice(&[1, 2, 3, 4]);

@@ -379,7 +379,12 @@ def test_ctrl_c_stops_a_fit_whose_reports_come_from_worker_threads():
     assert child.stdout.readline().strip() == "started"
     start = time.monotonic()
     child.send_signal(signal.SIGINT)
-    out, _ = child.communicate(timeout=60)
+    try:
+        out, _ = child.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        child.communicate()
+        pytest.fail("the fit did not stop within 60 s of Ctrl-C")
     assert out.strip() == "KeyboardInterrupt"
     assert time.monotonic() - start < 10
 

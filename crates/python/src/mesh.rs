@@ -350,7 +350,8 @@ fn mesh_of(
 }
 
 /// Writes a triangle mesh, atomically: binary PLY or STL (ASCII with `ascii`) for `.ply` and
-/// `.stl`, Wavefront OBJ for `.obj`.
+/// `.stl`, Wavefront OBJ for `.obj`, OFF for `.off`; returns how far STL's 32-bit floats moved
+/// the vertices (relative to the diagonal) where that is over `F32_ROUNDING_LIMIT`.
 #[pyfunction]
 #[pyo3(signature = (path, vertices, faces, normals, ascii))]
 pub(crate) fn write_mesh(
@@ -360,15 +361,25 @@ pub(crate) fn write_mesh(
     faces: PyReadonlyArray2<'_, i64>,
     normals: Option<PyReadonlyArray2<'_, f64>>,
     ascii: bool,
-) -> PyResult<()> {
-    if MeshFormat::from_path(&path).is_none() {
+) -> PyResult<Option<f64>> {
+    let Some(format) = MeshFormat::from_path(&path) else {
         return Err(value_error(format!(
             "{}: write a mesh as .ply, .obj, .stl or .off",
             path.display()
         )));
-    }
+    };
     let mesh = mesh_of(&vertices, &faces, normals.as_ref())?;
-    py.detach(|| zeroset_mesh::write_mesh(&path, &mesh, ascii).map_err(to_py))
+    py.detach(|| {
+        // STL holds 32-bit floats only: how far that moves the vertices, for a warning
+        // where `zeroset mesh` gives one.
+        let rounding = if format == MeshFormat::Stl {
+            mesh.f32_rounding()
+        } else {
+            0.0
+        };
+        zeroset_mesh::write_mesh(&path, &mesh, ascii).map_err(to_py)?;
+        Ok((rounding > zeroset_mesh::io::ply::F32_ROUNDING_LIMIT).then_some(rounding))
+    })
 }
 
 /// A mesh cut where it leaves the reach of `scan` (`reach` local point spacings; see

@@ -1,6 +1,8 @@
 """Marching cubes against scikit-image on the same volume, meshes of fields against their
 analytic truth (Euler characteristic, distance to the sphere), and mesh files."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -153,6 +155,13 @@ def test_mesh_files_round_trip(tmp_path, sphere_field):
         rv, rf, rn = zeroset.read_mesh(tmp_path / name)
         assert rn is None and len(rv) == len(v)
         assert np.array_equal(rv[rf], v[f].astype(np.float32).astype(np.float64))
+    # A mesh at UTM coordinates: STL's 32-bit floats move its vertices, and a warning says so;
+    # near the origin, no warning.
+    with pytest.warns(UserWarning, match="STL stores 32-bit floats"):
+        zeroset.write_mesh(tmp_path / "utm.stl", v + [512345.0, 5412345.0, 312.0], f)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        zeroset.write_mesh(tmp_path / "near.stl", v, f)
     rv, rf, rn = zeroset.read_mesh(tmp_path / "m.obj")
     assert np.array_equal(rv, v) and np.array_equal(rf, f) and rn is None
     zeroset.write_mesh(tmp_path / "n.obj", v, f, n)

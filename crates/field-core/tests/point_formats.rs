@@ -668,6 +668,13 @@ fn crafted_laz_files_are_refused_before_the_decoder_sizes_anything_by_them() {
     let mut sizes = laz.clone();
     sizes[vlr + 34 + 2] ^= 1;
     assert!(reason(sizes).contains("bytes a point, the header's record length"));
+    // Cut inside the VLRs, before the LASzip record: said so, not "no LASzip record".
+    let header = u16::from_le_bytes([laz[94], laz[95]]) as usize;
+    let reason_cut = reason(laz[..header + 10].to_vec());
+    assert!(
+        reason_cut.contains("the file ends inside VLR 0"),
+        "{reason_cut}"
+    );
     // Cut anywhere in the points: an error naming the file, never a panic.
     for cut in [
         start + 8,
@@ -737,7 +744,13 @@ fn bad_las_files_are_named_errors() {
     let e = read_err("huge.las", &bytes);
     assert!(matches!(e, Error::Truncated { .. }), "{e}");
     let e = read_err("text.las", "LASF but not really a LAS file\n");
-    assert!(e.to_string().contains("text.las"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("a LAS header takes at least 227 bytes, the file has 31"),
+        "{e}"
+    );
+    let e = read_err("words.las", "not a LAS file at all\n");
+    assert!(e.to_string().contains("signature LASF"), "{e}");
 }
 
 #[test]

@@ -87,21 +87,26 @@ fn read_points(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
 /// Checks what the `las` crate would size allocations by against the file's `len` bytes,
 /// before it reads them: the point count times the record length (after the header's "offset
 /// to point data") and each extended VLR's length (LAS 1.4). The fields are at the same bytes
-/// in every version (ASPRS LAS 1.4 R15, table 3); a file too short for them is left to the
-/// crate, which reads the header with bounded reads.
+/// in every version (ASPRS LAS 1.4 R15, table 3); a file shorter than the smallest header is
+/// refused as truncated.
 fn check_raw_header(path: &Path, mut file: std::fs::File, len: u64) -> Result<()> {
     use std::io::Read;
     let mut head = [0u8; 375];
     let have = usize::try_from(len).map_or(head.len(), |n| n.min(head.len()));
-    if have < 227 {
-        return Ok(());
-    }
     file.read_exact(&mut head[..have]).map_err(io_error(path))?;
-    if &head[..4] != b"LASF" {
+    if have >= 4 && &head[..4] != b"LASF" {
         return Err(super::malformed(
             path,
             None,
             "not a LAS file: it does not start with the signature LASF",
+        ));
+    }
+    if have < 227 {
+        // The smallest header (LAS 1.0–1.2) is 227 bytes.
+        return Err(super::malformed(
+            path,
+            None,
+            format!("truncated: a LAS header takes at least 227 bytes, the file has {len}"),
         ));
     }
     let u16_at = |at: usize| u64::from(u16::from_le_bytes([head[at], head[at + 1]]));
@@ -175,10 +180,13 @@ fn check_laszip(bytes: &mut Bounded<'_>, vlrs: (u64, u64), start: u64, record: u
     let bad = |reason: String| super::malformed(path, None, format!("LAZ: {reason}"));
     let (mut at, count) = vlrs;
     let mut items = None;
-    for _ in 0..count.min(65_536) {
+    for i in 0..count.min(65_536) {
         let mut head = [0u8; 54];
         if !bytes.read_at(at, &mut head)? {
-            break;
+            return Err(bad(format!(
+                "truncated: the file ends inside VLR {i} of the {count} its header announces \
+                 (the LASzip record is among them)"
+            )));
         }
         let length = u64::from(u16::from_le_bytes([head[20], head[21]]));
         let user = &head[2..18];
@@ -298,6 +306,16 @@ fn truncated(path: &Path, expected: u64, got: u64) -> Error {
 /// The reader's error for a `las` error in `path`.
 fn las_error(path: &Path, e: las::Error) -> Error {
     match e {
+        // The crate reads the header, the VLRs and the points with `read_exact`: a file that
+        // ends inside them.
+        las::Error::Io(source) if source.kind() == std::io::ErrorKind::UnexpectedEof => {
+            super::malformed(
+                path,
+                None,
+                "truncated or corrupt: the file ends inside its header, its variable-length \
+                 records or its points (for LAZ, the compressed data may be damaged)",
+            )
+        }
         las::Error::Io(source) => io_error(path)(source),
         e => super::malformed(path, None, format!("not a readable LAS/LAZ file: {e}")),
     }

@@ -553,3 +553,25 @@ def test_read_points_takes_e57_laser_scans():
     assert scans[1]["origin"] == (0.5, -0.25, 1.75)
     inward = zeroset.estimate_normals(points, scanners=origins)
     assert inward.shape == (300, 3)
+
+
+def test_counts_are_checked_before_they_reach_the_native_layer(sphere):
+    points, normals = sphere
+    # Negative counts were OverflowError from the conversion to an unsigned integer.
+    for kwargs, name in (
+        (dict(method="mras", max_level=-1), "max_level"),
+        (dict(method="neural", steps=-1), "steps"),
+        (dict(method="neural", seed=-1), "seed"),
+    ):
+        with pytest.raises(ValueError, match=f"{name} must be >= 0"):
+            zeroset.fit(points, normals, **kwargs)
+    with pytest.raises(ValueError, match="max_iter must be >= 0"):
+        zeroset.lstsq(np.eye(3), np.ones(3), max_iter=-1)
+    with pytest.raises(ValueError, match="rank must be >= 0"):
+        zeroset.cp_als(np.ones((3, 3, 3)), rank=-1)
+    # A count that is not whole is refused, not truncated.
+    with pytest.raises(TypeError, match="neighbours must be a whole number"):
+        zeroset.estimate_normals(points, 2.7)
+    with pytest.raises(TypeError, match="resolution must be a whole number"):
+        zeroset.mesh(zeroset.fit(points, normals), resolution=64.0)
+

@@ -23,6 +23,7 @@ Errors are ``ValueError`` (bad input, with the reason), ``OSError`` (files), or
 from __future__ import annotations
 
 import math
+import operator
 import os
 import sys
 import tempfile
@@ -186,6 +187,20 @@ def _rows(a: Any, name: str) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
     return np.ascontiguousarray(arr)
+
+
+def _count(v: Any, name: str, negative: bool = False) -> int:
+    """``v`` as a whole number >= 0 (any whole number with ``negative``, for the native layer
+    to name its range): ``ValueError`` for a negative one (not the ``OverflowError`` of the
+    conversion to an unsigned integer), ``TypeError`` for one that is not whole (2.7 is not
+    truncated to 2)."""
+    try:
+        n = operator.index(v)
+    except TypeError:
+        raise TypeError(f"{name} must be a whole number, got {v!r}") from None
+    if n < 0 and not negative:
+        raise ValueError(f"{name} must be >= 0, got {n}")
+    return n
 
 
 def _triple(v: Any, name: str, kind: type = float) -> Tuple[Any, Any, Any]:
@@ -375,7 +390,7 @@ def estimate_normals(
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
     out of range, a cloud whose neighbourhoods mostly span no plane (points on a line), both
     ``viewpoint`` and ``scanners``, or ``scanners`` not one finite position per point."""
-    k = None if neighbours is None else int(neighbours)
+    k = None if neighbours is None else _count(neighbours, "neighbours", negative=True)
     if k is not None and k < 0:
         raise ValueError(f"neighbours = {k}: from 2 to 256")
     if viewpoint is not None and scanners is not None:
@@ -613,7 +628,8 @@ def fit(
         native, report = _run(
             progress,
             lambda cb: _native.fit_neural(
-                p, n, int(steps), float(lam), [int(w) for w in widths], activation, int(seed),
+                p, n, _count(steps, "steps"), float(lam), [_count(w, "widths") for w in widths],
+                activation, _count(seed, "seed"),
                 offset, cb,
             ),
         )
@@ -628,7 +644,8 @@ def fit(
         native, report = _run(
             progress,
             lambda cb: _native.fit_mras_cloud(
-                p, n, tolerance, max_level, bool(compress), outlier_ratio, cb
+                p, n, tolerance, None if max_level is None else _count(max_level, "max_level"),
+                bool(compress), outlier_ratio, cb,
             ),
         )
     else:
@@ -679,7 +696,7 @@ def restore(
         face,
         None if alpha is None else float(alpha),
         None if coarse is None else _triple(coarse, "coarse", int),
-        None if grid is None else _triple(grid, "grid", int),
+        None if grid is None else tuple(_count(g, "grid") for g in _triple(grid, "grid", lambda x: x)),
         bool(positive_inside),
     )
     return Field(native, Report(report))
@@ -818,6 +835,8 @@ def mesh(
     or a numpy grid of samples (interpolated likewise); :func:`marching_cubes` meshes samples
     as they are.
     """
+    if resolution is not None:
+        resolution = _count(resolution, "resolution")
     f = _as_field(
         field, bounds=bounds, spacing=spacing, origin=origin, resolution=resolution or 64
     )
@@ -853,6 +872,7 @@ def lstsq(
     ``"sparse_qr"`` and ``"cholesky"`` (sparse direct). An iterative solver that does not
     reach ``tol`` in ``max_iter`` steps raises ``ValueError`` with the residual it reached.
     """
+    max_iter = None if max_iter is None else _count(max_iter, "max_iter")
     bb = np.ascontiguousarray(np.asarray(b, dtype=np.float64))
     if bb.ndim != 1:
         raise ValueError(f"b must be 1-D, got shape {bb.shape}")
@@ -913,7 +933,8 @@ def cp_als(
     weights, factors, report = _run(
         progress,
         lambda cb: _native.cp_als(
-            t, int(rank), int(n_iter_max), float(tol), init, int(random_state),
+            t, _count(rank, "rank"), _count(n_iter_max, "n_iter_max"), float(tol), init,
+            _count(random_state, "random_state"),
             bool(line_search), cb,
         ),
     )

@@ -352,8 +352,12 @@ def test_a_progress_callback_stops_an_mras_fit():
     assert stopped < 0.5 * whole, (stopped, whole)
 
 
+# The child installs Python's own SIGINT handler: a process started with SIGINT ignored (a job
+# a shell runs in the background, as some CI runners do) passes that on, and Python then
+# installs none — Ctrl-C would be ignored, whatever zeroset does.
 CHILD = """
-import sys, zeroset
+import signal, sys, zeroset
+signal.signal(signal.SIGINT, signal.default_int_handler)
 p, n = zeroset.sample_points()
 def started(stage, done, total):
     if done == 1:

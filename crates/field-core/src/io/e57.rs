@@ -132,8 +132,10 @@ fn read_with_scans(
     check: &FiniteCheck<'_>,
     with_normals: bool,
 ) -> Result<(RawPoints, Vec<Scan>)> {
-    let (file, _) = super::open_nonempty(path)?;
-    super::guard_decoder(path, "E57", || read_scans(path, file, check, with_normals))
+    let (file, len) = super::open_nonempty(path)?;
+    super::guard_decoder(path, "E57", || {
+        read_scans(path, (file, len), check, with_normals)
+    })
 }
 
 /// Where a scan's fields are in its records.
@@ -366,7 +368,7 @@ fn check_sections(path: &Path, scans: &[PointCloud], file_bytes: u64) -> Result<
 /// scans' summaries.
 fn read_scans(
     path: &Path,
-    file: File,
+    (file, file_bytes): (File, u64),
     check: &FiniteCheck<'_>,
     with_normals: bool,
 ) -> Result<(RawPoints, Vec<Scan>)> {
@@ -374,7 +376,6 @@ fn read_scans(
         let reason = format!("not a readable E57 file: {e}");
         super::malformed(path, None, reason)
     };
-    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
     let mut reader = E57Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(bad)?;
     let scans = reader.pointclouds();
     let extensions = reader.extensions();

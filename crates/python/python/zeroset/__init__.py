@@ -81,17 +81,16 @@ class Report:
         try:
             return self._items[name]
         except KeyError:
-            raise AttributeError(
-                f"the report has no {name!r}; it has {sorted(self._items)}"
-            ) from None
+            raise AttributeError(self._missing(name)) from None
 
     def __getitem__(self, name: str) -> Any:
         try:
             return self._items[name]
         except KeyError:
-            raise KeyError(
-                f"the report has no {name!r}; it has {sorted(self._items)}"
-            ) from None
+            raise KeyError(self._missing(name)) from None
+
+    def _missing(self, name: str) -> str:
+        return f"the report has no {name!r}; it has {sorted(self._items)}"
 
     def __contains__(self, name: object) -> bool:
         return name in self._items

@@ -7,9 +7,12 @@ use std::sync::Arc;
 
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use pyo3::types::PyBytes;
 use rayon::prelude::*;
 use zeroset_bases::bspline::{BSplineField, Degree};
-use zeroset_bases::field_file::{AnyField, read_any_field, read_dimension, write_any_field};
+use zeroset_bases::field_file::{
+    AnyField, decode_any, encode_any, read_any_field, read_dimension, write_any_field,
+};
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Aabb;
 use zeroset_field_core::grid::Grid;
@@ -98,6 +101,22 @@ impl NativeField {
         let field = &self.inner;
         py.detach(|| write_any_field(&path, field)).map_err(to_py)
     }
+
+    /// The bytes of the field's `.zsf` file (for pickling).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let field = &self.inner;
+        let bytes = py.detach(|| encode_any(field));
+        PyBytes::new(py, &bytes)
+    }
+}
+
+/// The field in the bytes of a `.zsf` file (as `to_bytes` gives them; for unpickling).
+#[pyfunction]
+pub(crate) fn from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<NativeField> {
+    let name = std::path::Path::new("<bytes>");
+    py.detach(|| decode_any::<3>(data, name))
+        .map(NativeField::new)
+        .map_err(to_py)
 }
 
 /// Reads a 3-D field from a `.zsf` field file.

@@ -106,11 +106,8 @@ fn fit_kernel<K: StoredKernel>(
         ("centres", ReportValue::Int(fitted.field.num_centres())),
         ("max_residual", ReportValue::Float(r.max_residual)),
         ("residual_exact", ReportValue::Bool(r.residual_exact)),
-        // NaN where GMRES reached its 1e-12 target (or the solve was direct).
-        (
-            "gmres_stalled_at",
-            ReportValue::Float(r.stalled_at.unwrap_or(f64::NAN)),
-        ),
+        // None where GMRES reached its 1e-12 target (or the solve was direct).
+        ("gmres_stalled_at", ReportValue::MaybeFloat(r.stalled_at)),
         ("smoothing", ReportValue::Float(request.smoothing)),
         ("misfit_rms", ReportValue::Float(r.misfit_rms)),
         ("misfit_max", ReportValue::Float(r.misfit_max)),
@@ -125,6 +122,8 @@ pub(crate) enum ReportValue {
     Int(usize),
     Ints(Vec<usize>),
     Float(f64),
+    /// A float or `None`.
+    MaybeFloat(Option<f64>),
     Bool(bool),
     Str(String),
     Strs(Vec<String>),
@@ -141,6 +140,7 @@ pub(crate) fn report_dict<'py>(
         match v {
             ReportValue::Int(x) => d.set_item(k, x)?,
             ReportValue::Float(x) => d.set_item(k, x)?,
+            ReportValue::MaybeFloat(x) => d.set_item(k, x)?,
             ReportValue::Bool(x) => d.set_item(k, x)?,
             ReportValue::Str(x) => d.set_item(k, x)?,
             ReportValue::Strs(x) => d.set_item(k, x)?,

@@ -29,6 +29,7 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<field::NativeField>()?;
     m.add_function(wrap_pyfunction!(field::load, m)?)?;
+    m.add_function(wrap_pyfunction!(field::from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(field::interpolate, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_rbf, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_neural, m)?)?;

@@ -413,8 +413,9 @@ impl<const D: usize> ScalarField<D> for AnyField<D> {
     }
 }
 
-/// The bytes of the field file of `field`, whatever its kind.
-fn encode_any<const D: usize>(field: &AnyField<D>) -> Vec<u8> {
+/// The bytes of the field file of `field`, whatever its kind: what [`write_any_field`] writes,
+/// and what [`decode_any`] reads back bit for bit (to keep a field in memory or send it).
+pub fn encode_any<const D: usize>(field: &AnyField<D>) -> Vec<u8> {
     match field {
         AnyField::BSpline(f) => encode(f),
         AnyField::Rbf(r) => rbf::encode_any(r),

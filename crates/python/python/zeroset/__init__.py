@@ -226,6 +226,9 @@ class Field:
     none of the points within a quarter of the diagonal outside the box came out negative, but
     8% of those up to two diagonals away did (MRAS and B-spline fields stayed positive). Test
     points against ``field.bounds`` first.
+
+    Fields pickle (and so go to ``multiprocessing`` workers and ``copy.deepcopy``) as the bytes
+    of their ``.zsf`` file, exactly: the copy's values are the original's bit for bit.
     """
 
     __slots__ = ("_native", "report")
@@ -271,8 +274,16 @@ class Field:
         replaced only once the new one is complete)."""
         self._native.save(os.fspath(path))
 
+    def __reduce__(self):
+        return (_field_from_bytes, (self._native.to_bytes(), self.report))
+
     def __repr__(self) -> str:
         return f"<zeroset.Field: {self._native.describe()}>"
+
+
+def _field_from_bytes(data: bytes, report: Optional[Report]) -> Field:
+    """Unpickles a :class:`Field` (see ``Field.__reduce__``)."""
+    return Field(_native.from_bytes(data), report)
 
 
 FieldLike = Union[Field, Callable[[np.ndarray], Any], np.ndarray]

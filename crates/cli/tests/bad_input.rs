@@ -144,8 +144,15 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         "the text of `bunny.xyzn` named as an STL mesh",
         bunny.as_bytes(),
     );
+    m.put(
+        "bunny.ply.gz",
+        "the ten header bytes of a gzip stream: a scan shipped compressed",
+        &[0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3],
+    );
     fs::create_dir(dir.join("folder.xyzn")).unwrap();
     m.note("folder.xyzn", "a directory");
+    fs::create_dir(dir.join("folder.e57")).unwrap();
+    m.note("folder.e57", "a directory named like an E57 scan");
     m.note("missing.xyzn", "not there: no such file");
 
     // PLY point clouds.
@@ -721,6 +728,8 @@ fn cases() -> Vec<Case> {
         cli("not UTF-8", "info latin1.xyzn").says("UTF-8"),
         cli("missing file", "info missing.xyzn"),
         cli("directory instead of file", "info folder.xyzn"),
+        cli("directory named .e57", "info folder.e57").says("a directory, not a file"),
+        cli("a gzip-compressed scan", "info bunny.ply.gz").says("gunzip -k"),
         cli("wrong extension", "info bunny.rcp").says("unknown point-cloud format"),
         cli("a point cloud named .stl", "info cloud.stl").says("not ASCII STL"),
         cli("truncated binary PLY", "info cloud_trunc.ply").says("truncated"),

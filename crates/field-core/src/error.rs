@@ -114,6 +114,17 @@ pub enum Error {
         /// The file.
         path: PathBuf,
     },
+    /// A compressed file (gzip, zip, bzip2, xz, zstd or 7-Zip archive), which zeroset does not
+    /// unpack.
+    #[error("{}: compressed with {compression}; zeroset reads the file inside: unpack it first ({hint})", path.display())]
+    Compressed {
+        /// The file.
+        path: PathBuf,
+        /// The compression's name (`gzip`, `zip`, …).
+        compression: &'static str,
+        /// The command that unpacks it, e.g. `gunzip -k scan.ply.gz`.
+        hint: String,
+    },
     /// A malformed file: what was wrong and where.
     #[error("{}{}: {reason}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Malformed {

@@ -1080,6 +1080,43 @@ fn format_from_extension_name_and_content() {
 }
 
 #[test]
+fn compressed_files_are_named_with_the_command_that_unpacks_them() {
+    let cases: [(&str, &[u8], &str); 6] = [
+        (
+            "scan.ply.gz",
+            &[0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3],
+            "gzip; ",
+        ),
+        ("scan.zip", b"PK\x03\x04\x14\0\0\0", "zip; "),
+        ("scan.xyz.bz2", b"BZh91AY&SY", "bzip2; "),
+        (
+            "scan.las.xz",
+            &[0xfd, b'7', b'z', b'X', b'Z', 0, 0, 4],
+            "xz; ",
+        ),
+        ("scan.e57.zst", &[0x28, 0xb5, 0x2f, 0xfd, 0, 0], "zstd; "),
+        (
+            "scan.7z",
+            &[b'7', b'z', 0xbc, 0xaf, 0x27, 0x1c, 0, 4],
+            "7-Zip; ",
+        ),
+    ];
+    for (name, bytes, says) in cases {
+        let (_d, path) = temp_file(name, bytes);
+        let e = read_point_cloud(&path).unwrap_err();
+        assert!(matches!(e, Error::Compressed { .. }), "{name}: {e}");
+        let text = e.to_string();
+        assert!(text.contains(says) && text.contains(name), "{text}");
+    }
+    let (_d, path) = temp_file("scan.ply.gz", [0x1f, 0x8b, 8, 0]);
+    let text = read_point_cloud(&path).unwrap_err().to_string();
+    assert!(
+        text.ends_with(&format!("(gunzip -k {})", path.display())),
+        "{text}"
+    );
+}
+
+#[test]
 fn format_option_overrides_detection() {
     let (_d, path) = temp_file("points.dat", "x,y,z\n1,2,3\n");
     assert!(matches!(

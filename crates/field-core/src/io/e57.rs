@@ -106,6 +106,7 @@ impl E57Cloud {
 /// As [`read_point_cloud_with`](super::read_point_cloud_with) for an E57 file.
 pub fn read_e57(path: impl AsRef<Path>, options: &ReadOptions) -> Result<E57Cloud> {
     let path = path.as_ref();
+    super::refuse_directory(path)?;
     let check = FiniteCheck {
         path,
         allow: options.allow_non_finite,

@@ -163,6 +163,8 @@ impl FromStr for Format {
 ///
 /// # Errors
 /// [`Error::UnknownFormat`] when neither the extension nor the content tells;
+/// [`Error::Compressed`] for a compressed file (`scan.ply.gz`), naming the command that unpacks
+/// it;
 /// [`Error::Io`] if a `.csv` file (or a file with an unknown extension) cannot be read;
 /// [`Error::Malformed`] for a `.csv` file whose header cannot be parsed.
 pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
@@ -187,12 +189,44 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
                 | [b'V', b'E', b'R', b'S', b'I', b'O', b'N', ..] => Ok(Format::Pcd),
                 [b'L', b'A', b'S', b'F', ..] => Ok(Format::Las),
                 b"ASTM-E57" => Ok(Format::E57),
-                _ => Err(Error::UnknownFormat {
-                    path: path.to_owned(),
+                prefix => Err(match compression(prefix) {
+                    Some((compression, unpack)) => Error::Compressed {
+                        path: path.to_owned(),
+                        compression,
+                        hint: format!("{unpack} {}", path.display()),
+                    },
+                    None => Error::UnknownFormat {
+                        path: path.to_owned(),
+                    },
                 }),
             }
         }
     }
+}
+
+/// [`Error::Io`] "a directory, not a file" for a directory (`scans.e57/`), before a reader
+/// says something less clear.
+pub(crate) fn refuse_directory(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::Io {
+            path: path.to_owned(),
+            source: io::Error::new(io::ErrorKind::InvalidInput, "a directory, not a file"),
+        });
+    }
+    Ok(())
+}
+
+/// The compression whose signature starts `prefix`, and the command that unpacks it.
+fn compression(prefix: &[u8]) -> Option<(&'static str, &'static str)> {
+    Some(match prefix {
+        [0x1f, 0x8b, ..] => ("gzip", "gunzip -k"),
+        [b'P', b'K', 3, 4, ..] => ("zip", "unzip"),
+        [b'B', b'Z', b'h', ..] => ("bzip2", "bunzip2 -k"),
+        [0xfd, b'7', b'z', b'X', b'Z', 0, ..] => ("xz", "unxz -k"),
+        [0x28, 0xb5, 0x2f, 0xfd, ..] => ("zstd", "unzstd"),
+        [b'7', b'z', 0xbc, 0xaf, 0x27, 0x1c, ..] => ("7-Zip", "7z x"),
+        _ => return None,
+    })
 }
 
 /// Reads up to `buf.len()` bytes, fewer only at the end of the file.
@@ -293,12 +327,7 @@ pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
 ///   [`ReadOptions::positions_only`]).
 pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<PointCloud3> {
     let path = path.as_ref();
-    if path.is_dir() {
-        return Err(Error::Io {
-            path: path.to_owned(),
-            source: io::Error::new(io::ErrorKind::InvalidInput, "a directory, not a file"),
-        });
-    }
+    refuse_directory(path)?;
     let format = match options.format {
         Some(format) => format,
         None => detect_format(path)?,

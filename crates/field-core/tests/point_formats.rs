@@ -966,6 +966,39 @@ fn e57_records_flagged_in_either_coordinate_system_are_left_out() {
 }
 
 #[test]
+fn e57_poses_normalise_their_quaternion_whatever_its_scale() {
+    // Half a turn about z, (0, 0, 0, s) for any scale s, then a shift of 10 along x.
+    let posed = |w: &str, z: &str| {
+        let pose = format!(
+            "<pose type=\"Structure\"><rotation type=\"Structure\">\
+             <w type=\"Float\">{w}</w><x type=\"Float\">0</x><y type=\"Float\">0</y>\
+             <z type=\"Float\">{z}</z></rotation><translation type=\"Structure\">\
+             <x type=\"Float\">10</x><y type=\"Float\">0</y><z type=\"Float\">0</z>\
+             </translation></pose><points "
+        );
+        e57_bytes(vec![e57_scan(3, false, 0.0)], move |x| {
+            x.replacen("<points ", &pose, 1)
+        })
+    };
+    for scale in ["1", "1e300", "1e-200", "-3"] {
+        let cloud = read("posed.e57", posed("0", scale));
+        // the scan's points (0, 0.5, -1), (1, 0.5, -1), (2, 0.5, -1), turned and shifted
+        assert_eq!(
+            cloud.positions(),
+            &[[10.0, -0.5, -1.0], [9.0, -0.5, -1.0], [8.0, -0.5, -1.0]],
+            "scale {scale}"
+        );
+    }
+    for (w, z) in [("0", "0"), ("NaN", "1"), ("1", "inf")] {
+        let e = read_err("posed.e57", posed(w, z)).to_string();
+        assert!(
+            e.contains("scan 0's pose is not a rotation"),
+            "({w}, {z}): {e}"
+        );
+    }
+}
+
+#[test]
 fn e57_files_the_reader_cannot_use_are_named_errors() {
     let reason = |name: &str, bytes: Vec<u8>| match read_err(name, bytes) {
         Error::Malformed { reason, path, .. } => {

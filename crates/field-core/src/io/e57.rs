@@ -214,9 +214,14 @@ impl Pose {
             });
         };
         let q = &t.rotation;
-        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+        // Scaled by its largest component first, so that any finite non-zero quaternion
+        // normalises (its squares would overflow above 1e154 and vanish below 1e-162).
+        let largest = [q.w, q.x, q.y, q.z]
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
         let translation = [t.translation.x, t.translation.y, t.translation.z];
-        if !(norm.is_finite() && norm > 1e-12) || translation.iter().any(|v| !v.is_finite()) {
+        let finite = |v: &[f64]| v.iter().all(|c| c.is_finite());
+        if !(finite(&[q.w, q.x, q.y, q.z]) && largest > 0.0 && finite(&translation)) {
             return Err(super::malformed(
                 path,
                 None,
@@ -227,7 +232,9 @@ impl Pose {
                 ),
             ));
         }
-        let (w, x, y, z) = (q.w / norm, q.x / norm, q.y / norm, q.z / norm);
+        let [w, x, y, z] = [q.w, q.x, q.y, q.z].map(|v| v / largest);
+        let norm = (w * w + x * x + y * y + z * z).sqrt();
+        let [w, x, y, z] = [w, x, y, z].map(|v| v / norm);
         Ok(Self {
             rotation: [
                 [

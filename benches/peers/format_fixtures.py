@@ -8,6 +8,11 @@ wrote (not against zeroset's idea of the formats):
 - bunny300.las (LAS 1.2, point format 0), bunny300_14.las (LAS 1.4, point format 6, one
   extended VLR), bunny300.laz (LAZ, point format 3) and bunny300_14.laz (LAZ 1.4, point
   format 6, layered chunks): laspy 2.5.4 with lazrs, scale 1e-7;
+- bunny300_normals.las (LAS 1.4, point format 6) and bunny300_normals.laz (LAZ 1.2, point
+  format 3): the same points with their normals in "extra bytes" described by the Extra Bytes
+  VLR, as PDAL's `writers.las` (`extra_dims`) writes them: `Curvature NormalX NormalY NormalZ`
+  as float32 in the first, `confidence` (uint8) then `nx ny nz` as int16 scaled by 1/30000 in
+  the second;
 - bunny300.xyzn: those 300 points as printed to 9 significant digits (each value's f32 exact);
 - bunny300.e57 and bunny300_spherical.e57: libE57Format (pye57 0.4.19's binding) — see
   `write_e57` and `write_e57_spherical` for what each scan holds (poses, scaled integers,
@@ -17,6 +22,7 @@ Usage (after `bash benches/peers/setup.sh --open3d`):
     benches/peers/.venv/bin/python benches/peers/format_fixtures.py
 """
 
+import datetime
 from pathlib import Path
 
 import laspy
@@ -45,6 +51,8 @@ def main() -> None:
 
     def las(version: str, point_format: int) -> laspy.LasData:
         header = laspy.LasHeader(point_format=point_format, version=version)
+        # A fixed creation date (laspy writes today's), for files identical on every run.
+        header.creation_date = datetime.date(2026, 12, 5)
         header.scales = np.array([1e-7] * 3)
         header.offsets = np.zeros(3)
         data = laspy.LasData(header)
@@ -72,6 +80,22 @@ def main() -> None:
     layered = las("1.4", 6)
     layered.gps_time = np.arange(len(d), dtype=float)
     layered.write(OUT / "bunny300_14.laz")
+    # Normals in extra bytes: after another extra field, so their offsets are not 0.
+    pdal = las("1.4", 6)
+    pdal.gps_time = np.arange(len(d), dtype=float)
+    pdal.add_extra_dims([laspy.ExtraBytesParams(name, np.float32)
+                         for name in ["Curvature", "NormalX", "NormalY", "NormalZ"]])
+    pdal.Curvature = np.linspace(0.0, 1.0, len(d), dtype=np.float32)
+    pdal.NormalX, pdal.NormalY, pdal.NormalZ = (d[:, k].astype(np.float32) for k in (3, 4, 5))
+    pdal.write(OUT / "bunny300_normals.las")
+    scaled = las("1.2", 3)
+    scaled.add_extra_dims([laspy.ExtraBytesParams("confidence", np.uint8)]
+                          + [laspy.ExtraBytesParams(name, np.int16, scales=np.array([1 / 30000]),
+                                                    offsets=np.array([0.0]))
+                             for name in ["nx", "ny", "nz"]])
+    scaled.confidence = np.full(len(d), 200, dtype=np.uint8)
+    scaled.nx, scaled.ny, scaled.nz = d[:, 3], d[:, 4], d[:, 5]
+    scaled.write(OUT / "bunny300_normals.laz")
     write_e57(OUT / "bunny300.e57", d)
     write_e57_spherical(OUT / "bunny300_spherical.e57", d)
     print(f"wrote the fixtures in {OUT}")

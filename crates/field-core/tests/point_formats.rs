@@ -8,7 +8,9 @@
 //! as printed to 9 significant digits (so each value's `f32` is exact). `bunny300.las` (LAS
 //! 1.2, point format 0), `bunny300.laz` (LAZ, point format 3 with GPS time and colour) and
 //! `bunny300_14.laz` (LAZ 1.4, point format 6) were written from the same points by laspy 2.5.4
-//! (with lazrs), scale 10⁻⁷ (`benches/peers/format_fixtures.py`). `bunny300.e57` (two scans
+//! (with lazrs), scale 10⁻⁷ (`benches/peers/format_fixtures.py`), and so were
+//! `bunny300_normals.las` and `.laz`, with the normals in extra bytes (float32 `NormalX…` after
+//! a `Curvature` field; int16 `nx ny nz` scaled by 1/30000 after a `confidence` byte). `bunny300.e57` (two scans
 //! with poses, normals, scaled integers and invalid records) and `bunny300_spherical.e57` (one
 //! scan in spherical coordinates) were written from them by libE57Format through pye57 0.4.19
 //! (the same script says what each scan holds).
@@ -615,7 +617,7 @@ fn laspy_written_las_and_laz_read_as_the_points_they_were_written_from() {
     // The LAZ (another point format, compressed) holds the same integers.
     let laz = read_point_cloud(data("bunny300.laz")).unwrap();
     assert_eq!(laz.positions(), las.positions());
-    assert!(laz.normals().is_none());
+    assert!(laz.normals().is_none() && las.normals().is_none());
     // LAS 1.4's point format 6, compressed by LASzip's layered chunks.
     let layered = read_point_cloud(data("bunny300_14.laz")).unwrap();
     assert_eq!(layered.positions(), las.positions());
@@ -628,6 +630,70 @@ fn laspy_written_las_and_laz_read_as_the_points_they_were_written_from() {
             );
         }
     }
+}
+
+#[test]
+fn las_normals_in_extra_bytes_are_read_as_their_description_says() {
+    let truth = read_point_cloud(data("bunny300.xyzn")).unwrap();
+    let positions = read_point_cloud(data("bunny300.las")).unwrap();
+    // PDAL's names, float32, after a `Curvature` field (LAS 1.4).
+    let pdal = read_point_cloud(data("bunny300_normals.las")).unwrap();
+    // `nx ny nz` as int16 scaled by 1/30000 after a uint8 field, in a LAZ.
+    let scaled = read_point_cloud(data("bunny300_normals.laz")).unwrap();
+    for (cloud, within) in [(&pdal, 1e-7), (&scaled, 0.5 / 30000.0 + 1e-12)] {
+        assert_eq!(cloud.positions(), positions.positions());
+        let normals = cloud.normals().expect("the normals in the extra bytes");
+        for (got, want) in normals.iter().zip(truth.normals().unwrap()) {
+            for a in 0..3 {
+                assert!((got[a] - want[a]).abs() <= within, "{got:?} vs {want:?}");
+            }
+        }
+    }
+    // Positions only: the normals are not read.
+    let options = ReadOptions::default().with_positions_only(true);
+    let (_d, path) = temp_file(
+        "p.las",
+        std::fs::read(data("bunny300_normals.las")).unwrap(),
+    );
+    assert!(
+        read_point_cloud_with(&path, &options)
+            .unwrap()
+            .normals()
+            .is_none()
+    );
+
+    // Crafted descriptions: the bytes of the fixture with its Extra Bytes record edited.
+    let bytes = std::fs::read(data("bunny300_normals.las")).unwrap();
+    let find = |name: &[u8]| bytes.windows(name.len()).position(|w| w == name).unwrap();
+    let reason = |bytes: Vec<u8>| match read_err("crafted.las", bytes) {
+        Error::Malformed { reason, .. } => reason,
+        other => panic!("expected Malformed, got {other}"),
+    };
+    // `NormalZ` renamed: a normal in part.
+    let mut partial = bytes.clone();
+    let z = find(b"NormalZ");
+    partial[z + 6] = b'Q';
+    assert!(
+        reason(partial).contains("part of a normal: no field named like 'normalz'"),
+        "partial"
+    );
+    // `Curvature` said to be a double (8 bytes, not 4): `NormalZ` then ends past the 16 extra
+    // bytes each point carries.
+    let mut wide = bytes.clone();
+    wide[find(b"Curvature") - 2] = 10;
+    let r = reason(wide);
+    assert!(
+        r.contains("'NormalZ' at bytes 16..20") && r.contains("carry 16"),
+        "{r}"
+    );
+    // A file without the record reads positions only, as before.
+    let mut unnamed = bytes.clone();
+    for name in [&b"NormalX"[..], b"NormalY", b"NormalZ"] {
+        let at = find(name);
+        unnamed[at..at + 7].copy_from_slice(b"Other_1");
+    }
+    let (_d, path) = temp_file("unnamed.las", unnamed);
+    assert!(read_point_cloud(&path).unwrap().normals().is_none());
 }
 
 /// The byte where `laz`'s LASzip VLR data starts.

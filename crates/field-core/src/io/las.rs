@@ -3,10 +3,20 @@
 //! uses).
 //!
 //! - Read: each point's `x y z`, the stored integers times the header's scale plus its offset
-//!   (so georeferenced coordinates keep their full precision in `f64`). LAS has no standard
-//!   normals: the cloud has none (`zeroset normals` or `zeroset reconstruct` estimate them,
-//!   with `--viewpoint` above an airborne scan). Intensity, classification, returns, colour
-//!   and the rest are skipped; so are points flagged withheld (the format's "deleted").
+//!   (so georeferenced coordinates keep their full precision in `f64`). Intensity,
+//!   classification, returns, colour and the rest are skipped; so are points flagged withheld
+//!   (the format's "deleted").
+//! - Normals: LAS has no standard field for them, but writers put them in each record's
+//!   "extra bytes", described by the Extra Bytes VLR (LAS 1.4 R15 §2.6.3: user `LASF_Spec`,
+//!   record 4, 192 bytes a field giving its name, type, and optional scale and offset). Three
+//!   fields named `NormalX NormalY NormalZ` (PDAL's `filters.normal`, written by
+//!   `writers.las` with `extra_dims`) or `nx ny nz` (any case; `_`, `-` and spaces ignored:
+//!   `normal_x`), of any numeric type, are read as the normals, scaled and offset as their
+//!   descriptions say; so is one deprecated three-component field named `normal` or `normals`.
+//!   Without them the cloud has none (`zeroset normals` or `zeroset reconstruct` estimate
+//!   them, with `--viewpoint` above an airborne scan). A description that places the normals
+//!   past the record's extra bytes, or a set found in part (`NormalX` without `NormalZ`), is
+//!   an error.
 //! - Before the crates read the file, what they would size buffers by is checked against the
 //!   file ([`Error::Truncated`] or [`Error::Malformed`] otherwise): for LAS the header's point
 //!   count times the record length against the bytes after the header; every extended VLR's
@@ -21,7 +31,7 @@
 
 use std::path::Path;
 
-use super::{FiniteCheck, POSITION_FIELDS, RawPoints, io_error};
+use super::{FiniteCheck, NORMAL_FIELDS, POSITION_FIELDS, RawPoints, io_error};
 use crate::error::{Error, Result};
 use crate::limits;
 
@@ -32,21 +42,29 @@ pub const BLOCK: u64 = 1 << 16;
 /// is "extra bytes", for each of which the decoder keeps its own models.
 pub const MAX_LAZ_RECORD: u64 = 512;
 
-/// Reads a LAS or LAZ file; see the [module docs](self).
-pub(super) fn read(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+/// Reads a LAS or LAZ file (its normals too with `with_normals`, if it has them); see the
+/// [module docs](self).
+pub(super) fn read(path: &Path, check: &FiniteCheck<'_>, with_normals: bool) -> Result<RawPoints> {
     let (file, len) = super::open_nonempty(path)?;
     check_raw_header(path, file, len)?;
     // The checks above rule out what fuzzing found; a panic in the decoders beyond them is the
     // file's error, not the caller's crash.
-    super::guard_decoder(path, "LAS/LAZ", || read_points(path, check))
+    super::guard_decoder(path, "LAS/LAZ", || read_points(path, check, with_normals))
 }
 
 /// The points of a file that passed [`check_raw_header`].
-fn read_points(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+fn read_points(path: &Path, check: &FiniteCheck<'_>, with_normals: bool) -> Result<RawPoints> {
     let mut reader = las::Reader::from_path(path).map_err(|e| las_error(path, e))?;
     let header = reader.header();
     let announced = header.number_of_points();
     let what = format!("the points of {}", path.display());
+    let extra = usize::from(header.point_format().extra_bytes);
+    let normals_at = if with_normals {
+        ExtraNormals::of(header.all_vlrs(), extra).map_err(|e| super::malformed(path, None, e))?
+    } else {
+        None
+    };
+    let mut normals = normals_at.as_ref().map(|_| Vec::new());
     let mut positions = Vec::new();
     let mut block = las::PointDataBuilder::new().for_header(header).build();
     let mut read = 0u64;
@@ -78,10 +96,164 @@ fn read_points(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
                 &p,
             )?;
             positions.push(p);
+            if let (Some(at), Some(normals)) = (&normals_at, &mut normals) {
+                let n = at.read(&point.extra_bytes);
+                let index = usize::try_from(read).unwrap_or(usize::MAX) + i;
+                check.check(index, None, &NORMAL_FIELDS, &n)?;
+                normals.push(n);
+            }
         }
         read += n;
     }
-    Ok((positions, None))
+    Ok((positions, normals))
+}
+
+/// Where the normals are in a record's extra bytes, from the Extra Bytes VLR.
+#[derive(Debug)]
+struct ExtraNormals([ExtraValue; 3]);
+
+/// One number in a record's extra bytes: `raw · scale + offset`.
+#[derive(Debug, Clone, Copy)]
+struct ExtraValue {
+    /// Its first byte among the extra bytes.
+    at: usize,
+    /// Its type, 1–10 (`u8 i8 u16 i16 u32 i32 u64 i64 f32 f64`).
+    kind: u8,
+    scale: f64,
+    offset: f64,
+}
+
+/// The bytes of a number of extra-bytes type `kind` (1–10).
+fn extra_size(kind: u8) -> usize {
+    match kind {
+        1 | 2 => 1,
+        3 | 4 => 2,
+        5 | 6 | 9 => 4,
+        _ => 8,
+    }
+}
+
+impl ExtraValue {
+    /// Its value in a record's extra bytes (NaN, refused by the caller, if they are too few).
+    fn read(&self, extra: &[u8]) -> f64 {
+        let Some(b) = extra.get(self.at..self.at + extra_size(self.kind)) else {
+            return f64::NAN;
+        };
+        let raw = match self.kind {
+            1 => f64::from(b[0]),
+            2 => f64::from(b[0] as i8),
+            3 => f64::from(u16::from_le_bytes([b[0], b[1]])),
+            4 => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            5 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            6 => f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            9 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            k => {
+                let w = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+                match k {
+                    7 => w as f64,
+                    8 => w as i64 as f64,
+                    _ => f64::from_bits(w),
+                }
+            }
+        };
+        raw * self.scale + self.offset
+    }
+}
+
+impl ExtraNormals {
+    /// The normals described among `vlrs` (`Ok(None)` if none are), in records carrying
+    /// `extra` extra bytes; an error in words for a description past them or a set in part.
+    fn of<'a>(
+        vlrs: impl Iterator<Item = &'a las::Vlr>,
+        extra: usize,
+    ) -> std::result::Result<Option<Self>, String> {
+        // The names of the three components, matched without case, `_`, `-` or spaces.
+        const SETS: [[&str; 3]; 2] = [["normalx", "normaly", "normalz"], ["nx", "ny", "nz"]];
+        let mut found: [[Option<ExtraValue>; 3]; 2] = [[None; 3]; 2];
+        let mut triple = None;
+        let Some(vlr) = vlrs
+            .filter(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+            .last()
+        else {
+            return Ok(None);
+        };
+        let mut at = 0;
+        for d in vlr.data.chunks_exact(192) {
+            let (kind, options) = (d[2], d[3]);
+            let name: String = d[4..36]
+                .iter()
+                .take_while(|&&c| c != 0)
+                .map(|&c| char::from(c).to_ascii_lowercase())
+                .filter(|c| !matches!(c, '_' | '-' | ' '))
+                .collect();
+            let (base, count) = match kind {
+                // Undocumented bytes: `options` of them.
+                0 => {
+                    at += usize::from(options);
+                    continue;
+                }
+                1..=10 => (kind, 1),
+                11..=20 => (kind - 10, 2),
+                21..=30 => (kind - 20, 3),
+                // A type the format does not define: the fields after it cannot be placed.
+                _ => break,
+            };
+            let f64_at = |i: usize| f64::from_le_bytes(d[i..i + 8].try_into().unwrap_or([0; 8]));
+            let value = |k: usize| ExtraValue {
+                at: at + k * extra_size(base),
+                kind: base,
+                scale: if options & 8 != 0 {
+                    f64_at(112 + 8 * k)
+                } else {
+                    1.0
+                },
+                offset: if options & 16 != 0 {
+                    f64_at(136 + 8 * k)
+                } else {
+                    0.0
+                },
+            };
+            let end = at + count * extra_size(base);
+            let mut wanted = false;
+            if count == 1 {
+                for (set, slots) in SETS.iter().zip(&mut found) {
+                    if let Some(k) = set.iter().position(|s| *s == name) {
+                        slots[k] = Some(value(0));
+                        wanted = true;
+                    }
+                }
+            } else if count == 3 && matches!(name.as_str(), "normal" | "normals") {
+                triple = Some([value(0), value(1), value(2)]);
+                wanted = true;
+            }
+            if wanted && end > extra {
+                return Err(format!(
+                    "the Extra Bytes record places the normals' field '{}' at bytes {at}..{end} \
+                     of each point's extra bytes; the points carry {extra}",
+                    String::from_utf8_lossy(&d[4..36]).trim_end_matches('\0')
+                ));
+            }
+            at = end;
+        }
+        for (set, slots) in SETS.iter().zip(&found) {
+            match slots {
+                [Some(x), Some(y), Some(z)] => return Ok(Some(Self([*x, *y, *z]))),
+                [None, None, None] => {}
+                _ => {
+                    let missing = set[slots.iter().position(Option::is_none).unwrap_or(0)];
+                    return Err(format!(
+                        "the extra bytes hold part of a normal: no field named like '{missing}'"
+                    ));
+                }
+            }
+        }
+        Ok(triple.map(Self))
+    }
+
+    /// The normal in a record's extra bytes.
+    fn read(&self, extra: &[u8]) -> [f64; 3] {
+        self.0.map(|v| v.read(extra))
+    }
 }
 
 /// Checks what the `las` crate would size allocations by against the file's `len` bytes,

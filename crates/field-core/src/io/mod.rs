@@ -342,7 +342,7 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         Format::Csv => table::read_xyz_table(path, &checker)?,
         Format::GemPy => gempy::read_cloud(path, &checker)?,
         Format::Pcd => pcd::read(path, &checker)?,
-        Format::Las => las::read(path, &checker)?,
+        Format::Las => las::read(path, &checker, !options.positions_only)?,
         Format::E57 => e57::read(path, &checker, !options.positions_only)?,
     };
     if positions.is_empty() {

@@ -2,17 +2,24 @@
 //!
 //! After the fixed layers are taken out (the Neumann layer on the face `E`, the border layers),
 //! the unknowns of protrusion removal fill a box `U` of `n₀ × … × n_{D−1}` cells, ordered last
-//! axis fastest. With `w = 1/(2D)` the least-squares matrix is
+//! axis fastest. With the neighbour weight `w_a` of axis `a` (see below) the least-squares
+//! matrix is
 //!
 //! ```text
-//!     A = [ L  ]   n rows:  (L x)_c = w·Σ_{neighbours c' of c in U} x_c' − x_c     (Laplace rows)
-//!         [ wP ]   t rows:  (wP x)_j = w·x_{c_j}, c_j the cells of U's layer next to E (Neumann)
+//!     A = [ L  ]   n rows:  (L x)_c = Σ_a w_a·(x_{c−e_a} + x_{c+e_a}) − x_c           (Laplace rows)
+//!         [ wP ]   t rows:  (wP x)_j = w_E·x_{c_j}, c_j the cells of U's layer next to E (Neumann)
 //! ```
 //!
-//! (neighbours outside `U` are fixed values and live in the right-hand side). `L` is the
-//! Dirichlet Laplacian of the box, scaled by `w` — nonsingular, so `A` has full column rank:
-//! that is Ren–Fujita–Nakata's uniqueness argument (§2.2: "A contains n rows identical to
-//! Laplace's equation with the Dirichlet condition").
+//! (neighbours outside `U` are fixed values and live in the right-hand side; `w_E` is the
+//! weight of `E`'s axis). `L` is the Dirichlet Laplacian of the box, scaled — nonsingular, so
+//! `A` has full column rank: that is Ren–Fujita–Nakata's uniqueness argument (§2.2: "A
+//! contains n rows identical to Laplace's equation with the Dirichlet condition").
+//!
+//! The paper's cells are cubes, and its rows weigh the `2D` neighbours alike, `w_a = 1/(2D)`.
+//! On cells of spacings `h_a` the discrete Laplacian `Σ_a (x_{c−e_a} − 2x_c + x_{c+e_a})/h_a²`
+//! divided by `2 Σ_b 1/h_b²` gives `w_a = 1 / (2 Σ_b (h_a/h_b)²)` (still summing to ½ per
+//! side; [`BoxLaplace::with_spacing`]): with equal weights on cells twice as tall as wide the
+//! fill is not harmonic, and a restored cap comes out 13% too high (measured on a sphere).
 //!
 //! ## The exact separable solve
 //! Along every axis parallel to `E` the 1-D Dirichlet neighbour sum `T = tridiag(1, 0, 1)` is
@@ -23,7 +30,7 @@
 //! least-squares problem per lateral mode `m = (p, q)`, along `E`'s normal:
 //!
 //! ```text
-//!     min ‖ [ tridiag(w, w(σ_m − 2D), w) ; w e_lastᵀ ] x̂_m − [ r̂_m ; ŝ_m ] ‖,   σ_m = Σ λ
+//!     min ‖ [ tridiag(w_E, σ_m − 1, w_E) ; w_E e_lastᵀ ] x̂_m − [ r̂_m ; ŝ_m ] ‖,   σ_m = Σ_a w_a λ_a
 //! ```
 //!
 //! a tridiagonal matrix with one extra row. Givens QR solves each in `O(n_axis)`, and is
@@ -68,6 +75,8 @@ use crate::index::{multi_index, strides};
 pub struct BoxLaplace<const D: usize> {
     dims: [usize; D],
     neumann: Option<Face>,
+    /// `w_a`, the neighbour weight along each axis (`Σ_a 2 w_a = 1`).
+    weights: [f64; D],
 }
 
 impl<const D: usize> BoxLaplace<D> {
@@ -92,7 +101,42 @@ impl<const D: usize> BoxLaplace<D> {
                 got: face.axis,
             });
         }
-        Ok(Self { dims, neumann })
+        Ok(Self {
+            dims,
+            neumann,
+            weights: [Self::weight(); D],
+        })
+    }
+
+    /// The same matrix for cells of spacing `spacing` along each axis: each axis's neighbours
+    /// weighted by `w_a = 1 / (2 Σ_b (h_a/h_b)²)` (see the module docs; cubic cells keep
+    /// `1/(2D)` exactly).
+    ///
+    /// # Errors
+    /// [`SolveError::NonFinite`] for a spacing that is not finite and positive.
+    pub fn with_spacing(mut self, spacing: [f64; D]) -> Result<Self, SolveError> {
+        if let Some(a) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
+            return Err(SolveError::NonFinite {
+                what: "cell spacing",
+                index: a,
+                value: spacing[a],
+            });
+        }
+        self.weights = std::array::from_fn(|a| {
+            let sum: f64 = spacing.iter().map(|h| (spacing[a] / h).powi(2)).sum();
+            1.0 / (2.0 * sum)
+        });
+        Ok(self)
+    }
+
+    /// `w_a`, the neighbour weight of the Laplace rows along each axis.
+    pub fn weights(&self) -> [f64; D] {
+        self.weights
+    }
+
+    /// The weight of the Neumann rows: that of the face's axis (0 without a face).
+    fn neumann_weight(&self) -> f64 {
+        self.neumann.map_or(0.0, |f| self.weights[f.axis])
     }
 
     /// The box of unknowns.
@@ -105,7 +149,8 @@ impl<const D: usize> BoxLaplace<D> {
         self.neumann
     }
 
-    /// `w = 1/(2D)`, the neighbour weight of the Laplace rows and the weight of Neumann rows.
+    /// `w = 1/(2D)`, the neighbour weight of the Laplace rows and the weight of Neumann rows
+    /// on cubic cells (the paper's; [`weights`](Self::weights) in general).
     pub fn weight() -> f64 {
         1.0 / (2 * D) as f64
     }
@@ -145,7 +190,7 @@ impl<const D: usize> BoxLaplace<D> {
     /// `A` assembled as a sparse row matrix (columns sorted in each row).
     pub fn to_sparse(&self) -> SparseRowMat<usize, f64> {
         let n = self.unknowns();
-        let w = Self::weight();
+        let w = self.weights;
         let strides = strides(&self.dims);
         let mut row_ptr = Vec::with_capacity(n + self.neumann_rows() + 1);
         let mut col_idx = Vec::with_capacity((2 * D + 1) * n);
@@ -158,10 +203,10 @@ impl<const D: usize> BoxLaplace<D> {
             entries.push((l, -1.0));
             for a in 0..D {
                 if index[a] > 0 {
-                    entries.push((l - strides[a], w));
+                    entries.push((l - strides[a], w[a]));
                 }
                 if index[a] + 1 < self.dims[a] {
-                    entries.push((l + strides[a], w));
+                    entries.push((l + strides[a], w[a]));
                 }
             }
             entries.sort_unstable_by_key(|e| e.0);
@@ -173,7 +218,7 @@ impl<const D: usize> BoxLaplace<D> {
         }
         for c in self.layer_cells() {
             col_idx.push(c);
-            val.push(w);
+            val.push(self.neumann_weight());
             row_ptr.push(col_idx.len());
         }
         let m = row_ptr.len() - 1;
@@ -184,17 +229,17 @@ impl<const D: usize> BoxLaplace<D> {
     /// `‖A‖_F`, exactly.
     pub fn frobenius_norm(&self) -> f64 {
         let n = self.unknowns();
-        let w = Self::weight();
         // Each neighbour pair inside the box appears twice (once in each row).
-        let links: usize = (0..D)
-            .map(|a| 2 * (self.dims[a] - 1) * n / self.dims[a])
+        let links: f64 = (0..D)
+            .map(|a| (2 * (self.dims[a] - 1) * n / self.dims[a]) as f64 * self.weights[a].powi(2))
             .sum();
-        (n as f64 + (links + self.neumann_rows()) as f64 * w * w).sqrt()
+        let neumann = self.neumann_rows() as f64 * self.neumann_weight().powi(2);
+        (n as f64 + links + neumann).sqrt()
     }
 
     /// `y ← L x` over the box (the Laplace rows only; `L` is symmetric).
     fn apply_laplace(&self, x: &[f64], y: &mut [f64]) {
-        let w = Self::weight();
+        let w = self.weights;
         let last = self.dims[D - 1];
         let strides = strides(&self.dims);
         y.par_chunks_mut(last).enumerate().for_each(|(line, out)| {
@@ -209,19 +254,19 @@ impl<const D: usize> BoxLaplace<D> {
                 if k + 1 < last {
                     s += xs[k + 1];
                 }
-                *o = s;
+                *o = w[D - 1] * s;
             }
             for a in 0..D - 1 {
                 if index[a] > 0 {
                     let nb = &x[start - strides[a]..start - strides[a] + last];
-                    out.iter_mut().zip(nb).for_each(|(o, v)| *o += v);
+                    out.iter_mut().zip(nb).for_each(|(o, v)| *o += w[a] * v);
                 }
                 if index[a] + 1 < self.dims[a] {
                     let nb = &x[start + strides[a]..start + strides[a] + last];
-                    out.iter_mut().zip(nb).for_each(|(o, v)| *o += v);
+                    out.iter_mut().zip(nb).for_each(|(o, v)| *o += w[a] * v);
                 }
             }
-            out.iter_mut().zip(xs).for_each(|(o, v)| *o = w * *o - v);
+            out.iter_mut().zip(xs).for_each(|(o, v)| *o -= v);
         });
     }
 
@@ -252,7 +297,7 @@ impl<const D: usize> BoxLaplace<D> {
                 value: b[index],
             });
         }
-        let lines = Lines::new(&self.dims, self.neumann);
+        let lines = Lines::new(&self.dims, self.neumann, &self.weights);
         let (len, inner) = (lines.len, lines.inner);
         let (mut r, mut scratch) = (scratch::take(n), scratch::take(n));
         lines.gather(&b[..n], &mut r);
@@ -265,7 +310,7 @@ impl<const D: usize> BoxLaplace<D> {
         // One block per outer lateral mode, a (len × inner) matrix with one line per column:
         // the inner transform, the Givens sweeps and the residual check all run on it while it
         // sits in cache, over contiguous rows of modes (vectorised).
-        let w = Self::weight();
+        let w = self.weights[lines.axis];
         let sums: Vec<Sums> = r
             .par_chunks_mut(len * inner)
             .zip(scratch.par_chunks_mut(len * inner))
@@ -278,7 +323,7 @@ impl<const D: usize> BoxLaplace<D> {
                     let diag: Vec<f64> = lines
                         .inner_eigen()
                         .iter()
-                        .map(|e| w * (sigma_outer + e - (2 * D) as f64))
+                        .map(|e| sigma_outer + e - 1.0)
                         .collect();
                     let extra = (t > 0).then(|| &s[outer * inner..(outer + 1) * inner]);
                     let sums = qr.solve(&diag, w, extra, block);
@@ -329,7 +374,7 @@ impl<const D: usize> LinearOperator for BoxLaplace<D> {
         let n = self.unknowns();
         let (lap, extra) = y.split_at_mut(n);
         self.apply_laplace(x, lap);
-        let w = Self::weight();
+        let w = self.neumann_weight();
         for (e, c) in extra.iter_mut().zip(self.layer_cells()) {
             *e = w * x[c];
         }
@@ -337,7 +382,7 @@ impl<const D: usize> LinearOperator for BoxLaplace<D> {
     fn apply_transpose(&self, y: &[f64], x: &mut [f64]) {
         let n = self.unknowns();
         self.apply_laplace(&y[..n], x);
-        let w = Self::weight();
+        let w = self.neumann_weight();
         for (e, c) in y[n..].iter().zip(self.layer_cells()) {
             x[c] += w * e;
         }
@@ -361,7 +406,8 @@ struct Lines<const D: usize> {
     inner: usize,
     /// Orthonormal DST-I of each lateral axis (outer…, inner).
     sine: Vec<Dst1>,
-    /// Eigenvalues `2 cos(π(p+1)/(n+1))` of each lateral axis (outer…, inner), split order.
+    /// Eigenvalues `2 cos(π(p+1)/(n+1))` of each lateral axis (outer…, inner), split order,
+    /// times the axis's neighbour weight.
     eigen: Vec<Vec<f64>>,
     /// The normal axis and its extent, the line length.
     axis: usize,
@@ -371,7 +417,7 @@ struct Lines<const D: usize> {
 }
 
 impl<const D: usize> Lines<D> {
-    fn new(dims: &[usize; D], neumann: Option<Face>) -> Self {
+    fn new(dims: &[usize; D], neumann: Option<Face>, weights: &[f64; D]) -> Self {
         let axis = neumann.map_or(D - 1, |f| f.axis);
         let lateral: Vec<usize> = (0..D).filter(|&a| a != axis).collect();
         let (outer_axes, inner_axis) = match lateral.split_last() {
@@ -385,7 +431,15 @@ impl<const D: usize> Lines<D> {
             outer_axes,
             inner_axis,
             inner: inner_axis.map_or(1, |a| dims[a]),
-            eigen: sine.iter().map(Dst1::eigenvalues_split).collect(),
+            eigen: sine
+                .iter()
+                .zip(&lateral)
+                .map(|(s, &a)| {
+                    let mut e = s.eigenvalues_split();
+                    e.iter_mut().for_each(|v| *v *= weights[a]);
+                    e
+                })
+                .collect(),
             sine,
             axis,
             len: dims[axis],
@@ -413,7 +467,7 @@ impl<const D: usize> Lines<D> {
         offset
     }
 
-    /// `Σ` of the outer axes' eigenvalues of block `outer`.
+    /// `Σ` of the outer axes' weighted eigenvalues of block `outer`.
     fn outer_eigenvalue(&self, mut outer: usize) -> f64 {
         let mut sigma = 0.0;
         for (&a, eig) in self.outer_axes.iter().zip(&self.eigen).rev() {
@@ -423,7 +477,7 @@ impl<const D: usize> Lines<D> {
         sigma
     }
 
-    /// The eigenvalues of the inner (last lateral) axis; zeros in 1-D.
+    /// The weighted eigenvalues of the inner (last lateral) axis; zeros in 1-D.
     fn inner_eigen(&self) -> &[f64] {
         match self.inner_axis {
             Some(_) => &self.eigen[self.outer_axes.len()],

@@ -407,8 +407,8 @@ impl<const D: usize> ProtrusionSystem<D> {
             fixed[local..local + dims[D - 1]].fill(0.0);
         });
 
-        let operator = BoxLaplace::new(dims, params.face)?;
-        let w = BoxLaplace::<D>::weight();
+        let operator = BoxLaplace::new(dims, params.face)?.with_spacing(grid.spacing())?;
+        let w = operator.weights();
         let n = operator.unknowns();
         let mut rhs = vec![0.0; n + operator.neumann_rows()];
         let rs = region.strides;
@@ -425,8 +425,10 @@ impl<const D: usize> ProtrusionSystem<D> {
                 let o = region.local(start);
                 for (k, r) in out.iter_mut().enumerate() {
                     let c = o + k;
-                    let sum: f64 = (0..D).map(|a| fixed[c - rs[a]] + fixed[c + rs[a]]).sum();
-                    *r = -w * sum;
+                    let sum: f64 = (0..D)
+                        .map(|a| w[a] * (fixed[c - rs[a]] + fixed[c + rs[a]]))
+                        .sum();
+                    *r = -sum;
                 }
             });
         if let Some(face) = params.face {
@@ -440,8 +442,10 @@ impl<const D: usize> ProtrusionSystem<D> {
                     Side::Upper => index[face.axis] += 1,
                 }
                 let l = region.local(index);
-                let sum: f64 = (0..D).map(|a| fixed[l - rs[a]] + fixed[l + rs[a]]).sum();
-                rhs[n + row] = fixed[l] - w * sum;
+                let sum: f64 = (0..D)
+                    .map(|a| w[a] * (fixed[l - rs[a]] + fixed[l + rs[a]]))
+                    .sum();
+                rhs[n + row] = fixed[l] - sum;
             }
         }
         Ok(Self {
@@ -494,9 +498,10 @@ impl<const D: usize> ProtrusionSystem<D> {
                         "the preconditioned LSQR solver is 3-D only; use the separable solver in {D}-D"
                     )));
                 }
-                let m = DirichletLaplacian::new(
+                let w = self.operator.weights();
+                let m = DirichletLaplacian::with_axis_scales(
                     [dims[0], dims[1], dims[2]],
-                    BoxLaplace::<D>::weight(),
+                    [w[0], w[1], w[2]],
                 )?;
                 let params = IterativeParams::default()
                     .with_tolerance(*tolerance)

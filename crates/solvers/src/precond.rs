@@ -112,6 +112,15 @@ impl DirichletLaplacian {
     /// [`SolveError::ShapeMismatch`] for an empty axis, [`SolveError::NonFinite`] for a zero or
     /// non-finite scale.
     pub fn new(dims: [usize; 3], scale: f64) -> Result<Self, SolveError> {
+        Self::with_axis_scales(dims, [scale; 3])
+    }
+
+    /// `M = Σ_a s_a T_a`, a scale per axis (`s_a = w_a`, the neighbour weights of the Laplace
+    /// rows on cells that are not cubes: `Σ_a w_a (x_{c−e_a} − 2x_c + x_{c+e_a})`).
+    ///
+    /// # Errors
+    /// As [`new`](Self::new), for any axis's scale.
+    pub fn with_axis_scales(dims: [usize; 3], scales: [f64; 3]) -> Result<Self, SolveError> {
         if let Some(axis) = dims.iter().position(|&d| d == 0) {
             return Err(SolveError::ShapeMismatch {
                 what: "Laplacian box axis",
@@ -119,11 +128,11 @@ impl DirichletLaplacian {
                 got: dims[axis],
             });
         }
-        if !(scale.is_finite() && scale != 0.0) {
+        if let Some(a) = scales.iter().position(|s| !(s.is_finite() && *s != 0.0)) {
             return Err(SolveError::NonFinite {
                 what: "Laplacian scale",
-                index: 0,
-                value: scale,
+                index: a,
+                value: scales[a],
             });
         }
         let pi = std::f64::consts::PI;
@@ -137,13 +146,16 @@ impl DirichletLaplacian {
         let [s0, s1, s2] = [0, 1, 2].map(|a| {
             let modes: Vec<usize> = (0..dims[a]).map(|j| sine[a].mode(j)).collect();
             let sin2 = sin2(dims[a]);
-            modes.into_iter().map(|p| sin2[p]).collect::<Vec<f64>>()
+            modes
+                .into_iter()
+                .map(|p| scales[a] * sin2[p])
+                .collect::<Vec<f64>>()
         });
         let mut inv_eigen = Vec::with_capacity(dims.iter().product());
         for a in &s0 {
             for b in &s1 {
                 for c in &s2 {
-                    inv_eigen.push(1.0 / (-4.0 * scale * (a + b + c)));
+                    inv_eigen.push(1.0 / (-4.0 * (a + b + c)));
                 }
             }
         }

@@ -38,6 +38,7 @@ use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions,
 use zeroset_bases::rbf::{Kernel, RbfField};
 use zeroset_field_core::Grid;
 use zeroset_field_core::field::ScalarField;
+use zeroset_field_core::geometry::Point;
 use zeroset_mesh::signed::{
     CoarseStep, SmcOptions, SmcStage, expected_evaluations, settled_fraction, signed_marching_cubes,
 };
@@ -218,6 +219,27 @@ pub struct MeshArgs {
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// How far the level set `f = level` lies from the zero set near `points`: `|level|` over the
+/// median gradient norm at up to 1,024 of them, evenly spread (0 at level 0, or where no
+/// gradient there is finite and non-zero).
+fn level_offset(field: &AnyField<3>, points: &[Point<3>], level: f64) -> f64 {
+    if level == 0.0 || points.is_empty() {
+        return 0.0;
+    }
+    let step = points.len().div_ceil(1024);
+    let mut norms: Vec<f64> = points
+        .iter()
+        .step_by(step)
+        .map(|p| field.gradient(p).iter().map(|v| v * v).sum::<f64>().sqrt())
+        .filter(|n| n.is_finite() && *n > 0.0)
+        .collect();
+    if norms.is_empty() {
+        return 0.0;
+    }
+    norms.sort_by(f64::total_cmp);
+    level.abs() / norms[norms.len() / 2]
 }
 
 /// A mesh component with no input point within this many voxels is reported as spurious.
@@ -416,10 +438,22 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         _ => recorded.as_deref(),
     };
     let mut mesh = mesh;
+    let mut dropped_all = false;
     match points {
         Some(points) if !mesh.is_empty() => {
             let (labels, count) = components(&mesh);
-            let radius = SPURIOUS_VOXELS * h;
+            // At a level other than 0 the surface is an offset of the one fitted to the
+            // points: their distance to it is no sign of a spurious piece.
+            let offset = level_offset(&field, points, args.level);
+            let radius = SPURIOUS_VOXELS * h + offset;
+            let within = if offset > 0.0 {
+                format!(
+                    "{SPURIOUS_VOXELS} voxels plus the level's offset {}",
+                    g(offset)
+                )
+            } else {
+                format!("{SPURIOUS_VOXELS} voxels")
+            };
             let far = unsupported_components(&mesh, &labels, count, points, radius);
             // The input points each component is fitted to: the scan's when given, else those
             // an MRAS field records. An RBF field's centres are no count of points (about 3
@@ -445,14 +479,14 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 say!(
                     out,
                     "spurious: {spurious} of {count} component(s), {} triangles, have no \
-                     input point within {SPURIOUS_VOXELS} voxels ({}){removal}",
+                     input point within {within} ({}){removal}",
                     triangles_in(&far),
                     g(radius),
                 )?;
             } else {
                 say!(
                     out,
-                    "spurious: none (every component has an input point within {SPURIOUS_VOXELS} voxels)"
+                    "spurious: none (every component has an input point within {within})"
                 )?;
             }
             let weak_count = weak.iter().filter(|w| **w).count();
@@ -477,6 +511,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     !far[l] && !weak[l]
                 });
                 report = check(&mesh);
+                dropped_all = mesh.is_empty();
             }
         }
         Some(_) => {}
@@ -558,7 +593,12 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         mesh.num_triangles(),
         g(args.level)
     )?;
-    if mesh.is_empty() {
+    if dropped_all {
+        say!(
+            out,
+            "every component was dropped by --drop-spurious: the mesh is empty"
+        )?;
+    } else if mesh.is_empty() {
         say!(
             out,
             "the level set does not cross the grid: the mesh is empty"

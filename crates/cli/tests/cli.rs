@@ -760,6 +760,28 @@ fn mesh(field: &Path, out: &Path, extra: &[&str]) -> Output {
 }
 
 #[test]
+fn an_offset_level_set_is_not_called_spurious_and_dropping_all_is_said() {
+    let (dir, field) = sphere_field();
+    let ply = dir.path().join("shell.ply");
+    // An offset surface farther from the points than 3 voxels: the whole mesh was called
+    // spurious, and --drop-spurious deleted it saying the level set did not cross the grid.
+    let o = mesh(
+        &field,
+        &ply,
+        &["--level", "0.05", "--voxel", "0.01", "--drop-spurious"],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains(
+            "spurious: none (every component has an input point within 3 voxels plus \
+                      the level's offset"
+        ) && out.contains("closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+}
+
+#[test]
 fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let (dir, field) = sphere_field();
     let ply = dir.path().join("s.ply");

@@ -11,8 +11,11 @@
 //! samples alias: noise finer than the coarse grid is kept at full amplitude at the coarse
 //! points, only spread out. The default, [`Resampling::Area`], takes each coarse cell's value as
 //! the mean of the fine samples it covers (weighted by overlap — the standard area rule for
-//! downsampling), which removes that noise: on a sphere with noise at the grid scale it
-//! lowers the RMS error several times more than point sampling (see the tests).
+//! downsampling), which removes that noise: on a sphere with noise at 2–3 cells' wavelength it
+//! lowers the RMS error 5.1× where point sampling leaves it as it was (1.0×; the tests), and
+//! on independent noise in every sample by 10–25% more than point sampling (40³ grid, 20³
+//! mask, 10–19 coarse cells per axis). With as many coarse cells as the mask has, it gives the
+//! samples back: nothing is smoothed, and nothing is amplified.
 //!
 //! ```
 //! use zeroset_field_core::analytic::Sphere;
@@ -34,7 +37,7 @@
 
 use std::time::{Duration, Instant};
 
-use zeroset_bases::bspline::{BSplineField, Boundary, Degree, prefilter};
+use zeroset_bases::bspline::{BSplineField, Boundary, Degree, prefilter_means};
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Aabb;
 use zeroset_field_core::grid::Grid;
@@ -141,7 +144,9 @@ impl<const D: usize> Denoise<D> {
                 value: coarse[index],
             });
         }
-        let h = coarse_spline(&coarse_grid, coarse, self.resampling)?;
+        // Fine samples per coarse cell along each axis (a mean of that many values).
+        let per_cell = std::array::from_fn(|a| extent[a] as f64 / self.coarse[a] as f64);
+        let h = coarse_spline(&coarse_grid, coarse, self.resampling, per_cell)?;
         let mut g = f.to_vec();
         let points: Vec<[f64; D]> = mask.indices().map(|i| grid.point(i)).collect();
         let mut inside = vec![0.0; points.len()];
@@ -186,13 +191,17 @@ const GHOSTS: usize = 2;
 /// not a domain with a mirror-symmetric boundary: the data are first extended by [`GHOSTS`]
 /// cells per side by linear extrapolation, so the spline's mirror boundary sits outside the
 /// mask and its zero-slope artefact decays (×0.17 per cell) before reaching it. Area data are
-/// cell means, so the coefficients are fitted to reproduce the means (the quadratic B-spline's
-/// cell mean is the cubic B-spline at the integers, `[1, 4, 1]/6`: the cubic prefilter) —
-/// interpolating means as if they were point values would bias the result by `h²/24 · Δf`.
+/// means of `per_cell[a]` fine samples along each axis, so the coefficients are fitted to
+/// reproduce those means ([`prefilter_means`]): interpolating them as point values would bias
+/// the result by `h²/24 · Δf`, and fitting them as the spline's continuous cell means (the
+/// cubic prefilter, `[1, 4, 1]/6`) amplified the finest oscillation threefold per axis where a
+/// coarse cell holds one or two fine samples — de-noising with as many coarse cells as the mask
+/// has made grid-scale noise 3.4× larger.
 fn coarse_spline<const D: usize>(
     grid: &Grid<D>,
     data: Vec<f64>,
     resampling: Resampling,
+    per_cell: [f64; D],
 ) -> Result<BSplineField<D>> {
     let mut shape = grid.counts();
     let mut data = data;
@@ -209,7 +218,7 @@ fn coarse_spline<const D: usize>(
     Ok(match resampling {
         Resampling::Point => BSplineField::interpolate(extended, data, Degree::Quadratic)?,
         Resampling::Area => {
-            prefilter(&mut data, shape, Degree::Cubic, Boundary::HalfSample)?;
+            prefilter_means(&mut data, shape, per_cell, Boundary::HalfSample)?;
             BSplineField::from_coefficients(
                 extended,
                 data,

@@ -100,7 +100,7 @@ use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point};
 use zeroset_field_core::grid::{Centering, Grid};
 
-pub use prefilter::prefilter;
+pub use prefilter::{prefilter, prefilter_means};
 pub use space::BSplineSpace;
 
 use stencil::{AxisWeights, fold, strides, weights};

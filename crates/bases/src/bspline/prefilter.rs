@@ -58,13 +58,17 @@ struct Factors {
     upper: Vec<f64>,
 }
 
+/// The sampled kernel `(a, b)` of `degree`: `(⅛, ¾)` quadratic, `(⅙, ⅔)` cubic.
+fn taps(degree: Degree) -> (f64, f64) {
+    match degree {
+        Degree::Quadratic => (1.0 / 8.0, 6.0 / 8.0),
+        Degree::Cubic => (1.0 / 6.0, 4.0 / 6.0),
+    }
+}
+
 impl Factors {
-    fn new(n: usize, degree: Degree, boundary: Boundary) -> Self {
+    fn with_taps(n: usize, (a, b): (f64, f64), boundary: Boundary) -> Self {
         debug_assert!(n >= 2);
-        let (a, b) = match degree {
-            Degree::Quadratic => (1.0 / 8.0, 6.0 / 8.0),
-            Degree::Cubic => (1.0 / 6.0, 4.0 / 6.0),
-        };
         let (end_diag, end_off) = match boundary {
             Boundary::HalfSample => (a + b, a),
             Boundary::WholeSample => (b, 2.0 * a),
@@ -229,6 +233,41 @@ pub fn prefilter<const D: usize>(
     degree: Degree,
     boundary: Boundary,
 ) -> Result<(), Error> {
+    prefilter_taps(data, shape, [taps(degree); D], boundary)
+}
+
+/// [`prefilter`] for a quadratic spline from its means rather than its values: along axis `a`
+/// each datum is the spline's mean over `points[a]` equally spaced points across its cell (as
+/// when a coarse cell takes the mean of the fine samples it covers), which is
+/// `α·c_{i−1} + (1 − 2α)·c_i + α·c_{i+1}` with `α = 1/6 − 1/(24k²)`, `k = points[a]`: the
+/// values (`k = 1`, `α = ⅛`: [`prefilter`]'s quadratic kernel) through the cell means
+/// (`k → ∞`, `α = ⅙`). Interpolating means as values biases the spline by `h²/24 · Δf`;
+/// taking a few samples' mean for a cell mean (the cubic kernel at `k = 1`) amplifies the
+/// finest oscillation threefold per axis. A `k` below 1 (or NaN) is taken as 1.
+///
+/// # Errors
+/// As [`prefilter`].
+pub fn prefilter_means<const D: usize>(
+    data: &mut [f64],
+    shape: [usize; D],
+    points: [f64; D],
+    boundary: Boundary,
+) -> Result<(), Error> {
+    let taps = points.map(|k| {
+        let k = if k >= 1.0 { k } else { 1.0 };
+        let a = 1.0 / 6.0 - 1.0 / (24.0 * k * k);
+        (a, 1.0 - 2.0 * a)
+    });
+    prefilter_taps(data, shape, taps, boundary)
+}
+
+/// [`prefilter`] with the kernel `(a, b)` of each axis (diagonally dominant: `b > 2a > 0`).
+fn prefilter_taps<const D: usize>(
+    data: &mut [f64],
+    shape: [usize; D],
+    taps: [(f64, f64); D],
+    boundary: Boundary,
+) -> Result<(), Error> {
     let expected = shape
         .iter()
         .try_fold(1usize, |acc, &n| acc.checked_mul(n))
@@ -243,8 +282,9 @@ pub fn prefilter<const D: usize>(
     if D == 0 || data.is_empty() {
         return Ok(());
     }
-    let factors: [Option<Factors>; D] =
-        std::array::from_fn(|a| (shape[a] >= 2).then(|| Factors::new(shape[a], degree, boundary)));
+    let factors: [Option<Factors>; D] = std::array::from_fn(|a| {
+        (shape[a] >= 2).then(|| Factors::with_taps(shape[a], taps[a], boundary))
+    });
     let stride = strides(shape);
 
     // Axes 1 … D−1, slab by slab (a slab = fixed index on axis 0, `stride[0]` values).
@@ -316,7 +356,7 @@ mod tests {
         for degree in [Degree::Quadratic, Degree::Cubic] {
             for boundary in [Boundary::HalfSample, Boundary::WholeSample] {
                 for n in [2, 3, 5, 17] {
-                    let f = Factors::new(n, degree, boundary);
+                    let f = Factors::with_taps(n, taps(degree), boundary);
                     let lines = 11; // one lane group and a remainder of 3
                     let data: Vec<f64> = (0..n * lines).map(|i| (i as f64 * 0.37).sin()).collect();
                     let mut by_line = data.clone();

@@ -213,6 +213,14 @@ pub(crate) fn mesh_native<'py>(
     }
     let f = &field.inner;
     let grid = field_grid(f, detail, resolution, voxel)?;
+    // As `zeroset mesh`: refused before anything is allocated (signed marching cubes had no
+    // check of its own, and aborted the process on a 2000³ grid).
+    let c = grid.counts();
+    zeroset_field_core::limits::check_bytes(
+        &format!("meshing on a {}×{}×{} grid", c[0], c[1], c[2]),
+        voxel::estimate_bytes(&grid),
+    )
+    .map_err(|e| value_error(format!("{e}; give a smaller resolution or a larger voxel")))?;
     let options = McOptions::default().with_close_boundary(close);
     let hook = Hook::new(progress);
     let result = hook.run(py, || -> PyResult<MeshParts<i64>> {

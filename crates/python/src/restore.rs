@@ -18,7 +18,7 @@ use crate::fit::{ReportValue, report_dict};
 
 /// Restores `field` inside the mask `lo .. hi` (see `zeroset.restore`).
 #[pyfunction]
-#[pyo3(signature = (field, lo, hi, mode, face, alpha, coarse, grid, positive_inside))]
+#[pyo3(signature = (field, lo, hi, mode, face, alpha, coarse, grid, positive_inside, point_resampling))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn restore<'py>(
     py: Python<'py>,
@@ -31,6 +31,7 @@ pub(crate) fn restore<'py>(
     coarse: Option<[usize; 3]>,
     grid: Option<[usize; 3]>,
     positive_inside: bool,
+    point_resampling: bool,
 ) -> PyResult<(NativeField, Bound<'py, PyDict>)> {
     let [a, b] = corners(lo, hi, "mask")?;
     let face: Option<Face> = face.map(str::parse).transpose().map_err(value_error)?;
@@ -48,6 +49,12 @@ pub(crate) fn restore<'py>(
             }
         };
         let grid = match grid {
+            Some(counts) if counts.iter().any(|&c| c < 3) => {
+                return Err(value_error(format!(
+                    "grid= needs at least 3 cells per axis (a restoration keeps a layer on each \
+                     side of its unknowns), got {counts:?}"
+                )));
+            }
             Some(counts) => Grid::cell_centered(default.bounds(), counts).map_err(to_py)?,
             None => default,
         };
@@ -61,16 +68,15 @@ pub(crate) fn restore<'py>(
         })?;
         let mut report = vec![
             ("mode", ReportValue::Str(mode.to_owned())),
-            (
-                "grid",
-                ReportValue::Strs(grid.counts().map(|c| c.to_string()).to_vec()),
-            ),
+            ("grid", ReportValue::Ints(grid.counts().to_vec())),
             ("mask_cells", ReportValue::Int(mask.len())),
         ];
         let restored = match mode {
             "protrusion" => {
-                if coarse.is_some() {
-                    return Err(value_error("coarse= applies to mode='denoise'"));
+                if coarse.is_some() || point_resampling {
+                    return Err(value_error(
+                        "coarse= and point_resampling= apply to mode='denoise'",
+                    ));
                 }
                 let params = Protrusion {
                     face,
@@ -104,8 +110,13 @@ pub(crate) fn restore<'py>(
                         "mode='denoise' needs coarse=(m, n, l), coarse cells per axis in the mask",
                     )
                 })?;
+                let resampling = if point_resampling {
+                    Resampling::Point
+                } else {
+                    Resampling::Area
+                };
                 let out = Denoise::new(coarse)
-                    .with_resampling(Resampling::Area)
+                    .with_resampling(resampling)
                     .apply(source.as_ref(), &grid, &mask)
                     .map_err(to_py)?;
                 report.push((

@@ -131,6 +131,19 @@ def test_fields_callables_and_grids_mesh_alike(sphere_field):
         zeroset.mesh(sphere)
     with pytest.raises(ValueError, match="smc"):
         zeroset.mesh(sphere, bounds=(lo, hi), method="smc")
+    # a Field is meshed in its own box: arguments describing another are refused, not ignored
+    with pytest.raises(ValueError, match="own box"):
+        zeroset.mesh(sphere_field, bounds=(lo, hi))
+    with pytest.raises(ValueError, match="own box"):
+        zeroset.mesh(sphere_field, spacing=0.5)
+
+
+@pytest.mark.parametrize("method", ["mc", "smc"])
+def test_a_grid_larger_than_memory_is_refused_before_allocating(sphere_field, monkeypatch, method):
+    # signed marching cubes aborted the process (a 64 GB allocation) at resolution 2000
+    monkeypatch.setenv("ZEROSET_MEMORY_LIMIT", "256MiB")
+    with pytest.raises(ValueError, match="needs about .* GiB of memory"):
+        zeroset.mesh(sphere_field, resolution=2000, method=method)
 
 
 def test_mesh_files_round_trip(tmp_path, sphere_field):

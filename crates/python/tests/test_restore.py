@@ -56,6 +56,28 @@ def test_denoise_smooths_inside_the_mask():
     assert err_after < 0.5 * 0.02 * np.sqrt(2 / np.pi)  # below the noise's mean deviation
 
 
+def test_denoise_takes_the_papers_point_rule_and_reports_whole_numbers(sphere_field):
+    mask = ((-0.5, -0.5, 0.4), (0.5, 0.5, 1.2))
+    area = zeroset.restore(sphere_field, mask, mode="denoise", coarse=4)
+    point = zeroset.restore(sphere_field, mask, mode="denoise", coarse=4, point_resampling=True)
+    p = np.random.default_rng(4).uniform(-0.4, 0.4, size=(50, 3)) + [0, 0, 0.8]
+    assert not np.array_equal(area(p), point(p))
+    assert np.abs(area(p) - point(p)).max() < 0.05
+    assert all(type(c) is int for c in area.report.grid) and len(area.report.grid) == 3
+    with pytest.raises(ValueError, match="apply to mode='denoise'"):
+        zeroset.restore(sphere_field, mask, point_resampling=True)
+
+
+def test_bad_counts_are_named_before_the_native_layer(sphere_field):
+    mask = ((-0.5, -0.5, 0.4), (0.5, 0.5, 1.2))
+    with pytest.raises(TypeError, match="coarse must be a whole number"):
+        zeroset.restore(sphere_field, mask, mode="denoise", coarse=(2.5, 3, 3))
+    with pytest.raises(ValueError, match="coarse must be >= 0"):
+        zeroset.restore(sphere_field, mask, mode="denoise", coarse=(-1, 3, 3))
+    with pytest.raises(ValueError, match="at least 3 cells per axis"):
+        zeroset.restore(sphere_field, mask, grid=(0, 40, 40))
+
+
 def test_bad_masks_and_modes_are_value_errors(sphere_field):
     with pytest.raises(ValueError, match="mask must lie"):
         zeroset.restore(sphere_field, ((5, 5, 5), (6, 6, 6)))

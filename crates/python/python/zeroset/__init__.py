@@ -202,6 +202,17 @@ def _count(v: Any, name: str, negative: bool = False) -> int:
     return n
 
 
+def _counts(v: Any, name: str) -> Tuple[int, int, int]:
+    """Three whole numbers >= 0 (or one for all three axes), checked as :func:`_count`."""
+    t = _triple(v, name, lambda x: x)
+    return tuple(_count(x, name) for x in t)  # type: ignore[return-value]
+
+
+def _is_default(v: Any, default: float) -> bool:
+    """Whether ``v`` is the scalar ``default`` (an argument left as it was)."""
+    return np.isscalar(v) and v == default
+
+
 def _triple(v: Any, name: str, kind: type = float) -> Tuple[Any, Any, Any]:
     if np.isscalar(v):
         return (kind(v),) * 3  # type: ignore[return-value]
@@ -677,21 +688,28 @@ def restore(
     coarse: Optional[Sequence[int]] = None,
     grid: Optional[Sequence[int]] = None,
     positive_inside: bool = False,
+    point_resampling: bool = False,
     bounds: Optional[Tuple[Sequence[float], Sequence[float]]] = None,
     spacing: Any = 1.0,
     origin: Any = 0.0,
 ) -> Field:
-    """Restores a field inside the box ``mask=(lo, hi)`` (Ren–Fujita–Nakata 2022).
+    """Restores a field inside the box ``mask=(lo, hi)`` (Ren–Fujita–Nakata 2022), as
+    ``zeroset restore`` does.
 
     ``mode="protrusion"`` removes what sticks out through the mask: ``face`` (``"+x"``,
     ``"-x"``, ..., ``"-z"``) is the face the protrusion's base crosses, where the field keeps
-    the slope ``alpha`` (default: its mean slope there); without ``face`` the mask is filled
-    harmonically from its boundary. ``mode="denoise"`` smooths the field inside the mask by
-    its fit on ``coarse=(m, n, l)`` coarse cells. A B-spline field is restored on its own
-    grid; other fields are sampled on 64 cells along the longest axis of their box, or on
-    ``grid=(nx, ny, nz)`` cells. ``field`` may also be a callable (with ``bounds``) or a
-    numpy grid of samples (with ``spacing`` and ``origin``). Returns a quadratic B-spline
-    :class:`Field` with the ``report``.
+    the slope ``alpha`` (default: its mean slope there, which counts the protrusion's own
+    cross-section; for a distance-like field ``alpha=1`` continues the body, larger values
+    flatten it); without ``face`` the mask is filled harmonically from its boundary.
+    ``mode="denoise"`` smooths the field inside the mask by its fit on ``coarse=(m, n, l)``
+    coarse cells (fewer: smoother; as many as the mask has: unchanged), each the mean of the
+    samples it covers, or the sample at its centre with ``point_resampling=True`` (the
+    paper's rule). A B-spline field is restored on its own grid; other fields are sampled on
+    the grid ``zeroset restore`` uses (64 cells along the longest axis of their box, 3 more
+    on each side), or on ``grid=(nx, ny, nz)`` cells over it. ``field`` may also be a
+    callable, sampled on 64 cells along the longest axis of ``bounds`` exactly, or a numpy
+    grid of samples (with ``spacing`` and ``origin``). The mask must lie in that grid's box.
+    Returns a quadratic B-spline :class:`Field` with the ``report``.
     """
     f = _as_field(field, bounds=bounds, spacing=spacing, origin=origin)
     try:
@@ -705,9 +723,10 @@ def restore(
         mode,
         face,
         None if alpha is None else float(alpha),
-        None if coarse is None else _triple(coarse, "coarse", int),
-        None if grid is None else tuple(_count(g, "grid") for g in _triple(grid, "grid", lambda x: x)),
+        None if coarse is None else _counts(coarse, "coarse"),
+        None if grid is None else _counts(grid, "grid"),
         bool(positive_inside),
+        bool(point_resampling),
     )
     return Field(native, Report(report))
 
@@ -843,10 +862,24 @@ def mesh(
     ``field`` may also be a callable (with ``bounds``), sampled on ``resolution`` cells along
     the longest axis of ``bounds`` (64 without one) and interpolated by a quadratic B-spline,
     or a numpy grid of samples (interpolated likewise); :func:`marching_cubes` meshes samples
-    as they are.
+    as they are. The spline's boundary condition flattens its slope at the box's faces: where
+    the surface leaves the box its vertices there are off by about a tenth of a cell (and
+    their normals by degrees), so give ``bounds`` a few cells beyond the part you need, or
+    use :func:`marching_cubes`. ``bounds``, ``spacing`` and ``origin`` describe a callable or
+    grid; with a :class:`Field` they are refused (it is meshed in its own box).
+
+    A grid whose memory is more than the machine has is refused (``ValueError``, with the
+    amount) before anything is allocated.
     """
     if resolution is not None:
         resolution = _count(resolution, "resolution")
+    if isinstance(field, Field) and (
+        bounds is not None or not _is_default(spacing, 1.0) or not _is_default(origin, 0.0)
+    ):
+        raise ValueError(
+            "bounds=, spacing= and origin= describe a callable or a grid of samples; a Field "
+            "is meshed in its own box (field.bounds)"
+        )
     f = _as_field(
         field, bounds=bounds, spacing=spacing, origin=origin, resolution=resolution or 64
     )

@@ -122,4 +122,5 @@ def restore(
     coarse: Optional[Tuple[int, int, int]],
     grid: Optional[Tuple[int, int, int]],
     positive_inside: bool,
+    point_resampling: bool,
 ) -> Tuple[NativeField, Dict[str, Any]]: ...

@@ -54,12 +54,17 @@ pub enum Mode {
 /// restore` and `zeroset studio`.
 #[derive(Debug, Args)]
 pub struct Source {
-    /// A field file (.zsf: a B-spline field, or an RBF field sampled onto the grid) or an
-    /// oriented point cloud (PLY, xyz/xyzn/pts, CSV).
+    /// A field file (.zsf: a B-spline field, restored on its own grid; an RBF, MRAS or neural
+    /// field, sampled onto the grid) or an oriented point cloud in any format zeroset reads
+    /// (sampled through a tangent-plane field of its nearest points, which moves the surface
+    /// outside the mask by up to a few thousandths of the diagonal: fit a field first where
+    /// that matters).
     pub input: PathBuf,
 
     /// Grid cells per axis, L,M,N (default: a B-spline field file's grid, or 64 along the
-    /// longest axis of an RBF field's or a point cloud's box with near-cubic cells).
+    /// longest axis of another field's or a point cloud's box, 3 of them beyond it on each
+    /// side, with near-cubic cells). Cells of other shapes are allowed for: the Laplace rows
+    /// weigh each axis by its spacing.
     #[arg(long, value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
@@ -81,7 +86,8 @@ pub struct RestoreArgs {
     #[command(flatten)]
     pub source: Source,
 
-    /// The box to restore, two opposite corners in world coordinates: x0,y0,z0:x1,y1,z1.
+    /// The box to restore, two opposite corners in world coordinates: x0,y0,z0:x1,y1,z1 (cut
+    /// to the grid's box where it reaches beyond it, with a note).
     #[arg(long, value_parser = parse_mask, allow_hyphen_values = true)]
     pub mask: [[f64; 3]; 2],
 
@@ -95,11 +101,16 @@ pub struct RestoreArgs {
     pub face: Option<Face>,
 
     /// Protrusion: the field's slope entering the mask across --face, in field units per unit
-    /// length (default: the field's own mean slope there). Larger = flatter.
+    /// length. Larger = flatter. The default, the field's own mean slope across the face,
+    /// counts the protrusion's cross-section too and can keep part of it; on a distance-like
+    /// field (|∇f| ≈ 1, as fitted fields are near their surface) 1 continues the body and 2–5
+    /// flatten it, while values far above the field's slope (past ~30) make the spline
+    /// overshoot into thin sheets outside the mask.
     #[arg(long, allow_hyphen_values = true)]
     pub alpha: Option<f64>,
 
-    /// Denoise: coarse cells per axis inside the mask, m,n,l (fewer = smoother).
+    /// Denoise: coarse cells per axis inside the mask, m,n,l (fewer = smoother; as many as
+    /// the mask has cells leaves it as it is).
     #[arg(long, value_parser = parse_counts)]
     pub coarse: Option<[usize; 3]>,
 
@@ -181,6 +192,9 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     outln!("{}", loaded.description);
     let grid = loaded.grid;
     let mask = restoration.mask(&grid)?;
+    if let Some(note) = restoration.clamp_note(&grid) {
+        outln!("{note}");
+    }
     restoration.check_size(&grid, &mask, args.source.grid.is_some())?;
     let counts = grid.counts();
     outln!(
@@ -302,12 +316,50 @@ impl Restoration {
         }
     }
 
-    /// The mask on `grid`: the cells whose centres lie in the box.
+    /// The mask's corners cut to `grid`'s box where the mask reaches beyond it but overlaps it
+    /// (a box past the grid's on some axis is left as it is, for [`mask`](Self::mask) to
+    /// refuse), and the axes that were cut.
+    fn clamped_corners(&self, grid: &Grid<3>) -> ([[f64; 3]; 2], Vec<usize>) {
+        let [a, b] = self.corners();
+        let bb = grid.bounds();
+        let (min, max) = (bb.min(), bb.max());
+        let mut corners = [a, b];
+        let mut cut = Vec::new();
+        for axis in 0..3 {
+            let (l, h) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
+            // (false for NaN: left for the mask's own error)
+            let overlaps = l <= max[axis] && h >= min[axis];
+            if overlaps && (l < min[axis] || h > max[axis]) {
+                corners[0][axis] = l.max(min[axis]);
+                corners[1][axis] = h.min(max[axis]);
+                cut.push(axis);
+            }
+        }
+        (corners, cut)
+    }
+
+    /// A note saying on which axes the mask was cut to `grid`'s box, if it was.
+    pub(crate) fn clamp_note(&self, grid: &Grid<3>) -> Option<String> {
+        let (_, cut) = self.clamped_corners(grid);
+        (!cut.is_empty()).then(|| {
+            let bb = grid.bounds();
+            let axes: Vec<&str> = cut.iter().map(|&a| ["x", "y", "z"][a]).collect();
+            format!(
+                "note: the mask reaches beyond the sampling grid's box on {}: cut to that box, {} .. {}",
+                axes.join(", "),
+                crate::info::point(bb.min()),
+                crate::info::point(bb.max()),
+            )
+        })
+    }
+
+    /// The mask on `grid`: the cells whose centres lie in the box, the box cut to the grid's
+    /// where it reaches beyond it ([`clamp_note`](Self::clamp_note) says so).
     ///
     /// # Errors
     /// A box outside the grid's, or one holding no cell centre.
     pub(crate) fn mask(&self, grid: &Grid<3>) -> anyhow::Result<BoxMask<3>> {
-        let [a, b] = self.corners();
+        let ([a, b], _) = self.clamped_corners(grid);
         BoxMask::from_corners(grid, a, b).with_context(|| {
             let bb = grid.bounds();
             format!(

@@ -834,6 +834,11 @@ fn cases() -> Vec<Case> {
         .no_file()
         .says("outside"),
         cli(
+            "mask partly outside the box",
+            "restore bunny.xyzn --mode protrusion --mask -5,0.05,-0.03:0.05,0.12,0.06 -o out.zsf",
+        )
+        .accepted("cut to that box"),
+        cli(
             "mask of zero width",
             "restore bunny.xyzn --mode protrusion --mask 0,0.1,0:0,0.15,0.05 -o out.zsf",
         )

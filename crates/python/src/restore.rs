@@ -58,6 +58,18 @@ pub(crate) fn restore<'py>(
             Some(counts) => Grid::cell_centered(default.bounds(), counts).map_err(to_py)?,
             None => default,
         };
+        // A mask reaching beyond the grid's box but overlapping it is cut to it (said in the
+        // report, and warned of), as `zeroset restore` does.
+        let (min, max) = (grid.bounds().min(), grid.bounds().max());
+        let (mut a, mut b) = (a, b);
+        let mut cut = Vec::new();
+        for axis in 0..3 {
+            let (l, h) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
+            if l <= max[axis] && h >= min[axis] && (l < min[axis] || h > max[axis]) {
+                (a[axis], b[axis]) = (l.max(min[axis]), h.min(max[axis]));
+                cut.push(axis);
+            }
+        }
         let mask = BoxMask::from_corners(&grid, a, b).map_err(|e| {
             let bb = grid.bounds();
             value_error(format!(
@@ -70,6 +82,7 @@ pub(crate) fn restore<'py>(
             ("mode", ReportValue::Str(mode.to_owned())),
             ("grid", ReportValue::Ints(grid.counts().to_vec())),
             ("mask_cells", ReportValue::Int(mask.len())),
+            ("mask_cut_axes", ReportValue::Ints(cut)),
         ];
         let restored = match mode {
             "protrusion" => {

@@ -78,6 +78,17 @@ def test_bad_counts_are_named_before_the_native_layer(sphere_field):
         zeroset.restore(sphere_field, mask, grid=(0, 40, 40))
 
 
+def test_a_mask_reaching_beyond_the_grid_is_cut_to_it(sphere_field):
+    lo, hi = sphere_field.bounds
+    inside = ((-0.3, -0.3, 0.4), (0.3, 0.3, hi[2] - 0.05))
+    beyond = ((-0.3, -0.3, 0.4), (0.3, 0.3, hi[2] + 5.0))
+    plain = zeroset.restore(sphere_field, inside, face="-z")
+    assert plain.report.mask_cut_axes == []
+    with pytest.warns(UserWarning, match="beyond the sampling grid's box on z"):
+        cut = zeroset.restore(sphere_field, beyond, face="-z")
+    assert cut.report.mask_cut_axes == [2] and cut.report.mask_cells > plain.report.mask_cells
+
+
 def test_bad_masks_and_modes_are_value_errors(sphere_field):
     with pytest.raises(ValueError, match="mask must lie"):
         zeroset.restore(sphere_field, ((5, 5, 5), (6, 6, 6)))

@@ -324,11 +324,18 @@ impl<const D: usize> ProtrusionSystem<D> {
         for axis in 0..D {
             let extent = (uhi[axis] + 1 - ulo[axis] as isize).max(0) as usize;
             if extent == 0 {
-                let layers = hi[axis] + 1 - lo[axis];
+                // One unknown beyond the fixed layers on this axis (the Neumann layer and the
+                // border layers the mask has there).
+                let fixed = border
+                    .iter()
+                    .copied()
+                    .chain(params.face)
+                    .filter(|f| f.axis == axis)
+                    .count();
                 return Err(RestoreError::NoUnknowns {
                     axis,
-                    extent: layers,
-                    needed: layers + 1,
+                    extent: hi[axis] + 1 - lo[axis],
+                    needed: fixed + 1,
                 });
             }
             dims[axis] = extent;

@@ -133,6 +133,18 @@ fn alpha_must_be_finite_and_the_face_must_have_cells_beyond_it() {
         ),
         "{e}"
     );
+    // One layer on the border with the Neumann face above it: two fixed layers, so three
+    // cells are needed (the hint said two, then, given two, three).
+    for (top, extent) in [(0, 1), (1, 2)] {
+        let thin = BoxMask::from_indices(&g, [2, 2, 0], [6, 6, top]).unwrap();
+        let e = Protrusion::new(Face::new(2, Side::Upper))
+            .apply(&s, &g, &thin)
+            .unwrap_err();
+        assert!(
+            matches!(e, RestoreError::NoUnknowns { axis: 2, needed: 3, extent: x } if x == extent),
+            "{e}"
+        );
+    }
 }
 
 #[test]

@@ -133,6 +133,9 @@ pub(crate) struct Session {
     steps: Vec<Step>,
     /// How many steps are in effect.
     position: usize,
+    /// The input field's slope near its surface (median `|∇f|`, by central differences of its
+    /// samples next to the zero level; 0 if none are): the α slider reaches 4× it.
+    slope: f64,
 }
 
 /// The most restorations one session holds (each keeps its grid samples and spline, so that undo
@@ -149,6 +152,7 @@ impl Session {
     pub(crate) fn new(source: &Source, loaded: Loaded, output: Option<PathBuf>) -> Self {
         let grid = loaded.grid;
         let samples = grid.sample(loaded.field.as_ref());
+        let slope = surface_slope(&grid, &samples);
         Self {
             origin: Origin::of(source),
             convention: source.convention(),
@@ -163,6 +167,7 @@ impl Session {
             }],
             steps: Vec::new(),
             position: 0,
+            slope,
         }
     }
 
@@ -232,7 +237,7 @@ impl Session {
         let start = Instant::now();
         let mesh = self.surface(&restored.samples)?;
         let mesh_ms = start.elapsed().as_secs_f64() * 1e3;
-        let alpha_range = default_alpha.map(alpha_range);
+        let alpha_range = default_alpha.map(|a| alpha_range(a, self.slope));
         let report = MeshReport {
             restore_ms,
             mesh_ms,
@@ -500,15 +505,64 @@ impl MeshReport {
     }
 }
 
-/// A slider range for α around the default `alpha`: from −8|α₀| to +8|α₀| (1 without a slope),
-/// wide enough for `zeroset restore`'s "flatter" settings of several times the default.
-fn alpha_range(alpha: f64) -> [f64; 2] {
-    let scale = if alpha.abs() > 0.0 && alpha.is_finite() {
-        8.0 * alpha.abs()
-    } else {
-        1.0
-    };
+/// A slider range for α: from −r to r, `r` the larger of 8|α₀| (the default `alpha`) and 4×
+/// the field's `slope` near its surface (1 if both are 0). The default is the mean slope across
+/// the face, which the protrusion's own cross-section can bring near 0 (or below it: −0.04 on
+/// the bundled bunny's ears), where ±8|α₀| could not reach the α that flattens (1–3 on a
+/// distance-like field).
+fn alpha_range(alpha: f64, slope: f64) -> [f64; 2] {
+    let mut scale = 0.0f64;
+    if alpha.is_finite() {
+        scale = scale.max(8.0 * alpha.abs());
+    }
+    if slope.is_finite() {
+        scale = scale.max(4.0 * slope);
+    }
+    if scale == 0.0 {
+        scale = 1.0;
+    }
     [-scale, scale]
+}
+
+/// The median `|∇f|` of `samples` on `grid` by central differences, at the interior samples
+/// next to the zero level (a neighbour of the other sign); 0 where none are.
+fn surface_slope(grid: &Grid<3>, samples: &[f64]) -> f64 {
+    let [nx, ny, nz] = grid.counts();
+    let h = grid.spacing();
+    let at = |i: usize, j: usize, k: usize| samples[(i * ny + j) * nz + k];
+    let mut norms = Vec::new();
+    for i in 1..nx.saturating_sub(1) {
+        for j in 1..ny.saturating_sub(1) {
+            for k in 1..nz.saturating_sub(1) {
+                let inside = at(i, j, k) < 0.0;
+                let neighbours = [
+                    at(i - 1, j, k),
+                    at(i + 1, j, k),
+                    at(i, j - 1, k),
+                    at(i, j + 1, k),
+                    at(i, j, k - 1),
+                    at(i, j, k + 1),
+                ];
+                if neighbours.iter().all(|&v| (v < 0.0) == inside) {
+                    continue;
+                }
+                let g = [
+                    (at(i + 1, j, k) - at(i - 1, j, k)) / (2.0 * h[0]),
+                    (at(i, j + 1, k) - at(i, j - 1, k)) / (2.0 * h[1]),
+                    (at(i, j, k + 1) - at(i, j, k - 1)) / (2.0 * h[2]),
+                ];
+                let n = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if n.is_finite() {
+                    norms.push(n);
+                }
+            }
+        }
+    }
+    if norms.is_empty() {
+        return 0.0;
+    }
+    norms.sort_by(f64::total_cmp);
+    norms[norms.len() / 2]
 }
 
 /// Writes the mesh `zeroset mesh FIELD -o PATH` writes by default: marching cubes on voxels of

@@ -708,7 +708,8 @@ def restore(
     the grid ``zeroset restore`` uses (64 cells along the longest axis of their box, 3 more
     on each side), or on ``grid=(nx, ny, nz)`` cells over it. ``field`` may also be a
     callable, sampled on 64 cells along the longest axis of ``bounds`` exactly, or a numpy
-    grid of samples (with ``spacing`` and ``origin``). The mask must lie in that grid's box.
+    grid of samples (with ``spacing`` and ``origin``). A mask reaching beyond that grid's box
+    is cut to it (with a warning; ``report.mask_cut_axes`` names the axes).
     Returns a quadratic B-spline :class:`Field` with the ``report``.
     """
     f = _as_field(field, bounds=bounds, spacing=spacing, origin=origin)
@@ -728,6 +729,12 @@ def restore(
         bool(positive_inside),
         bool(point_resampling),
     )
+    if report["mask_cut_axes"]:
+        axes = ", ".join("xyz"[a] for a in report["mask_cut_axes"])
+        warnings.warn(
+            f"the mask reaches beyond the sampling grid's box on {axes}: cut to it",
+            stacklevel=2,
+        )
     return Field(native, Report(report))
 
 

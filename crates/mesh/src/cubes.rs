@@ -241,25 +241,64 @@ pub fn mesh_field<F: ScalarField<3> + ?Sized>(
     samples::check(grid, None, level, SAMPLES)?;
     let values = grid.try_sample(field)?;
     let mesh = marching_cubes(grid, &values, level, &options.with_normals(false))?;
-    with_gradient_normals(mesh, field, options)
+    with_gradient_normals(mesh, field, grid, options)
 }
 
 /// `mesh` with normals `∇f/‖∇f‖` of `field` at its vertices when `options.normals`, as
-/// [`mesh_field`] takes them.
+/// [`mesh_field`] takes them (on `grid`; cap vertices as [`cap_normals`] sets them).
 pub(crate) fn with_gradient_normals<F: ScalarField<3> + ?Sized>(
     mesh: TriMesh,
     field: &F,
+    grid: &Grid<3>,
     options: &McOptions,
 ) -> Result<TriMesh> {
     if !options.normals {
         return Ok(mesh);
     }
-    let normals: Vec<Point3> = mesh
+    let mut normals: Vec<Point3> = mesh
         .vertices()
         .par_iter()
         .map(|p| unit(field.gradient(p)))
         .collect();
+    if options.close_boundary {
+        cap_normals(mesh.vertices(), grid, &mut normals);
+    }
     mesh.with_normals(normals)
+}
+
+/// With [`McOptions::close_boundary`] the caps lie on the faces of the sampled box, through
+/// its inside samples: a vertex at a sample of a border face takes that face's outward normal
+/// (on an edge or corner of the box the normalised sum of its faces') instead of the field's
+/// gradient, which there is the cut sheet's direction, not the cap's (47% of a capped
+/// geological sheet's normals pointed against the winding). The rim — the crossings on the
+/// border, shared by sheet and cap — keeps the gradient.
+fn cap_normals(vertices: &[Point3], grid: &Grid<3>, normals: &mut [Point3]) {
+    let n = grid.counts();
+    let first = grid.point([0; 3]);
+    let last = grid.point([n[0] - 1, n[1] - 1, n[2] - 1]);
+    vertices
+        .par_iter()
+        .zip(normals.par_iter_mut())
+        .for_each(|(p, normal)| {
+            let mut out = [0.0; 3];
+            for a in 0..3 {
+                if p[a] == first[a] {
+                    out[a] = -1.0;
+                } else if p[a] == last[a] {
+                    out[a] = 1.0;
+                }
+            }
+            if out == [0.0; 3] {
+                return;
+            }
+            let at_sample = grid
+                .continuous_index(p)
+                .iter()
+                .all(|t| (t - t.round()).abs() < 1e-9);
+            if at_sample {
+                *normal = unit(out);
+            }
+        });
 }
 
 /// `g/‖g‖`, or zero when `g` is zero or not finite.
@@ -640,6 +679,9 @@ impl<'a> Extractor<'a> {
         }
         if degenerate || self.cells.is_some() {
             compact(&mut vertices, &mut normals, &mut cell_max, &mut triangles);
+        }
+        if self.normals && self.close {
+            cap_normals(&vertices, self.grid, &mut normals);
         }
         let mesh = TriMesh::new(vertices, triangles)?;
         let mesh = if self.normals {

@@ -432,7 +432,7 @@ where
     drop(inside);
     let mesh = marching_cubes(grid, &values, level, &options.mesh.with_normals(false))?;
     drop(values);
-    let mesh = with_gradient_normals(mesh, fine, &options.mesh)?;
+    let mesh = with_gradient_normals(mesh, fine, grid, &options.mesh)?;
     report.extract_seconds = start.elapsed().as_secs_f64();
     Ok((mesh, report))
 }
@@ -743,7 +743,7 @@ pub fn voxel_growing<F: ScalarField<3> + ?Sized>(
     }
     let mesh = marching_cubes_masked(grid, &values, level, &known, &surface, close)?;
     drop(values);
-    let mesh = with_gradient_normals(mesh, field, options)?;
+    let mesh = with_gradient_normals(mesh, field, grid, options)?;
     report.seconds = start.elapsed().as_secs_f64();
     Ok((mesh, report))
 }

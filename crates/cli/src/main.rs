@@ -121,8 +121,9 @@ enum Command {
     #[command(after_help = restore::EXAMPLES)]
     Restore(restore::RestoreArgs),
     /// Mesh the level set of a .zsf field file by marching cubes on cubic voxels (size by the
-    /// l0 rule of the field's box, --resolution or --voxel); writes PLY or OBJ and reports
-    /// whether the mesh is closed, its Euler characteristic, components and volume.
+    /// l0 rule of the field's box, --resolution or --voxel); writes PLY, OBJ, STL or OFF (a
+    /// 2-D field's curves as SVG) and reports whether the mesh is closed, its Euler
+    /// characteristic, components and volume.
     #[command(after_help = mesh::EXAMPLES)]
     Mesh(mesh::MeshArgs),
     /// Render a PNG preview: a mesh (.ply) shaded, a field file's (.zsf) zero set meshed and

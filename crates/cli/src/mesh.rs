@@ -466,6 +466,25 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             let weak = support
                 .as_deref()
                 .map_or_else(|| vec![false; count], |s| weak_components(s, &far));
+            // The other way round: input points no component is near (stray points, or parts
+            // thinner than the voxels, which the grid steps over).
+            if let (Some(s), Some(input)) = (&support, scan.as_deref().or(recorded.as_deref())) {
+                let finite = input
+                    .iter()
+                    .filter(|p| p.iter().all(|v| v.is_finite()))
+                    .count();
+                let missed = finite.saturating_sub(s.iter().sum());
+                if missed > 0 {
+                    say!(
+                        out,
+                        "missed: {missed} of {finite} input points ({:.2}%) have no vertex \
+                         within {within} ({}): stray points, or parts smaller than the voxels \
+                         (a smaller --voxel or --detail fine meshes those)",
+                        100.0 * missed as f64 / finite.max(1) as f64,
+                        g(radius),
+                    )?;
+                }
+            }
             let support = support.unwrap_or_default();
             let triangles_in =
                 |which: &[bool]| labels.iter().filter(|&&l| which[l as usize]).count();

@@ -782,6 +782,43 @@ fn an_offset_level_set_is_not_called_spurious_and_dropping_all_is_said() {
 }
 
 #[test]
+fn scan_points_no_component_reaches_are_reported() {
+    // The sphere and, beside it, a ball a tenth its size sampled by 60 points: at a coarse
+    // resolution the grid steps over the ball, and the scan's points there are said to be
+    // missed; at a fine one they are not.
+    let mut text = sphere_xyzn(400);
+    for (p, n) in sphere_points(60) {
+        let q: Vec<f64> = (0..3).map(|a| 1.2 + (p[a] - CENTRE[a]) * 0.1).collect();
+        text.push_str(&format!(
+            "{} {} {} {} {} {}\n",
+            q[0], q[1], q[2], n[0], n[1], n[2]
+        ));
+    }
+    let (dir, cloud) = temp_file("two.xyzn", &text);
+    let field = dir.path().join("two.zsf");
+    let o = fit(
+        &cloud,
+        &["--outlier-ratio", "0", "-o", field.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ply = dir.path().join("two.ply");
+    let scan = cloud.to_str().unwrap();
+    let coarse = mesh(&field, &ply, &["--scan", scan, "--resolution", "12"]);
+    let out = stdout(&coarse);
+    assert!(out.contains("missed: 60 of 460 input points"), "{out}");
+    let fine = mesh(
+        &field,
+        &ply,
+        &["--scan", scan, "--resolution", "96", "--force"],
+    );
+    let out = stdout(&fine);
+    assert!(
+        !out.contains("missed:") && out.contains("2 component(s)"),
+        "{out}"
+    );
+}
+
+#[test]
 fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let (dir, field) = sphere_field();
     let ply = dir.path().join("s.ply");

@@ -18,7 +18,7 @@ use crate::progress::seconds;
 use zeroset_bases::field_file::{is_field_file, read_any_field, read_dimension};
 use zeroset_field_core::field::ScalarField;
 use zeroset_mesh::preview::{
-    Image, MAX_IMAGE_SIZE, RenderOptions, View, render_field_2d, render_mesh, render_slice,
+    Axis, Image, MAX_IMAGE_SIZE, RenderOptions, View, render_field_2d, render_mesh, render_slice,
 };
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, MeshFormat, TriMesh, mesh_field};
@@ -97,13 +97,19 @@ pub struct PreviewArgs {
     #[arg(long, default_value_t = 800)]
     pub height: usize,
 
-    /// Camera angle about +z, in degrees from +x towards +y.
+    /// Camera angle about the up axis (--up), in degrees from the next axis in x, y, z order
+    /// (x for z up, z for y up, y for x up).
     #[arg(long, default_value_t = 35.0, allow_hyphen_values = true)]
     pub azimuth: f64,
 
-    /// Camera angle above the xy plane, in degrees (90 looks straight down).
+    /// Camera angle above the plane across the up axis, in degrees (90 looks straight down).
     #[arg(long, default_value_t = 25.0, allow_hyphen_values = true)]
     pub elevation: f64,
+
+    /// The axis drawn up: z (the default; terrain, geology, most scanners) or y (the Stanford
+    /// bunny and most meshes from graphics tools) or x.
+    #[arg(long, value_enum, default_value_t = Up::Z)]
+    pub up: Up,
 
     /// A field file only: draw the field on the plane AXIS = POS (default: the box centre)
     /// with its zero contour, instead of its meshed zero set.
@@ -117,6 +123,17 @@ pub struct PreviewArgs {
     /// Accepted for symmetry with the other subcommands (preview shows no progress spinner).
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The axis a preview draws up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Up {
+    /// `+x` up.
+    X,
+    /// `+y` up.
+    Y,
+    /// `+z` up.
+    Z,
 }
 
 /// Runs `zeroset preview`.
@@ -264,6 +281,11 @@ fn render(args: &PreviewArgs, mesh: &TriMesh) -> anyhow::Result<Image> {
         view: View {
             azimuth: args.azimuth,
             elevation: args.elevation,
+        },
+        up: match args.up {
+            Up::X => Axis::X,
+            Up::Y => Axis::Y,
+            Up::Z => Axis::Z,
         },
         ..RenderOptions::default()
     };

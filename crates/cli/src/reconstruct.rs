@@ -123,6 +123,11 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub no_preview: bool,
 
+    /// The axis the preview draws up (as `zeroset preview --up`): z, y (the Stanford bunny,
+    /// most meshes from graphics tools) or x.
+    #[arg(long, value_enum, default_value_t = crate::preview::Up::Z)]
+    pub up: crate::preview::Up,
+
     /// Overwrite existing outputs.
     #[arg(long)]
     pub force: bool,
@@ -402,6 +407,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.output.as_os_str(),
             os("-o"),
             png.as_os_str(),
+            os("--up"),
+            os(match args.up {
+                crate::preview::Up::X => "x",
+                crate::preview::Up::Y => "y",
+                crate::preview::Up::Z => "z",
+            }),
         ];
         common(&mut argv, args.force);
         crate::preview::run(&stage::<PreviewArgs>(&argv)?)

@@ -1194,6 +1194,32 @@ fn preview_renders_a_field_a_slice_and_a_mesh() {
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert_eq!(png_size(&b), (800, 800));
     assert!(stdout(&o).contains("triangles"), "{}", stdout(&o));
+
+    // --up: the octahedron stretched along y is drawn standing up with --up y; the same view
+    // with z up draws it otherwise (meshes from graphics tools lay on their side).
+    let tall = dir.path().join("tall.ply");
+    std::fs::write(
+        &tall,
+        OCTAHEDRON_PLY.replace("\n0 1 0\n0 -1 0\n", "\n0 2 0\n0 -2 0\n"),
+    )
+    .unwrap();
+    let [y, z] = ["y", "z"].map(|up| {
+        let png = dir.path().join(format!("up_{up}.png"));
+        let o = preview(
+            &tall,
+            &png,
+            &["--up", up, "--width", "100", "--height", "100"],
+        );
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        std::fs::read(&png).unwrap()
+    });
+    assert_ne!(y, z);
+    let o = preview(&tall, &dir.path().join("w.png"), &["--up", "w"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("'w'"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

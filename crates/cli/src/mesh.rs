@@ -635,6 +635,21 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         g(report.signed_volume),
         g(report.area)
     )?;
+    if !report.closed && !mesh.is_empty() {
+        let why = if args.trim.is_some() {
+            "where --trim cut it"
+        } else if args.close {
+            "at holes in the surface"
+        } else {
+            "where the surface leaves the grid (--close caps it on the box) or at holes"
+        };
+        say!(
+            out,
+            "open: {} boundary edge(s), {why}; the signed volume of an open mesh encloses \
+             nothing",
+            report.boundary_edges,
+        )?;
+    }
 
     // Only STL needs the measure here; the PLY writer takes its own.
     let rounding = if format == MeshFormat::Stl {

@@ -219,7 +219,7 @@ fn restore_refuses_bad_requests_with_a_message() {
                 "--mode",
                 "protrusion",
                 "--mask",
-                "-0.095,0.145,-0.065:0.0,0.5,0.04",
+                "-0.095,0.3,-0.065:0.0,0.5,0.04",
             ],
             "outside the bounding box",
         ),

@@ -635,7 +635,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         g(report.signed_volume),
         g(report.area)
     )?;
-    if !report.closed && !mesh.is_empty() {
+    if report.boundary_edges > 0 {
         let why = if args.trim.is_some() {
             "where --trim cut it"
         } else if args.close {

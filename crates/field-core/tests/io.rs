@@ -1114,6 +1114,13 @@ fn compressed_files_are_named_with_the_command_that_unpacks_them() {
         text.ends_with(&format!("(gunzip -k {})", path.display())),
         "{text}"
     );
+    // A name with a space is quoted, so the command can be pasted.
+    let (_d, path) = temp_file("my scan.ply.gz", [0x1f, 0x8b, 8, 0]);
+    let text = read_point_cloud(&path).unwrap_err().to_string();
+    assert!(
+        text.ends_with(&format!("(gunzip -k '{}')", path.display())),
+        "{text}"
+    );
 }
 
 #[test]

@@ -271,7 +271,8 @@ pub(crate) fn with_gradient_normals<F: ScalarField<3> + ?Sized>(
 /// (on an edge or corner of the box the normalised sum of its faces') instead of the field's
 /// gradient, which there is the cut sheet's direction, not the cap's (47% of a capped
 /// geological sheet's normals pointed against the winding). The rim — the crossings on the
-/// border, shared by sheet and cap — keeps the gradient.
+/// border, shared by sheet and cap — keeps the gradient, but for a crossing merged onto a
+/// border sample (the level running through it), which takes the face's normal.
 fn cap_normals(vertices: &[Point3], grid: &Grid<3>, normals: &mut [Point3]) {
     let n = grid.counts();
     let first = grid.point([0; 3]);
@@ -291,10 +292,14 @@ fn cap_normals(vertices: &[Point3], grid: &Grid<3>, normals: &mut [Point3]) {
             if out == [0.0; 3] {
                 return;
             }
-            let at_sample = grid
-                .continuous_index(p)
-                .iter()
-                .all(|t| (t - t.round()).abs() < 1e-9);
+            // A sample vertex's coordinates are the grid's own, exactly; a crossing's are not
+            // on every axis (compared exactly: `continuous_index` loses the last digits far
+            // from the origin, on georeferenced grids).
+            let index = grid.continuous_index(p);
+            let at_sample = (0..3).all(|a| {
+                let i = index[a].round();
+                i >= 0.0 && (i as usize) < n[a] && grid.coordinate(a, i as usize) == p[a]
+            });
             if at_sample {
                 *normal = unit(out);
             }

@@ -652,64 +652,67 @@ proptest! {
 /// Capped meshes: every vertex normal points the way the winding does around it (the caps'
 /// vertices took the field's gradient, the cut sheet's direction: on a tilted plane capped in
 /// a box, every cap vertex's normal was the plane's), and a vertex inside a cap has its box
-/// face's outward normal exactly.
+/// face's outward normal exactly — also on a georeferenced grid far from the origin.
 #[test]
 fn capped_meshes_have_their_caps_normals() {
-    let f = FnField::new(
-        |p: &Point3| p[2] - 0.1 + 0.3 * p[0] - 0.2 * p[1],
-        Some(Aabb::new([-1.0; 3], [1.0; 3]).unwrap()),
-    );
-    let cells = Grid::new(
-        Aabb::new([-1.0; 3], [1.0; 3]).unwrap(),
-        [9, 8, 10],
-        Centering::Cell,
-    )
-    .unwrap();
-    let values = cells.sample(&f);
-    for (how, mesh) in [
-        ("field", mesh_field(&f, &cells, 0.0, &closed()).unwrap()),
-        (
-            "samples",
-            marching_cubes(&cells, &values, 0.0, &closed()).unwrap(),
-        ),
-    ] {
-        check_closed(&mesh).unwrap();
-        // The area-weighted winding normal at each vertex.
-        let mut winding = vec![[0.0; 3]; mesh.num_vertices()];
-        for (ti, t) in mesh.triangles().iter().enumerate() {
-            let [a, b, c] = mesh.corners(ti);
-            let (u, v) = (
-                [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-                [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-            );
-            let n = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
-            for &i in t {
-                for k in 0..3 {
-                    winding[i as usize][k] += n[k];
+    for o in [[0.0; 3], [612_345.5, 5_012_345.25, 301.0]] {
+        let f = FnField::new(
+            move |p: &Point3| (p[2] - o[2]) - 0.1 + 0.3 * (p[0] - o[0]) - 0.2 * (p[1] - o[1]),
+            None,
+        );
+        let bounds = Aabb::new(
+            [o[0] - 1.0, o[1] - 1.0, o[2] - 1.0],
+            [o[0] + 1.0, o[1] + 1.0, o[2] + 1.0],
+        )
+        .unwrap();
+        let cells = Grid::new(bounds, [9, 8, 10], Centering::Cell).unwrap();
+        let values = cells.sample(&f);
+        for (how, mesh) in [
+            ("field", mesh_field(&f, &cells, 0.0, &closed()).unwrap()),
+            (
+                "samples",
+                marching_cubes(&cells, &values, 0.0, &closed()).unwrap(),
+            ),
+        ] {
+            check_closed(&mesh).unwrap();
+            // The area-weighted winding normal at each vertex.
+            let mut winding = vec![[0.0; 3]; mesh.num_vertices()];
+            for (ti, t) in mesh.triangles().iter().enumerate() {
+                let [a, b, c] = mesh.corners(ti);
+                let (u, v) = (
+                    [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+                    [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+                );
+                let n = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                for &i in t {
+                    for k in 0..3 {
+                        winding[i as usize][k] += n[k];
+                    }
                 }
             }
-        }
-        let first = cells.point([0; 3]);
-        let mut caps = 0;
-        for ((p, n), w) in mesh.vertices().iter().zip(mesh.normals()).zip(&winding) {
-            let dot: f64 = (0..3).map(|k| n[k] * w[k]).sum();
-            assert!(
-                dot > 0.0,
-                "{how}: vertex {p:?}: normal {n:?} against the winding {w:?}"
-            );
-            // Inside the bottom cap (z at the first sample, below the plane, not on its rim).
-            if p[2] == first[2] && f.value(p) < -1e-9 && (0..2).all(|a| p[a] != first[a]) {
-                let on_side = (0..2).any(|a| p[a] == cells.point([8, 7, 9])[a]);
-                if !on_side {
-                    assert_eq!(*n, [0.0, 0.0, -1.0], "{how}: {p:?}");
+            let (first, last) = (cells.point([0; 3]), cells.point([8, 7, 9]));
+            let mut caps = 0;
+            for ((p, n), w) in mesh.vertices().iter().zip(mesh.normals()).zip(&winding) {
+                let dot: f64 = (0..3).map(|k| n[k] * w[k]).sum();
+                assert!(
+                    dot > 0.0,
+                    "{how} {o:?}: vertex {p:?}: normal {n:?} against the winding {w:?}"
+                );
+                // Inside the bottom cap (z at the first sample, below the plane, off its sides).
+                let off_sides = (0..2).all(|a| p[a] != first[a] && p[a] != last[a]);
+                if p[2] == first[2] && f.value(p) < -1e-6 && off_sides {
+                    assert_eq!(*n, [0.0, 0.0, -1.0], "{how} {o:?}: {p:?}");
                     caps += 1;
                 }
             }
+            assert!(
+                caps > 10,
+                "{how} {o:?}: {caps} vertices inside the bottom cap"
+            );
         }
-        assert!(caps > 10, "{how}: {caps} vertices inside the bottom cap");
     }
 }

@@ -82,19 +82,20 @@ impl Preconditioner for Diagonal {
     }
 }
 
-/// `M = s·Δ_h`: the 7-point (3-D) Dirichlet Laplacian on a box of `n₀ × n₁ × n₂` unknowns,
-/// ordered last axis fastest, with `Δ_h = T₀ ⊕ T₁ ⊕ T₂`, `T = tridiag(1, −2, 1)` on each axis
-/// (no `1/d²`: fold the spacing into `s`). Applied by the fast Poisson solver:
+/// `M = Σ_a s_a T_a`: the 7-point (3-D) Dirichlet Laplacian on a box of `n₀ × n₁ × n₂`
+/// unknowns, ordered last axis fastest, `T = tridiag(1, −2, 1)` along each axis `a` and a scale
+/// `s_a` per axis (no `1/d²`: fold the spacings into the scales; one `s` for all axes is
+/// `s·Δ_h`, [`new`](Self::new)). Applied by the fast Poisson solver:
 ///
 /// ```text
-/// M⁻¹ v = S (Λ⁻¹ ∘ S v),   Λ_ijk = −4 s Σ_a sin²(π (i_a + 1) / (2(n_a + 1)))
+/// M⁻¹ v = S (Λ⁻¹ ∘ S v),   Λ_ijk = −4 Σ_a s_a sin²(π (i_a + 1) / (2(n_a + 1)))
 /// ```
 ///
 /// where `S = S₀ ⊗ S₁ ⊗ S₂` is the orthonormal 3-D DST-I ([`crate::dst`]), the eigenvector
 /// matrix of `T` and its own inverse.
 ///
 /// This is the preconditioner of restoration (Ren–Fujita–Nakata): its Laplace rows *are*
-/// `M` (with `s = 1/6`), so LSQR on `A M⁻¹ = [I; T M⁻¹]` sees the identity plus a term of rank
+/// `M` (with `s_a = 1/6` on cubic cells, the rows' neighbour weights `w_a` on others), so LSQR on `A M⁻¹ = [I; T M⁻¹]` sees the identity plus a term of rank
 /// at most the number of Neumann rows and converges in tens of iterations instead of
 /// thousands (see `DESIGN.md`, "Two fast routes").
 #[derive(Clone, Debug)]
@@ -119,7 +120,7 @@ impl DirichletLaplacian {
     /// rows on cells that are not cubes: `Σ_a w_a (x_{c−e_a} − 2x_c + x_{c+e_a})`).
     ///
     /// # Errors
-    /// As [`new`](Self::new), for any axis's scale.
+    /// As [`new`](Self::new), for any axis's scale, or for scales of different signs.
     pub fn with_axis_scales(dims: [usize; 3], scales: [f64; 3]) -> Result<Self, SolveError> {
         if let Some(axis) = dims.iter().position(|&d| d == 0) {
             return Err(SolveError::ShapeMismatch {
@@ -128,7 +129,12 @@ impl DirichletLaplacian {
                 got: dims[axis],
             });
         }
-        if let Some(a) = scales.iter().position(|s| !(s.is_finite() && *s != 0.0)) {
+        // One sign for all (else `Σ_a s_a sin²` can vanish: a singular `M`).
+        let sign = scales[0].signum();
+        if let Some(a) = scales
+            .iter()
+            .position(|s| !(s.is_finite() && *s != 0.0 && s.signum() == sign))
+        {
             return Err(SolveError::NonFinite {
                 what: "Laplacian scale",
                 index: a,
@@ -256,5 +262,41 @@ mod tests {
             assert!((a - b).abs() < 1e-12, "{a} vs {b}");
         }
         assert!(DirichletLaplacian::new([3, 0, 2], 1.0).is_err());
+    }
+
+    #[test]
+    fn a_scale_per_axis_inverts_the_weighted_laplacian() {
+        let dims = [3, 4, 6];
+        let s = [0.05, 0.3, 0.15];
+        let m = DirichletLaplacian::with_axis_scales(dims, s).unwrap();
+        let n = 72;
+        let idx = |i: [usize; 3]| (i[0] * 4 + i[1]) * 6 + i[2];
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        // y = Σ_a s_a (x_{c−e_a} − 2 x_c + x_{c+e_a}), zero Dirichlet boundary.
+        let mut y = vec![0.0; n];
+        for c in 0..n {
+            let i = [c / 24, (c / 6) % 4, c % 6];
+            for a in 0..3 {
+                let mut t = -2.0 * x[c];
+                if i[a] > 0 {
+                    let mut j = i;
+                    j[a] -= 1;
+                    t += x[idx(j)];
+                }
+                if i[a] + 1 < dims[a] {
+                    let mut j = i;
+                    j[a] += 1;
+                    t += x[idx(j)];
+                }
+                y[c] += s[a] * t;
+            }
+        }
+        let mut back = vec![0.0; n];
+        m.apply_inverse(&y, &mut back);
+        for (a, b) in x.iter().zip(&back) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        // Scales of mixed signs could make an eigenvalue 0.
+        assert!(DirichletLaplacian::with_axis_scales(dims, [1.0, -1.0, 1.0]).is_err());
     }
 }

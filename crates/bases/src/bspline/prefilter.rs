@@ -243,7 +243,9 @@ pub fn prefilter<const D: usize>(
 /// values (`k = 1`, `α = ⅛`: [`prefilter`]'s quadratic kernel) through the cell means
 /// (`k → ∞`, `α = ⅙`). Interpolating means as values biases the spline by `h²/24 · Δf`;
 /// taking a few samples' mean for a cell mean (the cubic kernel at `k = 1`) amplifies the
-/// finest oscillation threefold per axis. A `k` below 1 (or NaN) is taken as 1.
+/// finest oscillation threefold per axis. A `k` below 1 (or NaN) is taken as 1. For a `k`
+/// that is not whole (an overlap-weighted mean of fine cells that straddle coarse ones) the
+/// true kernel varies from cell to cell; `α(k)` interpolates between the whole cases.
 ///
 /// # Errors
 /// As [`prefilter`].

@@ -14,9 +14,11 @@
 //!   `normal_x`), of any numeric type, are read as the normals, scaled and offset as their
 //!   descriptions say; so is one deprecated three-component field named `normal` or `normals`.
 //!   Without them the cloud has none (`zeroset normals` or `zeroset reconstruct` estimate
-//!   them, with `--viewpoint` above an airborne scan). A description that places the normals
-//!   past the record's extra bytes, or a set found in part (`NormalX` without `NormalZ`), is
-//!   an error.
+//!   them, with `--viewpoint` above an airborne scan); so it has where the description places
+//!   them past the record's extra bytes, or names a set in part (`NormalX` without `NormalZ`):
+//!   the positions are still read. PDAL turns its normals up (`+z`, its `always_up` default):
+//!   right for airborne terrain, inward under overhangs of an object or a terrestrial scan —
+//!   `zeroset normals scan.las --viewpoint X,Y,Z` estimates them again from the positions.
 //! - Before the crates read the file, what they would size buffers by is checked against the
 //!   file ([`Error::Truncated`] or [`Error::Malformed`] otherwise): for LAS the header's point
 //!   count times the record length against the bytes after the header; every extended VLR's
@@ -60,7 +62,7 @@ fn read_points(path: &Path, check: &FiniteCheck<'_>, with_normals: bool) -> Resu
     let what = format!("the points of {}", path.display());
     let extra = usize::from(header.point_format().extra_bytes);
     let normals_at = if with_normals {
-        ExtraNormals::of(header.all_vlrs(), extra).map_err(|e| super::malformed(path, None, e))?
+        ExtraNormals::of(header.all_vlrs(), extra)
     } else {
         None
     };
@@ -83,6 +85,9 @@ fn read_points(path: &Path, check: &FiniteCheck<'_>, with_normals: bool) -> Resu
             break;
         }
         limits::grow(&mut positions, n as usize, &what)?;
+        if let Some(normals) = &mut normals {
+            limits::grow(normals, n as usize, &what)?;
+        }
         for (i, point) in block.points().enumerate() {
             let point = point.map_err(|e| las_error(path, e))?;
             if point.is_withheld {
@@ -161,22 +166,16 @@ impl ExtraValue {
 }
 
 impl ExtraNormals {
-    /// The normals described among `vlrs` (`Ok(None)` if none are), in records carrying
-    /// `extra` extra bytes; an error in words for a description past them or a set in part.
-    fn of<'a>(
-        vlrs: impl Iterator<Item = &'a las::Vlr>,
-        extra: usize,
-    ) -> std::result::Result<Option<Self>, String> {
+    /// The normals described among `vlrs`, in records carrying `extra` extra bytes: `None` if
+    /// none are, or where the description places them past those bytes or names a set in part.
+    fn of<'a>(vlrs: impl Iterator<Item = &'a las::Vlr>, extra: usize) -> Option<Self> {
         // The names of the three components, matched without case, `_`, `-` or spaces.
         const SETS: [[&str; 3]; 2] = [["normalx", "normaly", "normalz"], ["nx", "ny", "nz"]];
         let mut found: [[Option<ExtraValue>; 3]; 2] = [[None; 3]; 2];
         let mut triple = None;
-        let Some(vlr) = vlrs
+        let vlr = vlrs
             .filter(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
-            .last()
-        else {
-            return Ok(None);
-        };
+            .last()?;
         let mut at = 0;
         for d in vlr.data.chunks_exact(192) {
             let (kind, options) = (d[2], d[3]);
@@ -227,27 +226,18 @@ impl ExtraNormals {
                 wanted = true;
             }
             if wanted && end > extra {
-                return Err(format!(
-                    "the Extra Bytes record places the normals' field '{}' at bytes {at}..{end} \
-                     of each point's extra bytes; the points carry {extra}",
-                    String::from_utf8_lossy(&d[4..36]).trim_end_matches('\0')
-                ));
+                return None;
             }
             at = end;
         }
-        for (set, slots) in SETS.iter().zip(&found) {
+        for slots in &found {
             match slots {
-                [Some(x), Some(y), Some(z)] => return Ok(Some(Self([*x, *y, *z]))),
+                [Some(x), Some(y), Some(z)] => return Some(Self([*x, *y, *z])),
                 [None, None, None] => {}
-                _ => {
-                    let missing = set[slots.iter().position(Option::is_none).unwrap_or(0)];
-                    return Err(format!(
-                        "the extra bytes hold part of a normal: no field named like '{missing}'"
-                    ));
-                }
+                _ => return None,
             }
         }
-        Ok(triple.map(Self))
+        triple.map(Self)
     }
 
     /// The normal in a record's extra bytes.

@@ -193,7 +193,7 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
                     Some((compression, unpack)) => Error::Compressed {
                         path: path.to_owned(),
                         compression,
-                        hint: format!("{unpack} {}", path.display()),
+                        hint: format!("{unpack} {}", shell_quoted(path)),
                     },
                     None => Error::UnknownFormat {
                         path: path.to_owned(),
@@ -214,6 +214,18 @@ pub(crate) fn refuse_directory(path: &Path) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// `path` as a shell word: as it is when it holds only safe characters, else in single quotes
+/// (`'my scan.ply.gz'`), so the hint can be pasted.
+fn shell_quoted(path: &Path) -> String {
+    let text = path.display().to_string();
+    let safe = |c: char| c.is_ascii_alphanumeric() || "/._-+,:@%".contains(c);
+    if !text.is_empty() && text.chars().all(safe) {
+        text
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
 }
 
 /// The compression whose signature starts `prefix`, and the command that unpacks it.

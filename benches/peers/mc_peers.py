@@ -29,7 +29,10 @@ the CPUs available), and the report gives both ratios and the one with zeroset a
      `--skip-zeroset` reuses those files instead of running cargo;
   2. on the same samples (read back, not regenerated), times `skimage.measure.marching_cubes(volume,
      level=0.0, spacing=(h, h, h), method='lewiner')` (extraction only; loading excluded; one warm-up,
-     then the median of --skimage-repeat) and computes the same figures as zeroset from its vertices
+     then the median of --skimage-repeat) twice: on the float64 samples (what zeroset is given;
+     skimage converts them to float32 inside the call, `_marching_cubes_lewiner.py`, and that
+     conversion is timed) and on a float32 copy (skimage's native dtype; the copy made before the
+     timing), and computes the same figures as zeroset from its vertices
      and faces: vertex and triangle counts, the Euler characteristic V − E + F (E = distinct
      undirected edges), watertightness (every edge in exactly two triangles) and max |sdf(v)| / h
      with the analytic torus sdf at the vertices;
@@ -108,6 +111,9 @@ class SkRow:
     max_sdf_h: float = math.nan
     degenerate: int = 0  # triangles with a repeated vertex index
     unreferenced: int = 0  # vertices used by no triangle
+    extract_ms_f32: float = math.nan  # the same call on a float32 copy of the samples (skimage's native dtype)
+    vertices_f32: int = 0
+    max_sdf_h_f32: float = math.nan
 
 
 def parse_args() -> argparse.Namespace:
@@ -263,6 +269,16 @@ def run_skimage(n: int, vol: np.ndarray, args) -> SkRow:
         lambda: marching_cubes(vol, level=0.0, spacing=(h, h, h), method=METHOD), row.runs
     )
     mesh_stats(verts, faces, h, row)
+    vol32 = vol.astype(np.float32)  # skimage's native dtype; the conversion is not timed
+    print(f"  the same on a float32 copy (warm-up + {row.runs}) …", flush=True)
+    (v32, f32, _n32, _v32), row.extract_ms_f32, _ = common.timed(
+        lambda: marching_cubes(vol32, level=0.0, spacing=(h, h, h), method=METHOD), row.runs
+    )
+    row.vertices_f32 = int(v32.shape[0])
+    row.max_sdf_h_f32 = float(np.max(np.abs(torus_sdf(v32[:, 0], v32[:, 1], v32[:, 2])))) / h
+    print(f"    float32: {row.extract_ms_f32:.1f} ms; {row.vertices_f32:,} vertices, max |sdf|/h {row.max_sdf_h_f32:.3e}",
+          flush=True)  # fmt: skip
+    del vol32
     extra = "".join([f", {row.degenerate} degenerate triangles" if row.degenerate else "",
                      f", {row.unreferenced} unreferenced vertices" if row.unreferenced else ""])  # fmt: skip
     print(f"    {row.extract_ms:.1f} ms; {row.vertices:,} vertices, {row.triangles:,} triangles, Euler {row.euler}, "
@@ -299,9 +315,10 @@ class Case:
         g = lambda z: None if z is None else z.extract_ms  # noqa: E731
         return common.fastest({"1 thread": g(self.zs1), "all threads": g(self.zsn)})
 
-    def ratios(self) -> tuple[float, float, float]:
-        """skimage ÷ zeroset: one thread, all threads, zeroset at its fastest."""
-        sk = None if self.sk is None else self.sk.extract_ms
+    def ratios(self, f32: bool = False) -> tuple[float, float, float]:
+        """skimage ÷ zeroset: one thread, all threads, zeroset at its fastest (skimage on the
+        float64 samples, or with `f32` on its float32 copy)."""
+        sk = None if self.sk is None else (self.sk.extract_ms_f32 if f32 else self.sk.extract_ms)
         g = lambda z: None if z is None else z.extract_ms  # noqa: E731
         return ratio(sk, g(self.zs1)), ratio(sk, g(self.zsn)), ratio(sk, self.zs_fastest()[1])
 
@@ -318,12 +335,14 @@ def zs_ms(z: ZsRow | None, repeat: int) -> str:
 
 
 def speed_table(cs: list[Case], args):
-    header = ["n", "zeroset 1 thread ms", f"zeroset {args.mt or 'all'} threads ms", "skimage ms (1 thread)",
-              "skimage ÷ zeroset, 1 thread each", f"skimage ÷ zeroset, {args.mt or 'all'} threads",
-              "skimage ÷ zeroset, each at its fastest", "note"]  # fmt: skip
+    header = ["n", "zeroset 1 thread ms", f"zeroset {args.mt or 'all'} threads ms", "skimage float64 ms (1 thread)",
+              "skimage float32 ms (1 thread)", "skimage ÷ zeroset, 1 thread each (float64 / float32)",
+              f"skimage ÷ zeroset, {args.mt or 'all'} threads (float64 / float32)",
+              "skimage ÷ zeroset, each at its fastest (float64 / float32)", "note"]  # fmt: skip
     body = []
     for c in cs:
         one, alln, fast = c.ratios()
+        one32, alln32, fast32 = c.ratios(f32=True)
         notes = []
         if c.zs1 is None and c.zsn is None:
             notes.append("not in zeroset's CSV")
@@ -334,8 +353,10 @@ def speed_table(cs: list[Case], args):
                 notes.append(f"the 1-thread run reports threads={z.threads}")
         body.append([str(c.n), zs_ms(c.zs1, args.repeat), zs_ms(c.zsn, args.repeat),
                      "—" if c.sk is None else common.with_how(c.sk.extract_ms, c.sk.runs, True, args.skimage_repeat),
-                     fmt_ratio(one), fmt_ratio(alln), fmt_ratio(fast) + (f" (zeroset {c.zs_fastest()[0]})"
-                                                                        if c.zs_fastest()[0] else ""),
+                     "—" if c.sk is None else common.with_how(c.sk.extract_ms_f32, c.sk.runs, True, args.skimage_repeat),
+                     f"{fmt_ratio(one)} / {fmt_ratio(one32)}", f"{fmt_ratio(alln)} / {fmt_ratio(alln32)}",
+                     f"{fmt_ratio(fast)} / {fmt_ratio(fast32)}" + (f" (zeroset {c.zs_fastest()[0]})"
+                                                                  if c.zs_fastest()[0] else ""),
                      "; ".join(notes)])  # fmt: skip
     return header, body
 
@@ -358,6 +379,7 @@ def mesh_table(cs: list[Case]):
                 notes.append(f"skimage {c.sk.degenerate} degenerate tris")
             if c.sk.unreferenced:
                 notes.append(f"skimage {c.sk.unreferenced} unreferenced verts")
+            notes.append(f"skimage on float32: {c.sk.vertices_f32:,} verts, max|sdf|/h {fmt_e(c.sk.max_sdf_h_f32)}")
         body.append([str(c.n), fmt_int(g("vertices")), fmt_int(h("vertices")), fmt_int(g("triangles")),
                      fmt_int(h("triangles")), fmt_int(g("euler")), fmt_int(h("euler")), fmt_bool(g("watertight")),
                      fmt_bool(h("watertight")), fmt_e(g("max_sdf_h")), fmt_e(h("max_sdf_h")), "; ".join(notes)])  # fmt: skip
@@ -381,14 +403,16 @@ def check_bars(cs: list[Case]) -> common.Bars:
         ok = None if zm is None or sm is None else zm <= sm * SDF_SLACK
         bars.check(f"n={n}: zeroset max|sdf|/h ≤ skimage's × {SDF_SLACK:g}", ok,
                    "not measured" if ok is None else f"{zm:.3e} vs {sm:.3e} (ratio {zm / sm:.3f})")  # fmt: skip
-        one, _, fast = c.ratios()
-        st = None if c.sk is None else c.sk.extract_ms
+        f32_faster = c.sk is not None and c.sk.extract_ms_f32 < c.sk.extract_ms
+        one, _, fast = c.ratios(f32=f32_faster)
+        st = None if c.sk is None else min(c.sk.extract_ms, c.sk.extract_ms_f32)
         label, zt = c.zs_fastest()
-        bars.check(f"n={n}: extraction ≥ {SPEED_TARGET:g}× faster than skimage, zeroset at its fastest",
+        label = f"{label}; skimage on {'float32' if f32_faster else 'float64'}"
+        bars.check(f"n={n}: extraction ≥ {SPEED_TARGET:g}× faster than skimage at its fastest dtype, zeroset at its fastest",
                    None if math.isnan(fast) else fast >= SPEED_TARGET,
                    "not measured" if math.isnan(fast) else f"{fmt_ms(st)} / {fmt_ms(zt)} ms = {fast:.1f}× (zeroset {label})")  # fmt: skip
         z1 = None if c.zs1 is None else c.zs1.extract_ms
-        bars.check(f"n={n}: extraction ≥ {SPEED_TARGET:g}× faster than skimage, one thread each (reported)",
+        bars.check(f"n={n}: extraction ≥ {SPEED_TARGET:g}× faster than skimage at its fastest dtype, one thread each (reported)",
                    None if math.isnan(one) else one >= SPEED_TARGET,
                    "not measured" if math.isnan(one) else f"{fmt_ms(st)} / {fmt_ms(z1)} ms = {one:.1f}×")  # fmt: skip
     return bars
@@ -441,7 +465,7 @@ def main() -> None:
 
     with (out / "mc_peers.csv").open("w", newline="") as f:
         wr = csv.writer(f)
-        wr.writerow(["n", "shape", "side", "threads", "runs", "warmup", "extract_ms", "ratio_skimage_over_this",
+        wr.writerow(["n", "shape", "side", "threads", "runs", "warmup", "extract_ms", "ratio_skimage_f64_over_this",
                      "vertices", "triangles", "euler", "watertight", "max_abs_sdf_over_h", "degenerate_triangles",
                      "unreferenced_vertices"])  # fmt: skip
         for c in cs:
@@ -453,9 +477,12 @@ def main() -> None:
                         z.vertices, z.triangles, z.euler, z.watertight, z.max_sdf_h, None, None)])  # fmt: skip
             if c.sk is not None:
                 s_ = c.sk
-                wr.writerow([c.n, SHAPE, "skimage", "1"] + [common.num(v) for v in (
+                wr.writerow([c.n, SHAPE, "skimage float64", "1"] + [common.num(v) for v in (
                     s_.runs, 1, s_.extract_ms, 1.0, s_.vertices, s_.triangles, s_.euler, s_.watertight, s_.max_sdf_h,
                     s_.degenerate, s_.unreferenced)])  # fmt: skip
+                wr.writerow([c.n, SHAPE, "skimage float32", "1"] + [common.num(v) for v in (
+                    s_.runs, 1, s_.extract_ms_f32, ratio(s_.extract_ms, s_.extract_ms_f32), s_.vertices_f32, None,
+                    None, None, s_.max_sdf_h_f32, None, None)])  # fmt: skip
 
     zs_source = (
         f"timings and mesh figures read from an earlier run's {' and '.join(f'`{v}`' for v in ZS_CSV.values())} "
@@ -475,7 +502,8 @@ def main() -> None:
         "call (vertices, faces, normals, values). zeroset: `examples/mc_timing.rs` "
         f"({zs_source}); zeroset threads reported: {threads}. skimage {skimage.__version__}: `marching_cubes(volume, "
         f"level=0.0, spacing=(h, h, h), method='{METHOD}')`, median of {args.skimage_repeat} runs after one "
-        "warm-up; it is single-threaded compiled code with no thread setting, so its one run is both its "
+        "warm-up, on the float64 samples (skimage converts them to float32 inside the call: timed) and on a "
+        "float32 copy made beforehand (its native dtype: the peer at its best); it is single-threaded compiled code with no thread setting, so its one run is both its "
         "one-thread and its best configuration. Ratios = skimage ms ÷ zeroset ms (> 1: zeroset faster) against "
         "zeroset on one thread (like for like), on all threads, and at its fastest. Euler = V − E + F "
         "(V = referenced vertices, E = distinct undirected edges; 0 for a torus); watertight = every edge in "

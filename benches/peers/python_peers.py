@@ -16,9 +16,17 @@ Two tables, on the same inputs in the same run:
    `RBFInterpolator` (kernel `linear` = zeroset's `r`, degree 1, the same off-surface points)
    fit + evaluation, `scipy.sparse.linalg.lsqr`, `skimage.measure.marching_cubes`, TensorLy
    `parafac` (same SVD initialisation, 50 sweeps, tol 0). Run once with one thread each
-   (`RAYON_NUM_THREADS=1`, BLAS pinned to 1) and once with two (`--threads 2`, BLAS at 2).
+   (`RAYON_NUM_THREADS=1`, BLAS pinned to 1) and once with two (`--threads 2`, BLAS at 2);
+   `--threads-both 2` runs both in child processes and prints them side by side with the
+   ratios one thread each and each at its fastest (the faster of each side's two settings).
+   The RBF rows also time scipy's local mode (`neighbors=20` and `50`, its documented speed
+   setting: a different, piecewise smooth interpolant), with its distance to the global
+   interpolant; marching cubes is timed on float64 samples (skimage converts them to float32
+   inside its call; zeroset takes them as they are) and on float32 samples (skimage's native
+   dtype; zeroset's binding converts them to float64 inside its call).
 
-Timing rule of `common.py`: one warm-up, then the median of 5 runs.
+Timing rule of `common.py`: one warm-up, then the median of 5 runs (`--repeat`); the RBF rows
+the median of 3 (`--rbf-repeat`). The report ends with the machine facts (commit, CPU, load).
 
 Set-up: `bash benches/peers/setup.sh --python` (the pinned peers plus the zeroset wheel built by
 maturin from this checkout). Run: `benches/peers/.venv/bin/python benches/peers/python_peers.py
@@ -43,6 +51,11 @@ def parse() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--threads", type=int, default=None, help="RAYON and BLAS threads (default: leave)")
     p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--rbf-repeat", type=int, default=3, help="timed runs of the RBF rows (seconds each)")
+    p.add_argument("--neighbors", default="20,50", help="scipy RBFInterpolator local mode: these k ('' for none)")
+    p.add_argument("--threads-both", type=int, default=None, metavar="N",
+                   help="run the migration table at 1 and at N threads (child processes) and merge them")
+    p.add_argument("--json", default=None, help=argparse.SUPPRESS)  # child: write the migration rows here
     p.add_argument("--rounds", type=int, default=5, help="alternations of Rust and Python per operation")
     p.add_argument("--only", default=None,
                    help="overhead of these operations only (comma-separated: fit,eval,mc,cp,lsqr)")
@@ -169,7 +182,7 @@ def overhead() -> None:
               f"| {100*(lo-1):+.1f}% … {100*(hi-1):+.1f}% |")
 
 
-def migration() -> None:
+def migration() -> list:
     from scipy.interpolate import RBFInterpolator
     from scipy.sparse.linalg import lsqr
     from skimage.measure import marching_cubes as sk_mc
@@ -189,24 +202,41 @@ def migration() -> None:
     def zeroset_rbf():
         return zeroset.fit(points, normals, offset=eps)(evals)
 
-    diff = np.abs(scipy_rbf() - zeroset_rbf()).max()
-    rows.append(("`RBFInterpolator(c, v, kernel='linear')(x)`", "`zeroset.fit(p, n)(x)`",
-                 "6,000 constraints, 10⁵ evaluations", timed(scipy_rbf, 3), timed(zeroset_rbf, 3),
-                 f"max |difference| {diff:.1e}"))
+    s_global = scipy_rbf()
+    z_rbf = zeroset_rbf()
+    diff = np.abs(s_global - z_rbf).max()
+    t_zeroset_rbf = timed(zeroset_rbf, ARGS.rbf_repeat)
+    rows.append(("`RBFInterpolator(c, v, kernel='linear')(x)`", "`zeroset.fit(p, n, offset=1e-3)(x)`",
+                 "6,000 constraints, 10⁵ evaluations", timed(scipy_rbf, ARGS.rbf_repeat), t_zeroset_rbf,
+                 f"max |difference| {diff:.1e}", ARGS.rbf_repeat))
+    for k in [int(v) for v in ARGS.neighbors.split(",") if v.strip()]:
+        def scipy_local(k=k):
+            return RBFInterpolator(centres, values, kernel="linear", degree=1, neighbors=k)(evals)
+
+        s_local = scipy_local()
+        rows.append((f"`RBFInterpolator(c, v, kernel='linear', neighbors={k})(x)` (local: piecewise smooth)",
+                     "`zeroset.fit(p, n, offset=1e-3)(x)` (global)", "6,000 constraints, 10⁵ evaluations",
+                     timed(scipy_local, ARGS.rbf_repeat), t_zeroset_rbf,
+                     f"max |local − global| {np.abs(s_local - s_global).max():.1e} "
+                     f"(zeroset − global {diff:.1e})", ARGS.rbf_repeat))
     a, b = laplacian_system()
-    want = lsqr(a, b, atol=1e-10, btol=1e-10, iter_lim=100_000)[0]
+    scipy_lsqr = lsqr(a, b, atol=1e-10, btol=1e-10, iter_lim=100_000)
+    want = scipy_lsqr[0]
     got = zeroset.lstsq(a, b, tol=1e-10, max_iter=100_000)
     rows.append(("`scipy.sparse.linalg.lsqr(A, b, atol=1e-10, btol=1e-10)`", "`zeroset.lstsq(A, b)`",
                  f"{a.shape[0]}×{a.shape[1]}, nnz {a.nnz}",
                  timed(lambda: lsqr(a, b, atol=1e-10, btol=1e-10, iter_lim=100_000)),
                  timed(lambda: zeroset.lstsq(a, b, tol=1e-10, max_iter=100_000)),
-                 f"max |difference| {np.abs(want - got).max():.1e}"))
+                 f"max |difference| {np.abs(want - got).max():.1e}; {scipy_lsqr[2]} "
+                 "scipy iterations", ARGS.repeat))
     volume = torus_volume()
-    sv = sk_mc(volume, 0.0)[0]
-    zv = zeroset.marching_cubes(volume, 0.0)[0]
-    rows.append(("`skimage.measure.marching_cubes(v, 0)`", "`zeroset.marching_cubes(v, 0)`", "torus, 256³",
-                 timed(lambda: sk_mc(volume, 0.0)), timed(lambda: zeroset.marching_cubes(volume, 0.0)),
-                 f"{len(sv)} vs {len(zv)} vertices"))
+    for vol, dtype in ((volume, "float64"), (volume.astype(np.float32), "float32")):
+        sv = sk_mc(vol, 0.0)[0]
+        zv = zeroset.marching_cubes(vol, 0.0)[0]
+        rows.append(("`skimage.measure.marching_cubes(v, 0)`", "`zeroset.marching_cubes(v, 0)`",
+                     f"torus, 256³, {dtype} samples",
+                     timed(lambda: sk_mc(vol, 0.0)), timed(lambda: zeroset.marching_cubes(vol, 0.0)),
+                     f"{len(sv)} vs {len(zv)} vertices", ARGS.repeat))
     try:
         import tensorly as tl
         from tensorly.decomposition import parafac
@@ -226,19 +256,68 @@ def migration() -> None:
         e2 = np.linalg.norm(np.einsum("r,ir,jr,kr->ijk", w, *fs) - x) / np.linalg.norm(x)
         rows.append(("`tensorly.decomposition.parafac(x, 20, init='svd')`", "`zeroset.cp_als(x, 20)`",
                      f"60³ rank 20, {CP_ITERS} sweeps", timed(tly), timed(zs),
-                     f"relative error {e1:.2e} vs {e2:.2e}"))
+                     f"relative error {e1:.2e} vs {e2:.2e}", ARGS.repeat))
     threads = os.environ.get("RAYON_NUM_THREADS", f"default ({os.cpu_count()} CPUs)")
     print(f"\n## Peer call against the zeroset call (threads: {threads}, BLAS the same)\n")
-    print("| peer call | zeroset call | input | peer | zeroset | speed-up | agreement |")
-    print("|---|---|---|---|---|---|---|")
-    for peer, ours, what, tp, tz, note in rows:
-        print(f"| {peer} | {ours} | {what} | {tp*1e3:.1f} ms | {tz*1e3:.1f} ms | {tp/tz:.1f}× | {note} |")
+    print("| peer call | zeroset call | input | peer | zeroset | speed-up | agreement | median of |")
+    print("|---|---|---|---|---|---|---|---|")
+    for peer, ours, what, tp, tz, note, reps in rows:
+        print(f"| {peer} | {ours} | {what} | {tp*1e3:.1f} ms | {tz*1e3:.1f} ms | {tp/tz:.2f}× | {note} | {reps} |")
+    return rows
+
+
+def both(n: int) -> None:
+    """The migration table at 1 and at n threads (child processes: BLAS reads its thread count at
+    import), side by side with the ratios one thread each and each at its fastest."""
+    import json
+
+    runs = {}
+    with tempfile.TemporaryDirectory(prefix="zeroset-migration-") as d:
+        for t in (1, n):
+            out = Path(d) / f"t{t}.json"
+            cmd = [sys.executable, __file__, "--threads", str(t), "--skip-overhead", "--json", str(out),
+                   "--repeat", str(ARGS.repeat), "--rbf-repeat", str(ARGS.rbf_repeat), "--neighbors", ARGS.neighbors]
+            print("$ " + " ".join(cmd), flush=True)
+            subprocess.run(cmd, check=True)
+            runs[t] = json.loads(out.read_text())
+    print(f"\n## Migration, 1 thread each and each at its fastest (1 and {n} threads; BLAS the same as RAYON)\n")
+    print(f"| peer call | zeroset call | input | 1 thread each: peer / zeroset | {n} threads each: peer / zeroset "
+          "| each at its fastest: peer / zeroset | agreement | median of |")
+    print("|---|---|---|---|---|---|---|---|")
+    fmt = lambda v: f"{v:.2f} s" if v >= 1 else f"{v * 1e3:.1f} ms"  # noqa: E731
+    for r1, rn in zip(runs[1], runs[n]):
+        peer, ours, what, p1, z1, note, reps = r1
+        pn, zn = rn[3], rn[4]
+        pb, pt = min((p1, 1), (pn, n))
+        zb, zt = min((z1, 1), (zn, n))
+        print(f"| {peer} | {ours} | {what} | {fmt(p1)} / {fmt(z1)}: **{p1 / z1:.2f}×** | {fmt(pn)} / {fmt(zn)}: "
+              f"**{pn / zn:.2f}×** | {fmt(pb)} ({pt} thr.) / {fmt(zb)} ({zt} thr.): **{pb / zb:.2f}×** | {note} | "
+              f"{reps} |")
 
 
 if __name__ == "__main__":
+    import common
+
+    load_start = common.loadavg()
     print(f"zeroset {zeroset.__version__}, numpy {np.__version__}, python {sys.version.split()[0]}, "
-          f"load {os.getloadavg()}")
-    if not ARGS.skip_overhead:
-        overhead()
-    if not ARGS.skip_migration:
-        migration()
+          f"load {load_start}", flush=True)
+    if ARGS.threads_both:
+        both(ARGS.threads_both)
+    else:
+        if not ARGS.skip_overhead:
+            overhead()
+        if not ARGS.skip_migration:
+            rows = migration()
+            if ARGS.json:
+                import json
+
+                Path(ARGS.json).write_text(json.dumps(rows))
+    if not ARGS.json:
+        facts = common.machine_facts([("load average 1/5/15 min, at start", load_start),
+                                      ("load average 1/5/15 min, at the end", common.loadavg())],
+                                     [("zeroset wheel", zeroset.__version__ + " (built by setup.sh --python from "
+                                       "this checkout)")])
+        print("\n### Machine\n")
+        print("| fact | value |\n|---|---|")
+        for a, b in facts:
+            print(f"| {a} | {b} |")

@@ -39,7 +39,13 @@ CPUs available), and the report gives the ratios one thread each and each side a
      each one warm-up + median of --scipy-repeat, a single run without warm-up for
      N > --scipy-once-above (marked next to the number). Accuracy as zeroset's: max |s(x) − sd(x)|
      over the evaluation points with |sd(x)| < 0.05, sd(x) = |x − c| − 0.35, and the constraint
-     residual max |s(x_i) − v_i| (untimed);
+     residual max |s(x_i) − v_i| (untimed).
+     scipy's documented speed setting, its local mode, is timed too: at the N of --neighbors-n and
+     each k of --neighbors, `RBFInterpolator(points, values, kernel=K, degree=1, neighbors=k)` and
+     its `__call__` (each evaluation point interpolated from its k nearest fit points: a piecewise
+     smooth, not a global, interpolant; the fit builds a KD-tree, the evaluation solves a small
+     system per distinct neighbourhood), with the same band error; its fit + evaluation is compared
+     with zeroset's fit + evaluation (and scipy's global fit + evaluation likewise);
   3. prints fit, evaluation and accuracy tables with ratios (scipy_ms / zeroset_ms, > 1 means
      zeroset is faster) one thread each and each side at its fastest, PASS/FAIL per bar, and
      writes OUT/rbf_peers.csv and OUT/rbf_peers.md.
@@ -112,6 +118,23 @@ class SpRow:
     residual: float = math.nan
 
 
+@dataclass
+class LocalRow:
+    """scipy's local mode (`neighbors=k`) for one (n, kernel, k) at one BLAS setting."""
+
+    n: int
+    kernel: str  # zeroset's name
+    k: int
+    runs: int
+    single: bool  # one run without warm-up (the first fit + evaluation took over --local-once-above-s)
+    blas: str = ""
+    fit_ms: float = math.nan
+    eval_ms: float = math.nan
+    total_ms: float = math.nan  # fit + evaluation, timed together
+    max_err: float = math.nan
+    residual: float = math.nan
+
+
 def parse_args() -> argparse.Namespace:
     p = argparse.ArgumentParser(
         description="Time scipy's RBFInterpolator on the same sphere data zeroset fits and evaluates.",
@@ -129,6 +152,12 @@ def parse_args() -> argparse.Namespace:
         metavar="N",
         help="for n > N time scipy's fit and evaluation once each, without warm-up (seconds each)",
     )
+    p.add_argument("--neighbors", default="20,50",
+                   help="scipy local mode: RBFInterpolator(..., neighbors=k) for these k ('' for none)")
+    p.add_argument("--neighbors-n", default=str(SPEED_N), help="the n at which the local mode is timed")
+    p.add_argument("--local-once-above-s", type=float, default=8.0, metavar="S",
+                   help="local mode: where the first fit + evaluation takes over S seconds, it is the one run "
+                   "(no warm-up, no repeats)")
     p.add_argument("--out", default=str(common.HERE / "out"), help="directory for the point files, CSV and report")
     p.add_argument(
         "--skip-zeroset",
@@ -143,6 +172,9 @@ def parse_args() -> argparse.Namespace:
     a = p.parse_args()
 
     a.ns = common.int_list(p, a.n, "--n", 12)
+    a.neighbor_ks = common.int_list(p, a.neighbors, "--neighbors", 1, "k") if a.neighbors.strip() else []
+    a.neighbor_ns = common.int_list(p, a.neighbors_n, "--neighbors-n", 12) if a.neighbors_n.strip() else []
+    a.neighbor_ns = [n for n in a.neighbor_ns if n in a.ns]
     if not a.ns:
         p.error("nothing to do: --n is empty")
     a.kernel_list = [k.strip() for k in a.kernels.split(",") if k.strip()]
@@ -272,8 +304,38 @@ def run_scipy(n: int, kernel: str, pts, vals, xe, band, sd_band, args, blas: str
     return row
 
 
-def scipy_all(args) -> list[SpRow]:
-    """Times scipy on every (n, kernel) with the BLAS threads this process started with."""
+def run_scipy_local(n: int, kernel: str, k: int, pts, vals, xe, band, sd_band, args, blas: str) -> LocalRow:
+    """scipy's local mode: fit (KD-tree) and evaluation (a small solve per neighbourhood), timed
+    separately and together; one warm-up + median of --scipy-repeat, or one run where the first
+    fit + evaluation takes over --local-once-above-s."""
+    sk = SCIPY_KERNEL[kernel]
+    print(f"  scipy RBFInterpolator kernel={sk!r}, degree={DEGREE}, neighbors={k}, BLAS threads {blas} …", flush=True)
+
+    def once():
+        t0 = time.perf_counter()
+        interp = RBFInterpolator(pts, vals, kernel=sk, degree=DEGREE, neighbors=k)
+        t1 = time.perf_counter()
+        s = interp(xe)
+        t2 = time.perf_counter()
+        return interp, s, (t1 - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3
+
+    first = once()
+    single = first[4] > args.local_once_above_s * 1e3
+    runs = [first] if single else [once() for _ in range(args.scipy_repeat)]
+    med = lambda i: sorted(r[i] for r in runs)[len(runs) // 2]  # noqa: E731  (upper median, common.timed's rule)
+    interp, s = runs[-1][0], runs[-1][1]
+    row = LocalRow(n, kernel, k, len(runs), single, blas, med(2), med(3), med(4))
+    row.max_err = float(np.max(np.abs(s[band] - sd_band)))
+    row.residual = float(np.max(np.abs(interp(pts) - vals)))  # untimed
+    how = "1 run, no warm-up" if single else f"warm-up + median of {len(runs)}"
+    print(f"    fit {row.fit_ms:.1f} ms, eval {row.eval_ms:.1f} ms, together {row.total_ms:.1f} ms ({how}); "
+          f"max err in band {row.max_err:.3e}, residual {row.residual:.1e}", flush=True)  # fmt: skip
+    return row
+
+
+def scipy_all(args) -> tuple[list[SpRow], list[LocalRow]]:
+    """Times scipy on every (n, kernel) with the BLAS threads this process started with, and its
+    local mode at --neighbors-n."""
     blas = common.blas_runtime()
     t0 = time.perf_counter()
     xe = load_eval_points(args.out, args.eval)
@@ -281,34 +343,41 @@ def scipy_all(args) -> list[SpRow]:
     band = np.abs(sd) < OFFSET
     print(f"\n{args.eval:,} evaluation points, {int(np.count_nonzero(band)):,} in the band |sd| < {OFFSET} "
           f"(loaded in {time.perf_counter() - t0:.2f} s); BLAS threads {blas}", flush=True)  # fmt: skip
-    rows = []
+    rows, local = [], []
     for n in args.ns:
         print(f"\n--- n={n} ---", flush=True)
         pts, vals = load_fit_points(args.out, n)
         for k in args.kernel_list:
             rows.append(run_scipy(n, k, pts, vals, xe, band, sd[band], args, blas))
-    return rows
+            if n in args.neighbor_ns:
+                for nb in args.neighbor_ks:
+                    local.append(run_scipy_local(n, k, nb, pts, vals, xe, band, sd[band], args, blas))
+    return rows, local
 
 
 def worker_main(args) -> None:
     """`--worker JSON`: time scipy (BLAS threads as --blas-threads set them) and write the rows."""
-    rows = scipy_all(args)
-    Path(args.worker).write_text(json.dumps([asdict(r) for r in rows]))
+    rows, local = scipy_all(args)
+    Path(args.worker).write_text(json.dumps({"global": [asdict(r) for r in rows], "local": [asdict(r) for r in local]}))
 
 
-def scipy_child(args, threads: int) -> tuple[list[SpRow], str]:
+def scipy_child(args, threads: int) -> tuple[list[SpRow], list[LocalRow], str]:
     """scipy_all in a child process whose BLAS starts with `threads` threads."""
     out = args.out / f"rbf_scipy_blas{threads}.json"
     out.unlink(missing_ok=True)
     argv = ["--worker", str(out), "--out", str(args.out), "--n", ",".join(map(str, args.ns)),
             "--kernels", ",".join(args.kernel_list), "--eval", str(args.eval),
-            "--scipy-repeat", str(args.scipy_repeat), "--scipy-once-above", str(args.scipy_once_above)]  # fmt: skip
+            "--scipy-repeat", str(args.scipy_repeat), "--scipy-once-above", str(args.scipy_once_above),
+            "--neighbors", args.neighbors, "--neighbors-n", args.neighbors_n,
+            "--local-once-above-s", str(args.local_once_above_s)]  # fmt: skip
     rc = common.run_child(Path(__file__).resolve(), argv, threads)
     if rc != 0 or not out.is_file():
         print(f"warning: the scipy child with BLAS {threads} failed (exit {rc}); its columns are missing", flush=True)
-        return [], f"child failed (exit {rc})"
-    rows = [SpRow(**r) for r in json.loads(out.read_text())]
-    return rows, rows[0].blas if rows else "?"
+        return [], [], f"child failed (exit {rc})"
+    data = json.loads(out.read_text())
+    rows = [SpRow(**r) for r in data["global"]]
+    local = [LocalRow(**r) for r in data["local"]]
+    return rows, local, rows[0].blas if rows else "?"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -413,6 +482,40 @@ def accuracy_table(cs: list[Case]):
     return header, body
 
 
+def total_table(cs: list[Case], loc1: list[LocalRow], locn: list[LocalRow], args, mt: int):
+    """Fit + evaluation, what a user of `RBFInterpolator(...)(x)` pays: zeroset's fit + eval
+    against scipy's global interpolant and its local mode (neighbors=k), with the band error."""
+    header = ["n", "kernel", "scipy mode", f"zeroset 1 / {mt or 'all'} threads ms", f"scipy BLAS 1 / {mt or 'N'} ms",
+              "scipy ÷ zeroset, 1 thread each", "scipy ÷ zeroset, each at its fastest", "zeroset max err",
+              "scipy max err", "scipy residual"]  # fmt: skip
+    g = lambda r, a: None if r is None else getattr(r, a)  # noqa: E731
+    add = lambda r: None if r is None or r.fit_ms is None or r.eval_ms is None else r.fit_ms + r.eval_ms  # noqa: E731
+    body = []
+    for c in cs:
+        if c.zs1 is None and c.zsn is None:
+            continue
+        z1, zn = add(c.zs1), add(c.zsn)
+        zf = common.fastest({"1": z1, "N": zn})[1]
+        zerr = worst(g(c.zs1, "max_err"), g(c.zsn, "max_err"))
+        modes = [("global (LU)", add(c.sp1), add(c.spn),
+                  best(g(c.sp1, "max_err"), g(c.spn, "max_err")), g(c.sp1, "residual"), "")]
+        for k in args.neighbor_ks:
+            l1 = next((r for r in loc1 if (r.n, r.kernel, r.k) == (c.n, c.kernel, k)), None)
+            ln = next((r for r in locn if (r.n, r.kernel, r.k) == (c.n, c.kernel, k)), None)
+            if l1 is None and ln is None:
+                continue
+            note = " (1 run, no warm-up)" if any(r is not None and r.single for r in (l1, ln)) else ""
+            modes.append((f"neighbors={k}", g(l1, "total_ms"), g(ln, "total_ms"),
+                          best(g(l1, "max_err"), g(ln, "max_err")), g(l1, "residual"), note))
+        for label, s1, sn, serr, sres, note in modes:
+            sf = common.fastest({"1": s1, "N": sn})[1]
+            body.append([str(c.n), f"{c.kernel} / {SCIPY_KERNEL.get(c.kernel, '?')}", label,
+                         f"{common.fmt_ms(z1)} / {common.fmt_ms(zn)}", f"{common.fmt_ms(s1)} / {common.fmt_ms(sn)}{note}",
+                         fmt_ratio(ratio(s1, z1)), fmt_ratio(ratio(sf, zf)), fmt_e(zerr), fmt_e(serr),
+                         fmt_e(sres)])  # fmt: skip
+    return header, body
+
+
 def check_bars(cs: list[Case], args) -> common.Bars:
     bars = common.Bars()
     g = lambda r, a: None if r is None else getattr(r, a)  # noqa: E731
@@ -512,9 +615,9 @@ def main() -> None:
     load_after_cargo = common.loadavg()
 
     t0 = time.perf_counter()
-    sp1 = scipy_all(args)
+    sp1, loc1 = scipy_all(args)
     blas1 = sp1[0].blas if sp1 else common.blas_runtime()
-    spn, blasn = scipy_child(args, args.mt) if args.mt else ([], "not run")
+    spn, locn, blasn = scipy_child(args, args.mt) if args.mt else ([], [], "not run")
     scipy_s = time.perf_counter() - t0
     load_after_scipy = common.loadavg()
 
@@ -523,6 +626,7 @@ def main() -> None:
     fh, fb = time_table(cs, "fit", args, args.mt)
     eh, eb = time_table(cs, "eval", args, args.mt)
     ah, ab = accuracy_table(cs)
+    th, tb = total_table(cs, loc1, locn, args, args.mt)
     bars = check_bars(cs, args)
     zs_threads = ", ".join(sorted({z.threads for z in zs1 + zsn if z.threads})) or "not reported by the example"
     legend = ("ratio = scipy ms ÷ zeroset ms (> 1: zeroset is faster); one thread each = scipy BLAS 1 ÷ zeroset "
@@ -532,6 +636,8 @@ def main() -> None:
     print(f"\n=== evaluation at {args.eval:,} points (ms) ===\n{render_text(eh, eb, left=3, left_last=True)}")
     print(f"\n=== accuracy: max err = max |s − sd| over the {n_band:,} points with |sd| < {OFFSET}; residual = "
           f"max |s(x_i) − v_i| ===\n{render_text(ah, ab, left=3)}")  # fmt: skip
+    print(f"\n=== fit + evaluation at {args.eval:,} points (ms): zeroset against scipy's global interpolant and its "
+          f"local mode (neighbors=k) ===\n{render_text(th, tb, left=3)}")  # fmt: skip
     print(f"\n=== bars ===\n{bars.text()}")
 
     facts = common.machine_facts(
@@ -544,6 +650,13 @@ def main() -> None:
          ("scipy side wall time", f"{scipy_s:.1f} s")],
     )  # fmt: skip
     write_csv(out / "rbf_peers.csv", cs, args, n_band)
+    with (out / "rbf_peers_local.csv").open("w", newline="") as f:  # scipy's local mode, one row per BLAS setting
+        wr = csv.writer(f)
+        wr.writerow(["n", "kernel", "scipy_kernel", "neighbors", "blas", "runs", "warmup", "fit_ms", "eval_ms",
+                     "fit_plus_eval_ms", "max_err_band", "max_constraint_residual"])  # fmt: skip
+        for r in loc1 + locn:
+            wr.writerow([r.n, r.kernel, SCIPY_KERNEL[r.kernel], r.k, r.blas, r.runs, int(not r.single)]
+                        + [common.num(v) for v in (r.fit_ms, r.eval_ms, r.total_ms, r.max_err, r.residual)])
 
     zs_source = (
         f"timings and errors read from an earlier run's {' and '.join(f'`{v}`' for v in ZS_CSV.values())} "
@@ -589,6 +702,19 @@ def main() -> None:
         "### Accuracy",
         "",
         render_md(ah, ab, left=3),
+        "",
+        f"### Fit + evaluation at {args.eval:,} points (ms): scipy's global interpolant and its local mode",
+        "",
+        "What a user of `RBFInterpolator(...)(x)` pays, fit and evaluation together, against zeroset's fit + "
+        "evaluation (the sums of the medians above). scipy's documented speed setting is `neighbors=k`: each "
+        "evaluation point is interpolated from its k nearest fit points only — a different, piecewise smooth "
+        "interpolant (it jumps where the neighbourhood changes), not the global one zeroset and scipy's default "
+        f"build; it is timed at n = {', '.join(map(str, args.neighbor_ns)) or '—'} (fit and evaluation in one timed "
+        f"block: one warm-up and the median of {args.scipy_repeat}, or one run without warm-up where the first took "
+        f"over {args.local_once_above_s:g} s). Max err as above (zeroset's worse thread setting, scipy's better); "
+        "residual = max |s(x_i) − v_i| at the fit points.",
+        "",
+        render_md(th, tb, left=3),
         "",
         "### Bars",
         "",

@@ -31,7 +31,14 @@ Steps:
      each one warm-up + median of its repeat count (scipy lsqr: a single run without warm-up for
      k > --lsqr-once-above, marked next to the number), and compares every solution with h
      (max |x − h| / max |h|);
-  3. prints per-k tables, a summary with ratios (peer_ms / zeroset_ms: > 1 means zeroset is
+  3. cold (a one-shot program's cost: `zeroset restore` is one): for k in --cold-k, each side's
+     first solve in a fresh process, --cold-runs processes per side and thread setting, the
+     median reported (each process also times --cold-warm further calls: the warm figure in it).
+     zeroset through its Python binding (`zeroset.restore` on the same sphere samples, the
+     report's solve seconds; needs `setup.sh --python`, else skipped), whose first call pays
+     the page faults of fresh work buffers that later calls of one size reuse (laplace.rs);
+     the NumPy port's first `separable_solve` on the loaded b (its scipy.fft plans made then);
+  4. prints per-k tables, a summary with ratios (peer_ms / zeroset_ms: > 1 means zeroset is
      faster) one thread each and each side at its fastest, PASS/FAIL per bar, and writes
      OUT/restoration_bar.csv and OUT/restoration_bar.md.
 Always exits 0 once it has run; a failed bar is reported, not raised.
@@ -117,6 +124,12 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--skip-build", action="store_true", help="do not run cargo build; reuse the example binary")
     p.add_argument("--worker", metavar="JSON", help=argparse.SUPPRESS)  # child: time the peers, write JSON
     p.add_argument("--workers", type=int, default=1, help=argparse.SUPPRESS)  # scipy.fft workers (child)
+    p.add_argument("--cold-k", default=None, help="k at which the first call of a fresh process is timed "
+                   "(default: the largest of --k; '' for none)")
+    p.add_argument("--cold-runs", type=int, default=5, help="fresh processes per side and thread setting")
+    p.add_argument("--cold-warm", type=int, default=5, help="warm calls after the first, in each fresh process")
+    p.add_argument("--cold-worker", choices=["zeroset", "numpy"], help=argparse.SUPPRESS)  # child: one fresh process
+    p.add_argument("--cold-json", help=argparse.SUPPRESS)
     common.add_mt_arg(p, "the peers with BLAS at N threads and scipy.fft workers=N")
     common.add_blas_arg(p)
     a = p.parse_args()
@@ -125,6 +138,10 @@ def parse_args() -> argparse.Namespace:
         return common.int_list(p, s, flag, 3, name="k")
 
     a.ks, a.ks_large = ks(a.k, "--k"), ks(a.k_large, "--k-large")
+    if a.cold_k is None:
+        a.cold_ks = [max(a.ks)] if a.ks else []
+    else:
+        a.cold_ks = ks(a.cold_k, "--cold-k") if a.cold_k.strip() else []
     if not a.ks and not a.ks_large:
         p.error("nothing to do: --k and --k-large are both empty")
     for name in ("repeat", "repeat_large", "sep_repeat", "plsqr_repeat", "lsqr_repeat"):
@@ -335,7 +352,117 @@ def peers_child(args, threads: int) -> list[Row]:
 
 
 # ---------------------------------------------------------------------------------------------
-# Step 3: tables and bars
+# Step 3: cold — the first call of a fresh process
+
+
+def cold_worker(args) -> None:
+    """One fresh process: the first solve and `--cold-warm` more, written to --cold-json.
+
+    zeroset: the protrusion restoration of the example's set-up through the Python binding
+    (`zeroset.interpolate` of the sphere's samples on the 2k-cell grid, then `zeroset.restore`
+    with face +z, α = 1 over the central k³ cells; its report's `seconds` is the solve alone);
+    numpy: `separable_solve` on the b the example wrote (loading outside the timing)."""
+    k = args.cold_ks[0]
+    res = {"side": args.cold_worker, "k": k}
+    if args.cold_worker == "zeroset":
+        import zeroset
+
+        h = 1.0 / k
+        c = -1.0 + (np.arange(2 * k) + 0.5) * h
+        x, y, z = np.meshgrid(c, c, c, indexing="ij")
+        f = np.sqrt(x * x + y * y + z * z) - 0.6
+        # The samples' quadratic B-spline, built once outside the timing (what `zeroset.restore`
+        # does with a grid of samples; `_as_field` is that step alone).
+        field = zeroset._as_field(f, spacing=(h,) * 3, origin=(c[0],) * 3)
+        lo_i = k // 2
+        lo, hi = (c[lo_i] - 0.25 * h,) * 3, (c[lo_i + k - 1] + 0.25 * h,) * 3
+
+        def call():
+            t0 = time.perf_counter()
+            rep = zeroset.restore(field, (lo, hi), "protrusion", face="+z", alpha=1.0).report.as_dict()
+            wall = (time.perf_counter() - t0) * 1e3
+            return rep["seconds"] * 1e3, wall, rep
+
+        first, first_wall, rep = call()
+        warm = [call() for _ in range(args.cold_warm)]
+        res.update(first_ms=first, first_call_ms=first_wall, warm_ms=sorted(w[0] for w in warm)[len(warm) // 2],
+                   warm_call_ms=sorted(w[1] for w in warm)[len(warm) // 2], unknowns=int(rep["unknowns"]),
+                   mask_cells=int(rep["mask_cells"]), solver=str(rep["solver"]))  # fmt: skip
+    else:
+        _, b, _, dims = load_system(args.out, k)
+        t0 = time.perf_counter()
+        separable_solve(b, dims, args.workers)
+        res["first_ms"] = (time.perf_counter() - t0) * 1e3
+        _, res["warm_ms"], _ = common.timed(lambda: separable_solve(b, dims, args.workers), args.cold_warm, False)
+        res["unknowns"] = int(np.prod(dims))
+    Path(args.cold_json).write_text(json.dumps(res))
+
+
+def cold_runs(args) -> list[dict]:
+    """--cold-runs fresh processes per side, k and thread setting; the upper medians of their
+    first and warm figures."""
+    import subprocess
+
+    try:
+        subprocess.run([sys.executable, "-c", "import zeroset"], check=True, capture_output=True)
+        sides = ["zeroset", "numpy"]
+    except subprocess.CalledProcessError:
+        print("warning: the zeroset Python package is not installed (bash benches/peers/setup.sh --python); "
+              "the cold zeroset figures are skipped", flush=True)  # fmt: skip
+        sides = ["numpy"]
+    out = []
+    for k in args.cold_ks:
+        for threads in [1] + ([args.mt] if args.mt else []):
+            for side in sides:
+                results = []
+                for _ in range(args.cold_runs):  # alternate nothing: each run is its own fresh process
+                    path = args.out / f"restoration_bar_cold_{side}_k{k}_t{threads}.json"
+                    path.unlink(missing_ok=True)
+                    env = dict(common.ORIGINAL_ENV)
+                    env.update({v: str(threads) for v in common.THREAD_VARS})
+                    cmd = [sys.executable, str(Path(__file__).resolve()), "--cold-worker", side, "--cold-json", str(path),
+                           "--cold-k", str(k), "--cold-warm", str(args.cold_warm), "--out", str(args.out),
+                           "--workers", str(threads), "--blas-threads", str(threads), "--k", str(k), "--k-large", ""]  # fmt: skip
+                    subprocess.run(cmd, check=True, env=env)
+                    results.append(json.loads(path.read_text()))
+                med = lambda key: sorted(r[key] for r in results)[len(results) // 2]  # noqa: E731
+                row = {"k": k, "side": side, "threads": threads, "runs": len(results), "first_ms": med("first_ms"),
+                       "warm_ms": med("warm_ms"), "first_all": [round(r["first_ms"], 3) for r in results],
+                       "unknowns": results[0]["unknowns"]}  # fmt: skip
+                if side == "zeroset":
+                    row.update(first_call_ms=med("first_call_ms"), warm_call_ms=med("warm_call_ms"),
+                               mask_cells=results[0]["mask_cells"], solver=results[0]["solver"])  # fmt: skip
+                print(f"  cold k={k} {side} {threads} thread(s): first {row['first_ms']:.2f} ms "
+                      f"(runs {row['first_all']}), warm {row['warm_ms']:.2f} ms, unknowns {row['unknowns']:,}"
+                      + (f", mask cells {row['mask_cells']:,}, solver {row['solver']}; whole restore call first "
+                         f"{row['first_call_ms']:.1f} ms, warm {row['warm_call_ms']:.1f} ms" if side == "zeroset" else ""),
+                      flush=True)  # fmt: skip
+                out.append(row)
+    return out
+
+
+def cold_table(cold: list[dict], mt: int):
+    header = ["k", "side", "threads", "first call ms (median of fresh processes)", "warm ms (same processes)",
+              "first ÷ warm", "fresh-process first calls ms"]  # fmt: skip
+    body = [[str(r["k"]), r["side"] + (" solve (Python binding; report's seconds)" if r["side"] == "zeroset" else
+                                       " separable_solve"), str(r["threads"]), common.fmt_ms(r["first_ms"]),
+             common.fmt_ms(r["warm_ms"]), fmt_ratio(common.ratio(r["first_ms"], r["warm_ms"])),
+             ", ".join(f"{v:.2f}" for v in r["first_all"])] for r in cold]  # fmt: skip
+    # ratios numpy ÷ zeroset on the first calls
+    ratios = []
+    for k in sorted({r["k"] for r in cold}):
+        g = {(r["side"], r["threads"]): r["first_ms"] for r in cold if r["k"] == k}
+        if ("zeroset", 1) in g and ("numpy", 1) in g:
+            one = common.ratio(g[("numpy", 1)], g[("zeroset", 1)])
+            zf = min(v for (sd, _), v in g.items() if sd == "zeroset")
+            nf = min(v for (sd, _), v in g.items() if sd == "numpy")
+            ratios.append(f"k={k}: numpy ÷ zeroset on first calls, one thread each {fmt_ratio(one)}, each at its "
+                          f"fastest {fmt_ratio(common.ratio(nf, zf))}")  # fmt: skip
+    return header, body, ratios
+
+
+# ---------------------------------------------------------------------------------------------
+# Step 4: tables and bars
 
 
 def find(rows: list[Row], k: int, source: str, method: str, config: str) -> Row | None:
@@ -426,6 +553,9 @@ def main() -> None:
     if args.worker:
         worker_main(args)
         return
+    if args.cold_worker:
+        cold_worker(args)
+        return
     out: Path = args.out
     load_start = common.loadavg()
     print(f"BLAS threads: {BLAS_NOTE} ({common.blas_runtime()}); all-threads configuration: {args.mt or 'not run'}; "
@@ -449,6 +579,9 @@ def main() -> None:
             rows += peers_child(args, args.mt)
     peers_s = time.perf_counter() - t0
     load_after_scipy = common.loadavg()
+    cold = cold_runs(args) if args.cold_ks and args.cold_runs > 0 else []
+    ch, cbody, cratios = cold_table(cold, args.mt)
+    load_after_cold = common.loadavg()
 
     all_ks = sorted(set(args.ks) | set(args.ks_large))
     text, md = [], []
@@ -462,6 +595,9 @@ def main() -> None:
     print("\n=== summary (ratio = peer_ms / zeroset_ms; > 1 means zeroset is faster; one thread each: BLAS 1 + fft "
           "workers 1 vs RAYON_NUM_THREADS=1; each at its fastest: the faster configuration of each side) ===\n"
           f"{render_text(sh, sbody, left=2, left_last=True)}")  # fmt: skip
+    if cold:
+        print("\n=== cold: the first solve of a fresh process (what a one-shot command pays) ===\n"
+              f"{render_text(ch, cbody, left=2, left_last=True)}\n" + "\n".join(cratios))
     print(f"\n=== bars ===\n{bars.text()}")
 
     peer_threads = sorted({r.threads for r in rows if r.source != "zeroset"})
@@ -469,7 +605,8 @@ def main() -> None:
     facts = common.machine_facts(
         [("load average 1/5/15 min, before cargo", load_start),
          ("load average 1/5/15 min, after cargo", load_after_cargo),
-         ("load average 1/5/15 min, after the peers", load_after_scipy)],
+         ("load average 1/5/15 min, after the peers", load_after_scipy),
+         ("load average 1/5/15 min, after the cold runs", load_after_cold)],
         [("BLAS threads (Python side, one-thread run)", BLAS_NOTE),
          ("Python side configurations (OpenBLAS-reported threads)", " | ".join(peer_threads) or "not run"),
          ("zeroset configurations (from the example's CSV)", ", ".join(zs_threads) or "not run"),
@@ -513,6 +650,19 @@ def main() -> None:
         "### Summary",
         "",
         render_md(sh, sbody, left=2),
+        "",
+        "### Cold: the first solve of a fresh process",
+        "",
+        "The medians above are warm: zeroset's solve reuses its work buffers across calls of one size, and the "
+        "NumPy port reuses the heap the previous call freed. A one-shot program (`zeroset restore`) pays the "
+        f"first call: here each of {args.cold_runs} fresh processes per row times its first solve and then "
+        f"{args.cold_warm} more (their median is the warm figure). zeroset: `zeroset.restore` through the Python "
+        "binding on the same set-up (the report's solve seconds; unknowns and mask cells checked against the "
+        "example's), numpy: `separable_solve` on the loaded b (scipy.fft plans made in the first call).",
+        "",
+        render_md(ch, cbody, left=2) if cold else "not run",
+        "",
+        *[f"- {r}" for r in cratios],
         "",
         "### Bars",
         "",

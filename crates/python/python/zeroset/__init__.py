@@ -705,8 +705,8 @@ def restore(
     coarse cells (fewer: smoother; as many as the mask has: unchanged), each the mean of the
     samples it covers, or the sample at its centre with ``point_resampling=True`` (the
     paper's rule). A B-spline field is restored on its own grid; other fields are sampled on
-    the grid ``zeroset restore`` uses (64 cells along the longest axis of their box, 3 more
-    on each side), or on ``grid=(nx, ny, nz)`` cells over it. ``field`` may also be a
+    the grid ``zeroset restore`` uses (64 cells along the longest axis of their box, 3 of
+    them beyond it on each side), or on ``grid=(nx, ny, nz)`` cells over that box. ``field`` may also be a
     callable, sampled on 64 cells along the longest axis of ``bounds`` exactly, or a numpy
     grid of samples (with ``spacing`` and ``origin``). A mask reaching beyond that grid's box
     is cut to it (with a warning; ``report.mask_cut_axes`` names the axes).

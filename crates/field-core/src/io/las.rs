@@ -230,14 +230,14 @@ impl ExtraNormals {
             }
             at = end;
         }
-        for slots in &found {
-            match slots {
-                [Some(x), Some(y), Some(z)] => return Some(Self([*x, *y, *z])),
-                [None, None, None] => {}
-                _ => return None,
-            }
-        }
-        triple.map(Self)
+        // A whole set of three fields first, else the deprecated triple; a set in part is none.
+        found
+            .iter()
+            .find_map(|slots| match slots {
+                [Some(x), Some(y), Some(z)] => Some(Self([*x, *y, *z])),
+                _ => None,
+            })
+            .or(triple.map(Self))
     }
 
     /// The normal in a record's extra bytes.

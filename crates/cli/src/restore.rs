@@ -316,26 +316,11 @@ impl Restoration {
         }
     }
 
-    /// The mask's corners cut to `grid`'s box where the mask reaches beyond it but overlaps it
-    /// (a box past the grid's on some axis is left as it is, for [`mask`](Self::mask) to
-    /// refuse), and the axes that were cut.
+    /// The mask's corners cut to `grid`'s box, and the axes cut
+    /// ([`zeroset_restore::clamp_mask_corners`]).
     fn clamped_corners(&self, grid: &Grid<3>) -> ([[f64; 3]; 2], Vec<usize>) {
         let [a, b] = self.corners();
-        let bb = grid.bounds();
-        let (min, max) = (bb.min(), bb.max());
-        let mut corners = [a, b];
-        let mut cut = Vec::new();
-        for axis in 0..3 {
-            let (l, h) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
-            // (false for NaN: left for the mask's own error)
-            let overlaps = l <= max[axis] && h >= min[axis];
-            if overlaps && (l < min[axis] || h > max[axis]) {
-                corners[0][axis] = l.max(min[axis]);
-                corners[1][axis] = h.min(max[axis]);
-                cut.push(axis);
-            }
-        }
-        (corners, cut)
+        zeroset_restore::clamp_mask_corners(grid, a, b)
     }
 
     /// A note saying on which axes the mask was cut to `grid`'s box, if it was.

@@ -60,16 +60,7 @@ pub(crate) fn restore<'py>(
         };
         // A mask reaching beyond the grid's box but overlapping it is cut to it (said in the
         // report, and warned of), as `zeroset restore` does.
-        let (min, max) = (grid.bounds().min(), grid.bounds().max());
-        let (mut a, mut b) = (a, b);
-        let mut cut = Vec::new();
-        for axis in 0..3 {
-            let (l, h) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
-            if l <= max[axis] && h >= min[axis] && (l < min[axis] || h > max[axis]) {
-                (a[axis], b[axis]) = (l.max(min[axis]), h.min(max[axis]));
-                cut.push(axis);
-            }
-        }
+        let ([a, b], cut) = zeroset_restore::clamp_mask_corners(&grid, a, b);
         let mask = BoxMask::from_corners(&grid, a, b).map_err(|e| {
             let bb = grid.bounds();
             value_error(format!(

@@ -73,6 +73,32 @@ pub fn sampling_grid(bounds: zeroset_field_core::geometry::Aabb<3>) -> Result<Gr
     )?)
 }
 
+/// The mask corners `a`, `b` cut to `grid`'s box on the axes where the mask reaches beyond it
+/// but overlaps it, and those axes. A mask past the box on some axis (or with a NaN corner) is
+/// left as it is there, for [`BoxMask::from_corners`] to refuse. `zeroset restore`, the studio
+/// and the Python `zeroset.restore` cut masks so: the sampling grid's box is the field's plus
+/// [`SAMPLING_MARGIN`] cells, which a user placing a mask does not see.
+pub fn clamp_mask_corners<const D: usize>(
+    grid: &Grid<D>,
+    a: [f64; D],
+    b: [f64; D],
+) -> ([[f64; D]; 2], Vec<usize>) {
+    let (min, max) = (grid.bounds().min(), grid.bounds().max());
+    let mut corners = [a, b];
+    let mut cut = Vec::new();
+    for axis in 0..D {
+        let (l, h) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
+        // (false for NaN: left for the mask's own error)
+        let overlaps = l <= max[axis] && h >= min[axis];
+        if overlaps && (l < min[axis] || h > max[axis]) {
+            corners[0][axis] = l.max(min[axis]);
+            corners[1][axis] = h.min(max[axis]);
+            cut.push(axis);
+        }
+    }
+    (corners, cut)
+}
+
 /// A restored field and the report of the restoration that made it.
 #[derive(Debug, Clone)]
 pub struct Restored<const D: usize, R> {

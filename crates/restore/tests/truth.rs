@@ -217,6 +217,14 @@ fn denoising_a_noisy_sphere_lowers_the_rms_error_at_least_threefold() {
     assert!(ratios[0] >= 3.0, "area resampling: only {:.2}x", ratios[0]);
 }
 
+/// The largest `|a_i − b_i|`.
+fn max_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 /// A harmonic quadratic is its own discrete harmonic fill (second differences are exact on
 /// quadratics): restored inside a mask with no Neumann face, on cells of three different
 /// shapes — cubes, twice as tall as wide, and a quarter as tall — it must come back to
@@ -242,11 +250,7 @@ fn a_harmonic_field_is_restored_exactly_on_cells_that_are_not_cubes() {
                 .with_solver(solver)
                 .restore_samples(&grid, &f, &mask)
                 .unwrap();
-            let worst = g
-                .iter()
-                .zip(&f)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let worst = max_difference(&g, &f);
             assert!(worst < 1e-10, "{counts:?} {name}: off by {worst:e}");
         }
     }
@@ -289,11 +293,7 @@ fn denoising_never_amplifies_the_finest_noise() {
     let same = Denoise::new(extent)
         .restore_samples(&field, &grid, &noisy, &mask)
         .unwrap();
-    let moved = same
-        .iter()
-        .zip(&noisy)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let moved = max_difference(&same, &noisy);
     assert!(
         moved < 1e-12,
         "coarse = extent moved the samples by {moved:e}"

@@ -19,6 +19,7 @@ use zeroset_bases::field_file::write_field;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Point;
 use zeroset_field_core::grid::Grid;
+use zeroset_field_core::io::shell_word;
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, PlyFormat, TriMesh, marching_cubes, mesh_field, write_ply};
 
@@ -574,72 +575,4 @@ fn save_mesh(field: &BSplineField<3>, path: &Path) -> anyhow::Result<()> {
     let mesh = mesh_field(field, &grid, 0.0, &McOptions::default()).context("meshing")?;
     write_ply(path, &mesh, PlyFormat::BinaryLittleEndian)
         .with_context(|| format!("writing {}", path.display()))
-}
-
-/// `path` as one shell word: as it is when it holds only safe characters, else single-quoted;
-/// `./` before a relative path that starts with `-` (else it reads as an option); a name that
-/// is not UTF-8 in bash's `$'…'` with its bytes escaped.
-fn shell_word(path: &Path) -> String {
-    let Some(text) = path.to_str() else {
-        return escaped_bytes(path);
-    };
-    let text = if text.starts_with('-') {
-        format!("./{text}")
-    } else {
-        text.to_owned()
-    };
-    let safe = !text.is_empty()
-        && text
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "/._-+=:,@%".contains(c));
-    if safe {
-        text
-    } else {
-        format!("'{}'", text.replace('\'', r"'\''"))
-    }
-}
-
-/// `path` as bash's `$'…'`, each byte outside printable ASCII as `\xHH`.
-fn escaped_bytes(path: &Path) -> String {
-    #[cfg(unix)]
-    let bytes = std::os::unix::ffi::OsStrExt::as_bytes(path.as_os_str()).to_vec();
-    #[cfg(not(unix))]
-    let bytes = path.to_string_lossy().into_owned().into_bytes();
-    let prefix = if bytes.first() == Some(&b'-') {
-        "./"
-    } else {
-        ""
-    };
-    let mut out = format!("{prefix}$'");
-    for b in bytes {
-        match b {
-            b'\'' | b'\\' => {
-                out.push('\\');
-                out.push(char::from(b));
-            }
-            0x20..=0x7e => out.push(char::from(b)),
-            _ => out.push_str(&format!("\\x{b:02x}")),
-        }
-    }
-    out.push('\'');
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn shell_words_run_as_the_file_they_name() {
-        assert_eq!(shell_word(Path::new("out/a.zsf")), "out/a.zsf");
-        assert_eq!(shell_word(Path::new("-b.xyzn")), "./-b.xyzn");
-        assert_eq!(shell_word(Path::new("my scan.ply")), "'my scan.ply'");
-        assert_eq!(shell_word(Path::new("it's.ply")), r"'it'\''s.ply'");
-        #[cfg(unix)]
-        {
-            use std::os::unix::ffi::OsStrExt;
-            let name = std::ffi::OsStr::from_bytes(b"b\xff'.xyzn");
-            assert_eq!(shell_word(Path::new(name)), r"$'b\xff\'.xyzn'");
-        }
-    }
 }

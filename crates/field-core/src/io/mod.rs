@@ -193,7 +193,7 @@ pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
                     Some((compression, unpack)) => Error::Compressed {
                         path: path.to_owned(),
                         compression,
-                        hint: format!("{unpack} {}", shell_quoted(path)),
+                        hint: format!("{unpack} {}", shell_word(path)),
                     },
                     None => Error::UnknownFormat {
                         path: path.to_owned(),
@@ -216,16 +216,54 @@ pub(crate) fn refuse_directory(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// `path` as a shell word: as it is when it holds only safe characters, else in single quotes
-/// (`'my scan.ply.gz'`), so the hint can be pasted.
-fn shell_quoted(path: &Path) -> String {
-    let text = path.display().to_string();
-    let safe = |c: char| c.is_ascii_alphanumeric() || "/._-+,:@%".contains(c);
-    if !text.is_empty() && text.chars().all(safe) {
+/// `path` as one shell word, to paste into a command line (the studio's command lines, the
+/// unpack hint of [`Error::Compressed`]): as it is when it holds only safe characters, else single-quoted;
+/// `./` before a relative path that starts with `-` (else it reads as an option); a name that
+/// is not UTF-8 in bash's `$'…'` with its bytes escaped.
+pub fn shell_word(path: &Path) -> String {
+    let Some(text) = path.to_str() else {
+        return escaped_bytes(path);
+    };
+    let text = if text.starts_with('-') {
+        format!("./{text}")
+    } else {
+        text.to_owned()
+    };
+    let safe = !text.is_empty()
+        && text
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "/._-+=:,@%".contains(c));
+    if safe {
         text
     } else {
-        format!("'{}'", text.replace('\'', "'\\''"))
+        format!("'{}'", text.replace('\'', r"'\''"))
     }
+}
+
+/// `path` as bash's `$'…'`, each byte outside printable ASCII as `\xHH`.
+fn escaped_bytes(path: &Path) -> String {
+    #[cfg(unix)]
+    let bytes = std::os::unix::ffi::OsStrExt::as_bytes(path.as_os_str()).to_vec();
+    #[cfg(not(unix))]
+    let bytes = path.to_string_lossy().into_owned().into_bytes();
+    let prefix = if bytes.first() == Some(&b'-') {
+        "./"
+    } else {
+        ""
+    };
+    let mut out = format!("{prefix}$'");
+    for b in bytes {
+        match b {
+            b'\'' | b'\\' => {
+                out.push('\\');
+                out.push(char::from(b));
+            }
+            0x20..=0x7e => out.push(char::from(b)),
+            _ => out.push_str(&format!("\\x{b:02x}")),
+        }
+    }
+    out.push('\'');
+    out
 }
 
 /// The compression whose signature starts `prefix`, and the command that unpacks it.
@@ -791,5 +829,24 @@ mod stale_temp_tests {
             .collect();
         names.sort();
         assert_eq!(names.len(), 1 + kept.len() + 2, "{names:?}");
+    }
+}
+
+#[cfg(test)]
+mod shell_word_tests {
+    use super::*;
+
+    #[test]
+    fn shell_words_run_as_the_file_they_name() {
+        assert_eq!(shell_word(Path::new("out/a.zsf")), "out/a.zsf");
+        assert_eq!(shell_word(Path::new("-b.xyzn")), "./-b.xyzn");
+        assert_eq!(shell_word(Path::new("my scan.ply")), "'my scan.ply'");
+        assert_eq!(shell_word(Path::new("it's.ply")), r"'it'\''s.ply'");
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let name = std::ffi::OsStr::from_bytes(b"b\xff'.xyzn");
+            assert_eq!(shell_word(Path::new(name)), r"$'b\xff\'.xyzn'");
+        }
     }
 }

@@ -23,6 +23,7 @@ mod fit;
 mod fit_mras;
 mod fit_neural;
 mod info;
+mod interrupt;
 mod machine;
 mod mesh;
 mod mesh_points;
@@ -154,6 +155,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             .num_threads(n)
             .build_global()
             .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
+    }
+    if !matches!(cli.command, Command::Studio(_)) {
+        interrupt::install();
     }
     match cli.command {
         Command::Info(args) => info::run(&args),

@@ -384,7 +384,13 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             g(h)
         );
     }
-    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+    let grid = voxel::grid_for(&bounds, h, 0.0).with_context(|| {
+        format!(
+            "building the sampling grid for a voxel of {} ({how}); choose a larger --voxel, a \
+             smaller --resolution or a coarser --detail",
+            g(h)
+        )
+    })?;
     let c = grid.counts();
     let samples = grid.len();
     say!(
@@ -905,7 +911,13 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
     }
     // The same guard as the 3-D grids: counts that cannot overflow, then a size the curve's
     // samples fit in.
-    let grid = voxel::grid_for(&bounds, h, 0.0).context("building the sampling grid")?;
+    let grid = voxel::grid_for(&bounds, h, 0.0).with_context(|| {
+        format!(
+            "building the sampling grid for cells of {}; choose a larger --voxel or a smaller \
+             --resolution",
+            g(h)
+        )
+    })?;
     let counts = grid.counts();
     if grid.len() > CURVE_SAMPLES {
         bail!(

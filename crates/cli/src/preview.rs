@@ -184,6 +184,14 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
             Some(slice) => {
                 let c = bounds.center();
                 let position = slice.position.unwrap_or(c[slice.axis]);
+                let (lo, hi) = (bounds.min()[slice.axis], bounds.max()[slice.axis]);
+                if !(lo..=hi).contains(&position) {
+                    bail!(
+                        "--slice {axis}={position} lies outside the field's box, where {axis} runs \
+                         from {lo} to {hi}: the field is only defined in its box",
+                        axis = ["x", "y", "z"][slice.axis]
+                    );
+                }
                 let pixels = args.width.max(args.height);
                 let image = render_slice(&field, bounds, slice.axis, position, pixels)
                     .context("rendering the slice")?;

@@ -12,6 +12,7 @@ use zeroset_field_core::io::ReadOptions;
 
 use crate::fit::{FitArgs, SmoothingArg};
 use crate::info::{g, plural};
+use crate::interrupt::TemporaryFile;
 use crate::mesh::{DetailArg, MeshArgs};
 use crate::preview::PreviewArgs;
 use crate::progress::seconds;
@@ -150,17 +151,6 @@ fn stage<T: Args>(argv: &[&std::ffi::OsStr]) -> anyhow::Result<T> {
         .args)
 }
 
-/// Removes the temporary field file however the command ends.
-struct Temporary(Option<PathBuf>);
-
-impl Drop for Temporary {
-    fn drop(&mut self) {
-        if let Some(path) = &self.0 {
-            let _ = std::fs::remove_file(path);
-        }
-    }
-}
-
 /// Runs `zeroset reconstruct`.
 pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let start = Instant::now();
@@ -248,19 +238,19 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             crate::normals::orient(&cloud, args.normal_neighbours, &facing, args.quiet)?;
         drop(cloud);
         let path = temporary_file(&args.output, "ply");
-        let temporary = Temporary(Some(path.clone()));
+        let temporary = TemporaryFile::new(Some(path.clone()));
         crate::normals::write_cloud(&path, &oriented)
             .with_context(|| format!("writing the oriented scan {}", path.display()))?;
         (oriented, path, temporary)
     } else if args.format.is_some() {
         // The stages read the scan by its extension: give them a copy that has the right one.
         let path = temporary_file(&args.output, "ply");
-        let temporary = Temporary(Some(path.clone()));
+        let temporary = TemporaryFile::new(Some(path.clone()));
         crate::normals::write_cloud(&path, &cloud)
             .with_context(|| format!("writing a copy of the scan, {}", path.display()))?;
         (cloud, path, temporary)
     } else {
-        (cloud, args.scan.clone(), Temporary(None))
+        (cloud, args.scan.clone(), TemporaryFile::new(None))
     };
     let (method, why) = match args.method {
         ReconstructMethod::Auto if points > AUTO_RBF_POINTS => (
@@ -312,10 +302,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     );
     // The field file: the user's, or a temporary one removed however the command ends.
     let (field, temporary) = match &args.field {
-        Some(f) => (f.clone(), Temporary(None)),
+        Some(f) => (f.clone(), TemporaryFile::new(None)),
         None => {
             let t = temporary_file(&args.output, "zsf");
-            (t.clone(), Temporary(Some(t)))
+            (t.clone(), TemporaryFile::new(Some(t)))
         }
     };
     let os = |s: &'static str| std::ffi::OsStr::new(s);

@@ -302,7 +302,7 @@ fn token() -> anyhow::Result<String> {
 }
 
 /// Resolves on Ctrl-C (or SIGTERM on Unix).
-async fn shutdown() {
+pub(crate) async fn shutdown() {
     let interrupt = async {
         tokio::signal::ctrl_c().await.ok();
     };

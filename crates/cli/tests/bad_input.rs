@@ -1024,6 +1024,12 @@ fn cases() -> Vec<Case> {
             "preview sphere.zsf -o out.png --slice w",
         )
         .no_file(),
+        cli(
+            "slice outside the field's box",
+            "preview sphere.zsf -o out.png --slice z=40",
+        )
+        .says("outside the field's box")
+        .no_file(),
         cli("wrong output extension", "preview sphere.zsf -o out.jpg").names("out.jpg"),
         cli(
             "bad input with an existing output and --force",

@@ -537,6 +537,51 @@ fn an_output_that_cannot_be_written_is_refused_before_any_work() {
 }
 
 #[test]
+fn ctrl_c_during_reconstruct_leaves_no_file_behind() {
+    // Interrupted while it meshes (its temporary field exists then): exit status 130, and
+    // neither the temporary field nor any output's unfinished temporary file is left. A run
+    // that finishes before the signal is sent proves nothing, so it is tried again.
+    let sample = sample();
+    for attempt in 0..4 {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("bunny.ply");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_zeroset"))
+            .args(["reconstruct".as_ref(), sample.as_os_str(), "-o".as_ref()])
+            .arg(&out)
+            .args(["--detail", "fine", "--quiet"])
+            .env("ZEROSET_CACHE_DIR", "")
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let field = dir
+            .path()
+            .join(format!(".bunny.ply.reconstruct-{}.zsf", child.id()));
+        while !field.exists() && child.try_wait().unwrap().is_none() {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        let signalled = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success();
+        let o = child.wait_with_output().unwrap();
+        if !signalled || o.status.success() {
+            assert!(attempt < 3, "every run finished before Ctrl-C reached it");
+            continue;
+        }
+        assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+        assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
+        let left: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|name| name.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+        return;
+    }
+}
+
+#[test]
 fn reconstruct_reads_a_scan_whose_extension_says_nothing_by_format() {
     let (dir, scan) = temp_file("sphere.dat", &sphere_xyzn(400));
     let mesh = dir.path().join("mesh.ply");
@@ -1252,6 +1297,13 @@ fn preview_refuses_bad_outputs_and_inputs_with_a_message() {
     let o = preview(&field, &dir.path().join("w.png"), &["--slice", "w"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("x, y or z"), "{}", stderr(&o));
+    let o = preview(&field, &dir.path().join("w.png"), &["--slice", "z=1e3"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("outside the field's box"),
+        "{}",
+        stderr(&o)
+    );
     let obj = dir.path().join("s.obj");
     std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
     let o = preview(&obj, &dir.path().join("o.png"), &[]);

@@ -44,6 +44,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::cloud::PointCloud3;
@@ -452,6 +453,7 @@ where
     };
     remove_stale_files(dir, |file| temp_writer(file, name));
     let (tmp_path, file) = create_temp(dir, name).map_err(io_error(path))?;
+    let _unfinished = Unfinished::register(&tmp_path);
     let result = (|| {
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;
@@ -471,6 +473,40 @@ where
         });
     }
     Ok(())
+}
+
+/// The temporary files of [`write_atomic`] calls in progress in this process.
+static UNFINISHED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn unfinished() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    UNFINISHED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A temporary file listed in [`UNFINISHED`] while its write is in progress.
+struct Unfinished(PathBuf);
+
+impl Unfinished {
+    fn register(path: &Path) -> Self {
+        unfinished().push(path.to_owned());
+        Self(path.to_owned())
+    }
+}
+
+impl Drop for Unfinished {
+    fn drop(&mut self) {
+        unfinished().retain(|p| *p != self.0);
+    }
+}
+
+/// Removes the temporary files of the [`write_atomic`] calls in progress in this process (best
+/// effort), for a program about to exit on a signal: Ctrl-C's default action would leave them
+/// until the next write to the same file. The writes they belong to then fail, and their
+/// targets keep their old contents (or stay absent); a write that has already renamed its file
+/// into place is complete and not touched.
+pub fn remove_unfinished_writes() {
+    for path in unfinished().drain(..) {
+        let _ = fs::remove_file(path);
+    }
 }
 
 /// Creates a new, uniquely named hidden file `.<name>.<pid>.<n>.tmp` in `dir` (parsed back by

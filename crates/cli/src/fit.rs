@@ -51,7 +51,7 @@ use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point, dot, norm};
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{
-    ReadOptions, ValuePoints, read_point_cloud_with, read_value_points, value_file_dimension,
+    ValuePoints, read_point_cloud_with, read_value_points, value_file_dimension,
 };
 use zeroset_field_core::lsq::Monitor;
 use zeroset_field_core::{Error, PointCloud3};
@@ -264,6 +264,9 @@ pub struct FitArgs {
 
     #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
+
+    #[arg(long, value_name = "NAME", help = crate::normals::FORMATION_HELP)]
+    pub formation: Option<String>,
 
     /// No progress spinner or bar.
     #[arg(long)]
@@ -586,6 +589,15 @@ pub(crate) fn load_values<const D: usize>(args: &FitArgs) -> anyhow::Result<Valu
     let c = read_value_points::<D>(path)
         .map_err(|e| read_error(path, e, "constraint", "the constraints must be finite"))?;
     let n = c.points.len();
+    if n > 1 && c.values.iter().all(|v| *v == c.values[0]) {
+        bail!(
+            "{}: all {n} values are {}: the interpolant is that constant everywhere and has no \
+             level set; give values on both sides of the surface (another surface's points at \
+             another value, or points off it)",
+            path.display(),
+            g(c.values[0])
+        );
+    }
     line(
         "constraints",
         &format!(
@@ -671,10 +683,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
             path.display()
         );
     }
-    let mut options = ReadOptions::default();
-    if let Some(format) = &args.format {
-        options = options.with_format(format.parse().context("--format")?);
-    }
+    let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
     let cloud = match crate::mesh_points::read(path, &options)? {
         Some(cloud) => cloud,
         None => read_point_cloud_with(path, &options).map_err(|e| {
@@ -687,6 +696,22 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
             )
         })?,
     };
+    if let Some(note) = crate::normals::formations_note(path, &options) {
+        line("formations", &note);
+    }
+    let gempy = options
+        .format
+        .or_else(|| zeroset_field_core::io::detect_format(path).ok())
+        == Some(zeroset_field_core::io::Format::GemPy);
+    if cloud.normals().is_none() && gempy {
+        bail!(
+            "{} is a GemPy surface-points table: its points have no orientations, and estimating \
+             normals from scattered interface points says little of the layers; fit the \
+             orientations table (normals from dip, azimuth and polarity), or write the points \
+             as an `x y z value` file (.xyzv), each formation at its own value, and fit that",
+            path.display()
+        );
+    }
     if cloud.normals().is_none() {
         bail!(
             "{} has no normals: zeroset fit needs an oriented point cloud (x y z nx ny nz; PLY \
@@ -757,11 +782,14 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
     line(
         "points",
         &format!(
-            "{}: {n} point{} with normals",
+            "{}: {n} point{} with normals{}",
             args.points_shown_as
                 .clone()
                 .unwrap_or_else(|| args.points.display().to_string()),
-            if n == 1 { "" } else { "s" }
+            if n == 1 { "" } else { "s" },
+            args.formation
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (formation {f})"))
         ),
     );
     if let Some(b) = cloud.bounds() {

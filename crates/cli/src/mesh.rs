@@ -36,9 +36,9 @@ use zeroset_bases::outliers::DEFAULT_OUTLIER_RATIO;
 use zeroset_bases::rbf::fmm::cache::{self, Cached};
 use zeroset_bases::rbf::fmm::{DEFAULT_ERROR_SAMPLES, DEFAULT_SAFETY, FmmOptions, OrderPair};
 use zeroset_bases::rbf::{Kernel, RbfField};
-use zeroset_field_core::Grid;
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::Point;
+use zeroset_field_core::{Aabb, Grid};
 use zeroset_mesh::signed::{
     CoarseStep, SmcOptions, SmcStage, expected_evaluations, settled_fraction, signed_marching_cubes,
 };
@@ -624,10 +624,26 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             "every component was dropped by --drop-spurious: the mesh is empty"
         )?;
     } else if mesh.is_empty() {
-        say!(
-            out,
-            "the level set does not cross the grid: the mesh is empty"
-        )?;
+        let (lo, hi) = lattice_range(&field, &bounds);
+        if lo == args.level && hi == args.level {
+            say!(
+                out,
+                "the field equals the level {} at every point tried (a lattice of {} across \
+                 the box): a constant field has no surface (a fit to values that are all equal \
+                 gives one)",
+                g(args.level),
+                LATTICE.pow(3)
+            )?;
+        } else {
+            say!(
+                out,
+                "the level set does not cross the grid: the mesh is empty (the field runs from \
+                 {} to {} on a lattice of {} across the box; --level picks another level)",
+                g(lo),
+                g(hi),
+                LATTICE.pow(3)
+            )?;
+        }
     }
     say!(
         out,
@@ -969,6 +985,23 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", args.output.display()))?;
     say!(out, "wrote {}", args.output.display())?;
     Ok(())
+}
+
+/// Points per axis of [`lattice_range`]'s lattice.
+const LATTICE: usize = 5;
+
+/// The least and greatest values of `field` on a lattice of [`LATTICE`]³ points spanning
+/// `bounds`: what an empty mesh's message quotes.
+fn lattice_range(field: &AnyField<3>, bounds: &Aabb<3>) -> (f64, f64) {
+    let (min, ext) = (bounds.min(), bounds.extent());
+    let mut range = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..LATTICE.pow(3) {
+        let k = [i % LATTICE, i / LATTICE % LATTICE, i / LATTICE / LATTICE];
+        let p = std::array::from_fn(|a| min[a] + ext[a] * k[a] as f64 / (LATTICE - 1) as f64);
+        let v = field.value(&p);
+        range = (range.0.min(v), range.1.max(v));
+    }
+    range
 }
 
 /// The output's format from its extension; refuses the input, an existing file without

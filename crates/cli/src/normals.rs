@@ -70,6 +70,9 @@ pub struct NormalsArgs {
     #[arg(long, value_name = "FORMAT", help = FORMAT_HELP)]
     pub format: Option<String>,
 
+    #[arg(long, value_name = "NAME", help = FORMATION_HELP)]
+    pub formation: Option<String>,
+
     /// Overwrite an existing output.
     #[arg(long)]
     pub force: bool,
@@ -84,6 +87,52 @@ pub(crate) const FORMAT_HELP: &str = "Read the point cloud as this format whatev
     extension: ply, xyz (any text of x y z [nx ny nz] columns: .xyzn, .pts, .txt, .asc, .pwn), \
     csv, gempy, pcd, las (LAS or LAZ) or e57";
 
+/// `--formation`'s help, for every command that reads a point cloud.
+pub(crate) const FORMATION_HELP: &str = "For a GemPy table: read only the rows of this \
+    formation (or fault), by its exact name (`zeroset info TABLE.csv` lists them). By default \
+    every row is read, all formations as one surface";
+
+/// The read options of `--format` and `--formation`.
+pub(crate) fn read_options(
+    format: Option<&str>,
+    formation: Option<&str>,
+) -> anyhow::Result<ReadOptions> {
+    let mut options = ReadOptions::default();
+    if let Some(format) = format {
+        options = options.with_format(format.parse().context("--format")?);
+    }
+    if let Some(name) = formation {
+        options = options.with_formation(name);
+    }
+    Ok(options)
+}
+
+/// For a GemPy table of several formations read whole, what it holds and how to take one; for
+/// anything else `None`.
+pub(crate) fn formations_note(path: &Path, options: &ReadOptions) -> Option<String> {
+    if options.formation.is_some() {
+        return None;
+    }
+    let format = options.format.or_else(|| io::detect_format(path).ok())?;
+    if format != Format::GemPy {
+        return None;
+    }
+    let names = io::gempy::read_gempy_file(path).ok()?.formations();
+    if names.len() < 2 {
+        return None;
+    }
+    const SHOWN: usize = 6;
+    let mut list = names[..names.len().min(SHOWN)].join(", ");
+    if names.len() > SHOWN {
+        list += &format!(", … {} more", names.len() - SHOWN);
+    }
+    Some(format!(
+        "{} in this GemPy table ({list}), read as one surface: each is a surface of its own, \
+         so --formation NAME takes one of them",
+        names.len()
+    ))
+}
+
 /// Runs `zeroset normals`.
 pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
     crate::output::check_output(&args.output, &[&args.scan], args.force, &["ply", "xyzn"])?;
@@ -91,12 +140,12 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
         check_neighbours(k)?;
     }
     let start = Instant::now();
-    let mut options = ReadOptions::default();
-    if let Some(format) = &args.format {
-        options = options.with_format(format.parse().context("--format")?);
-    }
+    let options = read_options(args.format.as_deref(), args.formation.as_deref())?;
     let cloud = read_positions(&args.scan, &options, "zeroset normals", true)?;
     crate::fit::check_extent(&args.scan, &cloud)?;
+    if let Some(note) = formations_note(&args.scan, &options) {
+        outln!("{:<14}{note}", "formations");
+    }
     outln!(
         "{:<14}{}: {} points{}",
         "scan",

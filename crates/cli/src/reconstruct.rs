@@ -8,7 +8,6 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Parser, ValueEnum};
 use zeroset_bases::outliers::{find_isolated, remove_outliers, without};
-use zeroset_field_core::io::ReadOptions;
 
 use crate::fit::{FitArgs, SmoothingArg};
 use crate::info::{g, plural};
@@ -120,6 +119,9 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
 
+    #[arg(long, value_name = "NAME", help = crate::normals::FORMATION_HELP)]
+    pub formation: Option<String>,
+
     /// Write no PNG preview.
     #[arg(long)]
     pub no_preview: bool,
@@ -188,10 +190,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     };
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
-    let mut options = ReadOptions::default();
-    if let Some(format) = &args.format {
-        options = options.with_format(format.parse().context("--format")?);
-    }
+    let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
     let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
@@ -208,6 +207,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let mut isolated_count = None;
     let (cloud, scan, _oriented) = if cloud.normals().is_none() {
         crate::fit::check_extent(&args.scan, &cloud)?;
+        // (With normals, the fit stage reads the table and says this.)
+        if let Some(note) = crate::normals::formations_note(&args.scan, &options) {
+            outln!("{:<14}{note}", "formations");
+        }
         outln!(
             "{:<14}{} has no normals: estimating them (as zeroset normals)",
             "normals",
@@ -242,8 +245,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::write_cloud(&path, &oriented)
             .with_context(|| format!("writing the oriented scan {}", path.display()))?;
         (oriented, path, temporary)
-    } else if args.format.is_some() {
-        // The stages read the scan by its extension: give them a copy that has the right one.
+    } else if args.format.is_some() || args.formation.is_some() {
+        // The stages read the scan by its extension, and whole: give them a copy that has the
+        // right one and holds the formation asked for.
         let path = temporary_file(&args.output, "ply");
         let temporary = TemporaryFile::new(Some(path.clone()));
         crate::normals::write_cloud(&path, &cloud)

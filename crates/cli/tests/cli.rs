@@ -159,6 +159,82 @@ fn gempy_table_lists_formations() {
     assert!(out.contains("Shale      2\n"), "{out}");
 }
 
+#[test]
+fn one_formation_of_a_gempy_table_is_fitted_and_reconstructed_by_name() {
+    // Two formations, each a sphere's surface points (no normals): "Upper" around the sphere
+    // of the other tests, "Lower" the same sphere 5 below.
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("points.csv");
+    let mut text = String::from("X,Y,Z,formation\n");
+    for (name, dz) in [("Upper", 0.0), ("Lower", -5.0)] {
+        for (p, _) in sphere_points(300) {
+            text += &format!("{},{},{},{name}\n", p[0], p[1], p[2] + dz);
+        }
+    }
+    fs::write(&table, text).unwrap();
+    let t = table.to_str().unwrap();
+    let mesh = dir.path().join("upper.ply");
+    let m = mesh.to_str().unwrap();
+    let o = zeroset([
+        "reconstruct",
+        t,
+        "-o",
+        m,
+        "--formation",
+        "Upper",
+        "--no-preview",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(!out.contains("formations:"), "{out}");
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+    let upper = zeroset_mesh::read_mesh(&mesh).unwrap();
+    for v in upper.vertices() {
+        let r = (0..3)
+            .map(|a| (v[a] - CENTRE[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!((r - RADIUS).abs() < 0.02, "a vertex {r} from the centre");
+    }
+    // Read whole, the table says what it holds and how to take one formation.
+    let o = zeroset(["fit", t, "--method", "rbf"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("is a GemPy surface-points table: its points have no orientations"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        stdout(&o)
+            .contains("formations:   2 in this GemPy table (Lower, Upper), read as one surface"),
+        "{}",
+        stdout(&o)
+    );
+    let o = zeroset(["normals", t, "-o", m, "--force", "--formation", "Clay"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("no row of formation 'Clay'; the table's formations: Lower, Upper"),
+        "{}",
+        stderr(&o)
+    );
+    // The names of one cloud format do not apply to another.
+    let xyzn = dir.path().join("s.xyzn");
+    fs::write(&xyzn, sphere_xyzn(50)).unwrap();
+    let o = zeroset([
+        "fit".as_ref(),
+        xyzn.as_os_str(),
+        "--method".as_ref(),
+        "rbf".as_ref(),
+        "--formation".as_ref(),
+        "Upper".as_ref(),
+    ]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("not a GemPy table"), "{}", stderr(&o));
+}
+
 const EARS: &str = "-0.095,0.145,-0.065:0.0,0.2,0.04";
 
 #[test]
@@ -1064,6 +1140,29 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(dir.path().join("cube.stl")).unwrap());
     assert!(r.is_oriented_closed() && r.components == 1, "{r}");
     assert!((r.signed_volume - 1.0).abs() < 0.02, "{r}");
+}
+
+#[test]
+fn equal_values_are_refused_and_an_empty_mesh_says_where_the_field_runs() {
+    // One surface's points, all at value 0: the interpolant would be 0 everywhere.
+    let (_d, values) = temp_file("horizon.xyzv", "0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+    let o = fit(&values, &[]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("all 4 values are 0: the interpolant is that constant everywhere"),
+        "{}",
+        stderr(&o)
+    );
+    let (dir, field) = sphere_field();
+    let o = mesh(&field, &dir.path().join("e.ply"), &["--level", "100"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains(
+            "the level set does not cross the grid: the mesh is empty (the field runs from"
+        ),
+        "{}",
+        stdout(&o)
+    );
 }
 
 #[test]

@@ -441,7 +441,21 @@ fn gempy_bad_tables() {
     let (_d, path) = temp_file("o.csv", "X,Y,Z,dip,polarity,formation\n0,0,0,10,1,A\n");
     let e = read_orientations(&path).unwrap_err();
     assert!(
-        matches!(&e, Error::MissingColumn { column, .. } if column == "azimuth"),
+        matches!(&e, Error::MissingColumn { column, .. } if column == "azimuth (or G_x, G_y, G_z)"),
+        "{e}"
+    );
+    // Angles without polarity (and without a formation) are a GemPy table that lacks it, not
+    // a plain CSV whose angle columns are dropped.
+    let (_d, path) = temp_file("o.csv", "X,Y,Z,dip,azimuth\n0,0,0,10,20\n");
+    assert_eq!(detect_format(&path).unwrap(), Format::GemPy);
+    let e = read_point_cloud(&path).unwrap_err();
+    assert!(
+        matches!(&e, Error::MissingColumn { column, .. } if column.starts_with("polarity")),
+        "{e}"
+    );
+    let e = read_err("o.csv", "X,Y,Z,G_x,G_y,G_z,surface\n0,0,0,0,0,0,A\n");
+    assert!(
+        matches!(&e, Error::Malformed { line: Some(2), reason, .. } if reason.contains("zero vector")),
         "{e}"
     );
     let e = read_err(
@@ -460,6 +474,78 @@ fn gempy_bad_tables() {
         ),
         "{e}"
     );
+}
+
+#[test]
+fn gempy_orientations_from_gradient_columns_alone_or_checked_against_the_angles() {
+    // GemPy 3's orientation tables may carry the poles alone: the Greenstone table without its
+    // angle columns reads the same normals, and the angles recovered give them back.
+    let orient_path = data("geology/greenstone/Greenstone_orientations.csv");
+    let full = read_orientations(&orient_path).unwrap();
+    let mut text = String::from("X,Y,Z,G_x,G_y,G_z,surface\n");
+    for (o, g) in full.iter().zip(gempy_gradients(&orient_path)) {
+        let [x, y, z] = o.position;
+        // Poles of any length.
+        let [gx, gy, gz] = g.map(|c| 3.0 * c);
+        text += &format!("{x},{y},{z},{gx},{gy},{gz},{}\n", o.formation);
+    }
+    let (_d, path) = temp_file("g.csv", &text);
+    assert_eq!(detect_format(&path).unwrap(), Format::GemPy);
+    let poles = read_orientations(&path).unwrap();
+    assert_eq!(poles.len(), full.len());
+    for (p, o) in poles.iter().zip(&full) {
+        assert_close(p.normal, o.normal, 1e-9);
+        assert_close(
+            orientation_normal(p.dip, p.azimuth, p.polarity),
+            o.normal,
+            1e-9,
+        );
+        assert!((0.0..=90.0).contains(&p.dip) && (0.0..360.0).contains(&p.azimuth));
+        assert_eq!(p.formation, o.formation);
+    }
+    let cloud = read_point_cloud(&path).unwrap();
+    assert_close(cloud.normals().unwrap()[7], full[7].normal, 1e-9);
+    // Both, disagreeing: refused, naming the line.
+    let e = read_err(
+        "o.csv",
+        "X,Y,Z,azimuth,dip,polarity,G_x,G_y,G_z,formation\n\
+         0,0,0,90,90,1,1,0,0,A\n0,0,0,90,90,1,0,0,-1,A\n",
+    );
+    assert!(
+        matches!(&e, Error::Malformed { line: Some(3), reason, .. } if reason.contains("90.0° apart")),
+        "{e}"
+    );
+}
+
+#[test]
+fn one_formation_of_a_gempy_table_is_read_by_name() {
+    let points = data(&format!("{PERTH}_Points.csv"));
+    let foliations = data(&format!("{PERTH}_Foliations.csv"));
+    let options = ReadOptions::default().with_formation("Permian");
+    let cloud = read_point_cloud_with(&points, &options).unwrap();
+    assert_eq!(cloud.len(), 22);
+    assert!(cloud.normals().is_none());
+    let model = read_gempy(&points, &foliations).unwrap();
+    let permian: Vec<_> = model
+        .orientations
+        .iter()
+        .filter(|o| o.formation == "Permian")
+        .collect();
+    let cloud = read_point_cloud_with(&foliations, &options).unwrap();
+    assert_eq!(cloud.len(), 6);
+    for (n, o) in cloud.normals().unwrap().iter().zip(&permian) {
+        assert_eq!(*n, o.normal);
+    }
+    // A name no row has lists the formations; another format is refused.
+    let e = read_point_cloud_with(&points, &ReadOptions::default().with_formation("permian"))
+        .unwrap_err();
+    assert!(
+        matches!(&e, Error::Malformed { line: None, reason, .. }
+            if reason.contains("no row of formation 'permian'") && reason.contains("Permian, Urella_North")),
+        "{e}"
+    );
+    let e = read_point_cloud_with(data("kitten.xyz"), &options).unwrap_err();
+    assert!(e.to_string().contains("not a GemPy table"), "{e}");
 }
 
 // ---------------------------------------------------------------------------------------------

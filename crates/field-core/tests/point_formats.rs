@@ -496,6 +496,11 @@ fn csv_tables_separated_by_semicolons_or_tabs_and_pcl_normal_names() {
     assert_eq!(cloud.positions(), &[[1.0, 2.0, 3.0]]);
     let e = read_err("eu.csv", "x;y;z\n1,5;2;3\n");
     assert!(e.to_string().contains("decimal commas are not read"), "{e}");
+    // Quoted in a comma-separated file (a spreadsheet's export), and a quoted word is not.
+    let e = read_err("q.csv", "x,y,z\n\"735484,81\",2,3\n");
+    assert!(e.to_string().contains("decimal commas are not read"), "{e}");
+    let e = read_err("w.csv", "x,y,z\n\"a,b\",2,3\n");
+    assert!(!e.to_string().contains("decimal commas"), "{e}");
     let e = read_err("part.csv", "x,y,z,normal_x,normal_y\n0,0,0,0,1\n");
     assert!(
         matches!(&e, Error::MissingColumn { column, .. } if column == "normal_z"),

@@ -144,9 +144,15 @@ impl Polyline {
     /// hole.
     pub fn signed_area(&self) -> f64 {
         let n = self.points.len();
+        // Relative to the first vertex: the products of coordinates far from the origin (a
+        // curve at UTM coordinates) would cancel their digits away.
+        let Some(&o) = self.points.first() else {
+            return 0.0;
+        };
         let twice: f64 = (0..n)
             .map(|k| {
                 let (a, b) = (self.points[k], self.points[(k + 1) % n]);
+                let (a, b) = ([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]]);
                 a[0] * b[1] - b[0] * a[1]
             })
             .sum();
@@ -772,6 +778,25 @@ mod tests {
         areas.sort_by(f64::total_cmp);
         assert!((areas[0] - PI * 0.04).abs() < 2e-3, "{areas:?}");
         assert!((areas[1] - PI * 0.09).abs() < 2e-3, "{areas:?}");
+    }
+
+    #[test]
+    fn an_area_far_from_the_origin_keeps_its_digits() {
+        // A 0.1 × 0.2 rectangle (and a thin sliver) at UTM-like coordinates.
+        for origin in [0.0, 6.9e6] {
+            let rectangle = Polyline {
+                points: vec![
+                    [origin + 0.3, origin],
+                    [origin + 0.4, origin],
+                    [origin + 0.4, origin + 0.2],
+                    [origin + 0.3, origin + 0.2],
+                ],
+                closed: true,
+            };
+            let area = rectangle.signed_area();
+            // The corners themselves are rounded by 1e-9 there; uncentred products lost 1e-3.
+            assert!((area - 0.02).abs() < 1e-9, "{origin}: {area}");
+        }
     }
 
     #[test]

@@ -8,20 +8,30 @@ use pyo3::prelude::*;
 use zeroset_bases::normals::{
     NormalOptions, default_neighbours, estimate_normals as estimate, estimate_normals_from_scanners,
 };
-use zeroset_field_core::io::read_point_cloud;
+use zeroset_field_core::io::{ReadOptions, read_point_cloud, read_point_cloud_with};
 
 use crate::arrays::{points as rows, rows_array};
 use crate::errors::to_py;
 
 /// Reads a point cloud: `(points, normals)`, normals `None` when the file has none. A mesh
 /// file (OBJ, STL, PLY with faces) gives its vertices, normals from the file or the
-/// triangles' winding (`zeroset_mesh::points`).
+/// triangles' winding (`zeroset_mesh::points`). `formation`: one formation of a GemPy table.
 #[pyfunction]
+#[pyo3(signature = (path, formation=None))]
 #[allow(clippy::type_complexity)]
 pub(crate) fn read_points(
     py: Python<'_>,
     path: PathBuf,
+    formation: Option<String>,
 ) -> PyResult<(Bound<'_, PyArray2<f64>>, Option<Bound<'_, PyArray2<f64>>>)> {
+    if let Some(name) = formation {
+        let options = ReadOptions::default().with_formation(name);
+        let cloud = py
+            .detach(|| read_point_cloud_with(&path, &options))
+            .map_err(to_py)?;
+        let normals = cloud.normals().map(|n| rows_array(py, n.to_vec()));
+        return Ok((rows_array(py, cloud.positions().to_vec()), normals));
+    }
     if zeroset_mesh::is_mesh_file(&path) {
         let mesh = py
             .detach(|| zeroset_mesh::read_mesh(&path))

@@ -554,6 +554,21 @@ def test_read_points_takes_pcd_and_named_text_columns(tmp_path):
     assert np.array_equal(read_n, normals.astype(np.float64))
 
 
+def test_read_points_takes_one_formation_of_a_gempy_table(tmp_path):
+    table = tmp_path / "orientations.csv"
+    table.write_text(
+        "X,Y,Z,G_x,G_y,G_z,surface\n"
+        "0,0,0,0,0,2,Shale\n1,0,0,1,0,0,Sand\n2,0,0,0,-1,0,Shale\n"
+    )
+    points, normals = zeroset.read_points(table)
+    assert points.shape == (3, 3) and normals.shape == (3, 3)
+    points, normals = zeroset.read_points(table, formation="Shale")
+    assert np.array_equal(points, [[0, 0, 0], [2, 0, 0]])
+    assert np.allclose(normals, [[0, 0, 1], [0, -1, 0]], atol=1e-15)
+    with pytest.raises(ValueError, match="no row of formation 'Clay'.*Sand, Shale"):
+        zeroset.read_points(table, formation="Clay")
+
+
 def test_read_points_takes_e57_laser_scans():
     # Written by libE57Format (benches/peers/format_fixtures.py): two scans, the second under a
     # pose, as integers scaled by 1e-7, with four records flagged invalid; normals rotated with

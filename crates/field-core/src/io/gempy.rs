@@ -9,9 +9,12 @@
 //! | surface points ("interfaces") | `X, Y, Z, formation` | [`SurfacePoint`] |
 //! | orientations ("foliations") | `X, Y, Z, azimuth, dip, polarity, formation` | [`Orientation`] |
 //!
-//! `surface` is accepted in place of `formation` (GemPy's saved model tables use it); other
-//! columns, such as a leading unnamed index, `X_r`, `series` or `G_x, G_y, G_z`, are ignored.
-//! A table with a `dip`, `azimuth` or `polarity` column is an orientations table.
+//! `surface` is accepted in place of `formation` (GemPy's saved model tables use it). An
+//! orientations table may give its poles as `G_x, G_y, G_z` (the gradient, as GemPy 3's
+//! `read_orientations` reads them) instead of the angles; where it has both, they must agree
+//! (within 1°; GemPy computes one from the other). Other columns, such as a leading unnamed
+//! index, `X_r` or `series`, are ignored. A table with a `dip`, `azimuth` or `polarity` column,
+//! or all of `G_x, G_y, G_z`, is an orientations table.
 //!
 //! ## Orientation convention
 //!
@@ -28,8 +31,14 @@
 //! point, so in zeroset's convention `n` points to the positive ("outside") side. A negative dip
 //! (which GemPy files do contain) is used as it stands, as GemPy does.
 //!
-//! Coordinates are projected (easting, northing, elevation; metres in GemPy's examples) and
-//! large: rescale before fitting.
+//! Coordinates are projected (easting, northing, elevation; metres in GemPy's examples). They
+//! need no rescaling: the fits centre and scale coordinates themselves (an RBF fit in UTM
+//! coordinates agrees with one in local coordinates to 1e-13 of the values), and PLY and OBJ
+//! meshes are written in double precision (STL's single precision warns of the vertices it
+//! moves).
+//!
+//! A table usually holds several formations (and faults), each its own surface: read it with
+//! [`ReadOptions::formation`](super::ReadOptions::formation) to take one of them as a cloud.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -57,13 +66,15 @@ pub struct SurfacePoint {
 pub struct Orientation {
     /// `X, Y, Z`.
     pub position: Point3,
-    /// The unit normal from `dip`, `azimuth` and `polarity` ([`orientation_normal`]).
+    /// The unit normal from `dip`, `azimuth` and `polarity` ([`orientation_normal`]), or the
+    /// table's `G_x, G_y, G_z` normalised.
     pub normal: Point3,
-    /// Degrees down from the horizontal.
+    /// Degrees down from the horizontal (from `G_x, G_y, G_z`: in [0, 90]).
     pub dip: f64,
-    /// Dip direction, degrees clockwise from north (+y).
+    /// Dip direction, degrees clockwise from north (+y) (from `G_x, G_y, G_z`: in [0, 360)).
     pub azimuth: f64,
-    /// +1 or −1: which side of the boundary the normal points to.
+    /// +1 or −1: which side of the boundary the normal points to (from `G_x, G_y, G_z`: the
+    /// sign of `G_z`, +1 for a vertical layer).
     pub polarity: f64,
     /// The formation (or fault) measured.
     pub formation: String,
@@ -156,20 +167,57 @@ pub fn orientation_normal(dip_deg: f64, azimuth_deg: f64, polarity: f64) -> Poin
     [polarity * sd * sa, polarity * sd * ca, polarity * cd]
 }
 
-/// Whether a CSV header is a GemPy table: it names `formation` or `surface`, or all of `dip`,
-/// `azimuth` and `polarity` (any case).
+/// The inverse of [`orientation_normal`] for a pole `g` (any length, not zero): `(dip,
+/// azimuth, polarity)` with the polarity the sign of `g_z` (+1 for `g_z = 0`), the dip in
+/// [0, 90] and the azimuth in [0, 360); `None` for a zero or non-finite `g`.
+///
+/// ```
+/// use zeroset_field_core::io::gempy::{orientation_angles, orientation_normal};
+/// let (dip, azimuth, polarity) = orientation_angles([0.3, -0.4, -0.5]).unwrap();
+/// let n = orientation_normal(dip, azimuth, polarity);
+/// let norm = 0.5f64.sqrt();
+/// assert!((n[0] - 0.3 / norm).abs() < 1e-12 && (n[2] + 0.5 / norm).abs() < 1e-12);
+/// assert_eq!(polarity, -1.0);
+/// ```
+pub fn orientation_angles(g: Point3) -> Option<(f64, f64, f64)> {
+    let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+    if !(norm.is_finite() && norm > 0.0) {
+        return None;
+    }
+    let polarity = if g[2] < 0.0 { -1.0 } else { 1.0 };
+    let m = g.map(|c| polarity * c / norm);
+    let dip = m[2].clamp(-1.0, 1.0).acos().to_degrees();
+    let azimuth = m[0].atan2(m[1]).to_degrees().rem_euclid(360.0);
+    Some((dip, azimuth, polarity))
+}
+
+/// GemPy's gradient columns.
+const GRADIENT: [&str; 3] = ["G_x", "G_y", "G_z"];
+
+/// Whether a CSV header is a GemPy table: it names `formation` or `surface`, two of `dip`,
+/// `azimuth` and `polarity`, or all of `G_x, G_y, G_z` (any case).
 pub fn is_gempy_header<S: AsRef<str>>(header: &[S]) -> bool {
     let header: Vec<String> = header
         .iter()
         .map(|h| h.as_ref().trim().to_owned())
         .collect();
     let has = |name: &str| find_column(&header, &[name]).is_some();
-    has("formation") || has("surface") || (has("dip") && has("azimuth") && has("polarity"))
+    let angles = ["dip", "azimuth", "polarity"]
+        .iter()
+        .filter(|n| has(n))
+        .count();
+    has("formation") || has("surface") || angles >= 2 || has_gradient(&header)
 }
 
-/// Whether a header is an orientations table (it has a `dip`, `azimuth` or `polarity` column).
+/// Whether a header has all of `G_x, G_y, G_z`.
+fn has_gradient(header: &[String]) -> bool {
+    GRADIENT.iter().all(|n| find_column(header, &[n]).is_some())
+}
+
+/// Whether a header is an orientations table (a `dip`, `azimuth` or `polarity` column, or all
+/// of `G_x, G_y, G_z`).
 fn is_orientations_header(header: &[String]) -> bool {
-    find_column(header, &["dip", "azimuth", "polarity"]).is_some()
+    find_column(header, &["dip", "azimuth", "polarity"]).is_some() || has_gradient(header)
 }
 
 /// Reads a surface-points table (`X, Y, Z, formation`).
@@ -185,12 +233,14 @@ pub fn read_surface_points(path: impl AsRef<Path>) -> Result<Vec<SurfacePoint>> 
     surface_points(&mut Table::open(path)?, &check)
 }
 
-/// Reads an orientations table (`X, Y, Z, azimuth, dip, polarity, formation`), computing each
-/// normal with [`orientation_normal`].
+/// Reads an orientations table (`X, Y, Z, azimuth, dip, polarity, formation`, or `G_x, G_y,
+/// G_z` in place of the angles), computing each normal with [`orientation_normal`] (or
+/// normalising `G`).
 ///
 /// # Errors
 /// As [`read_surface_points`], for the columns `X, Y, Z, azimuth, dip, polarity, formation`; a
-/// polarity other than ±1 is [`Error::Malformed`](crate::Error::Malformed).
+/// polarity other than ±1, a zero `G`, or `G` and the angles more than 1° apart are
+/// [`Error::Malformed`](crate::Error::Malformed).
 pub fn read_orientations(path: impl AsRef<Path>) -> Result<Vec<Orientation>> {
     let path = path.as_ref();
     let check = FiniteCheck { path, allow: false };
@@ -229,18 +279,42 @@ pub fn read_gempy_file(path: impl AsRef<Path>) -> Result<GeoModelData> {
     Ok(data)
 }
 
-/// Reads either table as a cloud (normals for orientations), for
-/// [`read_point_cloud`](super::read_point_cloud).
-pub(super) fn read_cloud(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
+/// Reads either table as a cloud (normals for orientations), all rows or those of
+/// `formation`, for [`read_point_cloud`](super::read_point_cloud).
+pub(super) fn read_cloud(
+    path: &Path,
+    check: &FiniteCheck<'_>,
+    formation: Option<&str>,
+) -> Result<RawPoints> {
     let mut table = Table::open(path)?;
+    let mut data = GeoModelData::default();
     if is_orientations_header(table.header()) {
-        let o = orientations(&mut table, check)?;
-        let positions = o.iter().map(|o| o.position).collect();
-        let normals = o.into_iter().map(|o| o.normal).collect();
-        Ok((positions, Some(normals)))
+        data.orientations = orientations(&mut table, check)?;
     } else {
-        let p = surface_points(&mut table, check)?;
-        Ok((p.into_iter().map(|p| p.position).collect(), None))
+        data.surface_points = surface_points(&mut table, check)?;
+    }
+    if let Some(name) = formation {
+        let names = data.formations();
+        if !names.iter().any(|n| n == name) {
+            return Err(super::malformed(
+                path,
+                None,
+                format!(
+                    "no row of formation '{name}'; the table's formations: {}",
+                    names.join(", ")
+                ),
+            ));
+        }
+        data.surface_points.retain(|p| p.formation == name);
+        data.orientations.retain(|o| o.formation == name);
+    }
+    if data.orientations.is_empty() {
+        let positions = data.surface_points.into_iter().map(|p| p.position);
+        Ok((positions.collect(), None))
+    } else {
+        let positions = data.orientations.iter().map(|o| o.position).collect();
+        let normals = data.orientations.into_iter().map(|o| o.normal).collect();
+        Ok((positions, Some(normals)))
     }
 }
 
@@ -281,33 +355,107 @@ fn surface_points(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Surf
     Ok(out)
 }
 
+/// The largest angle between a table's `G_x, G_y, G_z` and its dip, azimuth and polarity.
+const GRADIENT_AGREEMENT_DEG: f64 = 1.0;
+
 fn orientations(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Orientation>> {
     let pos = position_columns(table)?;
+    let gradient = if has_gradient(table.header()) {
+        let g = GRADIENT.map(|n| table.find(&[n]));
+        Some([g[0], g[1], g[2]].map(|c| c.unwrap_or_default()))
+    } else {
+        None
+    };
+    let with_gradient = |name: &'static str| {
+        if gradient.is_some() {
+            Ok(table.find(&[name]))
+        } else {
+            table
+                .require(&[name], &format!("{name} (or G_x, G_y, G_z)"))
+                .map(Some)
+        }
+    };
     let angles = [
-        table.require(&["dip"], "dip")?,
-        table.require(&["azimuth"], "azimuth")?,
-        table.require(&["polarity"], "polarity")?,
+        with_gradient("dip")?,
+        with_gradient("azimuth")?,
+        with_gradient("polarity")?,
     ];
+    // Without G all three angles are required (above); with it, the angles are read (and
+    // checked against G) when all three are there.
+    let angles = match angles {
+        [Some(d), Some(a), Some(p)] => Some([d, a, p]),
+        _ => None,
+    };
     let form = table.require(&FORMATION, FORMATION_COLUMN)?;
     let mut out = Vec::new();
     let what = format!("the orientations of {}", table.path().display());
     while let Some(row) = table.next_row()? {
         let position = table.numbers(&row, pos)?;
         check.check(row.record, Some(row.line), &POSITION_FIELDS, &position)?;
-        let [dip, azimuth, polarity] = table.numbers(&row, angles)?;
-        check.check(
-            row.record,
-            Some(row.line),
-            &["dip", "azimuth", "polarity"],
-            &[dip, azimuth, polarity],
-        )?;
-        if polarity.is_finite() && polarity.abs() != 1.0 {
-            return Err(super::malformed(
-                table.path(),
-                Some(row.line),
-                format!("polarity must be 1 or -1, found {polarity}"),
-            ));
-        }
+        let from_angles = match angles {
+            Some(cols) => {
+                let [dip, azimuth, polarity] = table.numbers(&row, cols)?;
+                check.check(
+                    row.record,
+                    Some(row.line),
+                    &["dip", "azimuth", "polarity"],
+                    &[dip, azimuth, polarity],
+                )?;
+                if polarity.is_finite() && polarity.abs() != 1.0 {
+                    return Err(super::malformed(
+                        table.path(),
+                        Some(row.line),
+                        format!("polarity must be 1 or -1, found {polarity}"),
+                    ));
+                }
+                Some((dip, azimuth, polarity))
+            }
+            None => None,
+        };
+        let from_gradient = match gradient {
+            Some(cols) => {
+                let g = table.numbers(&row, cols)?;
+                check.check(row.record, Some(row.line), &GRADIENT, &g)?;
+                if g.iter().any(|c| !c.is_finite()) {
+                    // Allowed non-finite: the normal is what the angles give, or NaN.
+                    Some((g, None))
+                } else {
+                    let Some(angles) = orientation_angles(g) else {
+                        return Err(super::malformed(
+                            table.path(),
+                            Some(row.line),
+                            "G_x, G_y, G_z is the zero vector: it gives no orientation",
+                        ));
+                    };
+                    Some((g, Some(angles)))
+                }
+            }
+            None => None,
+        };
+        let (dip, azimuth, polarity) = match (from_angles, from_gradient) {
+            (Some(a), Some((g, Some(_)))) => {
+                let n = orientation_normal(a.0, a.1, a.2);
+                let norm = g.iter().map(|c| c * c).sum::<f64>().sqrt();
+                let cos = (n[0] * g[0] + n[1] * g[1] + n[2] * g[2]) / norm;
+                let apart = cos.clamp(-1.0, 1.0).acos().to_degrees();
+                if apart > GRADIENT_AGREEMENT_DEG {
+                    return Err(super::malformed(
+                        table.path(),
+                        Some(row.line),
+                        format!(
+                            "G_x, G_y, G_z ({}, {}, {}) and dip {}, azimuth {}, polarity {} are \
+                             {apart:.1}° apart; GemPy computes one from the other, so one of \
+                             them is wrong (drop the columns you do not trust)",
+                            g[0], g[1], g[2], a.0, a.1, a.2
+                        ),
+                    ));
+                }
+                a
+            }
+            (Some(a), _) => a,
+            (None, Some((_, Some(a)))) => a,
+            (None, _) => (f64::NAN, f64::NAN, f64::NAN),
+        };
         crate::limits::grow(&mut out, 1, &what)?;
         out.push(Orientation {
             position,

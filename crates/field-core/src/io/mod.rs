@@ -316,9 +316,21 @@ pub struct ReadOptions {
     /// without being checked, so that a file whose columns 4–6 are not normals (an `x y z r g
     /// b` xyz file: [`Error::NotNormals`]) can still be described.
     pub positions_only: bool,
+    /// For a GemPy table, read only the rows of this formation (or fault), matched exactly
+    /// (default `None`: every row, all formations as one cloud). A name no row has is
+    /// [`Error::Malformed`] listing the table's formations; a file of another format is
+    /// [`Error::Malformed`] too.
+    pub formation: Option<String>,
 }
 
 impl ReadOptions {
+    /// These options, reading only `formation`'s rows of a GemPy table.
+    #[must_use]
+    pub fn with_formation(mut self, formation: impl Into<String>) -> Self {
+        self.formation = Some(formation.into());
+        self
+    }
+
     /// These options, reading the positions only (`true`) or the normals too (`false`).
     #[must_use]
     pub fn with_positions_only(mut self, positions_only: bool) -> Self {
@@ -387,11 +399,21 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
         path,
         allow: options.allow_non_finite,
     };
+    if let (Some(name), false) = (&options.formation, format == Format::GemPy) {
+        return Err(malformed(
+            path,
+            None,
+            format!(
+                "formation '{name}' asked for, but this is a {} file, not a GemPy table",
+                format.name()
+            ),
+        ));
+    }
     let (positions, normals) = match format {
         Format::Ply => ply::read(path, &checker)?,
         Format::Xyz => xyz::read(path, &checker, !options.positions_only)?,
         Format::Csv => table::read_xyz_table(path, &checker)?,
-        Format::GemPy => gempy::read_cloud(path, &checker)?,
+        Format::GemPy => gempy::read_cloud(path, &checker, options.formation.as_deref())?,
         Format::Pcd => pcd::read(path, &checker)?,
         Format::Las => las::read(path, &checker, !options.positions_only)?,
         Format::E57 => e57::read(path, &checker, !options.positions_only)?,

@@ -133,7 +133,11 @@ impl Table {
         }
         super::parse_number(text).ok_or_else(|| {
             // Spreadsheets in many locales write `1,5` with `;` between fields.
-            let hint = if self.delimiter != b',' && text.contains(',') {
+            // In a comma-separated file such a field was quoted.
+            let numeric = text
+                .bytes()
+                .all(|b| b.is_ascii_digit() || matches!(b, b',' | b'.' | b'-' | b'+'));
+            let hint = if text.contains(',') && (self.delimiter != b',' || numeric) {
                 " (decimal commas are not read: export the numbers with decimal points)"
             } else {
                 ""

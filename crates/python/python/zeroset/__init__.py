@@ -356,14 +356,20 @@ def _as_field(
 # Files
 
 
-def read_points(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+def read_points(
+    path: PathLike, formation: Optional[str] = None
+) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     """Reads a point cloud: ``(points, normals)``, each ``(n, 3)``; normals ``None`` when the
     file has none. PLY (ascii or binary), PCD (PCL; ascii, binary or compressed), LAS / LAZ, E57, xyz /
     xyzn / pts / asc / pwn text (columns ``x y z [nx ny nz]`` or named by a first line), CSV
     with a header, GemPy tables; or a mesh (OBJ, STL, OFF, PLY with faces): the vertices its
     triangles use, with normals from the file or the triangles' winding (closed parts wound inward turned over), ``None``
-    where the winding is inconsistent (``estimate_normals`` then)."""
-    return _native.read_points(os.fspath(path))
+    where the winding is inconsistent (``estimate_normals`` then).
+
+    ``formation``: for a GemPy table, only the rows of this formation (or fault), by its exact
+    name; read whole, every formation of a table is one cloud. Orientation tables give normals
+    from dip, azimuth and polarity, or from GemPy 3's ``G_x, G_y, G_z``."""
+    return _native.read_points(os.fspath(path), formation)
 
 
 def read_e57(path: PathLike) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarray, list]:

@@ -187,7 +187,9 @@ fn mras_fit_and_its_mesh_do_not_depend_on_threads() {
 #[test]
 fn neural_fit_and_its_mesh_do_not_depend_on_threads() {
     let dir = tempfile::tempdir().unwrap();
-    let points = subset(dir.path(), "b500.xyzn", 4);
+    // 1,000 points: the last layer's least-squares refit is large enough for faer's parallel
+    // QR (its answer changed with the thread count until it ran sequentially).
+    let points = subset(dir.path(), "b1000.xyzn", 2);
     let field = fit(
         dir.path(),
         &points,

@@ -16,15 +16,17 @@
 //! than four digits.
 //!
 //! Both densify a sparse `A` (fine up to a few thousand columns); neither takes an operator.
+//! Both run faer's kernels sequentially ([`crate::sequential`]): their parallel versions split
+//! sums by the thread count, so that an answer would change in its last bits with `--threads`.
 
 use std::time::Instant;
 
-use faer::linalg::solvers::{ColPivQr, PartialPivLu, Solve, SolveLstsq};
 use faer::{Mat, MatRef};
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix, Solution, SolveError, Stage};
 
 use crate::common::{DirectParams, NORMAL_RANK_TOLERANCE, finish, prepare, stage};
 use crate::operator::Prepared;
+use crate::sequential;
 
 fn dense_input<'p>(
     solver: &'static str,
@@ -64,9 +66,9 @@ impl LeastSquaresSolver for DenseQr {
         let (m, n) = prepared.shape();
         let dense = dense_input(name, &prepared)?;
         stage(&self.params.monitor, name, Stage::Factorize, 0)?;
-        let qr = ColPivQr::new(dense.as_ref().as_ref());
-        let r: MatRef<'_, f64> = qr.R();
-        let (perm_fwd, _) = qr.P().arrays();
+        let qr = sequential::ColPivQr::new(dense.as_ref().as_ref());
+        let r: MatRef<'_, f64> = qr.r();
+        let perm_fwd = qr.permutation();
         if n > 0 {
             let tau = self
                 .params
@@ -85,8 +87,7 @@ impl LeastSquaresSolver for DenseQr {
             }
         }
         stage(&self.params.monitor, name, Stage::Solve, 1)?;
-        let sol = qr.solve_lstsq(column(b));
-        let x: Vec<f64> = (0..n).map(|i| sol[(i, 0)]).collect();
+        let x = qr.solve_lstsq(b);
         finish(name, &prepared, x, b, 0, start, vec![])
     }
 }
@@ -118,10 +119,10 @@ impl LeastSquaresSolver for NormalLu {
         let dense = dense_input(name, &prepared)?;
         stage(&self.params.monitor, name, Stage::Factorize, 0)?;
         let at = dense.transpose();
-        let normal: Mat<f64> = at * dense.as_ref();
-        let rhs: Mat<f64> = at * column(b);
-        let lu = PartialPivLu::new(normal.as_ref());
-        let u = lu.U();
+        let normal = sequential::product(at, dense.as_ref().as_ref());
+        let mut rhs = sequential::product(at, column(b).as_ref());
+        let lu = sequential::PartialPivLu::new(normal.as_ref());
+        let u = lu.u();
         let tau = self.params.rank_tolerance.unwrap_or(NORMAL_RANK_TOLERANCE);
         for k in 0..n {
             let pivot = u[(k, k)].abs();
@@ -135,8 +136,8 @@ impl LeastSquaresSolver for NormalLu {
             }
         }
         stage(&self.params.monitor, name, Stage::Solve, 1)?;
-        let sol = lu.solve(rhs);
-        let x: Vec<f64> = (0..n).map(|i| sol[(i, 0)]).collect();
+        lu.solve_in_place(rhs.as_mut());
+        let x: Vec<f64> = (0..n).map(|i| rhs[(i, 0)]).collect();
         finish(name, &prepared, x, b, 0, start, vec![])
     }
 }

@@ -53,6 +53,7 @@ mod pcg;
 pub mod precond;
 pub mod problems;
 pub mod scratch;
+pub mod sequential;
 mod sparse_cholesky;
 mod sparse_qr;
 

@@ -15,7 +15,7 @@
 //! (tested to 1e-8 relative over random sizes).
 
 use faer::Mat;
-use faer::linalg::solvers::{PartialPivLu, Solve};
+use zeroset_solvers::sequential::{PartialPivLu, product};
 
 use super::dense::DenseFactor;
 use super::system::{self, Functionals, Polynomial};
@@ -27,7 +27,7 @@ struct Batch {
     len: usize,
     c: Mat<f64>,
     a_inv_ct: Mat<f64>,
-    s: PartialPivLu<f64>,
+    s: PartialPivLu,
 }
 
 /// A fit that takes more constraints without re-solving; see the [module docs](self).
@@ -120,9 +120,9 @@ impl<K: Kernel + Clone, const D: usize> IncrementalFit<K, D> {
                 a_inv_ct[(j, k)] = sol[j];
             }
         }
-        let s = &d - &c * &a_inv_ct;
+        let s = &d - &product(c.as_ref(), a_inv_ct.as_ref());
         let lu = PartialPivLu::new(s.as_ref());
-        let u = lu.U();
+        let u = lu.u();
         let scale = (0..mm)
             .fold(0.0f64, |acc, i| acc.max(s[(i, i)].abs()))
             .max(1e-300);

@@ -50,7 +50,6 @@
 use std::num::NonZero;
 
 use faer::Mat;
-use faer::linalg::solvers::{PartialPivLu, Solve};
 use kiddo::SquaredEuclidean;
 use kiddo::kd_tree::KdTree;
 use kiddo::leaf_strategies::FlatVec;
@@ -59,6 +58,7 @@ use rayon::prelude::*;
 use zeroset_field_core::Point;
 use zeroset_field_core::lsq::{LinearOperator, LsqMatrix, Monitor};
 use zeroset_solvers::gmres::Gmres;
+use zeroset_solvers::sequential::PartialPivLu;
 
 use super::dense::{DenseFactor, Precision};
 use super::fmm::product::FMM_PRODUCT_TOLERANCE;

@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | [`core`] | `zeroset-field-core` | geometry, grids, masks, point clouds and file formats, the `ScalarField` / `Basis` / `LeastSquaresSolver` traits |
 //! | [`solvers`] | `zeroset-solvers` | CGLS, LSQR, dense QR, LU on normal equations, sparse QR, sparse Cholesky, PCG, ADMM |
-//! | [`bases`] | `zeroset-bases` | RBF fields (with a fast multipole evaluator), B-spline fields, neural fields and MRAS fields (multilevel low-rank splines) |
+//! | [`bases`] | `zeroset-bases` | RBF fields (with a fast multipole evaluator), B-spline fields, neural fields and MRAS fields (multilevel rational algebraic splines) |
 //! | [`restore`] | `zeroset-restore` | protrusion removal and de-noising by least squares |
 //! | [`tensor`] | `zeroset-tensor` | 3-way tensors, unfoldings, trace norm, singular-value thresholding, CP-ALS with the adaptive rank of MRAS |
 //! | [`mesh`] | `zeroset-mesh` | marching cubes and the two-step signed marching cubes |

@@ -9,7 +9,7 @@
 //! - [`tangent_plane`] — Hoppe et al.'s signed distance to the nearest sample's tangent plane
 //!   (optionally a weighted mean over `k` neighbours): no fit, a baseline (a field, not a basis).
 //! - [`field_file`] — the versioned, checksummed `.zsf` file of B-spline, RBF, neural and MRAS fields.
-//! - [`rbf`] — radial basis functions (`r`, `r³`, thin plate, user kernels) through value and
+//! - [`rbf`] — radial basis functions (`r`, `r³`, thin plate, Wendland, user kernels) through value and
 //!   gradient (Hermite) constraints, with Carr's off-surface points, dense, mixed-precision and
 //!   iterative fits, and incremental constraints by the Schur complement (Jiang–Turk).
 //!

@@ -101,7 +101,7 @@ pub enum Method {
     /// A small neural net (MLP) trained with Adam on the data term plus Jiang–Turk's
     /// thin-plate curvature term; takes point clouds and .xyv/.xyzv value files.
     Neural,
-    /// Multilevel low-rank splines (Pan–Tong–Chen): an octree of quadratic B-spline offsets
+    /// Multilevel rational algebraic splines (Pan–Tong–Chen): an octree of quadratic B-spline offsets
     /// stored as CP factors; compact files for large scans (oriented point clouds only).
     Mras,
 }
@@ -140,12 +140,14 @@ impl KernelArg {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SolverArg {
     /// Dense up to 2,000 functionals; above, iterative for kernels r and wendland with value
-    /// constraints only, mixed otherwise (each falls back to dense if it fails).
+    /// constraints only, mixed for wendland with --hermite, dense otherwise (each falls back to
+    /// dense if it fails).
     Auto,
     /// The exact dense solve (projected Cholesky): O(n³) time, O(n²) memory.
     Dense,
     /// The projected Cholesky in f32 preconditioning GMRES on the f64 system: as exact as
-    /// dense at ~0.6× the time, for condition numbers up to ~1e7.
+    /// dense at ~0.6× the time, for condition numbers up to ~1e7 (kernels r and wendland; r3's
+    /// systems are beyond it on real scans, and the f32 factorisation fails).
     Mixed,
     /// GMRES in a local cardinal basis: O(n²) per step, value constraints only.
     Iterative,
@@ -206,7 +208,7 @@ pub struct FitArgs {
     pub points_shown_as: Option<String>,
 
     /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel
-    /// low-rank splines).
+    /// rational algebraic splines, stored at low rank).
     #[arg(long, value_enum)]
     pub method: Method,
 
@@ -648,7 +650,24 @@ impl<const D: usize> KernelJob for ValueFit<'_, D> {
             Some(SmoothingArg::Fixed(mu)) => mu,
             _ => 0.0,
         };
-        let field = solve(kernel, self.args, self.constraints, smoothing, &[])?;
+        // Every constraint is a data point here.
+        let points: Vec<Point<D>> = self
+            .constraints
+            .as_slice()
+            .iter()
+            .map(|c| c.point)
+            .collect();
+        let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
+            let (lo, hi) = (b.min(), b.max());
+            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+        });
+        let field = solve(
+            kernel,
+            self.args,
+            self.constraints,
+            (smoothing, diagonal),
+            &[],
+        )?;
         if let Some(output) = &self.args.output {
             save_rbf(&field, output)?;
         }
@@ -886,7 +905,15 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
         warnings.extend(print_offset(args.offset.is_none(), &report));
         c
     };
-    let field = solve(kernel, args, &constraints, job.smoothing, &warnings)?;
+    // The cloud's diagonal, not the constraints' (their off-surface points reach past it).
+    let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+    let field = solve(
+        kernel,
+        args,
+        &constraints,
+        (job.smoothing, diagonal),
+        &warnings,
+    )?;
     print_check(&field, job.input, job.outliers);
     if let Some(output) = &args.output {
         if args.sampled {
@@ -904,7 +931,7 @@ fn solve<K: StoredKernel, const D: usize>(
     kernel: K,
     args: &FitArgs,
     constraints: &Constraints<D>,
-    smoothing: f64,
+    (smoothing, diagonal): (f64, f64),
     input_warnings: &[String],
 ) -> anyhow::Result<RbfField<K, D>> {
     line(
@@ -945,32 +972,22 @@ fn solve<K: StoredKernel, const D: usize>(
     } else {
         "fitting the RBF field"
     };
-    let diagonal = || {
-        let points: Vec<Point<D>> = constraints.as_slice().iter().map(|c| c.point).collect();
-        Aabb::from_points(&points).map_or(0.0, |b| {
-            let (lo, hi) = (b.min(), b.max());
-            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-        })
-    };
-    let Some(fraction) = args.mras.tolerance_fraction(diagonal)? else {
+    let Some(fraction) = args.mras.tolerance_fraction(|| diagonal)? else {
         let fitted = fit.fit(constraints);
         spinner.finish_and_clear();
         let fitted = fitted.context(context)?;
         print_report(&fitted.report, input_warnings, Scope::All);
         return Ok(fitted.field);
     };
-    // Greedy centre reduction to a tolerance given as a fraction of the constraints' diagonal
-    // or as a distance.
+    // Greedy centre reduction to a tolerance given as a fraction of the data's diagonal (the
+    // cloud's, or the value constraints') or as a distance.
     if !(fraction.is_finite() && fraction > 0.0 && fraction < 1.0) {
         bail!(
             "--tolerance {fraction}: give a fraction of the diagonal, between 0 and 1 (or \
              --tolerance-distance in the cloud's units)"
         );
     }
-    let tolerance = args
-        .mras
-        .tolerance_distance
-        .unwrap_or_else(|| fraction * diagonal());
+    let tolerance = args.mras.tolerance_distance.unwrap_or(fraction * diagonal);
     let result = fit.fit_greedy(constraints, &GreedyOptions::new(tolerance));
     spinner.finish_and_clear();
     let (fitted, greedy) = result.context(context)?;

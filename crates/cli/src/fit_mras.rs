@@ -1,4 +1,4 @@
-//! `zeroset fit POINTS --method mras`: a multilevel low-rank spline (MRAS) field (Pan–Tong–Chen,
+//! `zeroset fit POINTS --method mras`: a multilevel rational algebraic spline (MRAS) field (Pan–Tong–Chen,
 //! paper 004; [`zeroset_bases::mras`]).
 //!
 //! `--tolerance T` is the target largest distance from the points to the surface as a fraction

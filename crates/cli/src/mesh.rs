@@ -64,14 +64,14 @@ Examples:
   zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny.zsf
   zeroset mesh bunny.zsf -o bunny.ply
   # finer voxels, an ASCII PLY; or a Wavefront OBJ
-  zeroset mesh bunny.zsf -o bunny.ply --detail fine --ascii
+  zeroset mesh bunny.zsf -o bunny_fine.ply --detail fine --ascii
   zeroset mesh bunny.zsf -o bunny.obj --resolution 128
   # an explicit voxel edge, another level, capped where it leaves the grid
   zeroset mesh bunny.zsf -o shell.ply --voxel 0.002 --level 0.01 --close --force
   # a one-sided scan's surface cut where the scan ends (RBF fields: give the scan)
   zeroset mesh face.zsf -o face.ply --trim --scan face_scan.ply
   # two-step signed marching cubes with the fast multipole method (orders 5 and 10)
-  zeroset mesh bunny.zsf -o bunny.ply --method smc --order 5 --high-order 10 --detail fine
+  zeroset mesh bunny.zsf -o bunny_smc.ply --method smc --order 5 --high-order 10 --detail fine
   # a 2-D field's zero curve by marching squares, as SVG
   zeroset fit samples/curve.xyv --method neural -o curve.zsf
   zeroset mesh curve.zsf -o curve.svg --resolution 400";

@@ -21,7 +21,7 @@ pub const EXAMPLES: &str = "\
 Examples:
   # the sample bunny to a mesh and bunny.png beside it (RBF: 2,000 points, fine voxels)
   zeroset reconstruct samples/bunny_2k.xyzn -o bunny.ply
-  # a full scan with multilevel low-rank splines, a finer mesh, and the field kept
+  # a full scan with multilevel rational algebraic splines, a finer mesh, and the field kept
   zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan_mesh.ply
   # a one-sided scan (a face, a façade, terrain): the surface cut where the scan ends
   zeroset reconstruct face_scan.ply --trim -o face.ply";
@@ -45,7 +45,7 @@ pub enum ReconstructMethod {
     /// Radial basis functions (kernel r, off-surface points), meshed by the signed marching
     /// cubes.
     Rbf,
-    /// Multilevel low-rank splines, meshed by marching cubes.
+    /// Multilevel rational algebraic splines, meshed by marching cubes.
     Mras,
 }
 

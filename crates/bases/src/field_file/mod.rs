@@ -93,7 +93,7 @@ pub const KIND_BSPLINE: &str = "bspline";
 pub const KIND_RBF: &str = "rbf";
 /// The kind tag of a neural field.
 pub const KIND_NEURAL: &str = "neural";
-/// The kind tag of a multilevel low-rank spline (MRAS) field.
+/// The kind tag of a multilevel rational algebraic spline (MRAS) field.
 pub const KIND_MRAS: &str = "mras";
 
 /// Bytes before the metadata in a version-2 file.
@@ -307,7 +307,7 @@ pub enum AnyField<const D: usize> {
     Rbf(RbfAny<D>),
     /// A neural field.
     Neural(NeuralField<D>),
-    /// A multilevel low-rank spline (MRAS) field.
+    /// A multilevel rational algebraic spline (MRAS) field.
     Mras(MrasField<D>),
 }
 

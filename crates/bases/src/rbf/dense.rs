@@ -348,9 +348,19 @@ fn factor<T: Real>(
         Default::default(),
     )
     .map_err(|e| {
-        RbfError::Singular(format!(
-            "the projected kernel matrix is not positive definite ({e:?}): duplicate or nearly coincident points, or a kernel that is not conditionally positive definite"
-        ))
+        RbfError::Singular(if std::mem::size_of::<T>() < 8 {
+            format!(
+                "the projected kernel matrix is not positive definite in single precision \
+                 ({e:?}): its condition number is beyond what f32 resolves (the dense f64 solve \
+                 takes it)"
+            )
+        } else {
+            format!(
+                "the projected kernel matrix is not positive definite ({e:?}): duplicate or \
+                 nearly coincident points, or a kernel that is not conditionally positive \
+                 definite"
+            )
+        })
     })?;
     let range = diagonal_range(len, |i| k[(i, i)].to());
     let factor = Factor {

@@ -119,8 +119,12 @@ pub const AUTO_DENSE_LIMIT: usize = 2000;
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Solver {
     /// Up to [`AUTO_DENSE_LIMIT`] functionals [`Solver::Dense`]; above, [`Solver::Iterative`]
-    /// for kernels of order ≤ 1 (`r`, Wendland) with value constraints only, otherwise
-    /// [`Solver::MixedPrecision`]; either falls back to the f64 dense solve, with a warning, if
+    /// for kernels of order ≤ 1 (`r`, Wendland) with value constraints only,
+    /// [`Solver::MixedPrecision`] for the positive definite Wendland kernel with gradient
+    /// constraints, and [`Solver::Dense`] otherwise (`r³`: its f32 factorisation broke down on
+    /// every scan tried, the bunny sample and the kitten, values or Hermite, which cost the
+    /// failed attempt before the dense solve); either falls back to the f64 dense solve, with a
+    /// warning, if
     /// it does not converge (GMRES in the cardinal basis: 300 steps) — unless the dense solve
     /// would need more memory than the limit, which is then an error ([`RbfError::Memory`])
     /// naming both failures. Measured on the sphere set-up: with
@@ -311,7 +315,7 @@ impl<K: Kernel + Clone> RbfFit<K> {
         };
         let mixed = match &self.solver {
             Solver::MixedPrecision => true,
-            Solver::Auto => n > AUTO_DENSE_LIMIT && iterative.is_none(),
+            Solver::Auto => n > AUTO_DENSE_LIMIT && iterative.is_none() && self.kernel.order() == 0,
             _ => false,
         };
         let rhs = self.rhs(&functionals);

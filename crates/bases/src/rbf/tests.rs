@@ -499,6 +499,15 @@ fn dense_solves_beyond_the_memory_limit_are_refused_before_allocating() {
         panic!("mixed precision not refused")
     };
     assert_eq!(m.needed, (unknowns * unknowns * 12) as u64);
+    // r³ goes straight to the dense solve (its f32 factor breaks down on real scans).
+    let RbfError::Memory(m) = RbfFit::new(Triharmonic)
+        .with_memory_limit(1 << 20)
+        .fit(&c)
+        .unwrap_err()
+    else {
+        panic!("the r³ fit was not refused")
+    };
+    assert_eq!(m.needed, (unknowns * unknowns * 8) as u64);
     // The iterative solve needs no dense matrix: the same limit fits it.
     let fit = RbfFit::new(Biharmonic)
         .with_solver(Solver::Auto)

@@ -577,7 +577,7 @@ def fit(
     (Jiang–Turk §3; 0.005 by default, as ``zeroset fit --method neural`` on a point cloud);
     ``seed`` fixes the initial weights.
 
-    ``method="mras"``: multilevel low-rank spline offsets (Pan–Tong–Chen): ``tolerance`` is
+    ``method="mras"``: multilevel rational algebraic spline offsets, stored at low rank (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
     ``compress=False`` keeps full coefficient tensors. ``report["tolerance_met"]`` says whether
     every point's Sampson distance is within it; ``report["points_over_tolerance"]`` counts

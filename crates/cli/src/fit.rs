@@ -56,7 +56,7 @@ use zeroset_field_core::io::{
 use zeroset_field_core::lsq::Monitor;
 use zeroset_field_core::{Error, PointCloud3};
 
-use crate::info::{g, point};
+use crate::info::{g, plural, point};
 use crate::machine::{counts_text, ensure_memory, sample_count};
 use crate::progress::{counter, seconds, spinner};
 use crate::restore::{cubic_counts, parse_counts};
@@ -614,12 +614,30 @@ pub(crate) fn load_values<const D: usize>(args: &FitArgs) -> anyhow::Result<Valu
     Ok(c)
 }
 
+/// Under the constraints line: how many input points were merged into an earlier one, if any.
+pub(crate) fn print_merged(merged: usize) {
+    if merged > 0 {
+        more(&format!(
+            "({merged} input point{} within {:e} of the diagonal of an earlier one merged into it: \
+             repeated samples, one centre each)",
+            plural(merged),
+            zeroset_bases::rbf::MERGE_DISTANCE
+        ));
+    }
+}
+
 /// `--method rbf` on a value-constraint file: the RBF interpolant of the values.
 fn fit_values<const D: usize>(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
     let c = load_values::<D>(args)?;
-    let mut constraints = Constraints::<D>::new();
-    for (p, v) in c.points.iter().zip(&c.values) {
-        constraints.push_value(*p, *v);
+    let (constraints, merged) = Constraints::from_values(&c.points, &c.values)
+        .with_context(|| format!("the value constraints of {}", args.points.display()))?;
+    if merged > 0 {
+        more(&format!(
+            "({merged} row{} within {:e} of the diagonal of an earlier one, with its value, \
+             merged into it)",
+            plural(merged),
+            zeroset_bases::rbf::MERGE_DISTANCE
+        ));
     }
     let bounds = Aabb::from_points(&c.points);
     if let Some(b) = &bounds {
@@ -875,13 +893,15 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
     let mut warnings = Vec::new();
     let constraints = if args.hermite {
         let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
+        let kept = c.len() / 2;
         line(
             "constraints",
             &format!(
-                "{} Hermite: {n} values 0 on the surface, {n} gradients (the unit normals)",
+                "{} Hermite: {kept} values 0 on the surface, {kept} gradients (the unit normals)",
                 c.len()
             ),
         );
+        print_merged(n - kept);
         c
     } else {
         let offset = match args.offset.unwrap_or(OffsetArg::Auto) {
@@ -1063,15 +1083,7 @@ fn print_offset(auto: bool, r: &OffsetReport) -> Option<String> {
     if let Some(w) = &warning {
         more(&format!("warning: {w}"));
     }
-    if r.merged > 0 {
-        more(&format!(
-            "({} input point{} within {:e} of the diagonal of an earlier one merged into it: \
-             repeated samples, one centre each)",
-            r.merged,
-            if r.merged == 1 { "" } else { "s" },
-            zeroset_bases::rbf::MERGE_DISTANCE
-        ));
-    }
+    print_merged(r.merged);
     warning
 }
 

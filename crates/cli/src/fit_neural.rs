@@ -259,13 +259,14 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
             "{} off-surface (Carr et al.): {} values 0 on the surface, {} at ±offset (smallest \
              offset {}, {} shrunk, {} dropped)",
             points.len(),
-            cloud.len(),
-            points.len() - cloud.len(),
+            cloud.len() - report.merged,
+            points.len() - (cloud.len() - report.merged),
             g(report.smallest),
             report.shrunk,
             report.dropped
         ),
     );
+    crate::fit::print_merged(report.merged);
     let (centre, scale) = unit_frame(&points);
     let u = to_unit_frame(&points, centre, scale);
     let unit = report.initial;
@@ -379,6 +380,15 @@ fn train<const D: usize>(
             report.max_residual * unit
         ),
     );
+    let warnings = training_warnings(&report.history, report.max_residual, z, unit);
+    line(
+        "warnings",
+        &if warnings.is_empty() {
+            "none".to_owned()
+        } else {
+            warnings.join("; ")
+        },
+    );
     if !args.neural.refit_last_layer {
         return Ok(field);
     }
@@ -387,6 +397,40 @@ fn train<const D: usize>(
         .context("refitting the last layer (dense QR)")?;
     print_refit(&r, unit);
     Ok(refit)
+}
+
+/// What a training run's report shows to be wrong: no step taken, a loss that rose, or a
+/// constraint missed by more than half the gap between the distinct target values (in the
+/// targets' unit `z`; `unit` turns them back into the file's).
+fn training_warnings(history: &[f64], max_residual: f64, z: &[f64], unit: f64) -> Vec<String> {
+    let mut warnings = Vec::new();
+    match (history.first(), history.last()) {
+        (None, _) | (_, None) => {
+            warnings.push("no training step (--steps 0): the net is its random start".to_owned());
+        }
+        (Some(&first), Some(&last)) if last > first || last.is_nan() => warnings.push(format!(
+            "the loss rose from {first:.4e} to {last:.4e}: training diverged (a smaller \
+             --learning-rate)"
+        )),
+        _ => {}
+    }
+    let mut values = z.to_vec();
+    values.sort_by(f64::total_cmp);
+    values.dedup();
+    let gap = values
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::INFINITY, f64::min);
+    if gap.is_finite() && max_residual > 0.5 * gap {
+        warnings.push(format!(
+            "a constraint is missed by {}, more than half the gap {} between distinct target \
+             values: the level set may be on the wrong side of it (more --steps, a smaller \
+             --lambda, or --refit-last-layer)",
+            g(max_residual * unit),
+            g(gap * unit)
+        ));
+    }
+    warnings
 }
 
 fn print_refit(r: &RefitReport, unit: f64) {

@@ -194,7 +194,10 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         &if dup == 0 {
             "none".to_owned()
         } else {
-            format!("{dup} point{} repeat an earlier position", plural(dup))
+            format!(
+                "{dup} point{} an earlier position",
+                if dup == 1 { " repeats" } else { "s repeat" }
+            )
         },
     );
     if let Some(normals) = cloud.normals()

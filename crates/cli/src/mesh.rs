@@ -308,8 +308,19 @@ macro_rules! say {
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let mut out = Say;
-    if let Ok(2) = read_dimension(&args.field) {
-        return curve(args, &mut out);
+    match read_dimension(&args.field) {
+        Ok(2) => return curve(args, &mut out),
+        // An SVG is a curve's output: say why the field cannot be read rather than that the
+        // extension is not a mesh's.
+        Err(e)
+            if args
+                .output
+                .extension()
+                .is_some_and(|x| x.eq_ignore_ascii_case("svg")) =>
+        {
+            return Err(e).with_context(|| format!("reading {}", args.field.display()));
+        }
+        _ => {}
     }
     let format = check_output(args)?;
     if !args.level.is_finite() {
@@ -896,6 +907,19 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         (args.ascii, "--ascii"),
         (args.trim.is_some(), "--trim"),
         (args.scan.is_some(), "--scan"),
+        (args.drop_spurious, "--drop-spurious"),
+        (args.always_smc, "--always-smc"),
+        (
+            args.order != 5 || args.high_order != 10,
+            "--order/--high-order",
+        ),
+        (args.step != StepArg::Auto, "--step"),
+        // The l0 rule sizes cubic voxels; a curve is traced on 256 cells along the longer
+        // side unless --resolution or --voxel says otherwise.
+        (
+            args.detail.is_some(),
+            "--detail (give --resolution or --voxel)",
+        ),
     ];
     if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
         bail!(

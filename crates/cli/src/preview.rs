@@ -154,7 +154,17 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
     }
     let total = Instant::now();
     let field_input = is_field_file(&args.input);
-    let image = if field_input && matches!(read_dimension(&args.input), Ok(2)) {
+    let flat = field_input && matches!(read_dimension(&args.input), Ok(2));
+    // Defaults are not told from the same values given; either way nothing is lost.
+    let camera = args.azimuth != 35.0 || args.elevation != 25.0 || args.up != Up::Z;
+    if camera && (flat || args.slice.is_some()) {
+        bail!(
+            "--azimuth, --elevation and --up place the camera for a shaded surface; {} is drawn \
+             flat, seen straight on",
+            if flat { "a 2-D field" } else { "a --slice" }
+        );
+    }
+    let image = if flat {
         if args.slice.is_some() {
             bail!(
                 "--slice cuts a 3-D field; {} holds a 2-D field, drawn whole without it",

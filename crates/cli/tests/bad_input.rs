@@ -247,6 +247,16 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
         b"0 0 -1\n1 0 NaN\n",
     );
     m.put("empty.xyv", "0 bytes", b"");
+    m.put(
+        "conflict.xyv",
+        "2-D value constraints, line 5 at line 1's point (1e-17 away) with another value",
+        b"0 0 -1\n1 0 1\n0 1 1\n1 1 1\n1e-17 0 1\n",
+    );
+    m.put(
+        "level.xyzv",
+        "3-D value constraints, every value 0 (one surface's points)",
+        b"0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n",
+    );
 
     // Field files: a B-spline field of the distance to a sphere, and corruptions of it.
     let sphere = bspline_field::<3>();
@@ -795,6 +805,16 @@ fn cases() -> Vec<Case> {
         )
         .says("count.xyv:2"),
         cli("value file: NaN value", "fit nan.xyv --method neural").says("NaN"),
+        cli(
+            "value file: two values at one place",
+            "fit conflict.xyv --method rbf",
+        )
+        .says("different values (-1 and 1)"),
+        cli(
+            "value file: every value equal",
+            "fit level.xyzv --method rbf",
+        )
+        .says("all 4 values are 0"),
         cli("unknown option value", "fit bunny.xyzn --method spline")
             .no_file()
             .says("possible values"),

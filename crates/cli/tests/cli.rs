@@ -1942,6 +1942,35 @@ fn fit_neural_on_the_curve_sample_then_trace_and_draw_it() {
     assert!(stdout(&o).contains("2-D neural field"), "{}", stdout(&o));
     let o = preview(&field, &dir.path().join("s.png"), &["--slice", "z"]);
     assert_clean_failure(&o);
+    // Options of 3-D meshes and cameras are refused for a curve, not ignored.
+    for (flags, says) in [
+        (&["--detail", "fine"][..], "--detail"),
+        (&["--drop-spurious"][..], "--drop-spurious"),
+        (&["--order", "8"][..], "--order"),
+    ] {
+        let o = mesh(&field, &dir.path().join("c2.svg"), flags);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+    }
+    let o = preview(&field, &dir.path().join("a.png"), &["--azimuth", "20"]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("drawn flat"), "{}", stderr(&o));
+    // A missing field with an SVG output is named as missing.
+    let o = mesh(&dir.path().join("none.zsf"), &svg, &["--force"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("reading") && stderr(&o).contains("none.zsf"),
+        "{}",
+        stderr(&o)
+    );
+    // An untrained net is said to be one.
+    let o = fit_neural(&curve_sample(), &["--steps", "0"]);
+    assert!(
+        stdout(&o).contains("warnings:     no training step"),
+        "{}{}",
+        stdout(&o),
+        stderr(&o)
+    );
 }
 
 #[test]

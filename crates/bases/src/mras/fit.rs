@@ -29,7 +29,7 @@ use super::local::{
 /// | `omega2_root` | 3e-6 | (ω₂) | the root level decides the field far from the points: 1e-8 there leaves a spurious sheet (bunny_2k: 2 components), 3e-6 none; single-level sphere rank 10 at 7.0e-4, torus 10 at 2.1e-3 (1e-5 smooths the torus to 7e-3; Fig. 5's ranks with 1e-8 and λ = 20: `mras_tables -- shapes`) |
 /// | `omega2_decay` | 10 | — | per level, from `omega2_root` to `omega2` (3e-7 at level 2, 3e-8 at 3, then 1e-8). 100 (3e-8 at level 2, then 1e-8) left the coarse levels' cells free where their support has no points: on the bunny with Gaussian position noise of 0.5% of the diagonal, a sheet at the cube's corner (2 components, open), on the kitten with 0.75% two components; 10 removes both and changes no clean fit's outcome at the default depth (bunny numbers / max / mean 294k, 4.498e-3, 3.497e-4 → 290k, 4.504e-3, 3.513e-4; kitten 104k → 101k, max 4.14e-3 → 4.10e-3; the sweep of `benches/peers/noise_peers.py` and the synthetic shapes of the stray-point sweep: never more components). Shallow fits follow their points less closely: 2 levels on a 2,000-point sphere left 10 unfiltered stray points within 0.055 of zero (below 0.05 before) |
 /// | `m0`, `beta` | 12, 1 | `m_k = m₀ − ⌊βk⌋`, `β ∈ [1, 3]` | 13 costs 1.6× the time for the same error; `β` = 0.5 (12, 11, 11, 10, …, 9 B-splines) on the bunny: 229k numbers, max / mean 4.35e-3 / 3.07e-4, 5.4× the time (42.8 s) |
-/// | `min_knots` | 6 | — | the coarsest deep-level spline. Bunny, numbers / fitted cells uncompressed / max / mean / fit time (2 threads): **6 → 223k, 7.7×, 4.50e-3, 3.51e-4, 8.2 s**; 7 → 233k, 9.7×, 4.86e-3, 3.39e-4, 11.7 s; 8 → 230k, 12.6×, 4.44e-3, 3.26e-4, 17.8 s. Finer splines at the deep levels raise the ratio to the uncompressed count (their cells are mostly rank 1, and `m³/3m` grows with `m`) but not what is stored, and cost time |
+/// | `min_knots` | 6 | — | the coarsest deep-level spline. Bunny, numbers / fitted cells uncompressed / max / mean / fit time (2 threads): **6 → 223k, 7.7×, 4.79e-3, 3.51e-4, 8.2 s** (max first quoted as 4.50e-3; 4.79e-3 re-measured 2026-12-06 on this commit and on the one that set the default); 7 → 233k, 9.7×, 4.86e-3, 3.39e-4, 11.7 s; 8 → 230k, 12.6×, 4.44e-3, 3.26e-4, 17.8 s. Finer splines at the deep levels raise the ratio to the uncompressed count (their cells are mostly rank 1, and `m³/3m` grows with `m`) but not what is stored, and cost time |
 /// | `alpha` | 0.75 | 0.75 | |
 /// | `n_min` | 16 | 16 | |
 /// | `eta`, `relaxation` | 0.3 (× the c-step's mean diagonal), 1.6 | η = 1, no relaxation | ADMM warm-started at η = 1 stops after 1–3 iterations at levels 3–4 (its residuals are small against the start's); over-relaxed at η = 0.3 it runs 7–36 and lowers the ranks: bunny 385k → 326k numbers, kitten 124k → 102k, max distance within 2–3%, mean 2% lower; η from 0.2 to 0.5 stores within 4% |
@@ -1004,7 +1004,8 @@ fn far_field(u: &[Point<3>]) -> Vec<Target> {
 /// more on noisy copies of the bunny (Gaussian noise of 0.25% and 0.5% of the diagonal), whose
 /// meshes came no closer to the scanned surface (mean 5.71e-4 of the diagonal either way); 0.5
 /// stores 2% more on the clean bunny and kitten (bunny 218k → 223k numbers, its largest and
-/// mean distance to the points 4.58e-3, 3.52e-4 → 4.50e-3, 3.51e-4) and 1–7% more on the
+/// mean distance to the points 4.58e-3, 3.52e-4 → 4.79e-3, 3.51e-4 — the max first quoted as
+/// 4.50e-3, which no build of this rule gives) and 1–7% more on the
 /// noisy copies.
 const STEEP_FLOOR: f64 = 0.5;
 

@@ -248,18 +248,92 @@ impl<const D: usize> Constraints<D> {
         Ok((c, report))
     }
 
-    /// Value 0 and gradient `nᵢ` (unit) at every point: Hermite constraints.
+    /// Value 0 and gradient `nᵢ` (unit) at every point: Hermite constraints. Points within
+    /// [`MERGE_DISTANCE`] of an earlier one are merged into it, as in
+    /// [`Constraints::off_surface`] (two constraints a point: `cloud.len() − len() / 2` were
+    /// merged).
     ///
     /// # Errors
     /// As [`Constraints::off_surface`], without the offset ones.
     pub fn hermite(cloud: &PointCloud<D>) -> Result<Self, RbfError> {
         let normals = unit_normals(cloud)?;
+        let points = cloud.positions();
+        let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+        let kept = distinct(&index(points)?, points, &normals, MERGE_DISTANCE * diagonal)?;
         let mut c = Self::new();
-        for (p, n) in cloud.positions().iter().zip(normals) {
-            c.push_value(*p, 0.0);
-            c.push_gradient(*p, n);
+        for i in kept {
+            c.push_value(points[i], 0.0);
+            c.push_gradient(points[i], normals[i]);
         }
         Ok(c)
+    }
+
+    /// Value constraints `f(pᵢ) = vᵢ` from a value file's rows, a point within
+    /// [`MERGE_DISTANCE`] of the points' box diagonal of an earlier one merged into it when
+    /// their values agree (to 1e-12 of the largest |v|, or exactly when all are 0): a curve's
+    /// closing point repeated, a row written twice. Returns the constraints and the number
+    /// merged.
+    ///
+    /// ```
+    /// use zeroset_bases::rbf::Constraints;
+    /// let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]];
+    /// let (c, merged) = Constraints::from_values(&points, &[1.0, -1.0, 0.5, 1.0]).unwrap();
+    /// assert_eq!((c.len(), merged), (3, 1));
+    /// assert!(Constraints::from_values(&points, &[1.0, -1.0, 0.5, 2.0]).is_err());
+    /// ```
+    ///
+    /// # Errors
+    /// [`RbfError::Empty`]; [`RbfError::NonFinite`] naming the row;
+    /// [`RbfError::ConflictingValues`] for two rows at one place with different values.
+    ///
+    /// # Panics
+    /// If `values` is not as long as `points`.
+    pub fn from_values(points: &[Point<D>], values: &[f64]) -> Result<(Self, usize), RbfError> {
+        assert_eq!(points.len(), values.len(), "one value a point");
+        if points.is_empty() {
+            return Err(RbfError::Empty);
+        }
+        for (index, (p, v)) in points.iter().zip(values).enumerate() {
+            let bad = |value: f64, what| RbfError::NonFinite { index, what, value };
+            if let Some(&x) = p.iter().find(|x| !x.is_finite()) {
+                return Err(bad(x, "coordinate"));
+            }
+            if !v.is_finite() {
+                return Err(bad(*v, "value"));
+            }
+        }
+        let diagonal = zeroset_field_core::Aabb::from_points(points).map_or(0.0, |b| {
+            let (lo, hi) = (b.min(), b.max());
+            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+        });
+        let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let r2 = (MERGE_DISTANCE * diagonal).powi(2).max(f64::MIN_POSITIVE);
+        let tree = index(points)?;
+        let mut merged = vec![false; points.len()];
+        let mut c = Self::new();
+        for (i, p) in points.iter().enumerate() {
+            if merged[i] {
+                continue;
+            }
+            c.push_value(*p, values[i]);
+            for found in tree.query(p).within::<SquaredEuclidean<f64>>(r2).execute() {
+                let j = found.item as usize;
+                if j <= i || merged[j] {
+                    continue;
+                }
+                if (values[i] - values[j]).abs() > 1e-12 * scale {
+                    return Err(RbfError::ConflictingValues {
+                        first: i,
+                        second: j,
+                        point: p.to_vec(),
+                        values: (values[i], values[j]),
+                    });
+                }
+                merged[j] = true;
+            }
+        }
+        let count = merged.iter().filter(|m| **m).count();
+        Ok((c, count))
     }
 }
 
@@ -470,6 +544,11 @@ mod tests {
         let (c, report) =
             Constraints::off_surface(&doubled, Offset::Auto { fraction: 0.2 }).unwrap();
         assert_eq!(report.merged, cloud.len(), "{report:?}");
+        // Hermite constraints merge the same way: a value and a gradient per kept point.
+        assert_eq!(
+            Constraints::hermite(&doubled).unwrap().len(),
+            Constraints::hermite(&cloud).unwrap().len()
+        );
         // The merged copies change nothing (but the bounding box's diagonal, by 1e-8).
         assert_eq!(c.len(), base.len());
         let moved = c
@@ -481,15 +560,61 @@ mod tests {
         assert!(moved < 1e-6, "constraints moved by {moved:.1e}");
         // One copy with its normal reversed: refused, naming both records.
         n[cloud.len() + 3] = n[3].map(|v| -v);
-        let err = Constraints::off_surface(
-            &PointCloud::with_normals(p, n).unwrap(),
-            Offset::Auto { fraction: 0.2 },
-        )
-        .unwrap_err();
+        let conflicting = PointCloud::with_normals(p, n).unwrap();
+        let err =
+            Constraints::off_surface(&conflicting, Offset::Auto { fraction: 0.2 }).unwrap_err();
         assert!(
             matches!(err, RbfError::ConflictingDuplicates { first: 3, second, .. } if second == cloud.len() + 3),
             "{err}"
         );
+        let err = Constraints::hermite(&conflicting).unwrap_err();
+        assert!(
+            matches!(err, RbfError::ConflictingDuplicates { first: 3, .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn repeated_value_rows_are_merged_and_conflicting_ones_refused() {
+        let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+        let values = [1.0, -1.0, 0.5, 0.0];
+        let (base, merged) = Constraints::from_values(&points, &values).unwrap();
+        assert_eq!((base.len(), merged), (4, 0));
+        // The first row again, a hair off (1e-17), and the third exactly.
+        let mut p = points.to_vec();
+        p.extend([[1e-17, 0.0], [0.0, 1.0]]);
+        let mut v = values.to_vec();
+        v.extend([1.0, 0.5]);
+        let (c, merged) = Constraints::from_values(&p, &v).unwrap();
+        assert_eq!((c.as_slice(), merged), (base.as_slice(), 2));
+        // A different value at the first row's place: refused, naming both rows.
+        v[4] = -0.5;
+        let err = Constraints::from_values(&p, &v).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                RbfError::ConflictingValues {
+                    first: 0,
+                    second: 4,
+                    values: (1.0, -0.5),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        v[4] = f64::NAN;
+        assert!(matches!(
+            Constraints::from_values(&p, &v).unwrap_err(),
+            RbfError::NonFinite {
+                index: 4,
+                what: "value",
+                ..
+            }
+        ));
+        assert!(matches!(
+            Constraints::<2>::from_values(&[], &[]).unwrap_err(),
+            RbfError::Empty
+        ));
     }
 
     #[test]

@@ -54,6 +54,22 @@ pub enum RbfError {
         /// The unit normals' dot product.
         dot: f64,
     },
+    /// Two value constraints at one place (within [`MERGE_DISTANCE`](super::MERGE_DISTANCE)
+    /// of the diagonal) with different values.
+    #[error(
+        "value constraints {first} and {second} are at the same place {point:?} with different \
+         values ({} and {}): an interpolant cannot take both", values.0, values.1
+    )]
+    ConflictingValues {
+        /// The first constraint's index.
+        first: usize,
+        /// The second constraint's index.
+        second: usize,
+        /// The first constraint's point.
+        point: Vec<f64>,
+        /// Their values.
+        values: (f64, f64),
+    },
     /// The constraints do not determine the linear polynomial: too few points, or all of
     /// them on one plane (3-D) or line (2-D).
     #[error("the constraints cannot determine a linear polynomial: {detail}")]

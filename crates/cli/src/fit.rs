@@ -460,6 +460,13 @@ fn check_request(args: &FitArgs) -> anyhow::Result<KernelArg> {
                  solved densely (--solver auto or dense)"
             );
         }
+        if args.mras.tolerance.is_some() || args.mras.tolerance_distance.is_some() {
+            bail!(
+                "--tolerance selects centres by Carr's greedy fit, which takes value \
+                 constraints only; a Hermite fit keeps a centre at every point (drop \
+                 --hermite for the off-surface fit, which the greedy fit reduces)"
+            );
+        }
     }
     check_smoothing(args, kernel)?;
     if let Some(OffsetArg::Fixed(eps)) = args.offset

@@ -31,10 +31,11 @@ pub struct MrasArgs {
     /// bounding-box diagonal [default: 1e-3]. With --method rbf: the largest residual allowed
     /// at any constraint, met by Carr's greedy centre reduction (the field keeps only the
     /// centres it needs).
-    #[arg(long, value_name = "T", help_heading = HEADING)]
+    #[arg(long, value_name = "T", help_heading = HEADING, allow_hyphen_values = true)]
     pub tolerance: Option<f64>,
     /// The same target as a distance in the cloud's own units (instead of --tolerance).
-    #[arg(long, value_name = "D", conflicts_with = "tolerance", help_heading = HEADING)]
+    #[arg(long, value_name = "D", conflicts_with = "tolerance", help_heading = HEADING,
+          allow_hyphen_values = true)]
     pub tolerance_distance: Option<f64>,
     /// The deepest octree level (the root is 1) [default: 8; cells holding 16 points or
     /// fewer are not split, which stops the bunny at level 7].

@@ -41,7 +41,8 @@ pub struct InfoArgs {
     /// (laser scans),
     /// .xyz/.xyzn/.txt/.pts/.asc/.pwn (x y z [nx ny nz] per line, or columns named by a first
     /// line), or .csv (header with x,y,z[,nx,ny,nz], or a GemPy table); a .zsf field file (told
-    /// by its contents); or a mesh: .ply with faces, .obj, .stl or .off.
+    /// by its contents); a mesh: .ply with faces, .obj, .stl or .off; or value constraints
+    /// (.xyv, .xyzv: x y [z] value per line, what `zeroset fit` interpolates).
     pub file: PathBuf,
 
     /// Read the file as this format instead of detecting it from the extension and header.
@@ -104,6 +105,11 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         return field_report(path);
     }
     if args.format.is_none() {
+        match io::value_file_dimension(path) {
+            Some(2) => return value_report::<2>(path),
+            Some(3) => return value_report::<3>(path),
+            _ => {}
+        }
         match zeroset_mesh::MeshFormat::from_path(path) {
             Some(zeroset_mesh::MeshFormat::Obj) => return mesh_report(path, "obj"),
             Some(zeroset_mesh::MeshFormat::Stl) => return mesh_report(path, "stl"),
@@ -544,6 +550,72 @@ fn write_scans(s: &mut String, scans: &[io::e57::Scan]) {
              estimated one towards the scanner that recorded it",
         );
     }
+}
+
+/// The report of a value-constraint file (`.xyv`, `.xyzv`): what `zeroset fit` reads from it.
+fn value_report<const D: usize>(path: &Path) -> anyhow::Result<String> {
+    let c = io::read_value_points::<D>(path)
+        .with_context(|| format!("reading the value constraints {}", path.display()))?;
+    let mut s = String::new();
+    line(&mut s, "file", &path.display().to_string());
+    line(
+        &mut s,
+        "format",
+        &format!(
+            "{D}-D value constraints (x y{} value per line)",
+            if D == 3 { " z" } else { "" }
+        ),
+    );
+    let n = c.points.len();
+    let count = |f: fn(f64) -> bool| c.values.iter().filter(|v| f(**v)).count();
+    line(
+        &mut s,
+        "constraints",
+        &format!(
+            "{n} ({} negative, {} zero, {} positive)",
+            count(|v| v < 0.0),
+            count(|v| v == 0.0),
+            count(|v| v > 0.0)
+        ),
+    );
+    let mut distinct = c.values.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    if let (Some(lo), Some(hi)) = (distinct.first(), distinct.last()) {
+        let levels = if distinct.len() <= 8 {
+            let shown: Vec<String> = distinct.iter().map(|v| g(*v)).collect();
+            format!(": {}", shown.join(", "))
+        } else {
+            String::new()
+        };
+        line(
+            &mut s,
+            "values",
+            &format!(
+                "from {} to {}, {} distinct{levels}",
+                g(*lo),
+                g(*hi),
+                distinct.len()
+            ),
+        );
+    }
+    if let Some(b) = zeroset_field_core::Aabb::from_points(&c.points) {
+        line(&mut s, "bounds", &format!("min {}", point_n(&b.min())));
+        more(&mut s, &format!("max {}", point_n(&b.max())));
+    }
+    match zeroset_bases::rbf::Constraints::from_values(&c.points, &c.values) {
+        Ok((_, 0)) => line(&mut s, "duplicates", "none"),
+        Ok((_, merged)) => line(
+            &mut s,
+            "duplicates",
+            &format!(
+                "{merged} row{} at an earlier row's place with its value (merged by fit)",
+                plural(merged)
+            ),
+        ),
+        Err(e) => line(&mut s, "duplicates", &format!("{e} (fit refuses the file)")),
+    }
+    Ok(s)
 }
 
 fn write_bounds(s: &mut String, cloud: &PointCloud3) {

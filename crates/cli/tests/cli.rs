@@ -1143,6 +1143,25 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
 }
 
 #[test]
+fn info_describes_a_value_file() {
+    let curve = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../samples/curve.xyv"
+    ));
+    let o = info(&curve, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for phrase in [
+        "format:      2-D value constraints",
+        "constraints: 60 (15 negative, 30 zero, 15 positive)",
+        "values:      from -1 to 1, 3 distinct: -1, 0, 1",
+        "duplicates:  none",
+    ] {
+        assert!(out.contains(phrase), "{phrase:?} missing in:\n{out}");
+    }
+}
+
+#[test]
 fn equal_values_are_refused_and_an_empty_mesh_says_where_the_field_runs() {
     // One surface's points, all at value 0: the interpolant would be 0 everywhere.
     let (_d, values) = temp_file("horizon.xyzv", "0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n");

@@ -252,7 +252,9 @@ pub(crate) fn fit_rbf<'py>(
             }
         }
         let constraints = if hermite {
-            Constraints::hermite(&cloud).map_err(to_py)?
+            let c = Constraints::hermite(&cloud).map_err(to_py)?;
+            report.push(("merged", ReportValue::Int(cloud.len() - c.len() / 2)));
+            c
         } else {
             let offset = offset.map_or(Offset::default(), Offset::Fixed);
             let (c, o) = Constraints::off_surface(&cloud, offset).map_err(to_py)?;

@@ -564,6 +564,7 @@ fn check_value_request(args: &FitArgs, dim: usize) -> anyhow::Result<KernelArg> 
         (args.sampled, "--sampled"),
         (args.grid.is_some(), "--grid"),
         (args.format.is_some(), "--format"),
+        (args.formation.is_some(), "--formation"),
     ];
     if let Some((_, flag)) = cloud_only.iter().find(|(given, _)| *given) {
         bail!(
@@ -618,7 +619,47 @@ pub(crate) fn load_values<const D: usize>(args: &FitArgs) -> anyhow::Result<Valu
             c.values.iter().filter(|v| **v > 0.0).count()
         ),
     );
-    Ok(c)
+    let (_, kept) = distinct_values(path, &c)?;
+    let merged = n - kept.len();
+    if merged > 0 {
+        more(&format!(
+            "({merged} row{} within {:e} of the diagonal of an earlier one, with its value, \
+             merged into it)",
+            plural(merged),
+            zeroset_bases::rbf::MERGE_DISTANCE
+        ));
+    }
+    Ok(ValuePoints {
+        points: kept.iter().map(|&i| c.points[i]).collect(),
+        values: kept.iter().map(|&i| c.values[i]).collect(),
+        lines: kept.iter().map(|&i| c.lines[i]).collect(),
+    })
+}
+
+/// [`Constraints::from_values`] of a value file's rows, naming the lines of two rows at one
+/// place with different values.
+pub(crate) fn distinct_values<const D: usize>(
+    path: &Path,
+    c: &ValuePoints<D>,
+) -> anyhow::Result<(Constraints<D>, Vec<usize>)> {
+    Constraints::from_values(&c.points, &c.values).map_err(|e| match e {
+        zeroset_bases::rbf::RbfError::ConflictingValues {
+            first,
+            second,
+            values,
+            ..
+        } => anyhow::anyhow!(
+            "{}: lines {} and {} are at the same place (within {:e} of the diagonal) with \
+             different values, {} and {}: an interpolant cannot take both",
+            path.display(),
+            c.lines[first],
+            c.lines[second],
+            zeroset_bases::rbf::MERGE_DISTANCE,
+            g(values.0),
+            g(values.1)
+        ),
+        e => anyhow::Error::new(e).context(format!("the value constraints of {}", path.display())),
+    })
 }
 
 /// Under the constraints line: how many input points were merged into an earlier one, if any.
@@ -636,16 +677,8 @@ pub(crate) fn print_merged(merged: usize) {
 /// `--method rbf` on a value-constraint file: the RBF interpolant of the values.
 fn fit_values<const D: usize>(args: &FitArgs, kernel: KernelArg) -> anyhow::Result<()> {
     let c = load_values::<D>(args)?;
-    let (constraints, merged) = Constraints::from_values(&c.points, &c.values)
-        .with_context(|| format!("the value constraints of {}", args.points.display()))?;
-    if merged > 0 {
-        more(&format!(
-            "({merged} row{} within {:e} of the diagonal of an earlier one, with its value, \
-             merged into it)",
-            plural(merged),
-            zeroset_bases::rbf::MERGE_DISTANCE
-        ));
-    }
+    // The rows are distinct already: nothing more merges.
+    let (constraints, _) = distinct_values(&args.points, &c)?;
     let bounds = Aabb::from_points(&c.points);
     if let Some(b) = &bounds {
         line("bounds", &format!("min {}", crate::info::point_n(&b.min())));

@@ -203,9 +203,10 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     match value_file_dimension(&args.points) {
         Some(dim) => {
             let params = args.neural.params(NeuralParams::default().lambda)?;
-            if args.offset.is_some() || args.format.is_some() {
+            if args.offset.is_some() || args.format.is_some() || args.formation.is_some() {
                 bail!(
-                    "--offset and --format apply to point clouds; {} is a value-constraint file",
+                    "--offset, --format and --formation apply to point clouds; {} is a \
+                     value-constraint file",
                     args.points.display()
                 );
             }
@@ -231,7 +232,7 @@ fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::R
     let c = load_values::<D>(args)?;
     let (centre, scale) = unit_frame(&c.points);
     let u = to_unit_frame(&c.points, centre, scale);
-    let field = train(&u, &c.values, params, args, scale, 1.0)?;
+    let field = train(&u, &c.values, params, args, (scale, 1.0), true)?;
     let field = field
         .transformed(centre, scale, 1.0)
         .context("moving the field back to the input's coordinates")?;
@@ -271,7 +272,7 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let u = to_unit_frame(&points, centre, scale);
     let unit = report.initial;
     let z: Vec<f64> = targets.iter().map(|t| t / unit).collect();
-    let field = train(&u, &z, params, args, scale, unit)?;
+    let field = train(&u, &z, params, args, (scale, unit), false)?;
     let field = field
         .transformed(centre, scale, unit)
         .context("moving the field back to the cloud's coordinates")?;
@@ -284,14 +285,15 @@ fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
 
 /// Trains on the scaled constraints with a progress bar, reports, and refits if asked.
 ///
-/// `scale` is the coordinate scale `s` and `unit` the value scale `v` (both for the report).
+/// `scale` is the coordinate scale `s` and `unit` the value scale `v` (both for the report);
+/// `value_file`: the targets are a value file's (the gap rule of [`training_warnings`] reads them).
 fn train<const D: usize>(
     u: &[Point<D>],
     z: &[f64],
     params: NeuralParams,
     args: &FitArgs,
-    scale: f64,
-    unit: f64,
+    (scale, unit): (f64, f64),
+    value_file: bool,
 ) -> anyhow::Result<NeuralField<D>> {
     let arch = params.architecture.clone();
     line(
@@ -380,7 +382,19 @@ fn train<const D: usize>(
             report.max_residual * unit
         ),
     );
-    let warnings = training_warnings(&report.history, report.max_residual, z, unit);
+    let (field, max_residual) = if args.neural.refit_last_layer {
+        let (refit, r) = field
+            .refit_last_layer(u, z, &DenseQr::default())
+            .context("refitting the last layer (dense QR)")?;
+        print_refit(&r, unit);
+        (refit, r.max_residual_after)
+    } else {
+        (field, report.max_residual)
+    };
+    // Off-surface targets are ±offsets that shrink near thin parts: their gaps say nothing of
+    // the surface, so the gap rule reads value files only.
+    let gaps = value_file.then_some(z);
+    let warnings = training_warnings(&report.history, max_residual, gaps, args, unit);
     line(
         "warnings",
         &if warnings.is_empty() {
@@ -389,20 +403,20 @@ fn train<const D: usize>(
             warnings.join("; ")
         },
     );
-    if !args.neural.refit_last_layer {
-        return Ok(field);
-    }
-    let (refit, r) = field
-        .refit_last_layer(u, z, &DenseQr::default())
-        .context("refitting the last layer (dense QR)")?;
-    print_refit(&r, unit);
-    Ok(refit)
+    Ok(field)
 }
 
-/// What a training run's report shows to be wrong: no step taken, a loss that rose, or a
-/// constraint missed by more than half the gap between the distinct target values (in the
-/// targets' unit `z`; `unit` turns them back into the file's).
-fn training_warnings(history: &[f64], max_residual: f64, z: &[f64], unit: f64) -> Vec<String> {
+/// What a training run's report shows to be wrong: no step taken, a loss that rose, or (for a
+/// value file's targets `z`) a constraint missed by more than half the gap between the
+/// distinct target values. `max_residual` is the final field's, after any refit, in the
+/// targets' unit; `unit` turns it back into the file's.
+fn training_warnings(
+    history: &[f64],
+    max_residual: f64,
+    z: Option<&[f64]>,
+    args: &FitArgs,
+    unit: f64,
+) -> Vec<String> {
     let mut warnings = Vec::new();
     match (history.first(), history.last()) {
         (None, _) | (_, None) => {
@@ -414,6 +428,9 @@ fn training_warnings(history: &[f64], max_residual: f64, z: &[f64], unit: f64) -
         )),
         _ => {}
     }
+    let Some(z) = z else {
+        return warnings;
+    };
     let mut values = z.to_vec();
     values.sort_by(f64::total_cmp);
     values.dedup();
@@ -423,11 +440,16 @@ fn training_warnings(history: &[f64], max_residual: f64, z: &[f64], unit: f64) -
         .fold(f64::INFINITY, f64::min);
     if gap.is_finite() && max_residual > 0.5 * gap {
         warnings.push(format!(
-            "a constraint is missed by {}, more than half the gap {} between distinct target \
-             values: the level set may be on the wrong side of it (more --steps, a smaller \
-             --lambda, or --refit-last-layer)",
+            "a constraint is missed by {}, more than half the gap {} between distinct values: \
+             a level between them may pass on the wrong side of it (more --steps, a smaller \
+             --lambda{})",
             g(max_residual * unit),
-            g(gap * unit)
+            g(gap * unit),
+            if args.neural.refit_last_layer {
+                ""
+            } else {
+                ", or --refit-last-layer"
+            }
         ));
     }
     warnings

@@ -603,17 +603,22 @@ fn value_report<const D: usize>(path: &Path) -> anyhow::Result<String> {
         line(&mut s, "bounds", &format!("min {}", point_n(&b.min())));
         more(&mut s, &format!("max {}", point_n(&b.max())));
     }
-    match zeroset_bases::rbf::Constraints::from_values(&c.points, &c.values) {
-        Ok((_, 0)) => line(&mut s, "duplicates", "none"),
-        Ok((_, merged)) => line(
+    match crate::fit::distinct_values(path, &c) {
+        Ok((_, kept)) if kept.len() == n => line(&mut s, "duplicates", "none"),
+        Ok((_, kept)) => line(
             &mut s,
             "duplicates",
             &format!(
-                "{merged} row{} at an earlier row's place with its value (merged by fit)",
-                plural(merged)
+                "{} row{} at an earlier row's place with its value (merged by fit)",
+                n - kept.len(),
+                plural(n - kept.len())
             ),
         ),
-        Err(e) => line(&mut s, "duplicates", &format!("{e} (fit refuses the file)")),
+        Err(e) => line(
+            &mut s,
+            "duplicates",
+            &format!("{e:#} (fit refuses the file)"),
+        ),
     }
     Ok(s)
 }

@@ -916,15 +916,18 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         (args.step != StepArg::Auto, "--step"),
         // The l0 rule sizes cubic voxels; a curve is traced on 256 cells along the longer
         // side unless --resolution or --voxel says otherwise.
-        (
-            args.detail.is_some(),
-            "--detail (give --resolution or --voxel)",
-        ),
+        (args.detail.is_some(), "--detail"),
     ];
     if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
         bail!(
-            "{flag} applies to 3-D fields; {} holds a 2-D field",
-            args.field.display()
+            "{flag} applies to 3-D fields; {} holds a 2-D field{}",
+            args.field.display(),
+            if *flag == "--detail" {
+                " (its curve is traced on 256 cells along the longer side: --resolution or \
+                 --voxel sets them)"
+            } else {
+                ""
+            }
         );
     }
     if !args.level.is_finite() {

@@ -22,6 +22,12 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
     if options.format.is_some() || !is_mesh_file(path) {
         return Ok(None);
     }
+    if options.formation.is_some() {
+        bail!(
+            "--formation picks the rows of a GemPy table; {} is a mesh",
+            path.display()
+        );
+    }
     let mesh = zeroset_mesh::read_mesh(path)
         .with_context(|| format!("reading the mesh {}", path.display()))?;
     let (triangles, vertices) = (mesh.num_triangles(), mesh.num_vertices());

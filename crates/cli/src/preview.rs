@@ -197,8 +197,11 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
                 let (lo, hi) = (bounds.min()[slice.axis], bounds.max()[slice.axis]);
                 if !(lo..=hi).contains(&position) {
                     bail!(
-                        "--slice {axis}={position} lies outside the field's box, where {axis} runs \
-                         from {lo} to {hi}: the field is only defined in its box",
+                        "--slice {axis}={} lies outside the field's box, where {axis} runs from {} \
+                         to {}: the field is only defined in its box",
+                        crate::info::g(position),
+                        crate::info::g(lo),
+                        crate::info::g(hi),
                         axis = ["x", "y", "z"][slice.axis]
                     );
                 }

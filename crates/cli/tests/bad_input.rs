@@ -809,7 +809,7 @@ fn cases() -> Vec<Case> {
             "value file: two values at one place",
             "fit conflict.xyv --method rbf",
         )
-        .says("different values (-1 and 1)"),
+        .says("lines 1 and 5 are at the same place"),
         cli(
             "value file: every value equal",
             "fit level.xyzv --method rbf",

@@ -417,6 +417,14 @@ fn gempy_header_detection() {
     ]));
     assert!(!gempy::is_gempy_header(&["x", "y", "z", "nx", "ny", "nz"]));
     assert!(!gempy::is_gempy_header(&["x", "y", "z", "dip"]));
+    // Poles without a formation: a plain CSV, which reads them as normals.
+    assert!(!gempy::is_gempy_header(&[
+        "X", "Y", "Z", "G_x", "G_y", "G_z"
+    ]));
+    let (_d, path) = temp_file("poles.csv", "X,Y,Z,G_x,G_y,G_z\n1,2,3,0,0.6,0.8\n");
+    assert_eq!(detect_format(&path).unwrap(), Format::Csv);
+    let cloud = read_point_cloud(&path).unwrap();
+    assert_eq!(cloud.normals().unwrap(), &[[0.0, 0.6, 0.8]]);
 }
 
 #[test]

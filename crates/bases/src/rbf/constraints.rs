@@ -271,14 +271,14 @@ impl<const D: usize> Constraints<D> {
     /// Value constraints `f(pᵢ) = vᵢ` from a value file's rows, a point within
     /// [`MERGE_DISTANCE`] of the points' box diagonal of an earlier one merged into it when
     /// their values agree (to 1e-12 of the largest |v|, or exactly when all are 0): a curve's
-    /// closing point repeated, a row written twice. Returns the constraints and the number
-    /// merged.
+    /// closing point repeated, a row written twice. Returns the constraints and the indices of
+    /// the rows kept (in order; the others were merged).
     ///
     /// ```
     /// use zeroset_bases::rbf::Constraints;
     /// let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]];
-    /// let (c, merged) = Constraints::from_values(&points, &[1.0, -1.0, 0.5, 1.0]).unwrap();
-    /// assert_eq!((c.len(), merged), (3, 1));
+    /// let (c, kept) = Constraints::from_values(&points, &[1.0, -1.0, 0.5, 1.0]).unwrap();
+    /// assert_eq!((c.len(), kept), (3, vec![0, 1, 2]));
     /// assert!(Constraints::from_values(&points, &[1.0, -1.0, 0.5, 2.0]).is_err());
     /// ```
     ///
@@ -288,7 +288,10 @@ impl<const D: usize> Constraints<D> {
     ///
     /// # Panics
     /// If `values` is not as long as `points`.
-    pub fn from_values(points: &[Point<D>], values: &[f64]) -> Result<(Self, usize), RbfError> {
+    pub fn from_values(
+        points: &[Point<D>],
+        values: &[f64],
+    ) -> Result<(Self, Vec<usize>), RbfError> {
         assert_eq!(points.len(), values.len(), "one value a point");
         if points.is_empty() {
             return Err(RbfError::Empty);
@@ -311,11 +314,13 @@ impl<const D: usize> Constraints<D> {
         let tree = index(points)?;
         let mut merged = vec![false; points.len()];
         let mut c = Self::new();
+        let mut kept = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
             if merged[i] {
                 continue;
             }
             c.push_value(*p, values[i]);
+            kept.push(i);
             for found in tree.query(p).within::<SquaredEuclidean<f64>>(r2).execute() {
                 let j = found.item as usize;
                 if j <= i || merged[j] {
@@ -332,8 +337,7 @@ impl<const D: usize> Constraints<D> {
                 merged[j] = true;
             }
         }
-        let count = merged.iter().filter(|m| **m).count();
-        Ok((c, count))
+        Ok((c, kept))
     }
 }
 
@@ -578,15 +582,15 @@ mod tests {
     fn repeated_value_rows_are_merged_and_conflicting_ones_refused() {
         let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
         let values = [1.0, -1.0, 0.5, 0.0];
-        let (base, merged) = Constraints::from_values(&points, &values).unwrap();
-        assert_eq!((base.len(), merged), (4, 0));
+        let (base, kept) = Constraints::from_values(&points, &values).unwrap();
+        assert_eq!((base.len(), kept), (4, vec![0, 1, 2, 3]));
         // The first row again, a hair off (1e-17), and the third exactly.
         let mut p = points.to_vec();
         p.extend([[1e-17, 0.0], [0.0, 1.0]]);
         let mut v = values.to_vec();
         v.extend([1.0, 0.5]);
-        let (c, merged) = Constraints::from_values(&p, &v).unwrap();
-        assert_eq!((c.as_slice(), merged), (base.as_slice(), 2));
+        let (c, kept) = Constraints::from_values(&p, &v).unwrap();
+        assert_eq!((c.as_slice(), kept), (base.as_slice(), vec![0, 1, 2, 3]));
         // A different value at the first row's place: refused, naming both rows.
         v[4] = -0.5;
         let err = Constraints::from_values(&p, &v).unwrap_err();

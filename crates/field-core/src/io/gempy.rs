@@ -194,8 +194,9 @@ pub fn orientation_angles(g: Point3) -> Option<(f64, f64, f64)> {
 /// GemPy's gradient columns.
 const GRADIENT: [&str; 3] = ["G_x", "G_y", "G_z"];
 
-/// Whether a CSV header is a GemPy table: it names `formation` or `surface`, two of `dip`,
-/// `azimuth` and `polarity`, or all of `G_x, G_y, G_z` (any case).
+/// Whether a CSV header is a GemPy table: it names `formation` or `surface`, or two of `dip`,
+/// `azimuth` and `polarity` (any case). (`G_x, G_y, G_z` without a formation column is a
+/// plain CSV, which reads them as normals.)
 pub fn is_gempy_header<S: AsRef<str>>(header: &[S]) -> bool {
     let header: Vec<String> = header
         .iter()
@@ -206,7 +207,7 @@ pub fn is_gempy_header<S: AsRef<str>>(header: &[S]) -> bool {
         .iter()
         .filter(|n| has(n))
         .count();
-    has("formation") || has("surface") || angles >= 2 || has_gradient(&header)
+    has("formation") || has("surface") || angles >= 2
 }
 
 /// Whether a header has all of `G_x, G_y, G_z`.
@@ -433,6 +434,12 @@ fn orientations(table: &mut Table, check: &FiniteCheck<'_>) -> Result<Vec<Orient
             None => None,
         };
         let (dip, azimuth, polarity) = match (from_angles, from_gradient) {
+            // Non-finite angles (allowed by the options) give way to a finite G.
+            (Some(a), Some((_, Some(from_g))))
+                if ![a.0, a.1, a.2].iter().all(|x| x.is_finite()) =>
+            {
+                from_g
+            }
             (Some(a), Some((g, Some(_)))) => {
                 let n = orientation_normal(a.0, a.1, a.2);
                 let norm = g.iter().map(|c| c * c).sum::<f64>().sqrt();

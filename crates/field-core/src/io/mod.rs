@@ -6,8 +6,8 @@
 //! |---|---|---|---|
 //! | [`Format::Ply`] | `.ply` | `ascii`, `binary_little_endian` or `binary_big_endian`; element `vertex`, properties `x y z` of any scalar type; other properties and elements (faces) are skipped | `nx ny nz` (or PCL's `normal_x normal_y normal_z`), all three or none |
 //! | [`Format::Xyz`] | `.xyz` `.xyzn` `.txt` `.pts` `.asc` `.pwn` | one point per line: at least 3 numbers (`x y z`, columns after the third ignored unless there are 6 or more: `x y z nx ny nz`), separated by whitespace, commas or semicolons; or columns named by a first line (`x y z nx ny nz`, CloudCompare's `//X,Y,Z,R,G,B,Nx,Ny,Nz`, any order, other names ignored); `#` starts a comment; blank lines are skipped; every line has the same count; a `.pts` file's first line may be its point count | named `nx ny nz` (or `normal_x ...`: [`NORMAL_NAMES`]); unnamed columns 4–6 if they look like normals: not RGB colours (all whole numbers 0–255) and every non-zero length within [`NORMAL_LENGTHS`]; otherwise [`Error::NotNormals`] |
-//! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored; fields separated by commas, or by semicolons or tabs where the header has more of them | columns `nx ny nz` or `normal_x normal_y normal_z`, all three or none |
-//! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) |
+//! | [`Format::Csv`] | `.csv` | a header row naming `x`, `y`, `z` (any case); other columns, such as a leading unnamed index, are ignored; fields separated by commas, or by semicolons or tabs where the header has more of them | columns `nx ny nz` or `normal_x normal_y normal_z` (or, without them, GemPy's `G_x G_y G_z`), all three or none |
+//! | [`Format::GemPy`] | `.csv` whose header names `formation` or `surface`, or two of `dip`, `azimuth` and `polarity` | GemPy surface points (`X,Y,Z,formation`) or orientations (`X,Y,Z,azimuth,dip,polarity,formation`, or `G_x,G_y,G_z` for the angles); see [`gempy`] | orientations only, from dip, azimuth and polarity ([`gempy::orientation_normal`]) or `G_x, G_y, G_z` |
 //! | [`Format::Pcd`] | `.pcd` | PCL's PCD v0.5–0.7: `DATA ascii`, `binary` or `binary_compressed` (LZF); fields `x y z` of any type; other fields skipped; points whose `x y z` are all NaN (an organised cloud's gaps) left out; see [`pcd`] | `normal_x normal_y normal_z` (or `nx ny nz`), all three or none |
 //! | [`Format::Las`] | `.las` `.laz` | ASPRS LAS 1.0–1.4, any point format; `x y z` scaled and offset as the header says; withheld points left out; LAZ (LASzip) too; see [`las`] | none (LAS has no standard normals) |
 //! | [`Format::E57`] | `.e57` | ASTM E57 (terrestrial laser scanners): every scan, each moved into the file's frame by its pose; Cartesian or spherical coordinates; records flagged invalid left out; see [`e57`](mod@e57) | the surface-normals extension (`nor:normalX ...`), if every scan has it |
@@ -524,11 +524,12 @@ impl Drop for Unfinished {
 /// effort), for a program about to exit on a signal: Ctrl-C's default action would leave them
 /// until the next write to the same file. The writes they belong to then fail, and their
 /// targets keep their old contents (or stay absent); a write that has already renamed its file
-/// into place is complete and not touched.
-pub fn remove_unfinished_writes() {
-    for path in unfinished().drain(..) {
-        let _ = fs::remove_file(path);
-    }
+/// into place is complete and not touched. Returns how many files were removed.
+pub fn remove_unfinished_writes() -> usize {
+    unfinished()
+        .drain(..)
+        .filter(|path| fs::remove_file(path).is_ok())
+        .count()
 }
 
 /// Creates a new, uniquely named hidden file `.<name>.<pid>.<n>.tmp` in `dir` (parsed back by

@@ -232,7 +232,8 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
 }
 
 /// Reads a CSV point table: columns `x y z` and optionally the normal (`nx ny nz` or
-/// `normal_x normal_y normal_z`, [`NORMAL_NAMES`](super::NORMAL_NAMES); any case).
+/// `normal_x normal_y normal_z`, [`NORMAL_NAMES`](super::NORMAL_NAMES); or GemPy's gradient
+/// `G_x G_y G_z` where none of those is there; any case).
 pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<RawPoints> {
     let mut table = Table::open(path)?;
     let pos = [
@@ -240,7 +241,12 @@ pub(super) fn read_xyz_table(path: &Path, check: &FiniteCheck<'_>) -> Result<Raw
         table.require(&["y"], "y")?,
         table.require(&["z"], "z")?,
     ];
+    const GRADIENT: [&str; 3] = ["G_x", "G_y", "G_z"];
     let (nrm, normal_names) = match super::normal_columns(|name| table.find(&[name])) {
+        Ok(None) => match GRADIENT.map(|name| table.find(&[name])) {
+            [Some(a), Some(b), Some(c)] => (Some([a, b, c]), GRADIENT),
+            _ => (None, NORMAL_FIELDS),
+        },
         Ok(found) => (
             found.map(|(columns, _)| columns),
             found.map_or(NORMAL_FIELDS, |(_, names)| names),

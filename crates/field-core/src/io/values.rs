@@ -42,6 +42,8 @@ pub struct ValuePoints<const D: usize> {
     pub points: Vec<Point<D>>,
     /// The value prescribed at each point.
     pub values: Vec<f64>,
+    /// The line of the file each point is on (1-based), for messages.
+    pub lines: Vec<usize>,
 }
 
 /// The dimension a value-constraint file holds, from its extension (case-insensitive):
@@ -93,8 +95,10 @@ pub fn read_value_points<const D: usize>(path: impl AsRef<Path>) -> Result<Value
         check.check(out.points.len(), Some(line), &names, values)?;
         crate::limits::grow(&mut out.points, 1, &what)?;
         crate::limits::grow(&mut out.values, 1, &what)?;
+        crate::limits::grow(&mut out.lines, 1, &what)?;
         out.points.push(std::array::from_fn(|a| values[a]));
         out.values.push(values[D]);
+        out.lines.push(line);
         Ok(())
     })?;
     if out.points.is_empty() {

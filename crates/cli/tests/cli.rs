@@ -1147,6 +1147,20 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
 }
 
 #[test]
+fn a_wendland_radius_under_a_few_spacings_is_warned_of() {
+    let (_d, path) = temp_file("s.xyzn", &sphere_xyzn(300));
+    let o = fit(&path, &["--kernel", "wendland", "--radius", "0.2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("warning: under 5 median point spacings"),
+        "{}",
+        stdout(&o)
+    );
+    let o = fit(&path, &["--kernel", "wendland"]);
+    assert!(!stdout(&o).contains("point spacings"), "{}", stdout(&o));
+}
+
+#[test]
 fn info_describes_a_value_file() {
     let curve = PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),

@@ -708,6 +708,7 @@ fn fit_values<const D: usize>(args: &FitArgs, kernel: KernelArg) -> anyhow::Resu
         ValueFit {
             args,
             constraints: &constraints,
+            diagonal,
         },
     )
 }
@@ -716,6 +717,8 @@ fn fit_values<const D: usize>(args: &FitArgs, kernel: KernelArg) -> anyhow::Resu
 struct ValueFit<'a, const D: usize> {
     args: &'a FitArgs,
     constraints: &'a Constraints<D>,
+    /// The diagonal of the constraints' box (every constraint is a data point here).
+    diagonal: f64,
 }
 
 impl<const D: usize> KernelJob for ValueFit<'_, D> {
@@ -724,22 +727,11 @@ impl<const D: usize> KernelJob for ValueFit<'_, D> {
             Some(SmoothingArg::Fixed(mu)) => mu,
             _ => 0.0,
         };
-        // Every constraint is a data point here.
-        let points: Vec<Point<D>> = self
-            .constraints
-            .as_slice()
-            .iter()
-            .map(|c| c.point)
-            .collect();
-        let diagonal = Aabb::from_points(&points).map_or(0.0, |b| {
-            let (lo, hi) = (b.min(), b.max());
-            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-        });
         let field = solve(
             kernel,
             self.args,
             self.constraints,
-            (smoothing, diagonal),
+            (smoothing, self.diagonal),
             &[],
         )?;
         if let Some(output) = &self.args.output {
@@ -792,11 +784,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     if let Some(note) = crate::normals::formations_note(path, &options) {
         line("formations", &note);
     }
-    let gempy = options
-        .format
-        .or_else(|| zeroset_field_core::io::detect_format(path).ok())
-        == Some(zeroset_field_core::io::Format::GemPy);
-    if cloud.normals().is_none() && gempy {
+    if cloud.normals().is_none() && crate::normals::is_gempy(path, &options) {
         bail!(
             "{} is a GemPy surface-points table: its points have no orientations, and estimating \
              normals from scattered interface points says little of the layers; fit the \

@@ -107,14 +107,15 @@ pub(crate) fn read_options(
     Ok(options)
 }
 
+/// Whether `path` is read as a GemPy table (by `--format`, else as detected).
+pub(crate) fn is_gempy(path: &Path, options: &ReadOptions) -> bool {
+    options.format.or_else(|| io::detect_format(path).ok()) == Some(Format::GemPy)
+}
+
 /// For a GemPy table of several formations read whole, what it holds and how to take one; for
 /// anything else `None`.
 pub(crate) fn formations_note(path: &Path, options: &ReadOptions) -> Option<String> {
-    if options.formation.is_some() {
-        return None;
-    }
-    let format = options.format.or_else(|| io::detect_format(path).ok())?;
-    if format != Format::GemPy {
+    if options.formation.is_some() || !is_gempy(path, options) {
         return None;
     }
     let names = io::gempy::read_gempy_file(path).ok()?.formations();

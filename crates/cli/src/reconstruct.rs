@@ -211,10 +211,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         if let Some(note) = crate::normals::formations_note(&args.scan, &options) {
             outln!("{:<14}{note}", "formations");
         }
-        let format = options
-            .format
-            .or_else(|| zeroset_field_core::io::detect_format(&args.scan).ok());
-        if format == Some(zeroset_field_core::io::Format::GemPy) {
+        if crate::normals::is_gempy(&args.scan, &options) {
             outln!(
                 "{:<14}a GemPy surface-points table: its normals are estimated from the points' \
                  spread, which scattered interface points give poorly (the measured \

@@ -188,7 +188,12 @@ impl<const D: usize> Constraints<D> {
             return Err(RbfError::InvalidOffset(initial));
         }
         let all = index(points)?;
-        let kept = distinct(&all, points, &normals, MERGE_DISTANCE * diagonal)?;
+        let kept = distinct(
+            &all,
+            points,
+            MERGE_DISTANCE * diagonal,
+            opposite_normals(points, &normals),
+        )?;
         let positions: Vec<Point<D>> = kept.iter().map(|&i| points[i]).collect();
         // The offset test's tree: over the kept points (the same as `all` when none merged).
         let tree = if kept.len() == points.len() {
@@ -259,7 +264,12 @@ impl<const D: usize> Constraints<D> {
         let normals = unit_normals(cloud)?;
         let points = cloud.positions();
         let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-        let kept = distinct(&index(points)?, points, &normals, MERGE_DISTANCE * diagonal)?;
+        let kept = distinct(
+            &index(points)?,
+            points,
+            MERGE_DISTANCE * diagonal,
+            opposite_normals(points, &normals),
+        )?;
         let mut c = Self::new();
         for i in kept {
             c.push_value(points[i], 0.0);
@@ -305,37 +315,26 @@ impl<const D: usize> Constraints<D> {
                 return Err(bad(*v, "value"));
             }
         }
-        let diagonal = zeroset_field_core::Aabb::from_points(points).map_or(0.0, |b| {
-            let (lo, hi) = (b.min(), b.max());
-            (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-        });
+        let diagonal = zeroset_field_core::Aabb::from_points(points).map_or(0.0, |b| b.diagonal());
         let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let r2 = (MERGE_DISTANCE * diagonal).powi(2).max(f64::MIN_POSITIVE);
-        let tree = index(points)?;
-        let mut merged = vec![false; points.len()];
-        let mut c = Self::new();
-        let mut kept = Vec::with_capacity(points.len());
-        for (i, p) in points.iter().enumerate() {
-            if merged[i] {
-                continue;
-            }
-            c.push_value(*p, values[i]);
-            kept.push(i);
-            for found in tree.query(p).within::<SquaredEuclidean<f64>>(r2).execute() {
-                let j = found.item as usize;
-                if j <= i || merged[j] {
-                    continue;
-                }
-                if (values[i] - values[j]).abs() > 1e-12 * scale {
-                    return Err(RbfError::ConflictingValues {
+        let kept = distinct(
+            &index(points)?,
+            points,
+            MERGE_DISTANCE * diagonal,
+            |i, j| {
+                ((values[i] - values[j]).abs() > 1e-12 * scale).then(|| {
+                    RbfError::ConflictingValues {
                         first: i,
                         second: j,
-                        point: p.to_vec(),
+                        point: points[i].to_vec(),
                         values: (values[i], values[j]),
-                    });
-                }
-                merged[j] = true;
-            }
+                    }
+                })
+            },
+        )?;
+        let mut c = Self::new();
+        for &i in &kept {
+            c.push_value(points[i], values[i]);
         }
         Ok((c, kept))
     }
@@ -349,13 +348,13 @@ fn index<const D: usize>(points: &[Point<D>]) -> Result<Tree<D>, RbfError> {
 }
 
 /// The indices of the points to keep, in order (`tree` indexes `points`): each point closer than `radius` to an earlier
-/// kept one is merged into it (exact duplicates always). Opposite normals at one place are an
-/// error: the inside and the outside cannot both be right.
+/// kept one is merged into it (exact duplicates always), unless `conflict(kept, other)` says
+/// the two cannot be one ([`opposite_normals`], different values).
 fn distinct<const D: usize>(
     tree: &Tree<D>,
     points: &[Point<D>],
-    normals: &[Point<D>],
     radius: f64,
+    conflict: impl Fn(usize, usize) -> Option<RbfError>,
 ) -> Result<Vec<usize>, RbfError> {
     // `within` keeps distances below the bound: the smallest positive one catches exact
     // duplicates when the radius is 0.
@@ -372,19 +371,29 @@ fn distinct<const D: usize>(
             if j <= i || merged[j] {
                 continue;
             }
-            let dot: f64 = (0..D).map(|a| normals[i][a] * normals[j][a]).sum();
-            if dot < 0.0 {
-                return Err(RbfError::ConflictingDuplicates {
-                    first: i,
-                    second: j,
-                    point: p.to_vec(),
-                    dot,
-                });
+            if let Some(e) = conflict(i, j) {
+                return Err(e);
             }
             merged[j] = true;
         }
     }
     Ok(kept)
+}
+
+/// Opposite normals at one place: the inside and the outside cannot both be right.
+fn opposite_normals<const D: usize>(
+    points: &[Point<D>],
+    normals: &[Point<D>],
+) -> impl Fn(usize, usize) -> Option<RbfError> {
+    move |i, j| {
+        let dot: f64 = (0..D).map(|a| normals[i][a] * normals[j][a]).sum();
+        (dot < 0.0).then(|| RbfError::ConflictingDuplicates {
+            first: i,
+            second: j,
+            point: points[i].to_vec(),
+            dot,
+        })
+    }
 }
 
 /// How many of the kept points have a normal with a negative dot product with more than half

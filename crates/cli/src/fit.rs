@@ -50,9 +50,7 @@ use zeroset_bases::rbf::{
 use zeroset_field_core::field::ScalarField;
 use zeroset_field_core::geometry::{Aabb, Point, dot, norm};
 use zeroset_field_core::grid::Grid;
-use zeroset_field_core::io::{
-    ValuePoints, read_point_cloud_with, read_value_points, value_file_dimension,
-};
+use zeroset_field_core::io::{ValuePoints, read_point_cloud_with, read_value_points};
 use zeroset_field_core::lsq::Monitor;
 use zeroset_field_core::{Error, PointCloud3};
 
@@ -264,7 +262,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "L,M,N", value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
-    #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
+    #[arg(long, value_name = "FORMAT", help = crate::normals::FIT_FORMAT_HELP)]
     pub format: Option<String>,
 
     #[arg(long, value_name = "NAME", help = crate::normals::FORMATION_HELP)]
@@ -298,7 +296,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         bail!("{flag} is an option of --method neural, not of --method rbf");
     }
     let start = Instant::now();
-    if let Some(dim) = value_file_dimension(&args.points) {
+    if let Some(dim) = crate::normals::value_dimension(&args.points, args.format.as_deref()) {
         if let Some(flag) = args.outliers.given() {
             bail!("{flag} applies to oriented point clouds, not to value files");
         }
@@ -579,7 +577,6 @@ fn check_value_request(args: &FitArgs, dim: usize) -> anyhow::Result<KernelArg> 
         (args.offset.is_some(), "--offset"),
         (args.sampled, "--sampled"),
         (args.grid.is_some(), "--grid"),
-        (args.format.is_some(), "--format"),
         (args.formation.is_some(), "--formation"),
     ];
     if let Some((_, flag)) = cloud_only.iter().find(|(given, _)| *given) {

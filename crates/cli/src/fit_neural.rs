@@ -36,7 +36,6 @@ use zeroset_bases::neural::{
 };
 use zeroset_bases::rbf::{Constraints, Offset};
 use zeroset_field_core::geometry::Point;
-use zeroset_field_core::io::value_file_dimension;
 use zeroset_solvers::DenseQr;
 
 use crate::fit::{
@@ -200,13 +199,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     check_request(args)?;
     let start = Instant::now();
-    match value_file_dimension(&args.points) {
+    match crate::normals::value_dimension(&args.points, args.format.as_deref()) {
         Some(dim) => {
             let params = args.neural.params(NeuralParams::default().lambda)?;
-            if args.offset.is_some() || args.format.is_some() || args.formation.is_some() {
+            if args.offset.is_some() || args.formation.is_some() {
                 bail!(
-                    "--offset, --format and --formation apply to point clouds; {} is a \
-                     value-constraint file",
+                    "--offset and --formation apply to point clouds; {} is a value-constraint \
+                     file",
                     args.points.display()
                 );
             }

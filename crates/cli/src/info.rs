@@ -71,11 +71,16 @@ pub enum FormatArg {
     Las,
     /// ASTM E57 laser scans.
     E57,
+    /// A 2-D value-constraint file: x y value per line.
+    Xyv,
+    /// A 3-D value-constraint file: x y z value per line.
+    Xyzv,
 }
 
-impl From<FormatArg> for Format {
-    fn from(f: FormatArg) -> Self {
-        match f {
+impl FormatArg {
+    /// The point-cloud format; `Err` with the dimension for a value-constraint file.
+    fn cloud_format(self) -> Result<Format, usize> {
+        Ok(match self {
             FormatArg::Ply => Format::Ply,
             FormatArg::Xyz => Format::Xyz,
             FormatArg::Csv => Format::Csv,
@@ -83,7 +88,9 @@ impl From<FormatArg> for Format {
             FormatArg::Pcd => Format::Pcd,
             FormatArg::Las => Format::Las,
             FormatArg::E57 => Format::E57,
-        }
+            FormatArg::Xyv => return Err(2),
+            FormatArg::Xyzv => return Err(3),
+        })
     }
 }
 
@@ -104,12 +111,18 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
     if args.format.is_none() && is_field_file(path) {
         return field_report(path);
     }
+    let format = args.format.map(FormatArg::cloud_format).transpose();
+    let value_dimension = match format {
+        Err(dimension) => Some(dimension),
+        Ok(Some(_)) => None,
+        Ok(None) => io::value_file_dimension(path),
+    };
+    match value_dimension {
+        Some(2) => return value_report::<2>(path),
+        Some(3) => return value_report::<3>(path),
+        _ => {}
+    }
     if args.format.is_none() {
-        match io::value_file_dimension(path) {
-            Some(2) => return value_report::<2>(path),
-            Some(3) => return value_report::<3>(path),
-            _ => {}
-        }
         match zeroset_mesh::MeshFormat::from_path(path) {
             Some(zeroset_mesh::MeshFormat::Obj) => return mesh_report(path, "obj"),
             Some(zeroset_mesh::MeshFormat::Stl) => return mesh_report(path, "stl"),
@@ -117,9 +130,9 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
             _ => {}
         }
     }
-    let format = match args.format {
-        Some(f) => f.into(),
-        None => io::detect_format(path).context("cannot tell the file's format")?,
+    let format = match format {
+        Ok(Some(f)) => f,
+        _ => io::detect_format(path).context("cannot tell the file's format")?,
     };
     if format == Format::Ply && zeroset_mesh::io::ply_face_count(path).is_some() {
         return mesh_report(path, "ply");

@@ -87,6 +87,33 @@ pub(crate) const FORMAT_HELP: &str = "Read the point cloud as this format whatev
     extension: ply, xyz (any text of x y z [nx ny nz] columns: .xyzn, .pts, .txt, .asc, .pwn), \
     csv, gempy, pcd, las (LAS or LAZ) or e57";
 
+/// `zeroset fit`'s `--format` help: [`FORMAT_HELP`]'s formats and the value-constraint files.
+pub(crate) const FIT_FORMAT_HELP: &str = "Read the input as this format whatever its \
+    extension: ply, xyz (any text of x y z [nx ny nz] columns: .xyzn, .pts, .txt, .asc, .pwn), \
+    csv, gempy, pcd, las (LAS or LAZ) or e57; or xyv / xyzv, a value-constraint file of \
+    x y value / x y z value lines (--method rbf or neural)";
+
+/// The value-constraint formats `--format` names (`zeroset fit` and `zeroset info` read them):
+/// the name and the dimension.
+const VALUE_FORMATS: [(&str, usize); 2] = [("xyv", 2), ("xyzv", 3)];
+
+/// The dimension of the value-constraint file `--format` names, `None` for any other name.
+pub(crate) fn value_format(format: &str) -> Option<usize> {
+    VALUE_FORMATS
+        .iter()
+        .find(|(name, _)| name.eq_ignore_ascii_case(format.trim()))
+        .map(|&(_, dimension)| dimension)
+}
+
+/// The dimension of the value-constraint file a command reads at `path`, if it is one: by
+/// `--format xyv|xyzv`, else by the extension (`.xyv`, `.xyzv`) when no `--format` is given.
+pub(crate) fn value_dimension(path: &Path, format: Option<&str>) -> Option<usize> {
+    match format {
+        Some(format) => value_format(format),
+        None => io::value_file_dimension(path),
+    }
+}
+
 /// `--formation`'s help, for every command that reads a point cloud.
 pub(crate) const FORMATION_HELP: &str = "For a GemPy table: read only the rows of this \
     formation (or fault), by its exact name (`zeroset info TABLE.csv` lists them). By default \
@@ -99,6 +126,12 @@ pub(crate) fn read_options(
 ) -> anyhow::Result<ReadOptions> {
     let mut options = ReadOptions::default();
     if let Some(format) = format {
+        if value_format(format).is_some() {
+            anyhow::bail!(
+                "--format {format} names a value-constraint file, which `zeroset fit --method \
+                 rbf` (or neural) and `zeroset info` read; this command takes a point cloud"
+            );
+        }
         options = options.with_format(format.parse().context("--format")?);
     }
     if let Some(name) = formation {

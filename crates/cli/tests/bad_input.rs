@@ -815,6 +815,17 @@ fn cases() -> Vec<Case> {
             "fit level.xyzv --method rbf",
         )
         .says("all 4 values are 0"),
+        cli(
+            "a value file where a point cloud belongs",
+            "fit level.xyzv --method mras",
+        )
+        .says("not a point cloud"),
+        cli(
+            "--format naming a value file for a point cloud",
+            "normals bunny.xyzn --format xyzv -o n.ply",
+        )
+        .no_file()
+        .says("names a value-constraint file"),
         cli("unknown option value", "fit bunny.xyzn --method spline")
             .no_file()
             .says("possible values"),

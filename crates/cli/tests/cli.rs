@@ -1180,6 +1180,65 @@ fn info_describes_a_value_file() {
 }
 
 #[test]
+fn format_xyv_reads_a_value_file_of_any_name() {
+    let curve = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../samples/curve.xyv"
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let txt = dir.path().join("curve.txt");
+    std::fs::copy(&curve, &txt).unwrap();
+    let field = |input: &Path, name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec!["-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = fit(input, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(out).unwrap()
+    };
+    assert_eq!(
+        field(&txt, "txt.zsf", &["--format", "xyv"]),
+        field(&curve, "xyv.zsf", &[])
+    );
+    let o = info(&txt, &["--format", "xyv"]);
+    assert!(
+        stdout(&o).contains("constraints: 60 (15 negative, 30 zero, 15 positive)"),
+        "{}",
+        stdout(&o)
+    );
+    // Commands that take point clouds say what a value file is.
+    let o = zeroset([
+        OsStr::new("fit"),
+        curve.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("mras"),
+        OsStr::new("-o"),
+        dir.path().join("m.zsf").as_os_str(),
+    ]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o)
+            .contains("a file of 2-D value constraints (x y value per line), not a point cloud"),
+        "{}",
+        stderr(&o)
+    );
+    let o = zeroset([
+        OsStr::new("normals"),
+        txt.as_os_str(),
+        OsStr::new("--format"),
+        OsStr::new("xyv"),
+        OsStr::new("-o"),
+        dir.path().join("n.ply").as_os_str(),
+    ]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("--format xyv names a value-constraint file"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn equal_values_are_refused_and_an_empty_mesh_says_where_the_field_runs() {
     // One surface's points, all at value 0: the interpolant would be 0 everywhere.
     let (_d, values) = temp_file("horizon.xyzv", "0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n");

@@ -114,6 +114,15 @@ pub enum Error {
         /// The file.
         path: PathBuf,
     },
+    /// A value-constraint file (`.xyv`, `.xyzv`: `x y [z] value` per line) where a point cloud
+    /// was expected.
+    #[error("{}: a file of {dimension}-D value constraints ({} value per line), not a point cloud: `zeroset fit --method rbf` (or neural) interpolates it", path.display(), if *dimension == 2 { "x y" } else { "x y z" })]
+    ValueFile {
+        /// The file.
+        path: PathBuf,
+        /// 2 for `.xyv`, 3 for `.xyzv`.
+        dimension: usize,
+    },
     /// A compressed file (gzip, zip, bzip2, xz, zstd or 7-Zip archive), which zeroset does not
     /// unpack.
     #[error("{}: compressed with {compression}; zeroset reads the file inside: unpack it first ({hint})", path.display())]

@@ -1162,6 +1162,16 @@ fn format_from_extension_name_and_content() {
 
     let e = read_err("a.obj", "v 0 0 0\n");
     assert!(matches!(e, Error::UnknownFormat { .. }), "{e}");
+    // A value file is named as one: `zeroset fit` reads it, not the point-cloud readers.
+    let e = read_err("curve.XYV", "0 0 1\n1 0 0\n");
+    assert!(
+        matches!(e, Error::ValueFile { dimension: 2, .. })
+            && e.to_string()
+                .contains("2-D value constraints (x y value per line)"),
+        "{e}"
+    );
+    let e = read_err("layers.xyzv", "0 0 0 1\n");
+    assert!(matches!(e, Error::ValueFile { dimension: 3, .. }), "{e}");
     // An unknown extension that starts like a PLY file is read as one.
     let ply = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
                property float z\nend_header\n1 2 3\n";

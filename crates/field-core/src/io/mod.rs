@@ -164,12 +164,20 @@ impl FromStr for Format {
 ///
 /// # Errors
 /// [`Error::UnknownFormat`] when neither the extension nor the content tells;
+/// [`Error::ValueFile`] for a value-constraint file (`.xyv`, `.xyzv`), which holds no point
+/// cloud;
 /// [`Error::Compressed`] for a compressed file (`scan.ply.gz`), naming the command that unpacks
 /// it;
 /// [`Error::Io`] if a `.csv` file (or a file with an unknown extension) cannot be read;
 /// [`Error::Malformed`] for a `.csv` file whose header cannot be parsed.
 pub fn detect_format(path: impl AsRef<Path>) -> Result<Format> {
     let path = path.as_ref();
+    if let Some(dimension) = value_file_dimension(path) {
+        return Err(Error::ValueFile {
+            path: path.to_owned(),
+            dimension,
+        });
+    }
     match Format::from_path(path) {
         Some(Format::Csv) => {
             let header = table::read_header(path)?;
@@ -375,7 +383,8 @@ pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud3> {
 ///
 /// # Errors
 /// - [`Error::Io`]: the file cannot be opened or read.
-/// - [`Error::UnknownFormat`]: no format given and none detected.
+/// - [`Error::UnknownFormat`]: no format given and none detected; [`Error::ValueFile`]: no
+///   format given and the file is a value-constraint file (`.xyv`, `.xyzv`).
 /// - [`Error::Malformed`]: the content does not parse (with the 1-based line for text
 ///   formats), or the file holds no point (an empty file included).
 /// - [`Error::Truncated`]: a PLY file ends before the vertices its header announces.
@@ -474,8 +483,7 @@ where
         _ => Path::new("."),
     };
     remove_stale_files(dir, |file| temp_writer(file, name));
-    let (tmp_path, file) = create_temp(dir, name).map_err(io_error(path))?;
-    let _unfinished = Unfinished::register(&tmp_path);
+    let (tmp_path, file, _unfinished) = Unfinished::create(dir, name).map_err(io_error(path))?;
     let result = (|| {
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;
@@ -508,9 +516,14 @@ fn unfinished() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 struct Unfinished(PathBuf);
 
 impl Unfinished {
-    fn register(path: &Path) -> Self {
-        unfinished().push(path.to_owned());
-        Self(path.to_owned())
+    /// Creates the temporary file (see [`create_temp`]) and lists it, holding the list's lock
+    /// meanwhile: an interrupt's [`remove_unfinished_writes`] either runs before the file exists
+    /// or sees it listed, never in between.
+    fn create(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File, Self)> {
+        let mut list = unfinished();
+        let (tmp_path, file) = create_temp(dir, name)?;
+        list.push(tmp_path.clone());
+        Ok((tmp_path.clone(), file, Self(tmp_path)))
     }
 }
 

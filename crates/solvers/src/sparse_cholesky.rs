@@ -32,7 +32,7 @@ use faer::sparse::linalg::matmul::{
 use faer::sparse::{
     SparseColMatMut, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef,
 };
-use faer::{Accum, Conj, MatMut, Side};
+use faer::{Accum, Conj, MatMut, Par, Side};
 use zeroset_field_core::lsq::{
     LeastSquaresSolver, LinearOperator, LsqMatrix, Monitor, Solution, SolveError, Stage,
 };
@@ -190,7 +190,9 @@ impl NormalAnalysis {
         monitor: &Option<Monitor>,
     ) -> Result<Vec<f64>, SolveError> {
         let (m, n) = (self.nrows, self.ncols);
-        let par = faer::get_global_parallelism();
+        // Sequential: faer's supernodal kernels split their sums by the thread count, so the
+        // answer would change with it (see `crate::sequential`).
+        let par = Par::Seq;
         let rows = a.rows().expect("sparse input");
         let Prepared::Sparse { cols, .. } = a else {
             unreachable!("sparse input")

@@ -20,7 +20,7 @@ use std::time::Instant;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::qr::{QrSymbolicParams, factorize_symbolic_qr};
-use faer::{Conj, MatMut};
+use faer::{Conj, MatMut, Par};
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix, Solution, SolveError, Stage};
 
 use crate::common::{DirectParams, finish, prepare, stage};
@@ -55,7 +55,9 @@ impl LeastSquaresSolver for SparseQr {
         let col_norms = prepared
             .column_norms()
             .expect("require_direct refused operators");
-        let par = faer::get_global_parallelism();
+        // Sequential: faer's supernodal kernels split their sums by the thread count, so the
+        // answer would change with it (see `crate::sequential`).
+        let par = Par::Seq;
 
         stage(&self.params.monitor, NAME, Stage::Analyze, 0)?;
         let params = QrSymbolicParams {

@@ -251,6 +251,13 @@ macro_rules! agreement_suite {
                 let one = pool(1).install(run);
                 let many = pool(3).install(run);
                 assert!(many.iter().zip(&one).all(|(a, b)| a.to_bits() == b.to_bits()));
+                // A scattered pattern: the protrusion problem's banded one gives faer's sparse
+                // Cholesky no supernodes to split among threads.
+                let q = manufactured(7, 600, 2400, 0.01);
+                let run = || solver().solve(LsqMatrix::SparseCol(q.a.as_ref()), &q.b).unwrap().x;
+                let one = pool(1).install(run);
+                let many = pool(3).install(run);
+                assert!(many.iter().zip(&one).all(|(a, b)| a.to_bits() == b.to_bits()));
             }
 
             #[test]

@@ -29,8 +29,12 @@
 //! `R ← R + ⌈3 ln(‖X − X̂‖/ε)⌉` (the paper does not name the logarithm's base; the natural one
 //! is used, and the step is at least 1). The paper uses `ε = 10^{−k−1}` at octree level `k`.
 //! `R` is capped at the largest rank a tensor of its shape can need, `min(I₀I₁, I₀I₂, I₁I₂)`.
-//! Because the step can overshoot, [`AdaptiveOptions::refine`] optionally bisects between the
-//! last rank that failed and the first that met `ε`, returning the smallest rank meeting it.
+//! Because the step can overshoot, [`AdaptiveOptions::refine`] optionally searches the ranks
+//! between the last that failed and the first that met `ε` again, from below
+//! ([`search_from_below`]): CP-ALS's error is not monotone in the rank (an over-factored fit
+//! can stall short of a bound that a smaller rank meets), so plain bisection of that gap can
+//! skip the rank wanted — on a planted rank-5 tensor `15³` it stopped at rank 16, the search
+//! from below finds 5.
 //!
 //! The paper starts at `⌈Σᵢ γᵢ ‖X₍ᵢ₎‖_*⌉` ([`paper_initial_rank`]), which depends on the
 //! tensor's units: a planted rank-3 tensor `30 × 40 × 50` of norm 494 starts there at rank 827
@@ -678,7 +682,9 @@ pub struct AdaptiveOptions {
     pub initial_rank: Option<usize>,
     /// The largest rank tried (at most [`max_rank`] of the shape).
     pub max_rank: Option<usize>,
-    /// After Algorithm 2 meets `ε`, bisect down to the smallest rank that meets it.
+    /// After Algorithm 2 meets `ε`, search the ranks it stepped over for a smaller one that
+    /// meets it too ([`search_from_below`]; not always the smallest: see the
+    /// [module docs](self)).
     pub refine: bool,
     /// The CP-ALS options for each fit (their `rank` is set by the search).
     pub cp: CpOptions,
@@ -745,6 +751,66 @@ pub fn paper_initial_rank(x: &Tensor3) -> Result<usize, TensorError> {
     Ok((mean_trace_norm(x)?.ceil() as usize).max(1))
 }
 
+/// A smaller rank than `met` that meets a bound, searched in `(failed, met)` from below: from
+/// `failed`, steps of 1, 2, 4, … above the last rank that missed, until one meets it; then
+/// bisection of that last step.
+/// `attempt(rank)` fits `rank` and returns the fit where it meets the bound, `None` where it
+/// does not. Returns the rank found and its fit; `None` when no rank tried below `met` meets
+/// the bound (`met` stands). `failed` is a rank known to miss it (0 for none).
+///
+/// Growing from below rather than bisecting `(failed, met)` is what finds low ranks: CP-ALS's
+/// error is not monotone in the rank (an over-factored fit can stall short of the bound), so a
+/// bisection that meets the bound at the midpoint and misses it just below can settle far
+/// above the smallest rank that meets it. It costs at most about `2 log₂(met − failed)`
+/// attempts, and it is a search, not a proof: a rank between two tried may meet the bound too.
+///
+/// ```
+/// use zeroset_tensor::cp::search_from_below;
+/// // Ranks 5 and up meet the bound except 13 to 15 (stalled fits); 3 missed it, 43 met it.
+/// let meets = |r: usize| r >= 5 && !(13..=15).contains(&r);
+/// let mut tried = Vec::new();
+/// let found = search_from_below(3, 43, |r| {
+///     tried.push(r);
+///     Ok::<_, ()>(meets(r).then_some(r))
+/// })?;
+/// assert_eq!(found, Some((5, 5)));
+/// assert_eq!(tried, [4, 6, 5]);
+/// # Ok::<(), ()>(())
+/// ```
+///
+/// # Errors
+/// The first error of `attempt`.
+pub fn search_from_below<T, E>(
+    failed: usize,
+    met: usize,
+    mut attempt: impl FnMut(usize) -> Result<Option<T>, E>,
+) -> Result<Option<(usize, T)>, E> {
+    // Invariant: `lo` misses the bound (or is `failed`), `hi` meets it (or is `met`).
+    let (mut lo, mut hi, mut best) = (failed, met, None);
+    let mut step = 1;
+    while lo + step < hi {
+        let rank = lo + step;
+        match attempt(rank)? {
+            Some(fit) => {
+                (hi, best) = (rank, Some(fit));
+                break;
+            }
+            None => {
+                lo = rank;
+                step *= 2;
+            }
+        }
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        match attempt(mid)? {
+            Some(fit) => (hi, best) = (mid, Some(fit)),
+            None => lo = mid,
+        }
+    }
+    Ok(best.map(|fit| (hi, fit)))
+}
+
 /// The adaptive-rank CP decomposition of paper 004, Algorithm 2 (see the module docs);
 /// `progress` is passed to every CP-ALS run.
 ///
@@ -800,20 +866,14 @@ pub fn cp_adaptive(
     }
     let met = fit.abs_error <= options.epsilon;
     if met && options.refine {
-        // Invariant: `failed` does not meet ε (or is 0), `rank` does.
-        let (mut lo, mut hi) = (failed, rank);
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            let trial = fit_at(mid, &mut progress)?;
-            history.push((mid, trial.abs_error));
-            if trial.abs_error <= options.epsilon {
-                hi = mid;
-                fit = trial;
-            } else {
-                lo = mid;
-            }
+        let smaller = search_from_below(failed, rank, |r| {
+            let trial = fit_at(r, &mut progress)?;
+            history.push((r, trial.abs_error));
+            Ok::<_, TensorError>((trial.abs_error <= options.epsilon).then_some(trial))
+        })?;
+        if let Some((r, trial)) = smaller {
+            (rank, fit) = (r, trial);
         }
-        rank = hi;
     }
     Ok(AdaptiveResult {
         fit,

@@ -182,6 +182,22 @@ fn the_adaptive_rank_meets_the_bound_and_refinement_finds_the_planted_rank() {
 }
 
 #[test]
+fn refinement_searches_from_below_past_stalled_over_factored_fits() {
+    // Over-factored CP-ALS fits of this planted rank-5 tensor stall short of the bound at
+    // ranks 13–15 while rank 16 meets it: bisecting (5, 43) from Algorithm 2's overshoot
+    // settled at 16. The search from below finds the planted rank.
+    for (n, r, tol) in [(15, 5, 1e-6), (20, 4, 1e-8)] {
+        let (_, x) = planted([n, n, n], r, 0.0, 11);
+        let mut options = AdaptiveOptions::new(tol * x.frobenius_norm());
+        options.cp = options.cp.clone().with_tol(1e-12).with_max_iter(1000);
+        options.refine = true;
+        let found = cp_adaptive(&x, &options, |_| true).unwrap();
+        assert_eq!(found.rank, r, "{:?}", found.history);
+        assert!(found.met && found.fit.abs_error <= options.epsilon);
+    }
+}
+
+#[test]
 fn bad_input_gives_specific_errors() {
     let x = Tensor3::from_fn([3, 4, 5], |i, j, k| (i + j * k) as f64);
     let max = max_rank([3, 4, 5]);

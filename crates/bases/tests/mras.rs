@@ -479,6 +479,48 @@ fn a_loose_tolerance_is_not_met_by_dropping_every_cell() {
     );
 }
 
+/// Looser still, the trace norm's weight `λ ε₀²` used to shrink every offset to nothing and
+/// the root cell was dropped at rank 0 (its values at the points are all near 0, the offset
+/// being the whole field there): a unit sphere at 0.03 meshed as 10 components, at 0.1 the
+/// field was 0 everywhere. Now the weight stops growing past a tolerance of 1% and the root is
+/// always stored; a field flat at the points is counted.
+#[test]
+fn a_very_loose_tolerance_still_gives_the_surface() {
+    let (points, normals) = sphere(2000, 1.0);
+    for tolerance in [0.03, 0.1, 0.5] {
+        let fit = fit(
+            &points,
+            &normals,
+            &MrasOptions {
+                tolerance,
+                ..MrasOptions::default()
+            },
+        );
+        assert_eq!(fit.levels[0].dropped, 0, "{tolerance}");
+        assert_eq!(fit.flat_points, 0, "{tolerance}");
+        if tolerance > 0.1 {
+            // Half the diagonal: one rank-1 root cell, within 0.26 of it, is all it asks.
+            continue;
+        }
+        assert!(fit.field.value(&[0.0; 3]) < -0.2, "{tolerance}");
+        for axis in 0..3 {
+            let at = |r: f64| std::array::from_fn(|a| if a == axis { r } else { 0.0 });
+            assert!(fit.field.value(&at(0.92)) < 0.0, "{tolerance}");
+            assert!(fit.field.value(&at(1.08)) > 0.0, "{tolerance}");
+        }
+    }
+    // A weight far too large flattens the field: counted, not hidden.
+    let flat = fit(
+        &points,
+        &normals,
+        &MrasOptions {
+            lambda: 1e6,
+            ..MrasOptions::default().max_level(2)
+        },
+    );
+    assert!(flat.flat_points > points.len() / 2, "{}", flat.flat_points);
+}
+
 #[test]
 fn stray_points_are_set_aside_not_made_surface() {
     // A sphere of 3,000 points and 60 points scattered in its box, at least 0.3 off the

@@ -82,7 +82,12 @@ pub struct NeuralArgs {
     /// With --method neural: the curvature weight λ ≥ 0 of the thin-plate term [default: 0.05
     /// for value files, 0.005 for point clouds]. With --method mras: the dimensionless weight
     /// λ ≥ 0 of the trace norm that lowers each cell's rank [default: 0.3].
-    #[arg(long, value_name = "L", allow_hyphen_values = true, help_heading = HEADING)]
+    #[arg(
+        long,
+        value_name = "L",
+        allow_hyphen_values = true,
+        help_heading = "Neural and MRAS (--method neural, mras)"
+    )]
     pub lambda: Option<f64>,
     /// Auxiliary points P drawn uniformly in the domain for the curvature term [default: 250].
     #[arg(long, value_name = "P", help_heading = HEADING)]

@@ -111,9 +111,10 @@ enum Command {
     /// tolerance it prints), remove the bunny's ears, and run fit → restore → mesh → preview.
     #[command(after_help = demo::EXAMPLES)]
     Demo(demo::DemoArgs),
-    /// Fit an implicit field with radial basis functions or a small neural net, to an oriented
-    /// point cloud (off-surface or Hermite constraints) or to value constraints (2-D curves
-    /// from x y value files), and report the fit; -o saves the field as a .zsf field file.
+    /// Fit an implicit field to an oriented point cloud with radial basis functions (off-surface
+    /// or Hermite constraints), multilevel low-rank splines (MRAS) or a small neural net, or to
+    /// value constraints (x y [z] value files), and report the fit; -o saves the field as a
+    /// .zsf field file.
     #[command(after_help = fit::EXAMPLES)]
     Fit(fit::FitArgs),
     /// Restore a field inside a box mask: remove a protrusion (least-squares Laplace with a

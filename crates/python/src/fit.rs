@@ -366,13 +366,14 @@ pub(crate) fn fit_neural<'py>(
 
 /// Fits an MRAS field (see `zeroset.fit`).
 #[pyfunction]
-#[pyo3(signature = (points, normals, tolerance, max_level, compress, outlier_ratio, progress))]
+#[pyo3(signature = (points, normals, tolerance, lam, max_level, compress, outlier_ratio, progress))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fit_mras_cloud<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
     normals: PyReadonlyArray2<'py, f64>,
     tolerance: Option<f64>,
+    lam: Option<f64>,
     max_level: Option<u32>,
     compress: bool,
     outlier_ratio: Option<f64>,
@@ -385,6 +386,9 @@ pub(crate) fn fit_mras_cloud<'py>(
     };
     if let Some(t) = tolerance {
         options.tolerance = t;
+    }
+    if let Some(l) = lam {
+        options.lambda = l;
     }
     if let Some(l) = max_level {
         options.max_level = l;
@@ -409,11 +413,13 @@ pub(crate) fn fit_mras_cloud<'py>(
         let normals = cloud.normals().unwrap_or_default();
         let fit = fit_mras(cloud.positions(), normals, &options, &report_cell).map_err(to_py)?;
         let max_error = fit.levels.last().map_or(f64::NAN, |l| l.max_error);
-        let (met, over, capped) = (
+        let (met, over, capped, flat) = (
             fit.tolerance_met(),
             fit.points_over_tolerance,
             fit.capped_cells,
+            fit.flat_points,
         );
+        let fitted = cloud.len() - fit.outliers.len();
         let report = vec![
             ("method", ReportValue::Str("mras".into())),
             ("levels", ReportValue::Int(fit.levels.len())),
@@ -434,6 +440,9 @@ pub(crate) fn fit_mras_cloud<'py>(
             ("tolerance_met", ReportValue::Bool(met)),
             ("points_over_tolerance", ReportValue::Int(over)),
             ("capped_cells", ReportValue::Int(capped)),
+            ("flat_points", ReportValue::Int(flat)),
+            ("fitted_points", ReportValue::Int(fitted)),
+            ("lam", ReportValue::Float(options.lambda)),
             ("seconds", ReportValue::Float(fit.seconds)),
         ];
         Ok((AnyField::Mras(fit.field), report))

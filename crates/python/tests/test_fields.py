@@ -183,6 +183,23 @@ def test_mras_fit_reaches_its_tolerance_and_round_trips(tmp_path):
     assert len(zeroset.mesh(f, detail="general")[0]) < len(fine) / 4
 
 
+def test_a_loose_mras_tolerance_keeps_the_surface_and_a_flat_field_is_warned_of():
+    points, normals = sphere_cloud(2000)
+    # The trace norm's weight stops growing with the tolerance past 1%: at 10% the offsets
+    # used to shrink to nothing (an empty field, and no warning).
+    loose = zeroset.fit(points, normals, method="mras", tolerance=0.1)
+    assert loose.report.flat_points == 0 and loose.report.storage > 0
+    assert loose(np.zeros(3)) < -0.2
+    for axis in np.eye(3):
+        assert loose(0.92 * axis) < 0 < loose(1.08 * axis)
+    with pytest.warns(UserWarning, match="nearly flat"):
+        flat = zeroset.fit(points, normals, method="mras", lam=1e6, max_level=2)
+    assert flat.report.flat_points > flat.report.fitted_points / 100
+    assert flat.report.lam == 1e6
+    with pytest.raises(ValueError, match="lam= applies to method='neural' and 'mras'"):
+        zeroset.fit(points, normals, lam=0.1)
+
+
 def test_rbf_and_mras_set_stray_points_aside():
     # 2,000 points on the unit sphere and 10 scattered well off it with random normals: the
     # MRAS report lists exactly those 10 and the field keeps them off its zero set;

@@ -12,7 +12,8 @@ use super::MrasError;
 use super::field::CellSpline;
 use super::field::{LevelGeometry, MAX_LEVEL, MrasCell, MrasField, MrasLevel};
 use super::local::{
-    CellSolve, CpBound, LocalSettings, Target, ThinPlate, compress_cell, solve_cell,
+    CellSolve, CpBound, LAMBDA_SCALE_CAP, LocalSettings, Target, ThinPlate, compress_cell,
+    solve_cell,
 };
 
 /// Options of [`fit_mras`]. The paper's values where it gives one; the others measured on
@@ -381,6 +382,11 @@ pub struct MrasFit {
     /// Cells of the last level that would have been split further but for the level cap
     /// ([`MrasOptions::max_level`]).
     pub capped_cells: usize,
+    /// The fitted points where the final field is nearly flat, `|∇f| <` [`FLAT_GRADIENT`]
+    /// (a fit wants `|∇f| ≈ 1` there): its zero set need not pass near them whatever their
+    /// Sampson distance says. A trace-norm weight far too large for the data (`λ`) shrinks the
+    /// offsets to this.
+    pub flat_points: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -429,7 +435,7 @@ pub fn fit_mras(
     let mut to_fit: Vec<[u64; 3]> = vec![[0, 0, 0]];
     let mut last_error = None;
     // After the last level: the points beyond ε₀, and the cells the level cap kept unsplit.
-    let (mut points_over, mut capped) = (positions.len(), 0);
+    let (mut points_over, mut capped, mut flat) = (positions.len(), 0, 0);
     // No slack: the screen before ADMM and the levels that nothing refines.
     let tight = vec![1.0; np];
     for level in 1..=options.max_level {
@@ -446,6 +452,8 @@ pub fn fit_mras(
             omega2: options.omega2_at(level),
             lambda: options.lambda,
             value_scale: eps0,
+            lambda_scale: eps0.min(LAMBDA_SCALE_CAP * diagonal / cloud.side),
+            zero_allowed: level > 1,
             eta: options.eta,
             relaxation: options.relaxation,
             admm_max_iter: options.admm_max_iter,
@@ -577,7 +585,14 @@ pub fn fit_mras(
                     None => (None, solution.screen_error),
                     Some(c) => {
                         let targets = targets_of(index, slack);
-                        compress_cell(&g, index, &targets, c, settings.cp_bound)?
+                        compress_cell(
+                            &g,
+                            index,
+                            &targets,
+                            c,
+                            settings.cp_bound,
+                            settings.zero_allowed,
+                        )?
                     }
                 };
                 report(true)?;
@@ -601,6 +616,10 @@ pub fn fit_mras(
         // promised the next level to its points (a cell not stored splits too).
         let mut next = Vec::new();
         points_over = sampson.iter().filter(|&&d| d > eps0).count();
+        flat = grad
+            .iter()
+            .filter(|g| g.iter().map(|v| v * v).sum::<f64>() < FLAT_GRADIENT * FLAT_GRADIENT)
+            .count();
         // The cells whose own points need a finer level; at the level cap, those it stops.
         let late = refined(&buckets, &fitted_indices, &sampson, eps0, options);
         if may_refine {
@@ -658,9 +677,13 @@ pub fn fit_mras(
         tolerance: options.tolerance,
         points_over_tolerance: points_over,
         capped_cells: capped,
+        flat_points: flat,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
+
+/// The gradient magnitude below which [`MrasFit::flat_points`] counts a point (a fit wants 1).
+pub const FLAT_GRADIENT: f64 = 0.1;
 
 /// Adds level `lvl`'s offset and its gradient to `f` and `grad` at the points `u`.
 fn add_level(

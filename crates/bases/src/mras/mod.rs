@@ -59,7 +59,10 @@
 //! - the trace-norm weight is `τ = λ ε₀² / (a √(m³))`, `a` the RMS coefficient of the fit
 //!   without it: a dimensionless `λ` that costs about `λ ε₀²` per unit rank at every level (the
 //!   paper's absolute λ flattens the root level, whose amplitude only the normal term holds,
-//!   or does nothing at the fine ones);
+//!   or does nothing at the fine ones); `ε₀` there stops growing at a tolerance of 1% of the
+//!   diagonal (past it, `τ` outweighed the normal term and shrank every offset to nothing);
+//! - the root cell is never dropped at rank 0: with `f⁰ = 0` its offset is the whole field,
+//!   whose values at the points are near 0 however well or badly it fits;
 //! - ADMM's penalty `η` is in units of the c-step matrix's mean diagonal, and ADMM starts from
 //!   the fit without the trace norm (from zero it crawls along the directions only the weak
 //!   normal term fixes, and its stopping rule takes the crawl for convergence); it is
@@ -157,7 +160,7 @@ mod fit;
 mod local;
 
 pub use field::{CellSpline, LevelGeometry, MAX_LEVEL, MrasCell, MrasField, MrasLevel};
-pub use fit::{LevelReport, MrasFit, MrasOptions, MrasProgress, fit_mras};
+pub use fit::{FLAT_GRADIENT, LevelReport, MrasFit, MrasOptions, MrasProgress, fit_mras};
 
 use zeroset_solvers::admm::AdmmError;
 use zeroset_tensor::TensorError;

@@ -543,7 +543,7 @@ def fit(
     solver: str = "auto",
     radius: Optional[float] = None,
     steps: int = 3000,
-    lam: float = 0.005,
+    lam: Optional[float] = None,
     widths: Sequence[int] = (32, 32),
     activation: str = "tanh",
     seed: int = 0,
@@ -579,11 +579,14 @@ def fit(
 
     ``method="mras"``: multilevel rational algebraic spline offsets, stored at low rank (Pan–Tong–Chen): ``tolerance`` is
     the target max distance as a fraction of the diagonal, ``max_level`` the deepest level,
-    ``compress=False`` keeps full coefficient tensors. ``report["tolerance_met"]`` says whether
+    ``lam`` the trace-norm weight (0.3 by default, as ``--lambda``: larger stores less and
+    smooths more), ``compress=False`` keeps full coefficient tensors. ``report["tolerance_met"]`` says whether
     every point's Sampson distance is within it; ``report["points_over_tolerance"]`` counts
     those that are not (the subdivision stops at cells of 16 points or fewer, at the level
     cap, and at cells whose points were within it when their level was fitted), and
-    ``report["capped_cells"]`` the cells the level cap kept from splitting.
+    ``report["capped_cells"]`` the cells the level cap kept from splitting;
+    ``report["flat_points"]`` counts the points where the field is nearly flat
+    (``|∇f| < 0.1``), warned of above 1% of ``report["fitted_points"]``.
 
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
     blob or a sheet of surface): those whose mean distance to their 8 nearest exceeds
@@ -606,7 +609,6 @@ def fit(
         name
         for name, value, default in (
             ("steps", steps, 3000),
-            ("lam", lam, 0.005),
             ("widths", tuple(widths), (32, 32)),
             ("activation", activation, "tanh"),
             ("seed", seed, 0),
@@ -614,7 +616,10 @@ def fit(
         if value != default
     ]
     if method != "neural" and neural_given:
-        raise ValueError(f"{'=, '.join(neural_given)}= apply to method='neural'")
+        verb = "applies" if len(neural_given) == 1 else "apply"
+        raise ValueError(f"{'=, '.join(neural_given)}= {verb} to method='neural'")
+    if method == "rbf" and lam is not None:
+        raise ValueError("lam= applies to method='neural' and 'mras'")
     if method != "rbf" and solver != "auto":
         raise ValueError("solver= applies to method='rbf'")
     if method == "rbf":
@@ -655,7 +660,8 @@ def fit(
         native, report = _run(
             progress,
             lambda cb: _native.fit_neural(
-                p, n, _count(steps, "steps"), float(lam), [_count(w, "widths") for w in widths],
+                p, n, _count(steps, "steps"), 0.005 if lam is None else float(lam),
+                [_count(w, "widths") for w in widths],
                 activation, _count(seed, "seed"),
                 offset, cb,
             ),
@@ -671,10 +677,22 @@ def fit(
         native, report = _run(
             progress,
             lambda cb: _native.fit_mras_cloud(
-                p, n, tolerance, None if max_level is None else _count(max_level, "max_level"),
+                p, n, tolerance, None if lam is None else float(lam),
+                None if max_level is None else _count(max_level, "max_level"),
                 bool(compress), outlier_ratio, cb,
             ),
         )
+        # Over 1% of the points on a nearly flat field is a field that misses the surface
+        # (as `zeroset fit --method mras` warns).
+        if report["flat_points"] * 100 > report["fitted_points"]:
+            warnings.warn(
+                f"the field is nearly flat (|∇f| < 0.1, where a fit has about 1) at "
+                f"{report['flat_points']} of the {report['fitted_points']} fitted points: its "
+                "surface need not pass near them, whatever report['max_error'] says. Levels too "
+                f"coarse for them (max_level) or a trace norm that shrank the offsets "
+                f"(lam={report['lam']:g}) leave a field this flat",
+                stacklevel=2,
+            )
     else:
         raise ValueError(f"method must be 'rbf', 'neural' or 'mras', got {method!r}")
     return Field(native, Report(report))

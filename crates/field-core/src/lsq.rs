@@ -11,7 +11,11 @@
 //!
 //! The second is Paige and Saunders' stopping test for LSQR (ACM TOMS 8(1), 1982, §6): it is
 //! scale-free and tends to zero at the least-squares solution even when the residual itself does
-//! not (an inconsistent system). When `A` does not have full column rank the solution is not
+//! not (an inconsistent system). For a consistent system (`rel_residual` near 0) it is a ratio
+//! of rounding errors and means nothing. For a matrix-free operator `‖A‖_F` is not known:
+//! `‖A‖₂ ≤ ‖A‖_F`, estimated by power iteration, stands in for it, so the same matrix reports
+//! a larger figure as an operator than as a matrix. Neither figure bounds the error in `x`,
+//! which can be `cond(A)` times larger. When `A` does not have full column rank the solution is not
 //! unique: direct solvers report [`SolveError::RankDeficient`] naming the dependent column, and
 //! iterative solvers return a least-squares solution (the minimum-norm one from a zero start).
 //!
@@ -229,7 +233,8 @@ pub struct SolveInfo {
     pub iterations: usize,
     /// `‖b − A x‖ / ‖b‖` (0 when `b = 0`).
     pub rel_residual: f64,
-    /// `‖Aᵀ(b − A x)‖ / (‖A‖_F ‖b − A x‖)` (0 when the residual is 0).
+    /// `‖Aᵀ(b − A x)‖ / (‖A‖_F ‖b − A x‖)` (0 when the residual is 0; `‖A‖₂`, estimated,
+    /// for an operator: see the [module docs](self)).
     pub rel_normal_residual: f64,
     /// Wall-clock time of the whole solve, set-up included.
     pub elapsed: Duration,
@@ -354,6 +359,14 @@ pub enum SolveError {
         rel_normal_residual: f64,
         /// The last iterate, so that the work is not lost.
         x: Vec<f64>,
+    },
+    /// A tolerance that is negative or NaN.
+    #[error("{what} = {value}: a tolerance must be a number >= 0 (0 asks for machine precision)")]
+    InvalidTolerance {
+        /// Which tolerance (`atol`, `btol`, `tol`, `rank_tolerance`).
+        what: &'static str,
+        /// The value given.
+        value: f64,
     },
     /// The progress callback asked to stop.
     #[error("cancelled after {iterations} iterations")]

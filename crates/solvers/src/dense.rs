@@ -24,7 +24,7 @@ use std::time::Instant;
 use faer::{Mat, MatRef};
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix, Solution, SolveError, Stage};
 
-use crate::common::{DirectParams, NORMAL_RANK_TOLERANCE, finish, prepare, stage};
+use crate::common::{DirectParams, NORMAL_RANK_TOLERANCE, finish, prepare, rank_tolerance, stage};
 use crate::operator::Prepared;
 use crate::sequential;
 
@@ -70,10 +70,10 @@ impl LeastSquaresSolver for DenseQr {
         let r: MatRef<'_, f64> = qr.r();
         let perm_fwd = qr.permutation();
         if n > 0 {
-            let tau = self
-                .params
-                .rank_tolerance
-                .unwrap_or(1000.0 * m.max(n) as f64 * f64::EPSILON);
+            let tau = rank_tolerance(
+                self.params.rank_tolerance,
+                1000.0 * m.max(n) as f64 * f64::EPSILON,
+            )?;
             let threshold = tau * r[(0, 0)].abs();
             for k in 0..n {
                 let pivot = r[(k, k)].abs();
@@ -123,7 +123,7 @@ impl LeastSquaresSolver for NormalLu {
         let mut rhs = sequential::product(at, column(b).as_ref());
         let lu = sequential::PartialPivLu::new(normal.as_ref());
         let u = lu.u();
-        let tau = self.params.rank_tolerance.unwrap_or(NORMAL_RANK_TOLERANCE);
+        let tau = rank_tolerance(self.params.rank_tolerance, NORMAL_RANK_TOLERANCE)?;
         for k in 0..n {
             let pivot = u[(k, k)].abs();
             let threshold = tau * normal[(k, k)];

@@ -20,7 +20,9 @@ use zeroset_field_core::lsq::{
     LeastSquaresSolver, LinearOperator, LsqMatrix, Solution, SolveError, Stage,
 };
 
-use crate::common::{IterativeParams, finish, no_convergence, prepare, report};
+use crate::common::{
+    IterativeParams, effective_tolerance, finish, no_convergence, prepare, report,
+};
 use crate::kernels::{axpy, dot, norm2, scale, xpby};
 use crate::operator::Prepared;
 use crate::precond::Preconditioner;
@@ -104,6 +106,8 @@ impl LeastSquaresSolver for Cgls {
             let start = Instant::now();
             let name = self.name();
             let p = &self.params;
+            p.check()?;
+            let (atol, btol) = (effective_tolerance(p.atol), effective_tolerance(p.btol));
             let a = prepare(a, b)?;
             let (m, n) = a.shape();
             let op = RightPreconditioned {
@@ -152,7 +156,7 @@ impl LeastSquaresSolver for Cgls {
                     0.0
                 };
                 report(&p.monitor, name, Stage::Iterate, it, max_it, rel, normal)?;
-                if r_norm <= p.btol * b_norm + p.atol * a_norm * x_norm || normal <= p.atol {
+                if r_norm <= btol * b_norm + atol * a_norm * x_norm || normal <= atol {
                     return finish(name, &a, x, b, it, start, vec![]);
                 }
                 xpby(&s, gamma_new / gamma, &mut dir);
@@ -190,6 +194,8 @@ impl LeastSquaresSolver for Lsqr {
             let start = Instant::now();
             let name = self.name();
             let p = &self.params;
+            p.check()?;
+            let (atol, btol) = (effective_tolerance(p.atol), effective_tolerance(p.btol));
             let a = prepare(a, b)?;
             let (m, n) = a.shape();
             let op = RightPreconditioned {
@@ -257,9 +263,7 @@ impl LeastSquaresSolver for Lsqr {
                 };
                 report(&p.monitor, name, Stage::Iterate, it, max_it, rel, normal)?;
                 let y_norm = norm2(&y);
-                if rnorm <= p.btol * b_norm + p.atol * anorm * y_norm
-                    || normal <= p.atol
-                    || alpha == 0.0
+                if rnorm <= btol * b_norm + atol * anorm * y_norm || normal <= atol || alpha == 0.0
                 {
                     let x = op.unprecondition(y);
                     return finish(name, &a, x, b, it, start, vec![("norm_estimate", anorm)]);

@@ -1,6 +1,6 @@
 //! # zeroset-solvers
 //!
-//! Solvers of `min ‖A x − b‖₂` that provably agree, behind the
+//! Solvers of `min ‖A x − b‖₂`, tested to agree, behind the
 //! [`LeastSquaresSolver`] trait of field-core:
 //!
 //! | solver | method | `A` as | accuracy | cost |
@@ -15,7 +15,9 @@
 //!
 //! Where `A` has full column rank the minimiser is unique and they all return it, to within
 //! their tolerances (the test suite holds them to it, on random and restoration-shaped
-//! problems). Where it does not, the direct solvers say which column is dependent
+//! problems). A tolerance bounds residuals, not the error in `x`: on an ill-conditioned `A`
+//! the iterative solvers can stop with a small residual and some coefficients far off, as
+//! SciPy's `lsqr` does (see [`IterativeParams`]). Where `A` is rank deficient, the direct solvers say which column is dependent
 //! ([`SolveError::RankDeficient`]) and the
 //! iterative ones return the minimum-norm solution.
 //!

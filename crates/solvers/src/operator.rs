@@ -201,7 +201,9 @@ impl<'a> Prepared<'a> {
     }
 
     /// `‖A‖_F`, or for an operator an estimate of `‖A‖₂` by 30 power iterations on `AᵀA`
-    /// from a fixed start (deterministic).
+    /// from a fixed pseudo-random start (deterministic). A constant start, which it was, is
+    /// annihilated by difference operators and Laplacians (`‖A‖` came out 0, and CGLS's
+    /// stopping test with it never held).
     pub fn norm_estimate(&self) -> f64 {
         match self {
             Self::Dense(d) => {
@@ -218,7 +220,12 @@ impl<'a> Prepared<'a> {
             Self::Sparse { cols, .. } => norm2(&cols.val),
             Self::Operator(_) => {
                 let (m, n) = self.shape();
-                let mut v = vec![1.0 / (n.max(1) as f64).sqrt(); n];
+                let mut rng = zeroset_field_core::rng::SplitMix64::new(0x6e6f_726d);
+                let mut v: Vec<f64> = (0..n).map(|_| rng.unit() - 0.5).collect();
+                let start = norm2(&v);
+                if start > 0.0 {
+                    v.iter_mut().for_each(|x| *x /= start);
+                }
                 let mut av = vec![0.0; m];
                 let mut sigma = 0.0;
                 for _ in 0..30 {

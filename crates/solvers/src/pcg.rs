@@ -17,7 +17,9 @@ use zeroset_field_core::lsq::{
     LeastSquaresSolver, LinearOperator, LsqMatrix, Monitor, Solution, SolveError, Stage,
 };
 
-use crate::common::{finish, no_convergence, prepare, report};
+use crate::common::{
+    check_tolerance, effective_tolerance, finish, no_convergence, prepare, report,
+};
 use crate::kernels::{axpy, dot, norm2, xpby};
 use crate::operator::Prepared;
 use crate::precond::Preconditioner;
@@ -25,7 +27,8 @@ use crate::precond::Preconditioner;
 /// Parameters of [`Pcg`].
 #[derive(Clone, Debug)]
 pub struct PcgParams {
-    /// Relative residual of the SPD system to reach (default `1e-10`).
+    /// Relative residual of the SPD system to reach (default `1e-10`; below the machine
+    /// epsilon, `0` included, it counts as the epsilon; negative or NaN is refused).
     pub tol: f64,
     /// Iteration limit; `None` means `max(2n, 100)`.
     pub max_iterations: Option<usize>,
@@ -116,6 +119,8 @@ impl Pcg {
         f: &[f64],
     ) -> Result<Outcome, SolveError> {
         let p = &self.params;
+        check_tolerance("tol", p.tol)?;
+        let tol = effective_tolerance(p.tol);
         let n = k.ncols();
         if let Some(m) = &p.preconditioner
             && m.dim() != n
@@ -166,7 +171,7 @@ impl Pcg {
             axpy(-alpha, &q, &mut r);
             let rel = norm2(&r) / f_norm;
             report(&p.monitor, name, Stage::Iterate, it, max_it, f64::NAN, rel)?;
-            if rel <= p.tol {
+            if rel <= tol {
                 return Ok(Outcome::Converged(x, it));
             }
             precondition(&r, &mut tmp, &mut z);

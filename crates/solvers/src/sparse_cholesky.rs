@@ -37,7 +37,7 @@ use zeroset_field_core::lsq::{
     LeastSquaresSolver, LinearOperator, LsqMatrix, Monitor, Solution, SolveError, Stage,
 };
 
-use crate::common::{NORMAL_RANK_TOLERANCE, finish, prepare, stage};
+use crate::common::{NORMAL_RANK_TOLERANCE, finish, prepare, rank_tolerance, stage};
 use crate::operator::{Compressed, Prepared};
 
 /// The fill-reducing ordering of `AᵀA`.
@@ -391,7 +391,7 @@ impl LeastSquaresSolver for SparseCholesky {
                 an
             }
         };
-        let tau = self.params.rank_tolerance.unwrap_or(NORMAL_RANK_TOLERANCE);
+        let tau = rank_tolerance(self.params.rank_tolerance, NORMAL_RANK_TOLERANCE)?;
         let x = analysis.factor_and_solve(&prepared, b, tau, &self.params.monitor)?;
         let details = vec![
             ("analysis_reused", if reused { 1.0 } else { 0.0 }),

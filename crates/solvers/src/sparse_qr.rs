@@ -23,7 +23,7 @@ use faer::sparse::linalg::qr::{QrSymbolicParams, factorize_symbolic_qr};
 use faer::{Conj, MatMut, Par};
 use zeroset_field_core::lsq::{LeastSquaresSolver, LsqMatrix, Solution, SolveError, Stage};
 
-use crate::common::{DirectParams, finish, prepare, stage};
+use crate::common::{DirectParams, finish, prepare, rank_tolerance, stage};
 
 const NAME: &str = "sparse-qr";
 
@@ -107,10 +107,10 @@ impl LeastSquaresSolver for SparseQr {
             })
             .collect();
         let perm_fwd = symbolic.col_perm().arrays().0;
-        let tau = self
-            .params
-            .rank_tolerance
-            .unwrap_or(1000.0 * m.max(n) as f64 * f64::EPSILON);
+        let tau = rank_tolerance(
+            self.params.rank_tolerance,
+            1000.0 * m.max(n) as f64 * f64::EPSILON,
+        )?;
         for (k, rkk) in diag.iter().enumerate() {
             let column = perm_fwd[k];
             let (pivot, threshold) = (rkk.abs(), tau * col_norms[column]);

@@ -130,6 +130,33 @@ fn analytic_gradient_matches_finite_differences() {
             );
         }
     }
+    // The field's box, which meshing and restoring sample, is the points' box grown by 5% of
+    // its diagonal within the cube: a torus's thin axis is not sampled over the cube's side.
+    let points_box = zeroset_field_core::geometry::Aabb::from_points(&p).expect("box");
+    let grown = points_box.expanded(0.05 * points_box.diagonal());
+    let bounds = f.field.bounds().expect("bounds");
+    let cube_side = f.field.side();
+    assert!(
+        (bounds.max()[2] - grown.max()[2]).abs() < 1e-6 * cube_side,
+        "{bounds:?}"
+    );
+    assert!(
+        (bounds.min()[2] - grown.min()[2]).abs() < 1e-6 * cube_side,
+        "{bounds:?}"
+    );
+    assert!(
+        bounds.max()[2] - bounds.min()[2] < 0.5 * cube_side,
+        "{bounds:?}"
+    );
+    // A NaN or infinite point gives NaN, as the other fields give (its cell index overflowed:
+    // a panic in debug builds).
+    for bad in [[f64::NAN, 0.0, 0.0], [0.0, f64::INFINITY, 0.0]] {
+        assert!(f.field.value(&bad).is_nan());
+        assert!(f.field.gradient(&bad).iter().all(|v| v.is_nan()));
+        let mut out = [0.0; 2];
+        f.field.values(&[bad, probes[0]], &mut out);
+        assert!(out[0].is_nan() && out[1] == f.field.value(&probes[0]));
+    }
 }
 
 #[test]

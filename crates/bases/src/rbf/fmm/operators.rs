@@ -330,32 +330,39 @@ impl FmmOperators {
             Some(k) => (1.0, width.powi(k)),
             None => (width, 1.0),
         };
-        let (ops, from_disk, written) = {
-            // A poisoned lock only means another thread panicked while building; the cache is
-            // a list of complete entries, so it is still valid.
-            let mut list = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some((_, ops)) = list.iter().find(|(w, _)| *w == key) {
-                return (ops.clone(), scale);
-            }
-            let file = cache::disk_dir().map(|dir| cache::file_for(&dir, &self.key, key));
-            let n = self.order().pow(3);
-            let loaded = file
+        // A poisoned lock only means another thread panicked while building; the cache is a
+        // list of complete entries, so it is still valid.
+        let list = || self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, ops)) = list().iter().find(|(w, _)| *w == key) {
+            return (ops.clone(), scale);
+        }
+        // Read or built without the lock: the build runs rayon jobs, and a worker waiting in one
+        // may steal an outer job that asks for these same operators (fields built inside a
+        // caller's `par_iter`), which then waited for the lock its own thread held — a
+        // deadlock. Two threads may now build the same level at once; the first to finish is
+        // kept (the builds are identical).
+        let file = cache::disk_dir().map(|dir| cache::file_for(&dir, &self.key, key));
+        let n = self.order().pow(3);
+        let loaded = file
+            .as_deref()
+            .and_then(|f| cache::load(f, &self.key, key, n));
+        let from_disk = loaded.is_some();
+        let built = Arc::new(loaded.unwrap_or_else(|| self.build(kernel, key)));
+        let mut list = list();
+        if let Some((_, ops)) = list.iter().find(|(w, _)| *w == key) {
+            return (ops.clone(), scale);
+        }
+        // A cache that cannot be written (a read-only folder, a full disk) only costs the next
+        // process a rebuild.
+        let written = !from_disk
+            && file
                 .as_deref()
-                .and_then(|f| cache::load(f, &self.key, key, n));
-            let from_disk = loaded.is_some();
-            let ops = Arc::new(loaded.unwrap_or_else(|| self.build(kernel, key)));
-            // A cache that cannot be written (a read-only folder, a full disk) only costs the
-            // next process a rebuild.
-            let written = !from_disk
-                && file
-                    .as_deref()
-                    .is_some_and(|f| cache::save(f, &self.key, key, &ops).is_ok());
-            self.bytes.fetch_add(ops.bytes(), Ordering::Relaxed);
-            list.push((key, ops.clone()));
-            (ops, from_disk, written)
-        };
+                .is_some_and(|f| cache::save(f, &self.key, key, &built).is_ok());
+        self.bytes.fetch_add(built.bytes(), Ordering::Relaxed);
+        list.push((key, built.clone()));
+        drop(list);
         cache::record(from_disk, written);
-        (ops, scale)
+        (built, scale)
     }
 
     fn build<K: Kernel + ?Sized>(&self, kernel: &K, width: f64) -> LevelOperators {

@@ -548,6 +548,28 @@ fn a_very_loose_tolerance_still_gives_the_surface() {
     assert!(flat.flat_points > points.len() / 2, "{}", flat.flat_points);
 }
 
+/// The fit works in its unit cube: coordinates of 1e155 or 1e-100 fit as the unit sphere does
+/// (1e155's squares overflowed: "the SVD did not converge"); a cloud whose extent overflows is
+/// refused by name. (Below about 1e-150 the neighbour searches' squared distances underflow,
+/// and the stray-point screen then sets aside other points.)
+#[test]
+fn tiny_and_huge_coordinates_fit_as_unit_ones() {
+    let (points, normals) = sphere(500, 1.0);
+    let unit = fit(&points, &normals, &MrasOptions::default());
+    for scale in [1e155, 1e-100] {
+        let scaled: Vec<P> = points.iter().map(|p| p.map(|v| v * scale)).collect();
+        let f = fit(&scaled, &normals, &MrasOptions::default());
+        assert_eq!(f.field.storage(), unit.field.storage(), "{scale}");
+        assert!((f.max_error() - unit.max_error()).abs() < 1e-9, "{scale}");
+    }
+    // A sphere of radius 1e308: its extent, 2e308, overflows.
+    let far: Vec<P> = points.iter().map(|p| p.map(|v| v * 1e308)).collect();
+    assert!(matches!(
+        fit_mras(&far, &normals, &MrasOptions::default(), &|_| true),
+        Err(MrasError::Overflow { .. })
+    ));
+}
+
 #[test]
 fn stray_points_are_set_aside_not_made_surface() {
     // A sphere of 3,000 points and 60 points scattered in its box, at least 0.3 off the

@@ -108,7 +108,13 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
 /// The report as text.
 fn report(args: &InfoArgs) -> anyhow::Result<String> {
     let path = &args.file;
-    if args.format.is_none() && is_field_file(path) {
+    // A `.zsf` file without the magic (empty, or cut short) is a broken field file: the field
+    // reader says what is wrong with it, where the point-cloud readers would not know the
+    // extension.
+    let zsf = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("zsf"));
+    if args.format.is_none() && (zsf || is_field_file(path)) {
         return field_report(path);
     }
     let format = args.format.map(FormatArg::cloud_format).transpose();

@@ -532,13 +532,17 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     .map(|l| support[l])
                     .max()
                     .unwrap_or(0);
+                let fitted = match most {
+                    0 => "no input point".to_owned(),
+                    1 => "at most 1 input point each".to_owned(),
+                    n => format!("at most {n} input points each"),
+                };
                 say!(
                     out,
                     "weak: {weak_count} of {count} component(s), {} triangles, are fitted to \
-                     at most {most} input point{} each (fewer than {MIN_SUPPORT}: blobs around \
-                     stray points near the surface?){removal}",
+                     {fitted} (fewer than {MIN_SUPPORT}: blobs around stray points near the \
+                     surface?){removal}",
                     triangles_in(&weak),
-                    if most == 1 { "" } else { "s" },
                 )?;
             }
             if args.drop_spurious && (spurious > 0 || weak_count > 0) {

@@ -2,8 +2,8 @@
 //!
 //! A mesh (`.ply`, `.obj`, `.stl`) is drawn shaded (`zeroset_mesh::preview::render_mesh`: orthographic,
 //! z-buffered, back faces darker and warmer). A field file (`.zsf`, recognised by its magic) is
-//! meshed at its zero set by marching cubes on the general `l0` voxel grid of its box (capped
-//! where it leaves the box) and drawn the same way; with `--slice AXIS[=POS]` the field is drawn
+//! meshed at its zero set by marching cubes on the `l0` voxel grid of its box at the detail
+//! `zeroset mesh` defaults to (general; fine for an MRAS field), capped where it leaves the box, and drawn the same way; with `--slice AXIS[=POS]` the field is drawn
 //! on the plane `AXIS = POS` instead (blue inside, red outside, the zero contour in black). A
 //! 2-D field file (a curve) is drawn over its box the same way as a slice. The image is
 //! written atomically.
@@ -26,7 +26,7 @@ use zeroset_mesh::{McOptions, MeshFormat, TriMesh, mesh_field};
 /// Shown after `zeroset preview --help`.
 pub const EXAMPLES: &str = "\
 Examples:
-  # a field's zero set, meshed on the general l0 grid and shaded
+  # a field's zero set, meshed on the l0 grid (general; fine for MRAS) and shaded
   zeroset fit samples/bunny_2k.xyzn --method rbf -o bunny.zsf
   zeroset preview bunny.zsf -o bunny.png
   # a mesh file, seen from another side, wider
@@ -218,7 +218,14 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<()> {
                 image
             }
             None => {
-                let h = voxel::voxel_size(&bounds, Detail::General);
+                // The detail `zeroset mesh` takes by default: fine for MRAS fields, whose
+                // deep levels general voxels would not resolve (jagged ear rims on the bunny).
+                let detail = if field.wants_fine_mesh() {
+                    Detail::Fine
+                } else {
+                    Detail::General
+                };
+                let h = voxel::voxel_size(&bounds, detail);
                 if !(h.is_finite() && h > 0.0) {
                     bail!("the field's box is a point: nothing to mesh; try --slice");
                 }

@@ -134,9 +134,17 @@ impl<const D: usize> Aabb<D> {
         std::array::from_fn(|i| 0.5 * (self.min[i] + self.max[i]))
     }
 
-    /// The length of the diagonal.
+    /// The length of the diagonal. Computed with the largest extent factored out where the
+    /// plain sum of squares overflows or underflows (sides of 1e155 or 1e-200), so that it is
+    /// finite and non-zero for every box with finite corners that is not a point.
     pub fn diagonal(&self) -> f64 {
-        norm(&self.extent())
+        let e = self.extent();
+        let plain = norm(&e);
+        let largest = e.iter().fold(0.0f64, |m, v| m.max(*v));
+        if plain.is_finite() && (plain > 0.0 || largest == 0.0) {
+            return plain;
+        }
+        largest * norm(&e.map(|v| v / largest))
     }
 
     /// Whether `p` lies in the closed box.
@@ -145,12 +153,18 @@ impl<const D: usize> Aabb<D> {
     }
 
     /// The box grown by `margin` on every side (shrunk for a negative margin, never past flat).
+    /// The corners stay finite, as the type promises: they stop at `±f64::MAX` (an infinite
+    /// margin, or one that overflows), and a NaN margin leaves the box as it is. A grid over a
+    /// box whose extent overflows is refused ([`Grid::new`](crate::grid::Grid::new)).
     pub fn expanded(&self, margin: f64) -> Self {
+        if margin.is_nan() {
+            return *self;
+        }
         let mut min = self.min;
         let mut max = self.max;
         for i in 0..D {
-            min[i] -= margin;
-            max[i] += margin;
+            min[i] = (min[i] - margin).clamp(f64::MIN, f64::MAX);
+            max[i] = (max[i] + margin).clamp(f64::MIN, f64::MAX);
             if min[i] > max[i] {
                 let c = 0.5 * (self.min[i] + self.max[i]);
                 min[i] = c;
@@ -201,5 +215,30 @@ mod tests {
         let b = Aabb::new([0.0, 0.0], [1.0, 4.0]).unwrap().expanded(-1.0);
         assert_eq!(b.min(), [0.5, 1.0]);
         assert_eq!(b.max(), [0.5, 3.0]);
+    }
+
+    #[test]
+    fn the_diagonal_of_huge_and_tiny_boxes_is_finite() {
+        for side in [1e-200, 1e155, 1e300, 1.0] {
+            let b = Aabb::new([0.0; 3], [side; 3]).unwrap();
+            assert!((b.diagonal() / side - 3f64.sqrt()).abs() < 1e-15, "{side}");
+        }
+        assert_eq!(Aabb::new([2.0; 3], [2.0; 3]).unwrap().diagonal(), 0.0);
+    }
+
+    #[test]
+    fn expanded_keeps_the_corners_finite() {
+        let b = Aabb::new([0.0, 0.0], [1.0, 4.0]).unwrap();
+        let wide = b.expanded(f64::INFINITY);
+        assert_eq!(wide.min(), [f64::MIN; 2]);
+        assert_eq!(wide.max(), [f64::MAX; 2]);
+        assert_eq!(b.expanded(f64::NAN), b);
+        // Its extent overflows: no grid over it.
+        assert!(matches!(
+            crate::grid::Grid::vertex_centered(wide, [4, 4]),
+            Err(Error::InvalidBounds { axis: 0, .. })
+        ));
+        let huge = Aabb::new([-1e308; 3], [1e308; 3]).unwrap();
+        assert!(crate::grid::Grid::vertex_centered(huge, [4, 4, 4]).is_err());
     }
 }

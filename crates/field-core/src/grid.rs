@@ -77,7 +77,7 @@ impl<const D: usize> Grid<D> {
     /// # Errors
     /// [`Error::GridTooSmall`] for fewer than one cell (cell-centred) or two vertices
     /// (vertex-centred) on some axis; [`Error::InvalidBounds`] for a box that is flat on an axis
-    /// carrying more than one sample; [`Error::SizeOverflow`] for more samples than one `f64`
+    /// carrying more than one sample, or whose extent overflows to infinity; [`Error::SizeOverflow`] for more samples than one `f64`
     /// each can address (whether the machine has the memory for a grid's samples is checked
     /// by those that allocate them: [`crate::limits::check_alloc`]).
     pub fn new(bounds: Aabb<D>, counts: [usize; D], centering: Centering) -> Result<Self> {
@@ -95,7 +95,8 @@ impl<const D: usize> Grid<D> {
                     got: counts[axis],
                 });
             }
-            if extent[axis] <= 0.0 {
+            // Not positive, or overflowing (a box from ±1e308 has an infinite extent).
+            if !(extent[axis] > 0.0 && extent[axis].is_finite()) {
                 return Err(Error::InvalidBounds {
                     axis,
                     min: bounds.min()[axis],

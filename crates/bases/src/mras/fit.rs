@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use faer::Mat;
 use rayon::prelude::*;
-use zeroset_field_core::geometry::{self, Point};
+use zeroset_field_core::geometry::{self, Aabb, Point};
 use zeroset_tensor::thin_svd;
 
 use super::MrasError;
@@ -848,7 +848,10 @@ impl Cloud {
             }
         }
         let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        let diagonal = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+        let diagonal = Aabb::new(lo, hi).map_or(f64::NAN, |b| b.diagonal());
+        if !(extent.is_finite() && diagonal.is_finite()) {
+            return Err(MrasError::Overflow { extent });
+        }
         check_spread(positions, &idx, extent)?;
         let side = extent * (1.0 + 2.0 * margin);
         let origin: Point<3> = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]) - 0.5 * side);
@@ -879,9 +882,12 @@ fn check_spread(positions: &[Point<3>], idx: &[usize], extent: f64) -> Result<()
             mean[a] += positions[i][a] / n;
         }
     }
+    // In units of the extent, so that coordinates of 1e155 or 1e-200 neither overflow nor
+    // underflow the squares.
     let mut cov = [[0.0; 3]; 3];
+    let scale = if extent > 0.0 { 1.0 / extent } else { 1.0 };
     for &i in idx {
-        let d: [f64; 3] = std::array::from_fn(|a| positions[i][a] - mean[a]);
+        let d: [f64; 3] = std::array::from_fn(|a| (positions[i][a] - mean[a]) * scale);
         for a in 0..3 {
             for b in 0..3 {
                 cov[a][b] += d[a] * d[b] / n;

@@ -234,8 +234,9 @@ pub enum MrasError {
     },
     /// All points on one plane or line: no volume to wrap a surface around.
     #[error(
-        "all points lie within {thickness:.3e} of a {shape} (extent {extent:.3e}): MRAS \
-         reconstructs a closed surface around a volume and needs points spread in 3 dimensions"
+        "all points lie within {thickness:.3e} of a {shape} (extent {extent:.3e}): MRAS sizes \
+         its cells from the points' spread and needs them spread in 3 dimensions, not on a \
+         single {shape}"
     )]
     Degenerate {
         /// "plane", "line" or "point".
@@ -243,6 +244,15 @@ pub enum MrasError {
         /// The largest distance of a point from it.
         thickness: f64,
         /// The cloud's largest extent.
+        extent: f64,
+    },
+    /// Coordinates so large that the cloud's extent or diagonal overflows.
+    #[error(
+        "the points span {extent:e}: coordinates this large overflow the box's diagonal; scale \
+         them down"
+    )]
+    Overflow {
+        /// The cloud's largest extent (infinite where it overflowed itself).
         extent: f64,
     },
     /// An option outside its range.

@@ -577,6 +577,10 @@ fn check_value_request(args: &FitArgs, dim: usize) -> anyhow::Result<KernelArg> 
         (args.offset.is_some(), "--offset"),
         (args.sampled, "--sampled"),
         (args.grid.is_some(), "--grid"),
+        (
+            crate::normals::cloud_format_given(args.format.as_deref()),
+            "--format",
+        ),
         (args.formation.is_some(), "--formation"),
     ];
     if let Some((_, flag)) = cloud_only.iter().find(|(given, _)| *given) {

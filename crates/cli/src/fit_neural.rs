@@ -207,10 +207,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     match crate::normals::value_dimension(&args.points, args.format.as_deref()) {
         Some(dim) => {
             let params = args.neural.params(NeuralParams::default().lambda)?;
-            if args.offset.is_some() || args.formation.is_some() {
+            if args.offset.is_some()
+                || crate::normals::cloud_format_given(args.format.as_deref())
+                || args.formation.is_some()
+            {
                 bail!(
-                    "--offset and --formation apply to point clouds; {} is a value-constraint \
-                     file",
+                    "--offset, --format and --formation apply to point clouds; {} is a \
+                     value-constraint file",
                     args.points.display()
                 );
             }

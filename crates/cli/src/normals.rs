@@ -106,12 +106,17 @@ pub(crate) fn value_format(format: &str) -> Option<usize> {
 }
 
 /// The dimension of the value-constraint file a command reads at `path`, if it is one: by
-/// `--format xyv|xyzv`, else by the extension (`.xyv`, `.xyzv`) when no `--format` is given.
+/// `--format xyv|xyzv`, else by the extension (`.xyv`, `.xyzv`; a point-cloud `--format` on
+/// such a file is then refused by the value-file checks, not taken to read it as a cloud).
 pub(crate) fn value_dimension(path: &Path, format: Option<&str>) -> Option<usize> {
-    match format {
-        Some(format) => value_format(format),
-        None => io::value_file_dimension(path),
-    }
+    format
+        .and_then(value_format)
+        .or_else(|| io::value_file_dimension(path))
+}
+
+/// Whether `--format` names a point-cloud format (given, and not `xyv` or `xyzv`).
+pub(crate) fn cloud_format_given(format: Option<&str>) -> bool {
+    format.is_some_and(|f| value_format(f).is_none())
 }
 
 /// `--formation`'s help, for every command that reads a point cloud.

@@ -1297,6 +1297,36 @@ fn atomic_write_replaces_an_existing_file_intact() {
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
 }
 
+/// A private file stays private, and a link stays a link (its target rewritten): a `chmod 600`
+/// output became 644 and a symlink a plain file.
+#[cfg(unix)]
+#[test]
+fn atomic_write_keeps_permissions_and_links() {
+    use std::os::unix::fs::PermissionsExt;
+    use zeroset_field_core::io::write_atomic;
+    let dir = tempfile::tempdir().unwrap();
+    let private = dir.path().join("private.txt");
+    fs::write(&private, "old").unwrap();
+    fs::set_permissions(&private, fs::Permissions::from_mode(0o600)).unwrap();
+    write_atomic(&private, |w| w.write_all(b"new")).unwrap();
+    assert_eq!(fs::read_to_string(&private).unwrap(), "new");
+    let mode = fs::metadata(&private).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600, "{mode:o}");
+    let target = dir.path().join("target.txt");
+    let link = dir.path().join("link.txt");
+    fs::write(&target, "old").unwrap();
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    write_atomic(&link, |w| w.write_all(b"new")).unwrap();
+    assert!(
+        fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert_eq!(fs::read_to_string(&target).unwrap(), "new");
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 3);
+}
+
 #[test]
 fn atomic_write_failure_keeps_the_old_file() {
     let dir = tempfile::tempdir().unwrap();

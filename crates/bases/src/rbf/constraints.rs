@@ -170,7 +170,8 @@ impl<const D: usize> Constraints<D> {
     ///
     /// # Errors
     /// [`RbfError::Empty`], [`RbfError::NonFinite`], [`RbfError::ZeroNormal`], a cloud
-    /// without normals as [`RbfError::Degenerate`], [`RbfError::InvalidOffset`],
+    /// without normals or (with the automatic offset) without extent as
+    /// [`RbfError::Degenerate`], [`RbfError::InvalidOffset`],
     /// [`RbfError::ConflictingDuplicates`], and for a fixed offset
     /// [`RbfError::OffsetCrossesSurface`].
     pub fn off_surface(
@@ -184,6 +185,15 @@ impl<const D: usize> Constraints<D> {
             Offset::Auto { fraction } => (fraction * diagonal, 8),
             Offset::Fixed(eps) => (eps, 0),
         };
+        if diagonal == 0.0 && matches!(offset, Offset::Auto { .. }) {
+            // The automatic offset is a fraction of the diagonal: say why it is 0.
+            return Err(RbfError::Degenerate {
+                detail: format!(
+                    "all {} points lie at one position (the cloud has no extent)",
+                    points.len()
+                ),
+            });
+        }
         if !(initial.is_finite() && initial > 0.0) {
             return Err(RbfError::InvalidOffset(initial));
         }
@@ -518,6 +528,14 @@ mod tests {
         assert_eq!(
             Constraints::off_surface(&cloud, Offset::Fixed(-1.0)).unwrap_err(),
             RbfError::InvalidOffset(-1.0)
+        );
+        // A cloud at one position: the automatic offset's diagonal is 0, and the error says so
+        // (it said "offset must be finite and > 0, got 0", an offset the user never gave).
+        let point = PointCloud::with_normals(vec![[0.5; 3]; 4], vec![[0.0, 0.0, 1.0]; 4]).unwrap();
+        let err = Constraints::off_surface(&point, Offset::default()).unwrap_err();
+        assert!(
+            err.to_string().contains("all 4 points lie at one position"),
+            "{err}"
         );
         let zero =
             PointCloud::with_normals(vec![[0.0; 3], [1.0; 3]], vec![[0.0, 0.0, 1.0], [0.0; 3]])

@@ -443,7 +443,9 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
 /// file or the complete new one, never a partial write; on any error the temporary file is
 /// removed and an existing `path` is left untouched.
 ///
-/// The new file gets default permissions (an existing file's are not copied).
+/// An existing file's permissions are kept (a `chmod 600` file stays private), and a symbolic
+/// link at `path` is followed: its target is replaced and the link kept (a link whose target
+/// cannot be resolved is itself replaced by the file).
 ///
 /// The temporary file is named `.<name>.<pid>.<n>.tmp` (`<name>` is `path`'s file name, `<pid>`
 /// the writing process, `<n>` a counter). A process killed while writing (SIGKILL, a power
@@ -471,13 +473,19 @@ pub fn write_atomic<F>(path: impl AsRef<Path>, write: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> io::Result<()>,
 {
-    let path = path.as_ref();
+    let given = path.as_ref();
+    let resolved = fs::symlink_metadata(given)
+        .ok()
+        .filter(|m| m.file_type().is_symlink())
+        .and_then(|_| fs::canonicalize(given).ok());
+    let path = resolved.as_deref().unwrap_or(given);
     let Some(name) = path.file_name() else {
         return Err(Error::Io {
             path: path.to_owned(),
             source: io::Error::new(io::ErrorKind::InvalidInput, "not a file name"),
         });
     };
+    let permissions = fs::metadata(path).ok().map(|m| m.permissions());
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
@@ -485,6 +493,9 @@ where
     remove_stale_files(dir, |file| temp_writer(file, name));
     let (tmp_path, file, _unfinished) = Unfinished::create(dir, name).map_err(io_error(path))?;
     let result = (|| {
+        if let Some(permissions) = permissions {
+            file.set_permissions(permissions)?;
+        }
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;
         let file = writer

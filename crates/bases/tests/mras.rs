@@ -518,10 +518,7 @@ fn a_very_loose_tolerance_still_gives_the_surface() {
         let fit = fit(
             &points,
             &normals,
-            &MrasOptions {
-                tolerance,
-                ..MrasOptions::default()
-            },
+            &MrasOptions::default().tolerance(tolerance),
         );
         assert_eq!(fit.levels[0].dropped, 0, "{tolerance}");
         assert_eq!(fit.flat_points, 0, "{tolerance}");

@@ -234,7 +234,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     line("tolerance", &tolerance_summary(&fit, &options));
     // A few flat points are saddles of a noisy scan's field (17 of the 34,786 of a bunny with
     // noise at 0.5% of the diagonal); over 1% is a field that misses the surface.
-    let fitted = cloud.len() - fit.outliers.len();
+    let fitted = fit.fitted_points;
     if fit.flat_points * 100 > fitted {
         line(
             "warning",

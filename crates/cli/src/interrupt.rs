@@ -41,12 +41,15 @@ impl Drop for TemporaryFile {
     }
 }
 
-/// Removes what an interrupted command leaves; the number of files removed.
+/// Removes what an interrupted command leaves; the number of files removed. Both lists stay
+/// locked until the process ends, so that no temporary file is made after they were emptied.
 fn clean_up() -> usize {
-    let mut removed = zeroset_field_core::io::remove_unfinished_writes();
-    for path in temporaries().drain(..) {
+    let mut removed = zeroset_field_core::io::remove_unfinished_writes_before_exit();
+    let mut list = temporaries();
+    for path in list.drain(..) {
         removed += usize::from(std::fs::remove_file(path).is_ok());
     }
+    std::mem::forget(list);
     removed
 }
 

@@ -91,7 +91,8 @@ pub(crate) const FORMAT_HELP: &str = "Read the point cloud as this format whatev
 pub(crate) const FIT_FORMAT_HELP: &str = "Read the input as this format whatever its \
     extension: ply, xyz (any text of x y z [nx ny nz] columns: .xyzn, .pts, .txt, .asc, .pwn), \
     csv, gempy, pcd, las (LAS or LAZ) or e57; or xyv / xyzv, a value-constraint file of \
-    x y value / x y z value lines (--method rbf or neural)";
+    x y value / x y z value lines (--method rbf or neural). A .xyv or .xyzv file is always \
+    read as value constraints";
 
 /// The value-constraint formats `--format` names (`zeroset fit` and `zeroset info` read them):
 /// the name and the dimension.

@@ -136,12 +136,14 @@ impl<const D: usize> Aabb<D> {
 
     /// The length of the diagonal. Computed with the largest extent factored out where the
     /// plain sum of squares overflows or underflows (sides of 1e155 or 1e-200), so that it is
-    /// finite and non-zero for every box with finite corners that is not a point.
+    /// finite and non-zero for every box of finite extent that is not a point (infinite where
+    /// the extent itself overflows, as for corners at ±1e308).
     pub fn diagonal(&self) -> f64 {
         let e = self.extent();
         let plain = norm(&e);
         let largest = e.iter().fold(0.0f64, |m, v| m.max(*v));
-        if plain.is_finite() && (plain > 0.0 || largest == 0.0) {
+        if (plain.is_finite() && (plain > 0.0 || largest == 0.0)) || largest.is_infinite() {
+            // An extent that overflows itself (corners at ±1e308) has an infinite diagonal.
             return plain;
         }
         largest * norm(&e.map(|v| v / largest))
@@ -224,6 +226,8 @@ mod tests {
             assert!((b.diagonal() / side - 3f64.sqrt()).abs() < 1e-15, "{side}");
         }
         assert_eq!(Aabb::new([2.0; 3], [2.0; 3]).unwrap().diagonal(), 0.0);
+        let overflowing = Aabb::new([-1e308; 3], [1e308; 3]).unwrap();
+        assert_eq!(overflowing.diagonal(), f64::INFINITY);
     }
 
     #[test]

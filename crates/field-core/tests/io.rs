@@ -1325,6 +1325,21 @@ fn atomic_write_keeps_permissions_and_links() {
     );
     assert_eq!(fs::read_to_string(&target).unwrap(), "new");
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 3);
+    // A link to anything but a regular file (here a directory), or to nothing, is replaced
+    // itself: what it points to is never touched.
+    let folder = dir.path().join("folder");
+    fs::create_dir(&folder).unwrap();
+    for (name, to) in [
+        ("to_dir.txt", folder.clone()),
+        ("dangling.txt", dir.path().join("none")),
+    ] {
+        let link = dir.path().join(name);
+        std::os::unix::fs::symlink(&to, &link).unwrap();
+        write_atomic(&link, |w| w.write_all(b"file")).unwrap();
+        assert!(fs::symlink_metadata(&link).unwrap().is_file(), "{name}");
+    }
+    assert!(folder.is_dir() && fs::read_dir(&folder).unwrap().count() == 0);
+    assert!(!dir.path().join("none").exists());
 }
 
 #[test]

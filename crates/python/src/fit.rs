@@ -419,7 +419,7 @@ pub(crate) fn fit_mras_cloud<'py>(
             fit.capped_cells,
             fit.flat_points,
         );
-        let fitted = cloud.len() - fit.outliers.len();
+        let fitted = fit.fitted_points;
         let report = vec![
             ("method", ReportValue::Str("mras".into())),
             ("levels", ReportValue::Int(fit.levels.len())),

@@ -387,6 +387,9 @@ pub struct MrasFit {
     /// Sampson distance says. A trace-norm weight far too large for the data (`λ`) shrinks the
     /// offsets to this.
     pub flat_points: usize,
+    /// The points fitted: distinct (duplicates merged) and not set aside as outliers, what
+    /// [`MrasFit::flat_points`] and [`MrasFit::points_over_tolerance`] count among.
+    pub fitted_points: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -678,6 +681,7 @@ pub fn fit_mras(
         points_over_tolerance: points_over,
         capped_cells: capped,
         flat_points: flat,
+        fitted_points: np,
         seconds: start.elapsed().as_secs_f64(),
     })
 }

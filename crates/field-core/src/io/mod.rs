@@ -443,9 +443,12 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
 /// file or the complete new one, never a partial write; on any error the temporary file is
 /// removed and an existing `path` is left untouched.
 ///
-/// An existing file's permissions are kept (a `chmod 600` file stays private), and a symbolic
-/// link at `path` is followed: its target is replaced and the link kept (a link whose target
-/// cannot be resolved is itself replaced by the file).
+/// An existing file's permission bits (`rwx` for user, group and others; not setuid, setgid
+/// or sticky) are kept, a `chmod 600` file staying private, and on Unix its owner and group
+/// where the process may set them (root rewriting another user's file). A symbolic link at
+/// `path` to a regular file is followed: that file is replaced and the link kept. A link to
+/// anything else (a device, a FIFO, a directory), and one whose target does not exist or
+/// cannot be resolved (a loop), is itself replaced by the file, as a plain `path` is.
 ///
 /// The temporary file is named `.<name>.<pid>.<n>.tmp` (`<name>` is `path`'s file name, `<pid>`
 /// the writing process, `<n>` a counter). A process killed while writing (SIGKILL, a power
@@ -467,34 +470,36 @@ pub fn read_point_cloud_with(path: impl AsRef<Path>, options: &ReadOptions) -> R
 /// ```
 ///
 /// # Errors
-/// [`Error::Io`] naming `path`, for an error from `write` or from the file system (for
-/// instance a directory that does not exist).
+/// [`Error::Io`] naming `path` (as given, not a link's target), for an error from `write` or
+/// from the file system (for instance a directory that does not exist).
 pub fn write_atomic<F>(path: impl AsRef<Path>, write: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> io::Result<()>,
 {
-    let given = path.as_ref();
-    let resolved = fs::symlink_metadata(given)
+    let path = path.as_ref();
+    // A link to a regular file: write that file (the link stays a link).
+    let linked = fs::symlink_metadata(path)
         .ok()
         .filter(|m| m.file_type().is_symlink())
-        .and_then(|_| fs::canonicalize(given).ok());
-    let path = resolved.as_deref().unwrap_or(given);
-    let Some(name) = path.file_name() else {
+        .and_then(|_| fs::canonicalize(path).ok())
+        .filter(|target| fs::metadata(target).is_ok_and(|m| m.is_file()));
+    let target = linked.as_deref().unwrap_or(path);
+    let Some(name) = target.file_name() else {
         return Err(Error::Io {
             path: path.to_owned(),
             source: io::Error::new(io::ErrorKind::InvalidInput, "not a file name"),
         });
     };
-    let permissions = fs::metadata(path).ok().map(|m| m.permissions());
-    let dir = match path.parent() {
+    let existing = fs::metadata(target).ok().filter(|m| m.is_file());
+    let dir = match target.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
     remove_stale_files(dir, |file| temp_writer(file, name));
     let (tmp_path, file, _unfinished) = Unfinished::create(dir, name).map_err(io_error(path))?;
     let result = (|| {
-        if let Some(permissions) = permissions {
-            file.set_permissions(permissions)?;
+        if let Some(existing) = &existing {
+            keep_attributes(&file, existing)?;
         }
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;
@@ -503,7 +508,7 @@ where
             .map_err(io::IntoInnerError::into_error)?;
         file.sync_all()?;
         drop(file);
-        fs::rename(&tmp_path, path)
+        fs::rename(&tmp_path, target)
     })();
     if let Err(source) = result {
         // Best effort: the temporary file may already be gone.
@@ -514,6 +519,22 @@ where
         });
     }
     Ok(())
+}
+
+/// Gives the new file `file` the permission bits of the file it replaces (and, on Unix, its
+/// owner and group where this process may: an error there is ignored, as for any user but
+/// root giving a file away).
+fn keep_attributes(file: &File, existing: &fs::Metadata) -> io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let _ = std::os::unix::fs::fchown(file, Some(existing.uid()), Some(existing.gid()));
+        file.set_permissions(fs::Permissions::from_mode(existing.mode() & 0o777))
+    }
+    #[cfg(not(unix))]
+    {
+        file.set_permissions(existing.permissions())
+    }
 }
 
 /// The temporary files of [`write_atomic`] calls in progress in this process.
@@ -550,8 +571,22 @@ impl Drop for Unfinished {
 /// targets keep their old contents (or stay absent); a write that has already renamed its file
 /// into place is complete and not touched. Returns how many files were removed.
 pub fn remove_unfinished_writes() -> usize {
-    unfinished()
-        .drain(..)
+    remove_listed(&mut unfinished())
+}
+
+/// [`remove_unfinished_writes`] for a process about to exit: the list stays locked afterwards,
+/// so that a [`write_atomic`] starting in another thread before the exit waits instead of
+/// creating a temporary file that nothing would remove. Every later `write_atomic` in this
+/// process blocks: call it only on the way out.
+pub fn remove_unfinished_writes_before_exit() -> usize {
+    let mut list = unfinished();
+    let removed = remove_listed(&mut list);
+    std::mem::forget(list);
+    removed
+}
+
+fn remove_listed(list: &mut Vec<PathBuf>) -> usize {
+    list.drain(..)
         .filter(|path| fs::remove_file(path).is_ok())
         .count()
 }

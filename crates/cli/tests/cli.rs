@@ -1207,34 +1207,34 @@ fn format_xyv_reads_a_value_file_of_any_name() {
         stdout(&o)
     );
     // Commands that take point clouds say what a value file is.
-    let o = zeroset([
-        OsStr::new("fit"),
-        curve.as_os_str(),
-        OsStr::new("--method"),
-        OsStr::new("mras"),
-        OsStr::new("-o"),
-        dir.path().join("m.zsf").as_os_str(),
-    ]);
-    assert_clean_failure(&o);
-    assert!(
-        stderr(&o)
-            .contains("a file of 2-D value constraints (x y value per line), not a point cloud"),
-        "{}",
-        stderr(&o)
+    let refused = |args: &[&OsStr], phrase: &str| {
+        let o = zeroset(args);
+        assert_clean_failure(&o);
+        assert!(stderr(&o).contains(phrase), "{}", stderr(&o));
+    };
+    let (m, n) = (dir.path().join("m.zsf"), dir.path().join("n.ply"));
+    let os = OsStr::new;
+    refused(
+        &[
+            os("fit"),
+            curve.as_os_str(),
+            os("--method"),
+            os("mras"),
+            os("-o"),
+            m.as_os_str(),
+        ],
+        "a file of 2-D value constraints (x y value per line), not a point cloud",
     );
-    let o = zeroset([
-        OsStr::new("normals"),
-        txt.as_os_str(),
-        OsStr::new("--format"),
-        OsStr::new("xyv"),
-        OsStr::new("-o"),
-        dir.path().join("n.ply").as_os_str(),
-    ]);
-    assert_clean_failure(&o);
-    assert!(
-        stderr(&o).contains("--format xyv names a value-constraint file"),
-        "{}",
-        stderr(&o)
+    refused(
+        &[
+            os("normals"),
+            txt.as_os_str(),
+            os("--format"),
+            os("xyv"),
+            os("-o"),
+            n.as_os_str(),
+        ],
+        "--format xyv names a value-constraint file",
     );
 }
 

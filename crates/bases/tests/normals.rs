@@ -3,9 +3,11 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
-    NormalOptions, default_neighbours, estimate_normals, estimate_normals_from_scanners,
+    NormalOptions, default_neighbours, estimate_noise_unoriented, estimate_normals,
+    estimate_normals_from_scanners,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -160,6 +162,23 @@ fn a_thin_part_keeps_its_two_sheets_facing_apart() {
             estimated.len()
         );
         assert_eq!(flipped, 0.0, "seed {seed}");
+    }
+}
+
+#[test]
+fn a_thin_part_is_not_taken_for_noise() {
+    // From the positions alone each patch of the box straddles both sheets, and their distance
+    // reads as scatter: noisy, which sent the default to 32 neighbours, and those turned one
+    // face inward (half the points). Measured again with the 16-neighbour normals the box is
+    // clean, so the default stays at the 16 the test above checks.
+    for seed in [1, 2, 3] {
+        let (points, _) = thin_box(0.04, 0.02, seed);
+        let trap = estimate_noise(&points, None).unwrap();
+        assert!(trap.is_noisy(), "seed {seed}: {trap:?}");
+        let (k, noise) = default_neighbours(&points);
+        assert_eq!(k, NORMAL_NEIGHBOURS, "seed {seed}: {noise:?}");
+        let noise = estimate_noise_unoriented(&points).unwrap();
+        assert!(noise.relative() < 0.1, "seed {seed}: {noise:?}");
     }
 }
 

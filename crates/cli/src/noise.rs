@@ -3,15 +3,20 @@
 //! `zeroset reconstruct --method auto` gives for fitting MRAS to it.
 
 use zeroset_bases::noise::{NOISY_SCATTER, Noise, estimate_noise};
+use zeroset_bases::normals::estimate_noise_unoriented;
 use zeroset_field_core::PointCloud3;
 
 use crate::info::g;
 
-/// The estimate for `cloud` (its normals used where it has them), with its bounding-box
-/// diagonal.
+/// The estimate for `cloud` (its normals used where it has them; otherwise
+/// [`estimate_noise_unoriented`]), with its bounding-box diagonal.
 pub fn measure(cloud: &PointCloud3) -> Option<Measured> {
     let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-    estimate_noise(cloud.positions(), cloud.normals()).map(|noise| Measured { noise, diagonal })
+    match cloud.normals() {
+        Some(normals) => estimate_noise(cloud.positions(), Some(normals)),
+        None => estimate_noise_unoriented(cloud.positions()),
+    }
+    .map(|noise| Measured { noise, diagonal })
 }
 
 /// An estimate and the diagonal it is reported against.

@@ -565,6 +565,8 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     }
     // The scan's reach: trim to it, or say how much of the mesh lies beyond it.
     let scan = scan.or(recorded);
+    // Whether --trim removed anything (the open edges' cause below).
+    let mut trim_cut = false;
     match (scan, args.trim) {
         (None, Some(_)) => bail!(
             "--trim needs the points the field was fitted to: give --scan SCAN ({} holds a {} \
@@ -607,6 +609,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                         trimmed.cut_triangles,
                         boundary_loops(&trimmed.mesh)
                     )?;
+                    trim_cut = trimmed.dropped_triangles + trimmed.cut_triangles > 0;
                     mesh = trimmed.mesh;
                     report = kept;
                 } else {
@@ -649,6 +652,20 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 g(args.level),
                 LATTICE.pow(3)
             )?;
+        } else if lo < args.level && args.level < hi {
+            // The level is crossed, between the grid's vertices: the voxels are too coarse.
+            say!(
+                out,
+                "the field crosses the level {} (it runs from {} to {} on a lattice of {} \
+                 across the box) but no voxel of edge {} has corners on both sides of it: the \
+                 surface lies between the grid's vertices, the mesh is empty; a smaller --voxel \
+                 or a larger --resolution catches it",
+                g(args.level),
+                g(lo),
+                g(hi),
+                LATTICE.pow(3),
+                g(h)
+            )?;
         } else {
             say!(
                 out,
@@ -664,7 +681,13 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         out,
         "report: {}, Euler characteristic {}, {} component(s), {} boundary edge(s), {} \
          non-manifold, signed volume {}, area {}",
-        if report.closed { "closed" } else { "open" },
+        if mesh.is_empty() {
+            "empty"
+        } else if report.closed {
+            "closed"
+        } else {
+            "open"
+        },
         report.euler_characteristic,
         report.components,
         report.boundary_edges,
@@ -673,8 +696,8 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         g(report.area)
     )?;
     if report.boundary_edges > 0 {
-        let why = if args.trim.is_some() {
-            "where --trim cut it"
+        let why = if trim_cut {
+            "where --trim cut it (or where the surface leaves the grid)"
         } else if args.close {
             "at holes in the surface"
         } else {
@@ -685,6 +708,18 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             "open: {} boundary edge(s), {why}; the signed volume of an open mesh encloses \
              nothing",
             report.boundary_edges,
+        )?;
+    }
+
+    if report.closed && report.signed_volume < 0.0 && !mesh.is_empty() {
+        // Marching cubes face the triangles along the gradient: a field positive inside
+        // gives a closed mesh that encloses a negative volume.
+        say!(
+            out,
+            "warning: the mesh is inside out (closed, with a negative signed volume): the field \
+             is positive inside it, where zeroset's fits to outward normals are negative; a fit \
+             to a scan whose normals point inward gives this (zeroset normals SCAN -o \
+             ORIENTED.ply estimates outward ones)"
         )?;
     }
 

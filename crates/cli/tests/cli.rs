@@ -279,6 +279,132 @@ fn restore_removes_a_protrusion_then_denoises_the_result() {
     assert_eq!(fs::read(&first).unwrap(), bytes);
 }
 
+/// A closed rod of radius 0.05 and length 4 along x, sampled about every 0.02 (its side in
+/// rings, its ends in discs), with outward normals.
+fn rod_xyzn() -> String {
+    let (h, r, half) = (0.02, 0.05, 2.0);
+    let ring = (2.0 * std::f64::consts::PI * r / h).round() as usize;
+    let mut text = String::new();
+    let mut push = |p: [f64; 3], n: [f64; 3]| {
+        text.push_str(&format!(
+            "{} {} {} {} {} {}\n",
+            p[0], p[1], p[2], n[0], n[1], n[2]
+        ));
+    };
+    for i in 0..=(2.0 * half / h).round() as usize {
+        let x = -half + i as f64 * h;
+        for k in 0..ring {
+            let t = 2.0 * std::f64::consts::PI * k as f64 / ring as f64;
+            push([x, r * t.cos(), r * t.sin()], [0.0, t.cos(), t.sin()]);
+        }
+    }
+    for side in [-1.0, 1.0] {
+        for j in 0..(r / h).ceil() as usize {
+            let rr = h / 2.0 + j as f64 * h;
+            let m = ((2.0 * std::f64::consts::PI * rr / h).round() as usize).max(1);
+            for k in 0..m {
+                let t = 2.0 * std::f64::consts::PI * k as f64 / m as f64;
+                push([side * half, rr * t.cos(), rr * t.sin()], [side, 0.0, 0.0]);
+            }
+        }
+    }
+    text
+}
+
+#[test]
+fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
+    // A field file's surface is resampled on the restoration grid everywhere, not only in the
+    // mask: on the default grid a thin rod's cells are wider than the rod, and it shrank (6% of
+    // its radius) with no word. Now the drift is measured and warned of; a finer grid keeps it.
+    let (dir, rod) = temp_file("rod.xyzn", &rod_xyzn());
+    let field = dir.path().join("rod.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        rod.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("--quiet"),
+        OsStr::new("-o"),
+        field.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let restore = |grid: Option<&str>| {
+        let out = dir.path().join("out.zsf");
+        let mut args = vec![
+            "restore",
+            field.to_str().unwrap(),
+            "--mode",
+            "denoise",
+            "--mask",
+            "1.5,-0.2,-0.2:1.9,0.2,0.2",
+            "--coarse",
+            "3,3,3",
+            "--force",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        if let Some(grid) = grid {
+            args.extend(["--grid", grid]);
+        }
+        let o = zeroset(args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    const DRIFT: &str = "outside the mask: the resampled surface lies a median";
+    let coarse = restore(None);
+    assert!(coarse.contains(DRIFT), "{coarse}");
+    assert!(coarse.contains("warning: the grid's cells"), "{coarse}");
+    let median = reported(&coarse, DRIFT);
+    assert!((0.001..0.01).contains(&median), "{coarse}");
+    let fine = restore(Some("256,16,16"));
+    assert!(!fine.contains("warning: the grid's cells"), "{fine}");
+    assert!(reported(&fine, DRIFT) < 0.2 * median, "{fine}");
+    // A B-spline field on its own grid is given back outside the mask: nothing to report.
+    let again = dir.path().join("again.zsf");
+    let o = zeroset([
+        "restore",
+        dir.path().join("out.zsf").to_str().unwrap(),
+        "--mode",
+        "denoise",
+        "--mask",
+        "1.5,-0.2,-0.2:1.9,0.2,0.2",
+        "--coarse",
+        "3,3,3",
+        "-o",
+        again.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("outside the mask"), "{}", stdout(&o));
+}
+
+#[test]
+fn restore_warns_of_a_slope_that_grows_the_protrusion() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.zsf");
+    let run = |alpha: &str| {
+        let o = zeroset([
+            "restore",
+            sample().to_str().unwrap(),
+            "--mode",
+            "protrusion",
+            "--mask",
+            EARS,
+            "--face",
+            "-y",
+            &format!("--alpha={alpha}"),
+            "--force",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let grows = "does not rise into the mask across the face";
+    assert!(run("-1").contains(grows), "{}", run("-1"));
+    assert!(run("0").contains(grows), "{}", run("0"));
+    assert!(!run("2").contains(grows), "{}", run("2"));
+}
+
 #[test]
 fn restore_refuses_bad_requests_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
@@ -289,7 +415,7 @@ fn restore_refuses_bad_requests_with_a_message() {
         args.extend([OsStr::new("-o"), out.as_os_str()]);
         zeroset(args)
     };
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (
             &[
                 "--mode",
@@ -324,6 +450,16 @@ fn restore_refuses_bad_requests_with_a_message() {
         (
             &["--mode", "protrusion", "--mask", EARS, "--grid", "2,40,40"],
             "at least 3 samples",
+        ),
+        (
+            // Inside the box, between two samples along x: not "outside the box".
+            &[
+                "--mode",
+                "protrusion",
+                "--mask",
+                "-0.05,0.1,-0.02:-0.0499,0.14,0.02",
+            ],
+            "the mask holds no grid sample along x",
         ),
     ];
     for (extra, expected) in cases {
@@ -902,6 +1038,39 @@ fn an_offset_level_set_is_not_called_spurious_and_dropping_all_is_said() {
             "spurious: none (every component has an input point within 3 voxels plus \
                       the level's offset"
         ) && out.contains("closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+}
+
+#[test]
+fn an_inside_out_mesh_and_voxels_too_coarse_are_said() {
+    // A sphere whose normals all point inward fits a field positive inside: the closed mesh
+    // encloses a negative volume, which was reported as if nothing were wrong.
+    let inward: String = sphere_points(300)
+        .iter()
+        .map(|(p, n)| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], -n[0], -n[1], -n[2]))
+        .collect();
+    let (dir, cloud) = temp_file("inward.xyzn", &inward);
+    let field = dir.path().join("inward.zsf");
+    let o = fit(&cloud, &["-o", field.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ply = dir.path().join("inward.ply");
+    let o = mesh(&field, &ply, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let inside_out = "warning: the mesh is inside out";
+    assert!(stdout(&o).contains(inside_out), "{}", stdout(&o));
+    let (_d, outward) = sphere_field();
+    let o = mesh(&outward, &ply, &["--force"]);
+    assert!(!stdout(&o).contains(inside_out), "{}", stdout(&o));
+    // Voxels wider than the sphere: the field crosses the level between the grid's vertices.
+    // The message blamed the level and the report called the empty mesh open.
+    let o = mesh(&outward, &ply, &["--force", "--voxel", "10"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("a smaller --voxel or a larger --resolution catches it")
+            && out.contains("report: empty")
+            && !out.contains("--level picks another level"),
         "{out}"
     );
 }

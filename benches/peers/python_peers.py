@@ -14,7 +14,9 @@ Two tables, on the same inputs in the same run:
    operation (`--rounds`, default 5), and the overhead is the median of the rounds' ratios.
 2. **Migration** — the scipy / scikit-image / TensorLy call a user replaces, on the same input:
    `RBFInterpolator` (kernel `linear` = zeroset's `r`, degree 1, the same off-surface points)
-   fit + evaluation, `scipy.sparse.linalg.lsqr`, `skimage.measure.marching_cubes`, TensorLy
+   fit + evaluation, `scipy.sparse.linalg.lsqr`, the normal equations by a direct solver on
+   both sides (scipy's `spsolve`, SuperLU, at two orderings; CHOLMOD through scikit-sparse
+   where installed; zeroset's sparse Cholesky), `skimage.measure.marching_cubes`, TensorLy
    `parafac` (same SVD initialisation, 50 sweeps, tol 0). Run once with one thread each
    (`RAYON_NUM_THREADS=1`, BLAS pinned to 1) and once with two (`--threads 2`, BLAS at 2);
    `--threads-both 2` runs both in child processes and prints them side by side with the
@@ -229,6 +231,37 @@ def migration() -> list:
                  timed(lambda: zeroset.lstsq(a, b, tol=1e-10, max_iter=100_000)),
                  f"max |difference| {np.abs(want - got).max():.1e}; {scipy_lsqr[2]} "
                  "scipy iterations", ARGS.repeat))
+    # Direct against direct: the normal equations AᵀA x = Aᵀb, formed and factored on each side
+    # (the product counted: the user pays it). zeroset's sparse Cholesky (faer, AMD ordering);
+    # scipy's SuperLU at its default column ordering and at the one for symmetric matrices;
+    # CHOLMOD where scikit-sparse is installed (`setup.sh --cholmod`).
+    from scipy.sparse.linalg import spsolve
+
+    def zs_cholesky():
+        return zeroset.lstsq(a, b, solver="cholesky")
+
+    x_chol = zs_cholesky()
+    t_chol = timed(zs_cholesky)
+    shape = f"{a.shape[0]}×{a.shape[1]}, nnz {a.nnz}"
+    for permc, why in (("COLAMD", "its default ordering"), ("MMD_AT_PLUS_A", "its ordering for symmetric A")):
+        def superlu(permc=permc):
+            return spsolve((a.T @ a).tocsc(), a.T @ b, permc_spec=permc)
+
+        rows.append((f"`spsolve(A.T @ A, A.T @ b, permc_spec='{permc}')` (SuperLU, {why})",
+                     "`zeroset.lstsq(A, b, solver='cholesky')`", shape, timed(superlu), t_chol,
+                     f"max |difference| {np.abs(superlu() - x_chol).max():.1e}", ARGS.repeat))
+    try:
+        from sksparse.cholmod import cholesky as cholmod
+    except ImportError:
+        cholmod = None
+        print("(CHOLMOD row skipped: scikit-sparse is not installed; setup.sh --cholmod)", file=sys.stderr)
+    if cholmod is not None:
+        def chol():
+            return cholmod((a.T @ a).tocsc())(a.T @ b)
+
+        rows.append(("`sksparse.cholmod.cholesky(A.T @ A)(A.T @ b)` (CHOLMOD)",
+                     "`zeroset.lstsq(A, b, solver='cholesky')`", shape, timed(chol), t_chol,
+                     f"max |difference| {np.abs(chol() - x_chol).max():.1e}", ARGS.repeat))
     volume = torus_volume()
     for vol, dtype in ((volume, "float64"), (volume.astype(np.float32), "float32")):
         sv = sk_mc(vol, 0.0)[0]

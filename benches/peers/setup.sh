@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Creates benches/peers/.venv and installs the pinned scipy/numpy (idempotent).
-# Usage: bash benches/peers/setup.sh [--torch] [--open3d] [--python]   (from anywhere)
+# Usage: bash benches/peers/setup.sh [--torch] [--open3d] [--python] [--cholmod]   (from anywhere)
 #   --torch   also installs requirements-torch.txt (PyTorch for neural_peers.py; a ~5 GB download)
 #   --open3d  also installs requirements-open3d.txt (Open3D for poisson_peers.py; ~105 MB; needs the
 #             system library libusb-1.0: apt-get install libusb-1.0-0)
 #   --python  also builds the zeroset wheel from this checkout (maturin, pinned in
 #             crates/python/requirements-test.txt) and installs it, for python_peers.py
+#   --cholmod also installs requirements-cholmod.txt (scikit-sparse, CHOLMOD, for python_peers.py's
+#             direct row; built from source: needs apt-get install libsuitesparse-dev, and
+#             libopenblas0-pthread so that CHOLMOD runs on OpenBLAS, not the reference BLAS)
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 venv="$here/.venv"
@@ -13,13 +16,15 @@ python="${PYTHON:-python3}"
 torch=0
 open3d=0
 python_pkg=0
+cholmod=0
 for arg in "$@"; do
     case "$arg" in
         --torch) torch=1 ;;
         --open3d) open3d=1 ;;
         --python) python_pkg=1 ;;
+        --cholmod) cholmod=1 ;;
         *)
-            echo "usage: bash benches/peers/setup.sh [--torch] [--open3d] [--python]" >&2
+            echo "usage: bash benches/peers/setup.sh [--torch] [--open3d] [--python] [--cholmod]" >&2
             exit 2
             ;;
     esac
@@ -40,6 +45,13 @@ if [ "$open3d" = 1 ]; then
         echo "open3d is installed but does not import (if the error names libusb-1.0.so.0: apt-get install libusb-1.0-0)" >&2
         exit 1
     fi
+fi
+if [ "$cholmod" = 1 ]; then
+    if ! "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$here/requirements-cholmod.txt"; then
+        echo "scikit-sparse did not build (it needs the SuiteSparse headers: apt-get install libsuitesparse-dev libopenblas0-pthread)" >&2
+        exit 1
+    fi
+    "$venv/bin/python" -c 'from sksparse.cholmod import cholesky; print("ok: scikit-sparse (CHOLMOD)")'
 fi
 if [ "$python_pkg" = 1 ]; then
     repo="$(cd "$here/../.." && pwd)"

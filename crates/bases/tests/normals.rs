@@ -183,6 +183,23 @@ fn a_thin_part_is_not_taken_for_noise() {
 }
 
 #[test]
+fn a_cavity_wall_faces_into_the_cavity() {
+    // A hollow ball (radii 1 and 0.6) with a ball of radius 0.3 in its cavity: the cavity's
+    // wall lies inside the outer sphere once and faces inward, the ball inside it twice and
+    // faces outward. Each turned outward on its own, the fit filled the cavity.
+    let (mut points, mut truth) = sphere(2000, [0.0; 3], 1.0);
+    let (wall, wall_out) = sphere(800, [0.0; 3], 0.6);
+    points.extend(wall);
+    truth.extend(wall_out.iter().map(|n| n.map(|x| -x)));
+    let (ball, ball_out) = sphere(300, [0.1, 0.0, 0.0], 0.3);
+    points.extend(ball);
+    truth.extend(ball_out);
+    let estimated = estimate(&points);
+    assert_eq!(against(&estimated.normals, &truth).0, 0.0);
+    assert_eq!((estimated.pieces, estimated.nested), (3, 1));
+}
+
+#[test]
 fn separate_objects_are_each_turned_outward() {
     let (mut points, mut truth) = sphere(1500, [0.0; 3], 1.0);
     let (p2, n2) = sphere(700, [10.0, 0.0, 0.0], 0.5);
@@ -190,7 +207,10 @@ fn separate_objects_are_each_turned_outward() {
     truth.extend(n2);
     let estimated = estimate(&points);
     assert_eq!(against(&estimated.normals, &truth).0, 0.0);
-    assert_eq!((estimated.pieces, estimated.attached), (2, 0));
+    assert_eq!(
+        (estimated.pieces, estimated.attached, estimated.nested),
+        (2, 0, 0)
+    );
 }
 
 #[test]

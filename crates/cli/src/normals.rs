@@ -490,6 +490,11 @@ pub(crate) fn orient(
                 estimated.facing_scanner,
                 estimated.normals.len()
             ),
+            Facing::Outward if estimated.nested > 0 => format!(
+                "turned outward, {} of them inside another and so turned to face into it (the \
+                 wall of a cavity)",
+                estimated.nested
+            ),
             Facing::Outward => "turned outward".to_owned(),
         },
         seconds(t.elapsed())

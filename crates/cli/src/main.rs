@@ -132,8 +132,8 @@ enum Command {
     /// shaded, or with --slice the field on an axis-aligned plane with its zero contour.
     #[command(after_help = preview::EXAMPLES)]
     Preview(preview::PreviewArgs),
-    /// From a scan to a mesh in one command: fit a field (RBF for small clean clouds, MRAS for
-    /// large or noisy ones, or --method), mesh its zero set (signed marching cubes for RBF),
+    /// From a scan to a mesh in one command: fit a field (RBF for small clouds, smoothed where
+    /// noisy; MRAS for large ones; or --method), mesh its zero set (signed marching cubes for RBF),
     /// write the mesh and a PNG preview beside it, and summarise the stages' times.
     #[command(after_help = reconstruct::EXAMPLES)]
     Reconstruct(reconstruct::ReconstructArgs),

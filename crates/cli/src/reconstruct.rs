@@ -31,16 +31,31 @@ Examples:
 /// bunny by RBF in ~21 s (fit ~18 s: 13 GMRES steps on FMM products; the points' distance to
 /// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~17 s (3.7e-4,
 /// 4.4e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~53 s to fit and 1.7 GB, where
-/// MRAS's time grows with the detail rather than the count. Noisy clouds go to MRAS at any
-/// size ([`zeroset_bases::noise`]: RBF interpolation makes bubbles of the noise).
+/// MRAS's time grows with the detail rather than the count. Noisy clouds are not interpolated
+/// ([`zeroset_bases::noise`]: RBF interpolation makes bubbles of the noise): see
+/// [`AUTO_SMOOTHED_POINTS`].
 pub const AUTO_RBF_POINTS: usize = 50_000;
+
+/// Noisy clouds of up to this many points are fitted by RBF smoothed by their measured noise
+/// (`--smoothing auto`) under `--method auto`, larger ones by MRAS. Measured on 2 threads,
+/// whole `zeroset reconstruct` commands, the mesh's vertices against the clean scan's surface
+/// (median, of the diagonal): random subsets of the bunny with Gaussian noise of 0.5% of the
+/// diagonal per axis — 5,000 points: smoothed RBF 1.41e-3 in 3.4 s, MRAS 1.65e-3 in 5.6 s;
+/// 10,000: 1.18e-3 in 4.3 s against 1.33e-3 in 8.1 s; 20,000: 1.00e-3 in 11.2 s against 1.06e-3
+/// in 9.2 s (the 90th percentile 2.68e-3 against 2.52e-3); the whole 34,834 (`noise_peers.py`):
+/// MRAS the closer at the points on average and the faster (15–17 s against 22–24 s). The
+/// kitten (5,210) at 0.5% / 0.75%: the clean points 1.2e-3 / 1.6e-3 from the smoothed RBF mesh,
+/// 1.5e-3 / 2.2e-3 from MRAS's, 2.3 s against 5.5 s; a 2,000-point sphere with noise of 5% of
+/// its radius (a review's): RBF one sphere (χ 2), MRAS genus 17 (χ −32). MRAS fits each cell
+/// to the points it holds, and sparse noisy cells leave it holes and handles.
+pub const AUTO_SMOOTHED_POINTS: usize = 15_000;
 
 /// The field `--method` fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ReconstructMethod {
-    /// RBF up to 50,000 points unless the scan is noisy (its points scatter about their local
-    /// surface by more than 0.2 of their spacing: `zeroset info` measures it) and no
-    /// --smoothing is given, MRAS otherwise.
+    /// RBF up to 50,000 points, MRAS beyond; a noisy scan (its points scatter about their
+    /// local surface by more than 0.2 of their spacing: `zeroset info` measures it) by RBF
+    /// smoothed by that noise (--smoothing auto) up to 15,000 points, MRAS beyond.
     Auto,
     /// Radial basis functions (kernel r, off-surface points), meshed by the signed marching
     /// cubes.
@@ -265,6 +280,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     } else {
         (cloud, args.scan.clone(), TemporaryFile::new(None))
     };
+    // Whether --method auto chose to smooth an RBF fit of a noisy scan.
+    let mut auto_smoothing = false;
     let (method, why) = match args.method {
         ReconstructMethod::Auto if points > AUTO_RBF_POINTS => (
             ReconstructMethod::Mras,
@@ -278,10 +295,22 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             // Measured on the points the fit will take, as the RBF fit's own warning is.
             let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
             match crate::noise::measure(&kept) {
+                Some(m) if m.noise.is_noisy() && points <= AUTO_SMOOTHED_POINTS => {
+                    auto_smoothing = true;
+                    (
+                        ReconstructMethod::Rbf,
+                        format!(
+                            " (auto: a noisy scan, {}; up to {AUTO_SMOOTHED_POINTS} points RBF \
+                             smoothed by that noise, --smoothing auto, MRAS beyond)",
+                            m.describe()
+                        ),
+                    )
+                }
                 Some(m) if m.noise.is_noisy() => (
                     ReconstructMethod::Mras,
                     format!(
-                        " (auto: a noisy scan, {}; RBF would interpolate the noise)",
+                        " (auto: a noisy scan, {}, of more than {AUTO_SMOOTHED_POINTS} points; \
+                         RBF would interpolate the noise)",
                         m.describe()
                     ),
                 ),
@@ -300,7 +329,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
              fits by least squares already: drop --smoothing, or give --method rbf"
         );
     }
-    let smoothing = args.smoothing.map(|s| match s {
+    let smoothing = args
+        .smoothing
+        .or(auto_smoothing.then_some(SmoothingArg::Auto));
+    let smoothing = smoothing.map(|s| match s {
         SmoothingArg::Auto => "auto".to_owned(),
         SmoothingArg::Fixed(mu) => mu.to_string(),
     });

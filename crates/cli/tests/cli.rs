@@ -3007,18 +3007,22 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stdout(&o).contains("noise:"), "{}", stdout(&o));
     let mesh = dir.path().join("noisy.ply");
-    let out = zeroset([
-        "reconstruct",
-        path.to_str().unwrap(),
-        "-o",
-        mesh.to_str().unwrap(),
-        "--detail",
-        "coarse",
-        "--no-preview",
-        "--quiet",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let text = stdout(&out);
+    let reconstruct = |scan: &Path| {
+        let out = zeroset([
+            "reconstruct",
+            scan.to_str().unwrap(),
+            "-o",
+            mesh.to_str().unwrap(),
+            "--detail",
+            "coarse",
+            "--no-preview",
+            "--force",
+            "--quiet",
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        stdout(&out)
+    };
+    let text = reconstruct(&path);
     // Up to 15,000 points, RBF smoothed by the measured noise (on sparse noisy clouds MRAS
     // made handles: a review's 2,000-point sphere came out genus 17).
     assert!(text.contains("rbf field (auto: a noisy scan"), "{text}");
@@ -3036,19 +3040,7 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     assert!(text.contains(scatter), "{text}");
     // More points than that: MRAS.
     let (_d, large) = temp_file("large.xyzn", &noisy_sphere_of(15_001, 0.03));
-    let out = zeroset([
-        "reconstruct",
-        large.to_str().unwrap(),
-        "-o",
-        mesh.to_str().unwrap(),
-        "--detail",
-        "coarse",
-        "--no-preview",
-        "--force",
-        "--quiet",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let text = stdout(&out);
+    let text = reconstruct(&large);
     assert!(
         text.contains("mras field (auto: a noisy scan") && text.contains("of more than 15000"),
         "{text}"

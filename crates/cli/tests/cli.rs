@@ -318,15 +318,7 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
     // its radius) with no word. Now the drift is measured and warned of; a finer grid keeps it.
     let (dir, rod) = temp_file("rod.xyzn", &rod_xyzn());
     let field = dir.path().join("rod.zsf");
-    let o = zeroset([
-        OsStr::new("fit"),
-        rod.as_os_str(),
-        OsStr::new("--method"),
-        OsStr::new("rbf"),
-        OsStr::new("--quiet"),
-        OsStr::new("-o"),
-        field.as_os_str(),
-    ]);
+    let o = fit(&rod, &["-o", field.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let restore = |grid: Option<&str>| {
         let out = dir.path().join("out.zsf");

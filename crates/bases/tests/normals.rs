@@ -200,6 +200,35 @@ fn a_cavity_wall_faces_into_the_cavity() {
 }
 
 #[test]
+fn a_piece_merely_behind_another_is_not_taken_for_a_cavity() {
+    // Every chord of a convex surface lies behind it: a cap cut off a sphere by a gap in the
+    // scan, and a ball resting in a bowl, lie "behind" the other piece's nearest points, and
+    // a first version of the nesting rule turned both inward. Neither is surrounded.
+    // The cap: within 20° of (1, 1, 1)/√3, the ring from 20° to 30° missing (a review's case;
+    // the cap's box lies in the rest's).
+    let axis = [1.0 / 3f64.sqrt(); 3];
+    let (points, truth): (Vec<P>, Vec<P>) = {
+        let (p, n) = sphere(6000, [0.0; 3], 1.0);
+        p.into_iter()
+            .zip(n)
+            .filter(|(p, _)| !(20f64..30.0).contains(&dot(p, &axis).acos().to_degrees()))
+            .unzip()
+    };
+    let estimated = estimate(&points);
+    assert_eq!((estimated.pieces, estimated.nested), (2, 0));
+    assert_eq!(against(&estimated.normals, &truth).0, 0.0);
+    // A ball in a bowl (the lower half of a unit sphere, one sheet).
+    let (bowl, _) = sphere(8000, [0.0; 3], 1.0);
+    let mut points: Vec<P> = bowl.into_iter().filter(|p| p[2] < -0.05).collect();
+    let bowl_len = points.len();
+    let (ball, ball_out) = sphere(1500, [0.0, 0.0, -0.5], 0.3);
+    points.extend(ball);
+    let estimated = estimate(&points);
+    assert_eq!(estimated.nested, 0);
+    assert_eq!(against(&estimated.normals[bowl_len..], &ball_out).0, 0.0);
+}
+
+#[test]
 fn separate_objects_are_each_turned_outward() {
     let (mut points, mut truth) = sphere(1500, [0.0; 3], 1.0);
     let (p2, n2) = sphere(700, [10.0, 0.0, 0.0], 0.5);

@@ -641,6 +641,12 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             out,
             "every component was dropped by --drop-spurious: the mesh is empty"
         )?;
+    } else if mesh.is_empty() && trim_cut {
+        say!(
+            out,
+            "--trim cut the whole mesh: none of it lies within the reach of the scan's points \
+             (a larger --trim=REACH keeps more)"
+        )?;
     } else if mesh.is_empty() {
         let (lo, hi) = lattice_range(&field, &bounds);
         if lo == args.level && hi == args.level {

@@ -1,6 +1,6 @@
 //! The noise check ([`zeroset_bases::noise`]) as the commands report it: `zeroset info` on a
 //! cloud, the warning of `zeroset fit --method rbf` on a noisy one, and the reason
-//! `zeroset reconstruct --method auto` gives for fitting MRAS to it.
+//! `zeroset reconstruct --method auto` gives for not interpolating it.
 
 use zeroset_bases::noise::{NOISY_SCATTER, Noise, estimate_noise};
 use zeroset_bases::normals::estimate_noise_unoriented;
@@ -48,9 +48,10 @@ impl Measured {
         if self.noise.is_noisy() {
             format!(
                 "{}: noisy (above {NOISY_SCATTER}); RBF interpolation would fold between the \
-                 points into bubbles, so zeroset reconstruct fits MRAS, which averages them \
-                 (or RBF with --smoothing auto, which approximates them)",
-                self.describe()
+                 points into bubbles, so zeroset reconstruct approximates them: RBF with \
+                 --smoothing auto up to {} points, MRAS (least squares) beyond",
+                self.describe(),
+                crate::reconstruct::AUTO_SMOOTHED_POINTS
             )
         } else {
             format!(

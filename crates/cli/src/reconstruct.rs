@@ -295,7 +295,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             // Measured on the points the fit will take, as the RBF fit's own warning is.
             let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
             match crate::noise::measure(&kept) {
-                Some(m) if m.noise.is_noisy() && points <= AUTO_SMOOTHED_POINTS => {
+                // `--smoothing 0` asks to interpolate: then MRAS, not an RBF of the noise.
+                Some(m)
+                    if m.noise.is_noisy()
+                        && points <= AUTO_SMOOTHED_POINTS
+                        && args.smoothing.is_none() =>
+                {
                     auto_smoothing = true;
                     (
                         ReconstructMethod::Rbf,
@@ -309,9 +314,13 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
                 Some(m) if m.noise.is_noisy() => (
                     ReconstructMethod::Mras,
                     format!(
-                        " (auto: a noisy scan, {}, of more than {AUTO_SMOOTHED_POINTS} points; \
-                         RBF would interpolate the noise)",
-                        m.describe()
+                        " (auto: a noisy scan, {}, {}; RBF would interpolate the noise)",
+                        m.describe(),
+                        if points > AUTO_SMOOTHED_POINTS {
+                            format!("of more than {AUTO_SMOOTHED_POINTS} points")
+                        } else {
+                            "and --smoothing 0 asks not to smooth it".to_owned()
+                        }
                     ),
                 ),
                 _ => (

@@ -348,7 +348,7 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
     assert!(coarse.contains("warning: the grid's cells"), "{coarse}");
     let median = reported(&coarse, DRIFT);
     assert!((0.001..0.01).contains(&median), "{coarse}");
-    let fine = restore(Some("256,16,16"));
+    let fine = restore(Some("256,48,48"));
     assert!(!fine.contains("warning: the grid's cells"), "{fine}");
     assert!(reported(&fine, DRIFT) < 0.2 * median, "{fine}");
     // A B-spline field on its own grid is given back outside the mask: nothing to report.
@@ -3030,6 +3030,26 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     assert!(text.contains(scatter), "{text}");
+    // --smoothing 0 asks not to smooth: MRAS then, not an RBF through the noise.
+    let out = zeroset([
+        "reconstruct",
+        path.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+        "--smoothing",
+        "0",
+        "--detail",
+        "coarse",
+        "--no-preview",
+        "--force",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("and --smoothing 0 asks not to smooth it"),
+        "{}",
+        stdout(&out)
+    );
     // More points than that: MRAS.
     let (_d, large) = temp_file("large.xyzn", &noisy_sphere_of(15_001, 0.03));
     let text = reconstruct(&large);

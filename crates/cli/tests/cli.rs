@@ -2999,8 +2999,8 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stdout(&o).contains("noise:"), "{}", stdout(&o));
     let mesh = dir.path().join("noisy.ply");
-    let reconstruct = |scan: &Path| {
-        let out = zeroset([
+    let reconstruct = |scan: &Path, extra: &[&str]| {
+        let mut args = vec![
             "reconstruct",
             scan.to_str().unwrap(),
             "-o",
@@ -3010,11 +3010,13 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
             "--no-preview",
             "--force",
             "--quiet",
-        ]);
+        ];
+        args.extend(extra);
+        let out = zeroset(args);
         assert!(out.status.success(), "{}", stderr(&out));
         stdout(&out)
     };
-    let text = reconstruct(&path);
+    let text = reconstruct(&path, &[]);
     // Up to 15,000 points, RBF smoothed by the measured noise (on sparse noisy clouds MRAS
     // made handles: a review's 2,000-point sphere came out genus 17).
     assert!(text.contains("rbf field (auto: a noisy scan"), "{text}");
@@ -3031,28 +3033,14 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     let text = stdout(&o);
     assert!(text.contains(scatter), "{text}");
     // --smoothing 0 asks not to smooth: MRAS then, not an RBF through the noise.
-    let out = zeroset([
-        "reconstruct",
-        path.to_str().unwrap(),
-        "-o",
-        mesh.to_str().unwrap(),
-        "--smoothing",
-        "0",
-        "--detail",
-        "coarse",
-        "--no-preview",
-        "--force",
-        "--quiet",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let text = reconstruct(&path, &["--smoothing", "0"]);
     assert!(
-        stdout(&out).contains("and --smoothing 0 asks not to smooth it"),
-        "{}",
-        stdout(&out)
+        text.contains("and --smoothing 0 asks not to smooth it"),
+        "{text}"
     );
     // More points than that: MRAS.
     let (_d, large) = temp_file("large.xyzn", &noisy_sphere_of(15_001, 0.03));
-    let text = reconstruct(&large);
+    let text = reconstruct(&large, &[]);
     assert!(
         text.contains("mras field (auto: a noisy scan") && text.contains("of more than 15000"),
         "{text}"

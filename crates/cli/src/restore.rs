@@ -68,9 +68,10 @@ pub struct Source {
     #[arg(long, value_parser = parse_counts)]
     pub grid: Option<[usize; 3]>,
 
-    /// Point clouds: the number of nearest samples averaged by the tangent-plane field.
-    #[arg(long, default_value_t = 8)]
-    pub neighbours: usize,
+    /// Point clouds: the number of nearest samples averaged by the tangent-plane field
+    /// (default 8; refused for a field file, which has no samples to average).
+    #[arg(long)]
+    pub neighbours: Option<usize>,
 
     #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
@@ -788,6 +789,13 @@ impl Source {
         let input = &self.input;
         let zsf = input.extension().and_then(|e| e.to_str()) == Some("zsf");
         if zsf || is_field_file(input) {
+            if let Some(k) = self.neighbours {
+                bail!(
+                    "--neighbours {k} applies to point clouds (the tangent-plane field averages \
+                     that many samples); {} is a field file, restored as it is",
+                    input.display()
+                );
+            }
             let field = read_any_field::<3>(input)
                 .with_context(|| format!("reading {}", input.display()))?;
             let described = field.describe();
@@ -845,7 +853,7 @@ impl Source {
             );
         }
         crate::fit::check_extent(input, &cloud)?;
-        let field = TangentPlaneField::new(&cloud, self.neighbours)
+        let field = TangentPlaneField::new(&cloud, self.neighbours.unwrap_or(TANGENT_NEIGHBOURS))
             .context("building the tangent-plane field (the cloud needs normals)")?;
         let bounds = field.bounds().context("the point cloud has no extent")?;
         let description = format!(
@@ -864,6 +872,9 @@ impl Source {
         })
     }
 }
+
+/// The samples a point cloud's tangent-plane field averages by default (`--neighbours`).
+pub const TANGENT_NEIGHBOURS: usize = 8;
 
 pub use zeroset_field_core::grid::cubic_counts;
 

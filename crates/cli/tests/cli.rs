@@ -351,6 +351,27 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
     let fine = restore(Some("256,48,48"));
     assert!(!fine.contains("warning: the grid's cells"), "{fine}");
     assert!(reported(&fine, DRIFT) < 0.2 * median, "{fine}");
+    // --neighbours belongs to point clouds: on a field file it was silently ignored.
+    let o = zeroset([
+        "restore",
+        field.to_str().unwrap(),
+        "--mode",
+        "denoise",
+        "--mask",
+        "1.5,-0.2,-0.2:1.9,0.2,0.2",
+        "--coarse",
+        "3,3,3",
+        "--neighbours",
+        "30",
+        "-o",
+        dir.path().join("n.zsf").to_str().unwrap(),
+    ]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("--neighbours 30 applies to point clouds"),
+        "{}",
+        stderr(&o)
+    );
     // A B-spline field on its own grid is given back outside the mask: nothing to report.
     let again = dir.path().join("again.zsf");
     let o = zeroset([

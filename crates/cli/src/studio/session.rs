@@ -98,8 +98,8 @@ pub(crate) struct Origin {
     pub input: PathBuf,
     /// `--grid`, if given.
     pub grid: Option<[usize; 3]>,
-    /// `--neighbours`, for point clouds.
-    pub neighbours: usize,
+    /// `--neighbours`, for point clouds (given or not).
+    pub neighbours: Option<usize>,
     /// `--format`, if given.
     pub format: Option<String>,
     /// `--positive-inside`.
@@ -463,8 +463,8 @@ impl Session {
                     if let Some(g) = o.grid {
                         line.push_str(&format!(" --grid {},{},{}", g[0], g[1], g[2]));
                     }
-                    if o.neighbours != 8 {
-                        line.push_str(&format!(" --neighbours {}", o.neighbours));
+                    if let Some(k) = o.neighbours {
+                        line.push_str(&format!(" --neighbours {k}"));
                     }
                     if let Some(f) = &o.format {
                         line.push_str(&format!(" --format {}", shell_word(Path::new(f))));

@@ -320,11 +320,12 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
     let field = dir.path().join("rod.zsf");
     let o = fit(&rod, &["-o", field.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let restore = |grid: Option<&str>| {
-        let out = dir.path().join("out.zsf");
+    // Denoise a box away from the rod's ends: `input` to out.zsf, with `extra` flags.
+    let out = dir.path().join("out.zsf");
+    let restore = |input: &Path, extra: &[&str]| {
         let mut args = vec![
             "restore",
-            field.to_str().unwrap(),
+            input.to_str().unwrap(),
             "--mode",
             "denoise",
             "--mask",
@@ -332,40 +333,30 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
             "--coarse",
             "3,3,3",
             "--force",
-            "-o",
-            out.to_str().unwrap(),
         ];
-        if let Some(grid) = grid {
-            args.extend(["--grid", grid]);
-        }
-        let o = zeroset(args);
+        args.extend(extra);
+        zeroset(args)
+    };
+    let succeeds = |o: Output| {
         assert!(o.status.success(), "{}", stderr(&o));
         stdout(&o)
     };
+    let o_out = out.to_str().unwrap();
     const DRIFT: &str = "outside the mask: the resampled surface lies a median";
-    let coarse = restore(None);
+    let coarse = succeeds(restore(&field, &["-o", o_out]));
     assert!(coarse.contains(DRIFT), "{coarse}");
     assert!(coarse.contains("warning: the grid's cells"), "{coarse}");
     let median = reported(&coarse, DRIFT);
     assert!((0.001..0.01).contains(&median), "{coarse}");
-    let fine = restore(Some("256,48,48"));
+    let fine = succeeds(restore(&field, &["--grid", "256,48,48", "-o", o_out]));
     assert!(!fine.contains("warning: the grid's cells"), "{fine}");
     assert!(reported(&fine, DRIFT) < 0.2 * median, "{fine}");
     // --neighbours belongs to point clouds: on a field file it was silently ignored.
-    let o = zeroset([
-        "restore",
-        field.to_str().unwrap(),
-        "--mode",
-        "denoise",
-        "--mask",
-        "1.5,-0.2,-0.2:1.9,0.2,0.2",
-        "--coarse",
-        "3,3,3",
-        "--neighbours",
-        "30",
-        "-o",
-        dir.path().join("n.zsf").to_str().unwrap(),
-    ]);
+    let other = dir.path().join("other.zsf");
+    let o = restore(
+        &field,
+        &["--neighbours", "30", "-o", other.to_str().unwrap()],
+    );
     assert_clean_failure(&o);
     assert!(
         stderr(&o).contains("--neighbours 30 applies to point clouds"),
@@ -373,21 +364,8 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
         stderr(&o)
     );
     // A B-spline field on its own grid is given back outside the mask: nothing to report.
-    let again = dir.path().join("again.zsf");
-    let o = zeroset([
-        "restore",
-        dir.path().join("out.zsf").to_str().unwrap(),
-        "--mode",
-        "denoise",
-        "--mask",
-        "1.5,-0.2,-0.2:1.9,0.2,0.2",
-        "--coarse",
-        "3,3,3",
-        "-o",
-        again.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(!stdout(&o).contains("outside the mask"), "{}", stdout(&o));
+    let again = succeeds(restore(&out, &["-o", other.to_str().unwrap()]));
+    assert!(!again.contains("outside the mask"), "{again}");
 }
 
 #[test]

@@ -15,7 +15,7 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{AnyField, is_field_file, read_any_field, write_field};
 use zeroset_bases::tangent_plane::TangentPlaneField;
-use zeroset_field_core::field::{ScalarField, distance_to_zero_set};
+use zeroset_field_core::field::{ScalarField, distance_to_zero_set, project_to_zero_set};
 use zeroset_field_core::geometry::Point;
 use zeroset_field_core::grid::Grid;
 use zeroset_field_core::io::{ReadOptions, read_point_cloud_with};
@@ -350,7 +350,7 @@ fn report_drift(
             // The input's surface point nearest `p` along its gradient (within `reach`: where
             // the gradient vanishes, a thin part's axis, the walk goes nowhere useful), then
             // the restored surface's distance from it along the restored field's gradient.
-            let q = onto_zero_set(input, p, tol)?;
+            let q = project_to_zero_set(input, p, tol, 20)?;
             let moved: f64 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>().sqrt();
             if moved > reach {
                 return None;
@@ -428,30 +428,6 @@ const DRIFT_MAX_WARNING: f64 = 1.5e-3;
 /// [`report_drift`] warns where more than this share of the probes find no restored surface
 /// near them.
 const DRIFT_LOST_WARNING: f64 = 0.01;
-
-/// `p` moved onto `field`'s zero set by Newton steps along the gradient (at most 20), `None`
-/// where they do not reach `|f| ≤ tol`.
-fn onto_zero_set(field: &dyn ScalarField<3>, p: &Point<3>, tol: f64) -> Option<Point<3>> {
-    let mut q = *p;
-    for _ in 0..=20 {
-        let v = field.value(&q);
-        if !v.is_finite() {
-            return None;
-        }
-        if v.abs() <= tol {
-            return Some(q);
-        }
-        let g = field.gradient(&q);
-        let g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
-        if !(g2 > 0.0 && g2.is_finite()) {
-            return None;
-        }
-        for a in 0..3 {
-            q[a] -= v * g[a] / g2;
-        }
-    }
-    None
-}
 
 /// One restoration, as `zeroset restore`'s flags (or a studio request) give it.
 #[derive(Debug, Clone, PartialEq)]

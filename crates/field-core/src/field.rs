@@ -143,6 +143,29 @@ pub fn distance_to_zero_set<const D: usize, F: ScalarField<D> + ?Sized>(
     tol: f64,
     max_steps: usize,
 ) -> Option<f64> {
+    let q = project_to_zero_set(field, p, tol, max_steps)?;
+    let d2: f64 = (0..D).map(|a| (q[a] - p[a]).powi(2)).sum();
+    Some(d2.sqrt())
+}
+
+/// The point [`distance_to_zero_set`] reaches from `p`: the steps
+/// `q ← q − f(q) ∇f(q)/|∇f(q)|²` from `q = p` until `|f(q)| ≤ tol` (at most `max_steps`);
+/// `None` where they do not get there, a value is not finite or the gradient vanishes.
+///
+/// ```
+/// use zeroset_field_core::analytic::Sphere;
+/// use zeroset_field_core::field::project_to_zero_set;
+///
+/// let s = Sphere::new([0.0; 3], 1.0);
+/// let q = project_to_zero_set(&s, &[0.0, 0.0, 1.25], 1e-12, 20).unwrap();
+/// assert!((q[2] - 1.0).abs() < 1e-12);
+/// ```
+pub fn project_to_zero_set<const D: usize, F: ScalarField<D> + ?Sized>(
+    field: &F,
+    p: &Point<D>,
+    tol: f64,
+    max_steps: usize,
+) -> Option<Point<D>> {
     let mut q = *p;
     for _ in 0..=max_steps {
         let v = field.value(&q);
@@ -150,8 +173,7 @@ pub fn distance_to_zero_set<const D: usize, F: ScalarField<D> + ?Sized>(
             return None;
         }
         if v.abs() <= tol {
-            let d2: f64 = (0..D).map(|a| (q[a] - p[a]).powi(2)).sum();
-            return Some(d2.sqrt());
+            return Some(q);
         }
         let g = field.gradient(&q);
         let g2: f64 = g.iter().map(|x| x * x).sum();

@@ -59,10 +59,12 @@
 //! seen from inside it is left facing outward, as is any piece in a bowl.
 //!
 //! **Limits.** A scan of one side of a flat or nearly flat surface (a wall, terrain) has no
-//! inside to read, its divergence about 0: its sign is arbitrary. A scan from inside a closed
-//! space (a room) comes out facing away from the scanner, as the outside of that space. For
-//! both, give where the scanner stood ([`NormalOptions::viewpoint`]): each large piece then
-//! faces it.
+//! inside to read, its divergence about 0 (under [`FLAT_DIVERGENCE`] of `Σ ‖p − c‖`): such a
+//! piece is turned by a convention instead, its mean normal's largest component positive
+//! (terrain with `z` up faces up), and listed ([`EstimatedNormals::flat`]). A scan from inside
+//! a closed space (a room) comes out facing away from the scanner, as the outside of that
+//! space. For both, give where the scanner stood ([`NormalOptions::viewpoint`]): each large
+//! piece then faces it.
 //!
 //! **Each point towards its own scanner.** A scanner records only surface that faces it, so
 //! where it is known for every point (an E57 file's scan origins: a scene taken from several
@@ -151,6 +153,26 @@ pub const LINE_PATCH: f64 = 1e-6;
 /// divergence; smaller ones by their nearest points in the larger pieces.
 pub const MIN_PIECE: usize = 64;
 
+/// A large piece turned outward whose divergence `Σ (p − c)·n` is below this fraction of
+/// `Σ ‖p − c‖` is flat: it has no inside to read its sign from, and is turned by convention
+/// instead ([`FlatPiece`]). The fraction is 1 for a sphere, 0.88 for a one-sided scan of half
+/// of one, 0.38 of a 30° cap, 0.13 of a 10° cap; for a sheet `z = a sin 3x cos 2y` over the
+/// unit square (one hill) it is about `a`: 0.05 where its relief is 5% of its width, 0.19 at
+/// 20%, where it reads as the hill it is.
+pub const FLAT_DIVERGENCE: f64 = 0.1;
+
+/// A large piece too flat to have an inside ([`FLAT_DIVERGENCE`]: a wall, terrain, a sheet
+/// scanned from one side). Its sign is a convention: its mean normal's largest component is
+/// made positive (a horizontal sheet faces `+z`, a wall facing along x faces `+x`). Give
+/// [`NormalOptions::viewpoint`] to choose the side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlatPiece {
+    /// Its points.
+    pub points: usize,
+    /// Its normals' mean direction (unit), after the convention.
+    pub facing: Point<3>,
+}
+
 /// [`estimate_normals_from_scanners`] signs a point by its own scanner where its plane's normal
 /// makes at least this cosine (in absolute value) with the direction to the scanner (incidence
 /// up to 75.5°); at more grazing incidence, by its neighbours.
@@ -217,6 +239,9 @@ pub struct EstimatedNormals {
     /// number of times (a hollow solid's cavity, [`NESTED_SHARE`]), turned to face into it
     /// instead; 0 with a viewpoint or scanners.
     pub nested: usize,
+    /// Of the [`pieces`](Self::pieces) turned outward, those too flat to have an inside, signed
+    /// by convention ([`FlatPiece`]); none with a viewpoint or scanners.
+    pub flat: Vec<FlatPiece>,
 }
 
 /// Why [`estimate_normals`] could not run.
@@ -461,15 +486,15 @@ fn estimate(
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
-    let (signed, attached, facing_scanner, nested) =
-        sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
+    let signed = sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
     Ok(EstimatedNormals {
         normals,
-        pieces: signed,
-        attached,
+        pieces: signed.large,
+        attached: signed.attached,
         undetermined,
-        facing_scanner,
-        nested,
+        facing_scanner: signed.facing_scanner,
+        nested: signed.nested,
+        flat: signed.flat,
     })
 }
 
@@ -643,6 +668,32 @@ fn agreeing(plane: Option<Point<3>>, reference: &Point<3>) -> Point<3> {
     }
 }
 
+/// Turns a flat piece so that its normals' mean direction has its largest component positive
+/// ([`FlatPiece`]), and says so.
+fn flat_convention(piece: &[u32], normals: &mut [Point<3>]) -> FlatPiece {
+    let sum = piece
+        .iter()
+        .fold([0.0; 3], |s, &i| geometry::add(&s, &normals[i as usize]));
+    let largest = (0..3)
+        .max_by(|&a, &b| sum[a].abs().total_cmp(&sum[b].abs()))
+        .unwrap_or(2);
+    let sign = if sum[largest] < 0.0 { -1.0 } else { 1.0 };
+    if sign < 0.0 {
+        for &i in piece {
+            normals[i as usize] = normals[i as usize].map(|x| -x);
+        }
+    }
+    let length = geometry::norm(&sum);
+    FlatPiece {
+        points: piece.len(),
+        facing: if length > 0.0 {
+            sum.map(|x| sign * x / length)
+        } else {
+            [0.0; 3]
+        },
+    }
+}
+
 /// Signs every point whose plane is seen at an incidence of at most `acos(`[`GRAZING_COSINE`]`)`
 /// from its scanner towards that scanner, then the others from them along `forest`,
 /// breadth-first (sources in index order); points of trees without such a point keep their
@@ -683,11 +734,24 @@ fn face_scanners(
     (sources, seen)
 }
 
-/// Turns each large piece outward by its divergence (or as `facing` says), then — facing the
-/// scanners — every point it can by its own scanner ([`face_scanners`]), then each small piece
-/// not signed so to agree with its points' nearest points in the large pieces. Returns the large
-/// pieces' count, the small pieces' points attached so, the points signed by their scanner, and
-/// the large pieces turned to face a cavity they lie in ([`nesting_depths`]).
+/// What [`sign_pieces`] did.
+struct Signed {
+    /// Large pieces, each signed on its own.
+    large: usize,
+    /// Points of small pieces attached to the large ones.
+    attached: usize,
+    /// Points signed by their own scanner.
+    facing_scanner: usize,
+    /// Large pieces turned to face a cavity they lie in ([`nesting_depths`]).
+    nested: usize,
+    /// Large pieces too flat to read an inside from, signed by convention.
+    flat: Vec<FlatPiece>,
+}
+
+/// Turns each large piece outward by its divergence (a flat one by [`FlatPiece`]'s convention)
+/// or as `facing` says, then — facing the scanners — every point it can by its own scanner
+/// ([`face_scanners`]), then each small piece not signed so to agree with its points' nearest
+/// points in the large pieces.
 fn sign_pieces(
     positions: &[Point<3>],
     pieces: &[Vec<u32>],
@@ -695,7 +759,7 @@ fn sign_pieces(
     planes: &[Option<Point<3>>],
     forest: &[Vec<u32>],
     normals: &mut [Point<3>],
-) -> (usize, usize, usize, usize) {
+) -> Signed {
     // A piece whose root has no plane has none at all (roots are taken from the points with
     // planes first): its normals are zero until it takes its nearest large piece's.
     let planar = |piece: &Vec<u32>| normals[piece[0] as usize] != [0.0; 3];
@@ -717,6 +781,7 @@ fn sign_pieces(
         }
     };
     let mut large = 0;
+    let mut flat = Vec::new();
     for piece in pieces
         .iter()
         .zip(&is_large)
@@ -754,6 +819,15 @@ fn sign_pieces(
         if divergence < 0.0 {
             flip(normals, piece);
         }
+        if let Facing::Outward = facing {
+            let spread: f64 = piece
+                .iter()
+                .map(|&i| geometry::norm(&geometry::sub(&positions[i as usize], &centroid)))
+                .sum();
+            if divergence.abs() < FLAT_DIVERGENCE * spread {
+                flat.push(flat_convention(piece, normals));
+            }
+        }
     }
     // A piece inside another (a hollow solid's cavity) faces into its cavity, away from the
     // solid, which the divergence turned the other way: flipped where nested an odd number of
@@ -789,8 +863,15 @@ fn sign_pieces(
         .filter(|(p, l)| !**l && !signed[p[0] as usize])
         .map(|(p, _)| p)
         .collect();
+    let mut signed = Signed {
+        large,
+        attached: 0,
+        facing_scanner,
+        nested,
+        flat,
+    };
     if small.is_empty() {
-        return (large, 0, facing_scanner, nested);
+        return signed;
     }
     let anchors: Vec<u32> = pieces
         .iter()
@@ -827,7 +908,8 @@ fn sign_pieces(
             flip(normals, piece);
         }
     }
-    (large, attached, facing_scanner, nested)
+    signed.attached = attached;
+    signed
 }
 
 /// How many of the other `pieces` (turned outward) each piece lies inside: `A` lies inside `B`

@@ -335,6 +335,48 @@ fn a_viewpoint_turns_flat_and_inside_scans_towards_the_scanner() {
 }
 
 #[test]
+fn a_flat_piece_faces_its_nearest_axis_by_convention() {
+    // Terrain has no inside: its side was what the sign of a divergence of about 0 gave (a
+    // sheet of 3,000 points with relief of 3% of its width faced down). A sheet with relief of
+    // 5% of its width (one low hill, divergence 0.05 of its spread) is now reported flat and
+    // faces +z, whichever way it is tilted or mirrored (a hill or a hollow); a wall faces +x;
+    // closed and curved pieces are not flat.
+    let sheet = |mirror: f64, tilt: f64| -> Vec<P> {
+        (0..1600)
+            .map(|i| {
+                let (x, y) = ((i % 40) as f64 * 0.025, (i / 40) as f64 * 0.025);
+                let z = mirror * 0.05 * (3.0 * x).sin() * (2.0 * y).cos() + tilt * x;
+                [x, y, z]
+            })
+            .collect()
+    };
+    for (mirror, tilt) in [(1.0, 0.0), (-1.0, 0.0), (1.0, 0.3), (-1.0, -0.5)] {
+        let estimated = estimate(&sheet(mirror, tilt));
+        assert_eq!(estimated.flat.len(), 1, "{mirror} {tilt}");
+        assert_eq!(estimated.flat[0].points, 1600);
+        assert!(estimated.flat[0].facing[2] > 0.8, "{:?}", estimated.flat[0]);
+        let up = estimated.normals.iter().filter(|n| n[2] > 0.0).count();
+        assert_eq!(up, 1600, "{mirror} {tilt}");
+    }
+    let wall: Vec<P> = sheet(1.0, 0.0).iter().map(|p| [p[2], p[1], p[0]]).collect();
+    let estimated = estimate(&wall);
+    assert_eq!(estimated.flat.len(), 1);
+    assert!(estimated.normals.iter().all(|n| n[0] > 0.0));
+    // A sphere, and a one-sided scan of a 60° cap of one (divergence 0.4 of its spread),
+    // keep their outward normals.
+    for (points, truth) in [sphere(2000, [0.0; 3], 1.0), cap(1.0, 0.5)] {
+        let estimated = estimate(&points);
+        assert!(estimated.flat.is_empty());
+        assert_eq!(against(&estimated.normals, &truth).0, 0.0);
+    }
+    // With a viewpoint the side is the viewpoint's, and nothing is called flat.
+    let below = NormalOptions::default().viewpoint([0.5, 0.5, -10.0]);
+    let estimated = estimate_normals(&sheet(1.0, 0.0), &below).unwrap();
+    assert!(estimated.flat.is_empty());
+    assert!(estimated.normals.iter().all(|n| n[2] < 0.0));
+}
+
+#[test]
 fn each_point_faces_the_scanner_that_recorded_it() {
     // Two stations: one inside a room (the inside of a sphere of radius 3 about the origin),
     // one at x = 8 facing a wall outside it (a curved 2 × 2 sheet about x = 5). From each

@@ -295,6 +295,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     if let Some(flag) = args.neural.given() {
         bail!("{flag} is an option of --method neural, not of --method rbf");
     }
+    args.mras.check_tolerance()?;
     let start = Instant::now();
     if let Some(dim) = crate::normals::value_dimension(&args.points, args.format.as_deref()) {
         if let Some(flag) = args.outliers.given() {

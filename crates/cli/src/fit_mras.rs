@@ -16,7 +16,7 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 
 use zeroset_bases::field_file::write_mras_field;
-use zeroset_bases::mras::{MrasOptions, MrasProgress, fit_mras};
+use zeroset_bases::mras::{MAX_LEVEL, MrasOptions, MrasProgress, fit_mras};
 use zeroset_field_core::PointCloud3;
 
 use crate::fit::{FitArgs, line, load, more, print_check, print_input};
@@ -71,6 +71,28 @@ impl MrasArgs {
         }
     }
 
+    /// Refuses a `--tolerance` outside (0, 1) or a `--tolerance-distance` that is not a
+    /// positive distance, before any file is read.
+    ///
+    /// # Errors
+    /// The value given, and what it should be.
+    pub fn check_tolerance(&self) -> anyhow::Result<()> {
+        if let Some(t) = self.tolerance
+            && !(t.is_finite() && t > 0.0 && t < 1.0)
+        {
+            bail!(
+                "--tolerance {t}: give a fraction of the diagonal, between 0 and 1 (or \
+                 --tolerance-distance in the cloud's units)"
+            );
+        }
+        if let Some(d) = self.tolerance_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            bail!("--tolerance-distance {d}: give a positive distance in the cloud's units");
+        }
+        Ok(())
+    }
+
     /// As [`MrasArgs::given`], leaving out `--tolerance` and `--tolerance-distance` (which
     /// --method rbf takes too).
     pub fn given_besides_tolerance(&self) -> Option<&'static str> {
@@ -122,6 +144,21 @@ fn check_request(args: &FitArgs) -> anyhow::Result<MrasOptions> {
     }
     o.outlier_ratio = args.outliers.ratio()?;
     o.compress = !args.mras.no_compress;
+    // Refused before the points are read, which can take a while.
+    args.mras.check_tolerance()?;
+    if !(1..=MAX_LEVEL).contains(&o.max_level) {
+        bail!(
+            "--max-level {}: give a level from 1 (the root) to {MAX_LEVEL}",
+            o.max_level
+        );
+    }
+    if !(o.lambda.is_finite() && o.lambda >= 0.0) {
+        bail!(
+            "--lambda {}: give a finite weight, 0 or more (0: no trace norm)",
+            o.lambda
+        );
+    }
+    o.validate().context("the MRAS options")?;
     Ok(o)
 }
 

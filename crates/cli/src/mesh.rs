@@ -305,6 +305,16 @@ macro_rules! say {
     };
 }
 
+/// `--method smc` on a field it cannot evaluate (all but RBF fields).
+fn smc_refusal(args: &MeshArgs, field: &AnyField<3>) -> anyhow::Error {
+    anyhow::anyhow!(
+        "--method smc evaluates RBF fields by the fast multipole method; {} holds a field of kind \
+         {}: use --method mc",
+        args.field.display(),
+        field.kind()
+    )
+}
+
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let mut out = Say;
@@ -342,6 +352,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let field = read_any_field::<3>(&args.field)
         .with_context(|| format!("reading {}", args.field.display()))?;
     let reading = start.elapsed();
+    if args.method == Method::Smc && !matches!(field, AnyField::Rbf(_)) {
+        return Err(smc_refusal(args, &field));
+    }
     let bounds = field
         .bounds()
         .with_context(|| format!("the field in {} has no bounds", args.field.display()))?;
@@ -433,12 +446,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             AnyField::Rbf(RbfAny::R3(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Tps(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
             AnyField::Rbf(RbfAny::Wendland(f)) => smc_or_plain(f, &grid, &options, args, &mut out)?,
-            AnyField::BSpline(_) | AnyField::Neural(_) | AnyField::Mras(_) => bail!(
-                "--method smc evaluates RBF fields by the fast multipole method; {} holds a \
-                 {} field: use --method mc",
-                args.field.display(),
-                field.kind()
-            ),
+            AnyField::BSpline(_) | AnyField::Neural(_) | AnyField::Mras(_) => {
+                return Err(smc_refusal(args, &field));
+            }
         },
     };
     let meshing = start.elapsed();

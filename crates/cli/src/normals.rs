@@ -11,8 +11,8 @@ use anyhow::Context;
 use clap::Args;
 use zeroset_bases::noise::NOISY_SCATTER;
 use zeroset_bases::normals::{
-    EstimatedNormals, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS, NormalOptions,
-    default_neighbours, estimate_normals, estimate_normals_from_scanners,
+    EstimatedNormals, FlatPiece, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS,
+    NormalOptions, default_neighbours, estimate_normals, estimate_normals_from_scanners,
 };
 use zeroset_field_core::geometry;
 use zeroset_field_core::io::{
@@ -490,20 +490,60 @@ pub(crate) fn orient(
                 estimated.facing_scanner,
                 estimated.normals.len()
             ),
-            Facing::Outward if estimated.nested > 0 => format!(
-                "turned outward, {} of them inside another and so turned to face into it (the \
-                 wall of a cavity)",
-                estimated.nested
-            ),
-            Facing::Outward => "turned outward".to_owned(),
+            Facing::Outward => {
+                let mut how = "turned outward".to_owned();
+                if estimated.nested > 0 {
+                    how += &format!(
+                        ", {} of them inside another and so turned to face into it (the wall \
+                         of a cavity)",
+                        estimated.nested
+                    );
+                }
+                if !estimated.flat.is_empty() {
+                    how += &format!(", {} of them flat (below)", estimated.flat.len());
+                }
+                how
+            }
         },
         seconds(t.elapsed())
     );
+    if let Some(note) = flat_note(&estimated.flat) {
+        outln!("{:<14}{note}", "note");
+    }
     // The normals move into the cloud; the report keeps the counts.
     let normals = std::mem::take(&mut estimated.normals);
     let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), normals)
         .context("the oriented cloud")?;
     Ok((oriented, estimated))
+}
+
+/// What became of the pieces too flat to have an inside (terrain, a wall), if any: their side
+/// is a convention, and `--viewpoint` picks it.
+fn flat_note(flat: &[FlatPiece]) -> Option<String> {
+    const HOW: &str = "--viewpoint X,Y,Z turns each piece towards where the scanner stood";
+    let axis = |n: &[f64; 3]| {
+        let a = (0..3).max_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs()));
+        ["+x", "+y", "+z"][a.unwrap_or(2)]
+    };
+    match flat {
+        [] => None,
+        [one] => Some(format!(
+            "a piece of {} points is flat, with no inside to read its side from: turned by \
+             convention to face {} (its mean normal {:.2}, {:.2}, {:.2}); {HOW}",
+            one.points,
+            axis(&one.facing),
+            one.facing[0],
+            one.facing[1],
+            one.facing[2]
+        )),
+        many => Some(format!(
+            "{} pieces ({} points) are flat, with no inside to read their side from: each \
+             turned by convention to face +x, +y or +z, whichever axis its mean normal lies \
+             nearest; {HOW}",
+            many.len(),
+            many.iter().map(|f| f.points).sum::<usize>()
+        )),
+    }
 }
 
 /// How the estimate differs from normals the file had: points turned the other way, and the

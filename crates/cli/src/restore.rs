@@ -216,6 +216,9 @@ pub fn run(args: &RestoreArgs) -> anyhow::Result<()> {
     bar.set_message(format!("sampling the field at {} grid points", grid.len()));
     let samples = grid.sample(loaded.field.as_ref());
     let near_surface = near_surface_probes(&grid, &samples, &mask);
+    if let Some(note) = no_surface_note(&grid, &samples, &mask) {
+        bar.suspend(|| outln!("{note}"));
+    }
     bar.set_message("restoring the mask");
     let restored = restoration.restore(
         loaded.field.as_ref(),
@@ -313,6 +316,42 @@ fn near_surface_probes(grid: &Grid<3>, samples: &[f64], mask: &BoxMask<3>) -> Ve
         .collect();
     let stride = candidates.len().div_ceil(DRIFT_PROBES).max(1);
     candidates.into_iter().step_by(stride).collect()
+}
+
+/// Where the field's samples do not cross 0 (its surface) in the mask, or nowhere on the grid:
+/// a mask with no surface in it has nothing to restore (its corners are most often in other
+/// coordinates than the field's), and a field with no zero set meshes to nothing.
+fn no_surface_note(grid: &Grid<3>, samples: &[f64], mask: &BoxMask<3>) -> Option<String> {
+    let range = |values: &mut dyn Iterator<Item = f64>| {
+        values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+    };
+    let crosses = |(lo, hi): (f64, f64)| lo <= 0.0 && hi >= 0.0;
+    let whole = range(&mut samples.iter().copied());
+    if !crosses(whole) {
+        return Some(format!(
+            "warning: the field does not reach 0 anywhere on the grid (its samples run from {} \
+             to {}): it has no surface here to restore, and its mesh is empty",
+            g(whole.0),
+            g(whole.1)
+        ));
+    }
+    let (lo, hi) = (mask.lo(), mask.hi());
+    let in_mask = |linear: &usize| {
+        let index = grid.multi_index(*linear);
+        (0..3).all(|a| lo[a] <= index[a] && index[a] <= hi[a])
+    };
+    let masked = range(&mut (0..grid.len()).filter(in_mask).map(|l| samples[l]));
+    (!crosses(masked)).then(|| {
+        format!(
+            "warning: the field does not reach 0 inside the mask (its samples there run from {} \
+             to {}): the mask holds no surface to restore; are its corners in the field's \
+             coordinates?",
+            g(masked.0),
+            g(masked.1)
+        )
+    })
 }
 
 /// The cells around the mask [`near_surface_probes`] leaves out: the spline through the
@@ -755,6 +794,10 @@ impl Source {
         if let Some(counts) = self.grid {
             loaded.grid =
                 Grid::cell_centered(loaded.grid.bounds(), counts).context("building the --grid")?;
+            if loaded.own_grid {
+                // Said, since a B-spline field is otherwise given back exactly outside the mask.
+                loaded.description += ", resampled on the --grid (not its own)";
+            }
             loaded.own_grid = false;
         }
         Ok(loaded)

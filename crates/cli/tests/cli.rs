@@ -366,6 +366,16 @@ fn restore_says_how_far_resampling_moves_the_surface_outside_the_mask() {
     // A B-spline field on its own grid is given back outside the mask: nothing to report.
     let again = succeeds(restore(&out, &["-o", other.to_str().unwrap()]));
     assert!(!again.contains("outside the mask"), "{again}");
+    // On another --grid it is resampled, which is said and measured.
+    let regrid = succeeds(restore(
+        &out,
+        &["--grid", "128,24,24", "-o", other.to_str().unwrap()],
+    ));
+    assert!(
+        regrid.contains("resampled on the --grid (not its own)"),
+        "{regrid}"
+    );
+    assert!(regrid.contains(DRIFT), "{regrid}");
 }
 
 #[test]
@@ -394,6 +404,64 @@ fn restore_warns_of_a_slope_that_grows_the_protrusion() {
     assert!(run("-1").contains(grows), "{}", run("-1"));
     assert!(run("0").contains(grows), "{}", run("0"));
     assert!(!run("2").contains(grows), "{}", run("2"));
+}
+
+#[test]
+fn restore_warns_of_a_mask_with_no_surface_in_it() {
+    // A mask in empty space (its corners in other units, say) restored nothing and said nothing.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.zsf");
+    let restore = |input: &Path, mask: &str| {
+        let o = zeroset([
+            "restore",
+            input.to_str().unwrap(),
+            "--mode",
+            "protrusion",
+            &format!("--mask={mask}"),
+            "--force",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    const EMPTY_MASK: &str = "the mask holds no surface to restore";
+    let beside = restore(&sample(), "-0.09,0.035,-0.06:-0.07,0.05,-0.04");
+    assert!(beside.contains(EMPTY_MASK), "{beside}");
+    assert!(!restore(&sample(), EARS).contains(EMPTY_MASK));
+    // A field positive everywhere (values 1 + |p|² interpolated) has no surface at all.
+    let values: String = (0..64)
+        .map(|i| {
+            let p = [
+                (i % 4) as f64 - 1.5,
+                ((i / 4) % 4) as f64 - 1.5,
+                (i / 16) as f64 - 1.5,
+            ];
+            format!(
+                "{} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                1.0 + p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+            )
+        })
+        .collect();
+    let (_d, path) = temp_file("positive.xyzv", &values);
+    let field = dir.path().join("positive.zsf");
+    let o = zeroset([
+        "fit",
+        path.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "-o",
+        field.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let nowhere = restore(&field, "-0.5,-0.5,-0.5:0.5,0.5,0.5");
+    assert!(
+        nowhere.contains("the field does not reach 0 anywhere on the grid"),
+        "{nowhere}"
+    );
 }
 
 #[test]
@@ -2132,10 +2200,12 @@ fn fit_neural_on_a_small_cloud_then_mesh_info_preview_and_restore() {
     let o = mesh(&field, &dir.path().join("smc.ply"), &["--method", "smc"]);
     assert_clean_failure(&o);
     assert!(
-        stderr(&o).contains("neural field: use --method mc"),
+        stderr(&o).contains("field of kind neural: use --method mc"),
         "{}",
         stderr(&o)
     );
+    // Refused as soon as the field is read, before the grid is laid out.
+    assert!(!stdout(&o).contains("grid"), "{}", stdout(&o));
     // Restoration samples the neural field on a grid like an RBF field.
     let restored = dir.path().join("restored.zsf");
     let (f, r) = (field.to_str().unwrap(), restored.to_str().unwrap());
@@ -2743,6 +2813,31 @@ fn mras_refuses_bad_clouds_with_reasons() {
     ]);
     assert_clean_failure(&o);
     assert!(stderr(&o).contains("tolerance"), "{}", stderr(&o));
+    // Options out of range are refused before the points are read (a large scan took its
+    // reading time, and printed its header, before being told): here there is no file at all.
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("not-there.ply");
+    for (method, flags, named) in [
+        ("mras", &["--tolerance", "-1"][..], "--tolerance -1"),
+        ("mras", &["--max-level", "0"][..], "--max-level 0"),
+        ("mras", &["--lambda", "-2"][..], "--lambda -2"),
+        (
+            "mras",
+            &["--tolerance-distance", "0"][..],
+            "--tolerance-distance 0",
+        ),
+        ("rbf", &["--tolerance", "2"][..], "--tolerance 2"),
+    ] {
+        let mut args = vec!["fit", missing.to_str().unwrap(), "--method", method];
+        args.extend(flags);
+        let o = zeroset(&args);
+        assert_clean_failure(&o);
+        assert!(
+            stderr(&o).contains(named),
+            "{method} {flags:?}: {}",
+            stderr(&o)
+        );
+    }
 }
 
 #[test]
@@ -3705,6 +3800,45 @@ fn normals_turns_each_e57_scan_towards_its_own_scanner() {
     // from the scanner that recorded it.
     let (_, rows) = normals("0.2,-0.1,0.3");
     assert!(rows[2000..].iter().all(|row| row[3] < -0.8));
+}
+
+#[test]
+fn normals_says_a_flat_scan_faces_up_by_convention() {
+    // Terrain (one side of a gently rolling sheet, z up) has no inside to read: it faced
+    // down, with no word. It faces +z now, and the note says it is a convention.
+    let text: String = (0..2500)
+        .map(|i| {
+            let (x, y) = ((i % 50) as f64 * 0.2, (i / 50) as f64 * 0.2);
+            format!("{x} {y} {}\n", 0.3 * x.sin() * (0.7 * y).cos())
+        })
+        .collect();
+    let (dir, scan) = temp_file("terrain.xyz", &text);
+    let oriented = dir.path().join("terrain.xyzn");
+    let o = zeroset([
+        "normals",
+        scan.to_str().unwrap(),
+        "-o",
+        oriented.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("1 piece turned outward, 1 of them flat (below)"),
+        "{out}"
+    );
+    assert!(
+        out.contains(
+            "a piece of 2500 points is flat, with no inside to read its side from: \
+             turned by convention to face +z"
+        ),
+        "{out}"
+    );
+    let up = fs::read_to_string(&oriented)
+        .unwrap()
+        .lines()
+        .filter(|l| l.split_whitespace().nth(5).unwrap().parse::<f64>().unwrap() > 0.0)
+        .count();
+    assert_eq!(up, 2500);
 }
 
 #[test]

@@ -186,7 +186,11 @@ impl MrasOptions {
         self.m0.saturating_sub(drop).max(self.min_knots)
     }
 
-    fn validate(&self) -> Result<(), MrasError> {
+    /// Checks every option's range ([`fit_mras`] does so too, before it looks at the points).
+    ///
+    /// # Errors
+    /// [`MrasError::Option`], naming the first option out of its range.
+    pub fn validate(&self) -> Result<(), MrasError> {
         let check = |name, value: f64, ok: bool, reason| {
             if ok {
                 Ok(())

@@ -43,6 +43,7 @@ use clap::{Args, ValueEnum};
 use zeroset_bases::bspline::{BSplineField, Degree};
 use zeroset_bases::field_file::{StoredKernel, is_field_file, write_field, write_rbf_field};
 use zeroset_bases::noise::object_size;
+use zeroset_bases::normals::{FLAT_DIVERGENCE, outwardness};
 use zeroset_bases::rbf::{
     Biharmonic, Constraints, FitReport, GreedyOptions, IterativeParams, Offset, OffsetReport,
     RbfField, RbfFit, Solver, ThinPlate, Triharmonic, Wendland,
@@ -882,6 +883,25 @@ pub(crate) fn print_input(args: &FitArgs, cloud: &PointCloud3) {
     }
 }
 
+/// Where the cloud's normals point inward on the whole ([`outwardness`] below
+/// `−`[`FLAT_DIVERGENCE`]), prints a `normals` warning and returns it: zeroset's fields are
+/// negative inside, where the normals point away from, so the fit comes out inside out (its
+/// mesh of negative volume) — said before the fit rather than only by `mesh`.
+pub(crate) fn inward_normals(cloud: &PointCloud3) -> Option<String> {
+    let normals = cloud.normals()?;
+    let r = outwardness(cloud.positions(), normals);
+    (r < -FLAT_DIVERGENCE).then(|| {
+        let warning = format!(
+            "the normals point inward on the whole (Σ (p − c)·n / Σ ‖p − c‖ = {r:.2}, about 1 \
+             for outward normals on a closed surface): the field will be positive inside and \
+             its mesh inside out. Flip them, or let `zeroset normals` estimate them (unless \
+             the scan is of a hollow's inside, a bowl or a room, facing its scanner)"
+        );
+        line("normals", &format!("warning: {warning}"));
+        warning
+    })
+}
+
 /// `--smoothing auto`: the smoothing [`Noise::rbf_smoothing`] gives the measured noise at the
 /// size of the object `cloud` mostly samples ([`object_size`]), or none (interpolation) where
 /// the noise cannot be measured; says which.
@@ -936,7 +956,7 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
     let (args, cloud) = (job.args, job.cloud);
     let n = cloud.len();
     // Warnings about the input, repeated on the report's `warnings` line.
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = inward_normals(cloud).into_iter().collect();
     let constraints = if args.hermite {
         let c = Constraints::hermite(cloud).context("building the Hermite constraints")?;
         let kept = c.len() / 2;

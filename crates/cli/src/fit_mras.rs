@@ -19,7 +19,7 @@ use zeroset_bases::field_file::write_mras_field;
 use zeroset_bases::mras::{MAX_LEVEL, MrasOptions, MrasProgress, fit_mras};
 use zeroset_field_core::PointCloud3;
 
-use crate::fit::{FitArgs, line, load, more, print_check, print_input};
+use crate::fit::{FitArgs, inward_normals, line, load, more, print_check, print_input};
 use crate::info::g;
 use crate::progress::counter;
 
@@ -168,6 +168,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let cloud = load(args)?;
     print_input(args, &cloud);
+    inward_normals(&cloud);
     let normals = cloud.normals().context("the cloud has no normals")?;
     let mut options = options;
     let diagonal = || cloud.bounds().map_or(0.0, |b| b.diagonal());

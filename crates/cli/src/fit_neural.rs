@@ -252,6 +252,7 @@ fn fit_values<const D: usize>(args: &FitArgs, params: NeuralParams) -> anyhow::R
 fn fit_cloud(args: &FitArgs, params: NeuralParams) -> anyhow::Result<()> {
     let cloud = load(args)?;
     print_input(args, &cloud);
+    crate::fit::inward_normals(&cloud);
     let offset = match args.offset.unwrap_or(OffsetArg::Auto) {
         OffsetArg::Auto => Offset::Auto {
             fraction: AUTO_FRACTION,

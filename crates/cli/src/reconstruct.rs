@@ -29,8 +29,8 @@ Examples:
 /// Clouds of up to this many points are fitted by RBF under `--method auto`, larger ones by
 /// MRAS. Measured on 2 threads (whole `zeroset reconstruct` commands): the full 34,834-point
 /// bunny by RBF in ~21 s (fit ~18 s: 13 GMRES steps on FMM products; the points' distance to
-/// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~17 s (3.7e-4,
-/// 4.4e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~53 s to fit and 1.7 GB, where
+/// the mesh 1.4e-4 of the diagonal on average, 3.2e-3 at most), by MRAS in ~10 s (3.8e-4,
+/// 4.5e-3); 10⁵ sphere points (3·10⁵ functionals) by RBF take ~53 s to fit and 1.7 GB, where
 /// MRAS's time grows with the detail rather than the count. Noisy clouds are not interpolated
 /// ([`zeroset_bases::noise`]: RBF interpolation makes bubbles of the noise): see
 /// [`AUTO_SMOOTHED_POINTS`].
@@ -82,8 +82,8 @@ pub struct ReconstructArgs {
     pub method: ReconstructMethod,
 
     /// Voxel size by the l0 rule of the field's box (as `zeroset mesh --detail`). Fine by
-    /// default: on the full bunny (MRAS) the points' mean distance to the mesh is 3.7e-4 of the
-    /// diagonal with fine voxels (the field's own: 3.4e-4), 1.1e-3 with general ones.
+    /// default: on the full bunny (MRAS) the points' mean distance to the mesh is 3.8e-4 of the
+    /// diagonal with fine voxels (the field's own: 3.5e-4), 1.1e-3 with general ones.
     #[arg(long, value_enum, default_value_t = DetailArg::Fine)]
     pub detail: DetailArg,
 

@@ -782,6 +782,40 @@ fn flipped_normals_are_on_the_fit_reports_warnings_line() {
         out.contains("warnings:     2 normals point against most of their nearest"),
         "{out}"
     );
+    assert!(!out.contains("point inward on the whole"), "{out}");
+}
+
+#[test]
+fn normals_inward_on_the_whole_are_warned_of_before_the_fit() {
+    // Every normal of the sphere turned inward: each agrees with its neighbours, so only the
+    // mesh said (inside out, negative volume); every fit method says so now, the RBF fit on
+    // its warnings line too.
+    let text: String = sphere_points(400)
+        .iter()
+        .map(|(p, q)| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], -q[0], -q[1], -q[2]))
+        .collect();
+    let (dir, path) = temp_file("inward.xyzn", &text);
+    const INWARD: &str = "normals:      warning: the normals point inward on the whole";
+    for method in ["rbf", "mras", "neural"] {
+        let mut args = vec!["fit", path.to_str().unwrap(), "--method", method, "--quiet"];
+        if method == "neural" {
+            args.extend(["--steps", "1"]);
+        }
+        let o = zeroset(&args);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        assert!(stdout(&o).contains(INWARD), "{method}: {}", stdout(&o));
+        if method == "rbf" {
+            assert!(
+                stdout(&o).contains("warnings:     the normals point inward"),
+                "{}",
+                stdout(&o)
+            );
+        }
+    }
+    let (_d, outward) = temp_file("outward.xyzn", &sphere_xyzn(400));
+    let o = fit(&outward, &[]);
+    assert!(!stdout(&o).contains("point inward"), "{}", stdout(&o));
+    drop(dir);
 }
 
 #[test]

@@ -509,6 +509,15 @@ fn initial_factors(x: &Tensor3, options: &CpOptions) -> Result<[Mat<f64>; 3], Te
                     f[0][(i, r)] *= k.weights()[r];
                 }
             }
+            // A zero column is a fixed point of every sweep (its row and column of the
+            // Hadamard Gram are zero): the fit would stall at it and call that convergence.
+            for (mode, factor) in f.iter().enumerate() {
+                if let Some(component) =
+                    (0..rank).find(|&r| (0..factor.nrows()).all(|i| factor[(i, r)] == 0.0))
+                {
+                    return Err(TensorError::ZeroComponent { mode, component });
+                }
+            }
             Ok(f)
         }
         CpInit::Random(seed) => {

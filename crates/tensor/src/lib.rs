@@ -57,6 +57,19 @@ pub use weighted::{WeightedOptions, WeightedResult, cp_als_weighted};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum TensorError {
+    /// Given starting factors with a component that is zero in some mode (or of weight 0):
+    /// ALS keeps such a component at zero, and would report its error as converged.
+    #[error(
+        "the given starting factors' component {component} is zero in mode {mode} (or has \
+         weight 0): ALS never moves it from zero; start from other factors (CpInit::Random, \
+         CpInit::Svd)"
+    )]
+    ZeroComponent {
+        /// The mode whose factor column is zero (0 for a zero weight).
+        mode: usize,
+        /// The component (column).
+        component: usize,
+    },
     /// A tensor with a zero extent.
     #[error("a tensor needs every extent at least 1, not {shape:?}")]
     EmptyShape {

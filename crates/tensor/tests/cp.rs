@@ -238,6 +238,28 @@ fn bad_input_gives_specific_errors() {
         cp_als(&x, &CpOptions::new(2).with_tol(f64::NAN), |_| true),
         Err(TensorError::Tolerance { .. })
     ));
+    // Starting factors with a zero component: ALS never moves it, and reported the stall as
+    // convergence (zero factors: relative error 1, "converged" after 2 sweeps).
+    let ones = |rows| Mat::from_fn(rows, 2, |i, r| 1.0 + (i + r) as f64);
+    let mut second_zero = ones(5);
+    for i in 0..5 {
+        second_zero[(i, 1)] = 0.0;
+    }
+    for (weights, factors, (mode, component)) in [
+        (
+            vec![1.0; 2],
+            [Mat::zeros(3, 2), Mat::zeros(4, 2), Mat::zeros(5, 2)],
+            (0, 0),
+        ),
+        (vec![1.0; 2], [ones(3), ones(4), second_zero], (2, 1)),
+        (vec![1.0, 0.0], [ones(3), ones(4), ones(5)], (0, 1)),
+    ] {
+        let k = Kruskal::new(weights, factors).unwrap();
+        assert_eq!(
+            cp_als(&x, &CpOptions::new(2).with_init(CpInit::Given(k)), |_| true).unwrap_err(),
+            TensorError::ZeroComponent { mode, component }
+        );
+    }
     assert!(matches!(
         cp_adaptive(&x, &AdaptiveOptions::new(0.0), |_| true),
         Err(TensorError::Tolerance { .. })

@@ -988,7 +988,11 @@ fn fit_with<K: StoredKernel>(kernel: K, job: CloudFit<'_>) -> anyhow::Result<()>
                 c.len() - (n - report.merged)
             ),
         );
-        warnings.extend(print_offset(args.offset.is_none(), &report));
+        warnings.extend(print_offset(
+            args.offset.is_none(),
+            &report,
+            n - report.merged,
+        ));
         c
     };
     // The cloud's diagonal, not the constraints' (their off-surface points reach past it).
@@ -1110,8 +1114,9 @@ fn kernel_words(name: &str) -> &'static str {
     }
 }
 
-/// Prints the offsets' report; returns its warning, if any, for the report's `warnings` line.
-fn print_offset(auto: bool, r: &OffsetReport) -> Option<String> {
+/// Prints the offsets' report; returns its warnings (flipped normals, a thin wall) for the
+/// report's `warnings` line.
+fn print_offset(auto: bool, r: &OffsetReport, points: usize) -> Vec<String> {
     let how = if auto {
         "auto, starting at 1% of the diagonal"
     } else {
@@ -1150,7 +1155,28 @@ fn print_offset(auto: bool, r: &OffsetReport) -> Option<String> {
         more(&format!("warning: {w}"));
     }
     print_merged(r.merged);
-    warning
+    let thin = thin_wall_warning(r.thin_wall, points);
+    if let Some(w) = &thin {
+        more(&format!("warning: {w}"));
+    }
+    warning.into_iter().chain(thin).collect()
+}
+
+/// Above 1% of the points: a wall thinner than the sampling (a point's nearest neighbours
+/// include the far face's, behind it and facing away), which a fit between its two faces
+/// thickens or breaks. Measured on a clean tube of wall 1.1% of its diagonal, 20,000 exact
+/// samples about a wall's thickness apart: RBF +23% volume with bumps of 0.9 walls, MRAS a
+/// hole through it.
+fn thin_wall_warning(thin: usize, points: usize) -> Option<String> {
+    (thin * 100 > points).then(|| {
+        format!(
+            "{thin} points ({:.1}%) lie on a wall thinner than the points' spacing (their \
+             nearest neighbours include the far face's, facing away): a fit thickens such a \
+             wall, pits it or opens holes in it; sampling it more densely than its thickness \
+             keeps it",
+            100.0 * thin as f64 / points.max(1) as f64
+        )
+    })
 }
 
 /// Which constraints a fit's residual was measured over.

@@ -699,3 +699,75 @@ fn ply_keeps_a_georeferenced_mesh_in_doubles_and_a_mesh_near_the_origin_in_float
         assert!(header.contains("property float x"), "{header}");
     }
 }
+
+#[test]
+fn a_cad_cylinder_of_slivers_is_sampled_on_every_face() {
+    use zeroset_mesh::points::{MIN_MESH_POINTS, mesh_points};
+    // A closed cylinder as CAD exports it: radius 1, height 6, 256 segments: its side slivers
+    // 6 × 0.025, its caps fans of slivers about their centres. The lattice sampling put no
+    // point inside a triangle expecting fewer than 4.5 (here every cap triangle: a cup's
+    // bottom and a plate's hole walls came out missing); each triangle now gets its share by
+    // area, spread over it, with its face's normal.
+    let segments = 256u32;
+    let ring = |z: f64| -> Vec<[f64; 3]> {
+        (0..segments)
+            .map(|i| {
+                let t = 2.0 * std::f64::consts::PI * f64::from(i) / f64::from(segments);
+                [t.cos(), t.sin(), z]
+            })
+            .collect()
+    };
+    let mut v = ring(0.0);
+    v.extend(ring(6.0));
+    v.push([0.0, 0.0, 0.0]);
+    v.push([0.0, 0.0, 6.0]);
+    let (s, bottom, top) = (segments, 2 * segments, 2 * segments + 1);
+    let mut t = Vec::new();
+    for i in 0..s {
+        let j = (i + 1) % s;
+        t.push([i, j, s + j]);
+        t.push([i, s + j, s + i]);
+        t.push([bottom, j, i]);
+        t.push([top, s + i, s + j]);
+    }
+    let p = mesh_points(TriMesh::new(v, t).unwrap());
+    assert_eq!(p.sampled, MIN_MESH_POINTS);
+    let n = p.normals.as_ref().unwrap();
+    let sampled = p
+        .positions
+        .iter()
+        .zip(n)
+        .skip(p.positions.len() - p.sampled);
+    // Points per sector of the side, the bottom and the top; normals radial or ±z.
+    let sectors = segments as usize;
+    let mut counts = vec![[0usize; 3]; sectors];
+    for (x, n) in sampled {
+        let angle = x[1].atan2(x[0]).rem_euclid(2.0 * std::f64::consts::PI);
+        let sector = ((angle / (2.0 * std::f64::consts::PI) * f64::from(segments)) as usize)
+            .min(sectors - 1);
+        let r = x[0].hypot(x[1]);
+        if x[2] > 1e-9 && x[2] < 6.0 - 1e-9 {
+            counts[sector][0] += 1;
+            assert!(r > 0.99 && r <= 1.0 + 1e-12, "{x:?}");
+            assert!(
+                (n[0] * x[0] + n[1] * x[1]) / r > 0.99 && n[2].abs() < 1e-12,
+                "{n:?}"
+            );
+        } else {
+            let (face, outward) = if x[2] < 3.0 { (1, -1.0) } else { (2, 1.0) };
+            counts[sector][face] += 1;
+            assert!((n[2] - outward).abs() < 1e-12, "{x:?} {n:?}");
+        }
+    }
+    // By area: 6/7 on the side, 1/14 on each cap (the polygon's a little less); every
+    // triangle some (a cap's expects 2.8).
+    let side: usize = counts.iter().map(|c| c[0]).sum();
+    assert!(
+        (side as f64 / MIN_MESH_POINTS as f64 - 6.0 / 7.0).abs() < 0.01,
+        "{side}"
+    );
+    assert!(
+        counts.iter().all(|c| c.iter().all(|&k| k > 0)),
+        "{counts:?}"
+    );
+}

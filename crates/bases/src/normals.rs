@@ -161,6 +161,17 @@ pub const MIN_PIECE: usize = 64;
 /// 20%, where it reads as the hill it is.
 pub const FLAT_DIVERGENCE: f64 = 0.1;
 
+/// A flat piece's normals also agree: their mean has at least this length (1 for a plane; 0
+/// for a closed surface, which a thin plate or a long rod, of divergence under
+/// [`FLAT_DIVERGENCE`] of their spread, are; 0.64 for one side of a pipe, 0.90 for a quarter
+/// of it; 0.98 for rolling terrain).
+pub const FLAT_AGREEMENT: f64 = 0.9;
+
+/// A flat piece's points also lie near a plane: the smallest eigenvalue of their covariance
+/// is at most this fraction of the middle one (0.005–0.008 for terrain whose relief is 3–5% of
+/// its width; 0.045 for a quarter of a pipe's side, 1 for a rod).
+pub const FLAT_PLANARITY: f64 = 0.01;
+
 /// How far `normals` point away from the middle of `positions`: `Σ (p − c)·n / Σ ‖p − c‖`, `c`
 /// the points' centroid — by the divergence theorem about 1 for outward normals on a closed
 /// surface sampled evenly, about −1 for inward ones, near 0 for a flat sheet
@@ -197,8 +208,9 @@ pub fn outwardness(positions: &[Point<3>], normals: &[Point<3>]) -> f64 {
     }
 }
 
-/// A large piece too flat to have an inside ([`FLAT_DIVERGENCE`]: a wall, terrain, a sheet
-/// scanned from one side). Its sign is a convention: its mean normal's largest component is
+/// A large piece too flat to have an inside (a wall, terrain, a sheet scanned from one side:
+/// divergence under [`FLAT_DIVERGENCE`] of its spread, normals agreeing to
+/// [`FLAT_AGREEMENT`], points on a plane to [`FLAT_PLANARITY`]). Its sign is a convention: its mean normal's largest component is
 /// made positive (a horizontal sheet faces `+z`, a wall facing along x faces `+x`). Give
 /// [`NormalOptions::viewpoint`] to choose the side.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -704,6 +716,46 @@ fn agreeing(plane: Option<Point<3>>, reference: &Point<3>) -> Point<3> {
     }
 }
 
+/// Whether a large piece turned outward is flat ([`FlatPiece`]): its divergence small against
+/// its spread, its normals agreeing, its points on a plane — a closed thin plate or rod, or
+/// one side of a pipe, has the first without the others, and its divergence's sign is right.
+fn is_flat(
+    piece: &[u32],
+    positions: &[Point<3>],
+    normals: &[Point<3>],
+    centroid: &Point<3>,
+    divergence: f64,
+) -> bool {
+    let spread: f64 = piece
+        .iter()
+        .map(|&i| geometry::norm(&geometry::sub(&positions[i as usize], centroid)))
+        .sum();
+    let sum = piece
+        .iter()
+        .fold([0.0; 3], |s, &i| geometry::add(&s, &normals[i as usize]));
+    if !(divergence.abs() < FLAT_DIVERGENCE * spread
+        && geometry::norm(&sum) >= FLAT_AGREEMENT * piece.len() as f64)
+    {
+        return false;
+    }
+    let covariance = Mat::<f64>::from_fn(3, 3, |r, c| {
+        piece
+            .iter()
+            .map(|&i| {
+                let q = &positions[i as usize];
+                (q[r] - centroid[r]) * (q[c] - centroid[c])
+            })
+            .sum::<f64>()
+    });
+    covariance
+        .self_adjoint_eigen(Side::Lower)
+        .ok()
+        .is_some_and(|e| {
+            let values = e.S().column_vector();
+            values[0] <= FLAT_PLANARITY * values[1]
+        })
+}
+
 /// Turns a flat piece so that its normals' mean direction has its largest component positive
 /// ([`FlatPiece`]), and says so.
 fn flat_convention(piece: &[u32], normals: &mut [Point<3>]) -> FlatPiece {
@@ -818,8 +870,11 @@ fn sign_pieces(
     };
     let mut large = 0;
     let mut flat = Vec::new();
-    for piece in pieces
+    // Which pieces are flat: the cavity rule leaves them be.
+    let mut is_flat_piece = vec![false; pieces.len()];
+    for (index, piece) in pieces
         .iter()
+        .enumerate()
         .zip(&is_large)
         .filter(|(_, l)| **l)
         .map(|(p, _)| p)
@@ -855,14 +910,11 @@ fn sign_pieces(
         if divergence < 0.0 {
             flip(normals, piece);
         }
-        if let Facing::Outward = facing {
-            let spread: f64 = piece
-                .iter()
-                .map(|&i| geometry::norm(&geometry::sub(&positions[i as usize], &centroid)))
-                .sum();
-            if divergence.abs() < FLAT_DIVERGENCE * spread {
-                flat.push(flat_convention(piece, normals));
-            }
+        if let Facing::Outward = facing
+            && is_flat(piece, positions, normals, &centroid, divergence)
+        {
+            flat.push(flat_convention(piece, normals));
+            is_flat_piece[index] = true;
         }
     }
     // A piece inside another (a hollow solid's cavity) faces into its cavity, away from the
@@ -872,8 +924,8 @@ fn sign_pieces(
     if matches!(facing, Facing::Outward) {
         let large_pieces: Vec<&Vec<u32>> = pieces
             .iter()
-            .zip(&is_large)
-            .filter(|(_, l)| **l)
+            .zip(is_large.iter().zip(&is_flat_piece))
+            .filter(|(_, (l, f))| **l && !**f)
             .map(|(p, _)| p)
             .collect();
         for (piece, depth) in

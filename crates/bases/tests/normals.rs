@@ -369,6 +369,35 @@ fn a_flat_piece_faces_its_nearest_axis_by_convention() {
         assert!(estimated.flat.is_empty());
         assert_eq!(against(&estimated.normals, &truth).0, 0.0);
     }
+    // Closed or curved pieces whose divergence is small against their spread are not flat
+    // (a first rule on the divergence alone turned them all inside out, a review found): a
+    // thin closed rod sampled more densely on one side, and one side of a long pipe.
+    let rod: (Vec<P>, Vec<P>) = (0..4000)
+        .map(|i| {
+            let t = std::f64::consts::PI
+                * (if i % 4 == 0 { 2.0 } else { 1.0 })
+                * ((i as f64 * 0.618_034) % 1.0)
+                + if i % 4 == 0 {
+                    0.0
+                } else {
+                    std::f64::consts::FRAC_PI_2
+                };
+            let x = (i as f64 * 0.754_877) % 1.0;
+            ([x, 0.01 * t.cos(), 0.01 * t.sin()], [0.0, t.cos(), t.sin()])
+        })
+        .unzip();
+    let pipe: (Vec<P>, Vec<P>) = (0..4000)
+        .map(|i| {
+            let t = std::f64::consts::PI * ((i as f64 * 0.618_034) % 1.0);
+            let x = 40.0 * ((i as f64 * 0.754_877) % 1.0);
+            ([x, t.cos(), -t.sin()], [0.0, t.cos(), -t.sin()])
+        })
+        .unzip();
+    for (name, (points, truth)) in [("rod", rod), ("pipe", pipe)] {
+        let estimated = estimate(&points);
+        assert!(estimated.flat.is_empty(), "{name}");
+        assert!(against(&estimated.normals, &truth).0 < 0.01, "{name}");
+    }
     // With a viewpoint the side is the viewpoint's, and nothing is called flat.
     let below = NormalOptions::default().viewpoint([0.5, 0.5, -10.0]);
     let estimated = estimate_normals(&sheet(1.0, 0.0), &below).unwrap();

@@ -717,7 +717,8 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         } else if args.close {
             "at holes in the surface"
         } else {
-            "where the surface leaves the grid (--close caps it on the box) or at holes"
+            "where the surface leaves the grid (`zeroset mesh FIELD --close` caps it on the box) \
+             or at holes"
         };
         say!(
             out,

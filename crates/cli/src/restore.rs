@@ -332,7 +332,7 @@ fn no_surface_note(grid: &Grid<3>, samples: &[f64], mask: &BoxMask<3>) -> Option
     if !crosses(whole) {
         return Some(format!(
             "warning: the field does not reach 0 anywhere on the grid (its samples run from {} \
-             to {}): it has no surface here to restore, and its mesh is empty",
+             to {}): it has no surface here to restore, and its mesh at level 0 is empty",
             g(whole.0),
             g(whole.1)
         ));
@@ -792,8 +792,12 @@ impl Source {
     pub(crate) fn load(&self) -> anyhow::Result<Loaded> {
         let mut loaded = self.load_field()?;
         if let Some(counts) = self.grid {
-            loaded.grid =
+            let grid =
                 Grid::cell_centered(loaded.grid.bounds(), counts).context("building the --grid")?;
+            if loaded.own_grid && grid == loaded.grid {
+                return Ok(loaded);
+            }
+            loaded.grid = grid;
             if loaded.own_grid {
                 // Said, since a B-spline field is otherwise given back exactly outside the mask.
                 loaded.description += ", resampled on the --grid (not its own)";

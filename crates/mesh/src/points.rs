@@ -4,7 +4,7 @@
 //! The points are the vertices the triangles use — a vertex no triangle uses is not on the
 //! surface the mesh describes — or, for a mesh without triangles (an OBJ of vertices only),
 //! every vertex; a mesh of fewer than [`MIN_MESH_POINTS`] vertices also gets points inside
-//! its large triangles. Their normals, in this order ([`NormalSource`]):
+//! its triangles. Their normals, in this order ([`NormalSource`]):
 //! 1. the mesh's own per-vertex normals (a PLY with `nx ny nz`, an OBJ whose every vertex
 //!    names one `vn`), made unit; where one is zero or not finite, the next rule decides;
 //! 2. the triangles' winding, where it is consistent (each edge shared by two triangles runs
@@ -62,7 +62,7 @@ pub struct MeshPoints {
     pub source: NormalSource,
     /// Vertices left out because no triangle uses them.
     pub left_out: usize,
-    /// Points sampled inside large triangles, after the vertices in
+    /// Points sampled inside the triangles, after the vertices in
     /// [`positions`](Self::positions) (0 for a mesh of at least [`MIN_MESH_POINTS`] vertices).
     pub sampled: usize,
 }
@@ -258,8 +258,6 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
     (Some(normals), source, sign)
 }
 
-/// Points inside the triangles of `mesh` larger than its share of [`MIN_MESH_POINTS`], with
-/// normals (the triangle's, or the file's interpolated) where the vertices have them.
 /// `count` barycentric coordinates `(u, v)` spread evenly over a triangle: the centroid for
 /// one, else the first points of the R₂ sequence (Roberts 2018: the unit square's most even
 /// additive recurrence, `α = (1/φ₂, 1/φ₂²)` with `φ₂` the plastic number) folded onto the
@@ -288,6 +286,9 @@ fn spread_in_triangle(count: usize) -> impl Iterator<Item = (f64, f64)> {
     })
 }
 
+/// [`MIN_MESH_POINTS`] points inside the triangles of `mesh` (none for a mesh of that many
+/// vertices), each triangle its share by area, with normals (the triangle's, or the file's
+/// interpolated) where the vertices have them.
 fn sample_triangles(
     mesh: &TriMesh,
     vertex_normals: Option<&[Point<3>]>,

@@ -76,14 +76,14 @@ pub struct OffsetReport {
     pub merged: usize,
     /// Points whose normal points against those of most of their [`NORMAL_NEIGHBOURS`]
     /// nearest neighbours near their tangent plane (negative dot product with more than half of
-    /// those within [`TANGENT_SLOPE`] of it): likely flipped normals, which put a bump or a
+    /// those within [`TANGENT_SLOPE`] of it, or of all of them where fewer than 3 are): likely flipped normals, which put a bump or a
     /// bubble into the surface there. Neighbours off the plane — the other face of a wall
     /// thinner than the sampling, whose normals rightly point the other way — do not count.
     pub opposed_normals: usize,
-    /// Points with one of their [`NORMAL_NEIGHBOURS`] nearest neighbours behind them, off their
-    /// tangent plane ([`TANGENT_SLOPE`]) and facing the other way: they lie on a wall (or
-    /// another thin part) thinner than the points' spacing, which an interpolant between its
-    /// two faces thickens, pits or breaks.
+    /// Points with two of their [`NORMAL_NEIGHBOURS`] nearest neighbours behind them, off their
+    /// tangent plane ([`TANGENT_SLOPE`]) and facing the other way ([`WALL_FACES`]): they lie on
+    /// a wall (or another thin part) thinner than the points' spacing, which an interpolant
+    /// between its two faces thickens, pits or breaks.
     pub thin_wall: usize,
 }
 
@@ -97,6 +97,12 @@ pub const NORMAL_NEIGHBOURS: usize = 8;
 /// 1.1 mm: 0.5–0.9). Those normals point the other way by right: counted, 1,357 of a clean
 /// tube's 20,000 exact normals were called flipped.
 pub const TANGENT_SLOPE: f64 = 0.3;
+
+/// [`OffsetReport::thin_wall`] takes a neighbour behind a point for the far face of a wall
+/// where their normals' dot product is below this (more than 134° apart: a wall's faces are
+/// opposite; across a sharp edge they are not — a tetrahedron's faces meet at 109.5°, whose
+/// edges counted 17.6% of its points as a thin wall). Two such neighbours are needed.
+pub const WALL_FACES: f64 = -0.7;
 
 /// Input points closer than this fraction of the bounding-box diagonal are one point to
 /// [`Constraints::off_surface`] (the first is kept, with its normal): about a float32
@@ -448,22 +454,31 @@ fn opposed_normals<const D: usize>(
                 .nearest_n::<SquaredEuclidean<f64>>(k)
                 .execute();
             let mut in_plane: Vec<&Point<D>> = Vec::with_capacity(found.len());
-            let mut behind_facing_away = false;
+            let mut all: Vec<&Point<D>> = Vec::with_capacity(found.len());
+            let mut behind_facing_away = 0;
             for f in &found {
                 let (q, m) = (&positions[f.item as usize], &normals[kept[f.item as usize]]);
                 let d: Point<D> = std::array::from_fn(|a| q[a] - p[a]);
                 let (along, length) = (dot(&d, n), dot(&d, &d).sqrt());
                 // The point itself (length 0) is left out.
                 if length == 0.0 {
-                } else if along.abs() <= TANGENT_SLOPE * length {
-                    in_plane.push(m);
-                } else if along < 0.0 && dot(n, m) < 0.0 {
-                    behind_facing_away = true;
+                    continue;
                 }
+                if along.abs() <= TANGENT_SLOPE * length {
+                    in_plane.push(m);
+                } else if along < 0.0 && dot(n, m) < WALL_FACES {
+                    // A far face's: no evidence of a flip either way.
+                    behind_facing_away += 1;
+                    continue;
+                }
+                all.push(m);
             }
-            thin += usize::from(behind_facing_away);
-            let against = in_plane.iter().filter(|m| dot(n, m) < 0.0).count();
-            !in_plane.is_empty() && 2 * against > in_plane.len()
+            thin += usize::from(behind_facing_away >= 2);
+            // Too few near the plane (a noisy scan's neighbours scatter off it): all of them
+            // vote but a far face's, as before the plane was looked at.
+            let voters = if in_plane.len() >= 3 { &in_plane } else { &all };
+            let against = voters.iter().filter(|m| dot(n, m) < 0.0).count();
+            !voters.is_empty() && 2 * against > voters.len()
         })
         .count();
     (opposed, thin)
@@ -704,6 +719,21 @@ mod tests {
         assert_eq!(report.opposed_normals, 2, "{report:?}");
     }
 
+    /// The unit normal of the triangle `a b c`.
+    pub(super) fn cross3(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> [f64; 3] {
+        let (e, f): ([f64; 3], [f64; 3]) = (
+            std::array::from_fn(|x| b[x] - a[x]),
+            std::array::from_fn(|x| c[x] - a[x]),
+        );
+        let n = [
+            e[1] * f[2] - e[2] * f[1],
+            e[2] * f[0] - e[0] * f[2],
+            e[0] * f[1] - e[1] * f[0],
+        ];
+        let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        n.map(|v| v / l)
+    }
+
     #[test]
     fn the_other_face_of_a_thin_wall_is_not_a_flipped_normal() {
         // Both faces of a plate 0.6 spacings thick (grid step 1 on each face, the lower
@@ -723,6 +753,39 @@ mod tests {
         let (_, report) = Constraints::off_surface(&plate, Offset::Fixed(0.1)).unwrap();
         assert_eq!(report.opposed_normals, 0, "{report:?}");
         assert_eq!(report.thin_wall, 1800, "{report:?}");
+        // A solid's sharp edges are not walls: a tetrahedron's faces meet at 109.5°, and
+        // its edges counted 17.6% of its points as thin with any facing-away neighbour.
+        let corners = [
+            [1.0, 1.0, 1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+        ];
+        let (mut tp, mut tn) = (Vec::new(), Vec::new());
+        for skip in 0..4 {
+            let [a, b, c]: [[f64; 3]; 3] = std::array::from_fn(|k| corners[(skip + 1 + k) % 4]);
+            let o = corners[skip];
+            let mut normal = cross3(&a, &b, &c);
+            let centre: [f64; 3] = std::array::from_fn(|x| (a[x] + b[x] + c[x]) / 3.0 - o[x]);
+            if (0..3).map(|x| normal[x] * centre[x]).sum::<f64>() < 0.0 {
+                normal = normal.map(|v| -v);
+            }
+            for i in 1..30 {
+                for j in 1..30 - i {
+                    let (u, v) = (f64::from(i) / 30.0, f64::from(j) / 30.0);
+                    tp.push(std::array::from_fn(|x| {
+                        (1.0 - u - v) * a[x] + u * b[x] + v * c[x]
+                    }));
+                    tn.push(normal);
+                }
+            }
+        }
+        let solid = PointCloud::with_normals(tp, tn).unwrap();
+        let (_, report) = Constraints::off_surface(&solid, Offset::Fixed(0.01)).unwrap();
+        assert_eq!(report.thin_wall, 0, "{report:?}");
+        // (The point nearest each corner has fewer than 3 neighbours near its plane, and all
+        // of them vote, as before.)
+        assert!(report.opposed_normals <= 4, "{report:?}");
         n[465] = n[465].map(|v| -v);
         let flipped = PointCloud::with_normals(p, n).unwrap();
         let (_, report) = Constraints::off_surface(&flipped, Offset::Fixed(0.1)).unwrap();

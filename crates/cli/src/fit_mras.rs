@@ -320,7 +320,9 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 /// finer levels would follow it: on the bunny with Gaussian noise of 0.5% of the diagonal per
 /// axis (`σ̂` 0.39%), the default tolerance of 1e-3 gave the mesh closest to the clean scan
 /// (median distance 0.92e-3 of the diagonal; 1.18e-3 at `--tolerance 0.005`, 2.11e-3 at 0.01),
-/// so the hint explains the miss and does not ask for a looser tolerance.
+/// so the hint explains the miss and does not ask for a looser tolerance. Where two parallel
+/// sheets explain the scatter ([`zeroset_bases::noise::Noise::two_sheets_explain`]: a thin
+/// wall, not noise), the hint says that instead.
 fn scatter_hint(cloud: &PointCloud3, fit: &zeroset_bases::mras::MrasFit) -> Option<String> {
     let normals = cloud.normals()?;
     let set_aside: std::collections::HashSet<usize> = fit.outliers.iter().copied().collect();
@@ -334,6 +336,19 @@ fn scatter_hint(cloud: &PointCloud3, fit: &zeroset_bases::mras::MrasFit) -> Opti
         .unzip();
     let noise = zeroset_bases::noise::estimate_noise(&positions, Some(&normals))?;
     let sigma = noise.sigma / fit.diagonal;
+    if noise.two_sheets_explain() && 3.0 * sigma > fit.tolerance {
+        return Some(format!(
+            "{:.0}% of the points' patches lie on two parallel sheets closer than their spacing \
+             (clean about them: σ ≈ {} of the spacing), so no smooth surface passes within {} of \
+             every one: a wall thinner than the sampling (or scans out of register), which the \
+             fit fuses, thickens or breaks; the distances above are that, not noise (where the \
+             normals were estimated, they cannot tell the wall's faces apart: give the scan \
+             its own, or sample the wall more densely)",
+            100.0 * noise.two_sheet_share(),
+            g(noise.sigma_within_sheets / noise.spacing),
+            g(fit.tolerance)
+        ));
+    }
     (noise.is_noisy() && 3.0 * sigma > fit.tolerance).then(|| {
         format!(
             "the points scatter about their surface by σ ≈ {} of the diagonal ({:.3} of their \

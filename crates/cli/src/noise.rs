@@ -45,7 +45,15 @@ impl Measured {
 
     /// `zeroset info`'s line: the figures and what they mean for a fit.
     pub fn verdict(&self) -> String {
-        if self.noise.is_noisy() {
+        if let Some(sheets) = self.two_sheets() {
+            format!(
+                "{}: noisy (above {NOISY_SCATTER}) on its face, but {sheets}; zeroset reconstruct \
+                 still approximates it as a noisy scan (RBF with --smoothing auto up to {} \
+                 points, MRAS beyond)",
+                self.describe(),
+                crate::reconstruct::AUTO_SMOOTHED_POINTS
+            )
+        } else if self.noise.is_noisy() {
             format!(
                 "{}: noisy (above {NOISY_SCATTER}); RBF interpolation would fold between the \
                  points into bubbles, so zeroset reconstruct approximates them: RBF with \
@@ -59,6 +67,25 @@ impl Measured {
                 self.describe()
             )
         }
+    }
+
+    /// Where two sheets explain the noisy reading ([`Noise::two_sheets_explain`]): what they
+    /// are and what follows, as a clause.
+    pub fn two_sheets(&self) -> Option<String> {
+        let noise = &self.noise;
+        noise.two_sheets_explain().then(|| {
+            format!(
+                "{:.0}% of the patches lie on two parallel sheets, about which the points \
+                 scatter by σ ≈ {} ({:.3} of the spacing): a wall thinner than about two point \
+                 spacings (or scans of one surface out of register), not noise. Normals \
+                 estimated from positions cannot tell such a wall's two sides apart, and a fit \
+                 fuses, thickens or perforates it: give the scan its normals, or sample the wall \
+                 more densely",
+                100.0 * noise.two_sheet_share(),
+                g(noise.sigma_within_sheets),
+                noise.sigma_within_sheets / noise.spacing
+            )
+        })
     }
 
     /// The warning of an RBF fit, on a noisy cloud only.

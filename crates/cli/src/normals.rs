@@ -432,16 +432,28 @@ pub(crate) fn orient(
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
+    // Measured where no count is given (and so only then warned of).
+    let mut two_sheets = None;
     let (neighbours, why) = match neighbours {
         Some(k) => (k, String::new()),
         None => match default_neighbours(cloud.positions()) {
-            (k, Some(noise)) if k != NORMAL_NEIGHBOURS => (
-                k,
-                format!(
-                    " (a noisy scan: scatter {:.3} of the point spacing, above {NOISY_SCATTER})",
-                    noise.relative()
-                ),
-            ),
+            (k, Some(noise)) if k != NORMAL_NEIGHBOURS => {
+                let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+                two_sheets = crate::noise::Measured { noise, diagonal }.two_sheets();
+                (
+                    k,
+                    format!(
+                        " (a noisy scan{}: scatter {:.3} of the point spacing, above \
+                         {NOISY_SCATTER})",
+                        if two_sheets.is_some() {
+                            " on its face"
+                        } else {
+                            ""
+                        },
+                        noise.relative()
+                    ),
+                )
+            }
             (k, _) => (k, String::new()),
         },
     };
@@ -509,6 +521,9 @@ pub(crate) fn orient(
     );
     if let Some(note) = flat_note(&estimated.flat) {
         outln!("{:<14}{note}", "note");
+    }
+    if let Some(clause) = two_sheets {
+        outln!("{:<14}warning: {clause}", "normals");
     }
     // The normals move into the cloud; the report keeps the counts.
     let normals = std::mem::take(&mut estimated.normals);

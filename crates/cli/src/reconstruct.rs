@@ -155,6 +155,17 @@ pub struct ReconstructArgs {
     pub quiet: bool,
 }
 
+/// How `--method auto`'s reason names a scan that measures noisy: as such, or, where two
+/// parallel sheets explain the reading, as a thin wall that reads noisy.
+fn noisy_scan(m: &crate::noise::Measured) -> &'static str {
+    if m.noise.two_sheets_explain() {
+        "a scan that reads noisy, though two parallel sheets closer than its spacing explain \
+         it (a wall thinner than the sampling, or scans out of register)"
+    } else {
+        "a noisy scan"
+    }
+}
+
 /// The arguments of one stage, parsed as the command line would be.
 #[derive(Debug, Parser)]
 struct Stage<T: Args> {
@@ -305,8 +316,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
                     (
                         ReconstructMethod::Rbf,
                         format!(
-                            " (auto: a noisy scan, {}; up to {AUTO_SMOOTHED_POINTS} points RBF \
+                            " (auto: {}, {}; up to {AUTO_SMOOTHED_POINTS} points RBF \
                              smoothed by that noise, --smoothing auto, MRAS beyond)",
+                            noisy_scan(&m),
                             m.describe()
                         ),
                     )
@@ -314,7 +326,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
                 Some(m) if m.noise.is_noisy() => (
                     ReconstructMethod::Mras,
                     format!(
-                        " (auto: a noisy scan, {}, {}; RBF would interpolate the noise)",
+                        " (auto: {}, {}, {}; RBF would interpolate the noise)",
+                        noisy_scan(&m),
                         m.describe(),
                         if points > AUTO_SMOOTHED_POINTS {
                             format!("of more than {AUTO_SMOOTHED_POINTS} points")

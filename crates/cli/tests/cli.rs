@@ -2950,8 +2950,9 @@ fn stray_points_are_set_aside_by_rbf_and_mras_fits() {
 }
 
 /// The fit tests' sphere (2,000 points, spacing ≈ 0.1 of its radius) with every point moved
-/// ±`amplitude` of the radius along its normal, the sign pseudo-random (0.03: noisy, a scatter
-/// about 0.3 of the spacing).
+/// along its normal by uniform pseudo-random noise of standard deviation `amplitude` of the
+/// radius (0.03: noisy, a scatter about 0.3 of the spacing). (Not ±`amplitude`: a random sign
+/// puts the points on two concentric spheres, which the noise check reads as two sheets.)
 fn noisy_sphere_xyzn(amplitude: f64) -> String {
     noisy_sphere_of(2000, amplitude)
 }
@@ -2962,13 +2963,14 @@ fn noisy_sphere_of(n: usize, amplitude: f64) -> String {
         .iter()
         .enumerate()
         .map(|(i, (p, n))| {
-            // The sign: the top bit of a mixed hash of the index (SplitMix64's finaliser; a
-            // bare golden-ratio hash would follow the lattice's own golden-angle azimuth).
+            // Uniform on [−√3, √3) (variance 1) from the top 53 bits of a mixed hash of the
+            // index (SplitMix64's finaliser; a bare golden-ratio hash would follow the
+            // lattice's own golden-angle azimuth).
             let mut x = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
             x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
             x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            let up = (x ^ (x >> 31)) >> 63 == 1;
-            let h = if up { amplitude } else { -amplitude } * RADIUS;
+            let u = ((x ^ (x >> 31)) >> 11) as f64 / (1u64 << 53) as f64;
+            let h = 3f64.sqrt() * (2.0 * u - 1.0) * amplitude * RADIUS;
             let q: [f64; 3] = std::array::from_fn(|a| p[a] + h * n[a]);
             format!("{} {} {} {} {} {}\n", q[0], q[1], q[2], n[0], n[1], n[2])
         })
@@ -3098,6 +3100,54 @@ fn smoothing_approximates_a_noisy_scan_into_one_surface() {
         assert!(stderr(&o).contains(message), "{extra:?}: {}", stderr(&o));
         assert!(!mesh.exists());
     }
+}
+
+#[test]
+fn a_thin_wall_without_normals_is_called_two_sheets_not_noise() {
+    // Both faces of a tube wall 0.02 thick (radii 1 and 1.02, height 2), 4,000 points each
+    // (a spacing of about 0.05): from its positions the wall's thickness reads as scatter.
+    let golden = (5f64.sqrt() - 1.0) / 2.0;
+    let face = |r: f64, shift: f64| -> String {
+        (0..4000)
+            .map(|i| {
+                let t = std::f64::consts::TAU * (i as f64 * golden).fract();
+                let z = 2.0 * (i as f64 + 0.5) / 4000.0 - 1.0 + shift;
+                format!("{} {} {z}\n", r * t.cos(), r * t.sin())
+            })
+            .collect()
+    };
+    let (dir, path) = temp_file("tube.xyz", &(face(1.0, 0.0) + &face(1.02, 0.013)));
+    let two_sheets = "of the patches lie on two parallel sheets";
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("noisy (above 0.2) on its face, but"),
+        "{described}"
+    );
+    assert!(described.contains(two_sheets), "{described}");
+    assert!(described.contains("not noise"), "{described}");
+    // zeroset normals warns that it cannot tell the faces apart.
+    let out = dir.path().join("tube.xyzn");
+    let o = zeroset([
+        "normals",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("warning: "), "{text}");
+    assert!(
+        text.contains(two_sheets) && text.contains("cannot tell"),
+        "{text}"
+    );
+    // One face alone is a clean scan, with nothing said of sheets.
+    let (_d, one) = temp_file("face.xyz", &face(1.0, 0.0));
+    let described = stdout(&info(&one, &[]));
+    assert!(
+        described.contains("clean enough to interpolate"),
+        "{described}"
+    );
+    assert!(!described.contains("sheets"), "{described}");
 }
 
 #[test]

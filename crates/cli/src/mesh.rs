@@ -121,6 +121,15 @@ impl From<DetailArg> for Detail {
     }
 }
 
+/// Where `--close` caps the surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CloseArg {
+    /// On the faces of the field's box.
+    Box,
+    /// On the faces of the scan's bounding box.
+    Scan,
+}
+
 /// Arguments of `zeroset mesh`.
 #[derive(Debug, Args)]
 pub struct MeshArgs {
@@ -176,9 +185,15 @@ pub struct MeshArgs {
     #[arg(long, value_name = "H", allow_hyphen_values = true)]
     pub voxel: Option<f64>,
 
-    /// Cap the surface where it leaves the grid, so that the mesh is closed.
-    #[arg(long)]
-    pub close: bool,
+    /// Cap the surface where it leaves the grid, so that the mesh is closed: on the faces of
+    /// the field's box (`--close`, `--close=box`), or of the scan's own bounding box
+    /// (`--close=scan`: the grid spans the points' box, so that a scan whose bottom was not
+    /// seen — on a turntable, a table — is capped flat where its sides end, not a margin
+    /// below; a tilted or ragged rim is capped at the box's face past its lowest point). The
+    /// points: --scan's, or those an MRAS field records.
+    #[arg(long, value_enum, value_name = "box|scan", num_args = 0..=1, require_equals = true,
+          default_missing_value = "box")]
+    pub close: Option<CloseArg>,
 
     /// Remove the components of the mesh with no input point within 3 voxels, and those
     /// fitted to fewer than 4 input points (blobs around stray points near the surface; the
@@ -271,6 +286,34 @@ fn weak_components(support: &[usize], far: &[bool]) -> Vec<bool> {
 /// one-sided scan leaves to the field's guess does not (at the default reach: a half
 /// sphere's 10%, a terrain patch's 19%, the bunny's front's 57%).
 const OPEN_SCAN_SHARE: f64 = 0.05;
+
+/// The box `--close=scan` caps on: the points' bounding box grown by [`SCAN_BOX_MARGIN`]
+/// voxels of edge `h`, so that a face the scan samples lies inside the grid, not on it.
+/// Refused where the points are flat along an axis (a one-sided scan: terrain, a façade),
+/// whose box has no inside to cap.
+fn scan_box(points: &[Point<3>], h: f64) -> anyhow::Result<Aabb<3>> {
+    let tight = Aabb::from_points(points).context("--close=scan: the scan has no points")?;
+    let extent = tight.extent();
+    if let Some(axis) = (0..3).find(|&a| extent[a] < SCAN_BOX_THINNEST * h) {
+        bail!(
+            "--close=scan: the scan's box is {} thick along {}, under {SCAN_BOX_THINNEST} voxels \
+             ({}): a one-sided or flat scan has no inside to cap (--trim cuts its surface where \
+             the scan ends instead)",
+            g(extent[axis]),
+            ["x", "y", "z"][axis],
+            g(h)
+        );
+    }
+    Ok(tight.expanded(SCAN_BOX_MARGIN * h))
+}
+
+/// How far past the scan's points `--close=scan` caps, in voxels: a face the scan samples
+/// would otherwise lie on the grid's last samples, where the field's zero meets the cap; this
+/// puts the cap that little below a turntable scan's lowest points.
+const SCAN_BOX_MARGIN: f64 = 0.01;
+
+/// The fewest voxels the scan's box must span along every axis for `--close=scan`.
+const SCAN_BOX_THINNEST: f64 = 2.0;
 
 /// The points of `path` for trimming: positions, stray points set aside (when the scan has
 /// normals) with `ratio`.
@@ -408,7 +451,28 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             g(h)
         );
     }
-    let grid = voxel::grid_for(&bounds, h, 0.0).with_context(|| {
+    let grid = match args.close {
+        Some(CloseArg::Scan) => {
+            let points = match (&scan, &field) {
+                (Some(points), _) => points.clone(),
+                (None, AnyField::Mras(f)) if !f.unit_points().is_empty() => f.points(),
+                _ => bail!(
+                    "--close=scan caps the surface on the scan's bounding box: give the scan \
+                     with --scan (only MRAS fields record their points)"
+                ),
+            };
+            let scan_box = scan_box(&points, h)?;
+            say!(
+                out,
+                "close: capped on the scan's box, min {} max {}",
+                point(scan_box.min()),
+                point(scan_box.max())
+            )?;
+            voxel::grid_spanning(&scan_box, h)
+        }
+        _ => voxel::grid_for(&bounds, h, 0.0),
+    }
+    .with_context(|| {
         format!(
             "building the sampling grid for a voxel of {} ({how}); choose a larger --voxel, a \
              smaller --resolution or a coarser --detail",
@@ -432,7 +496,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     )?;
 
     let start = Instant::now();
-    let options = McOptions::default().with_close_boundary(args.close);
+    let options = McOptions::default().with_close_boundary(args.close.is_some());
     if args.method == Method::Mc {
         hint_signed(&field, &grid, &mut out)?;
     }
@@ -627,10 +691,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                         out,
                         "coverage: {:.2}% of the area lies beyond the scan's reach of {how}{}",
                         100.0 * share,
-                        if share > OPEN_SCAN_SHARE {
-                            " (an open scan?); --trim cuts it there"
-                        } else {
-                            ""
+                        match (share > OPEN_SCAN_SHARE, args.close) {
+                            (false, _) => "",
+                            (true, None) => " (an open scan?); --trim cuts it there",
+                            (true, Some(_)) => " (an open scan? the caps --close made are in it)",
                         }
                     )?;
                 }
@@ -714,11 +778,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     if report.boundary_edges > 0 {
         let why = if trim_cut {
             "where --trim cut it (or where the surface leaves the grid)"
-        } else if args.close {
+        } else if args.close.is_some() {
             "at holes in the surface"
         } else {
-            "where the surface leaves the grid (`zeroset mesh FIELD --close` caps it on the box) \
-             or at holes"
+            "where the surface leaves the grid (`zeroset mesh FIELD --close` caps it on the box, \
+             --close=scan on the scan's own box: `zeroset reconstruct --close`) or at holes"
         };
         say!(
             out,
@@ -959,7 +1023,7 @@ fn curve(args: &MeshArgs, out: &mut Say) -> anyhow::Result<()> {
         .context("a 2-D field's level curve is written as SVG")?;
     let refused = [
         (args.method == Method::Smc, "--method smc"),
-        (args.close, "--close"),
+        (args.close.is_some(), "--close"),
         (args.ascii, "--ascii"),
         (args.trim.is_some(), "--trim"),
         (args.scan.is_some(), "--scan"),

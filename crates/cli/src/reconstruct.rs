@@ -24,7 +24,9 @@ Examples:
   # a full scan with multilevel rational algebraic splines, a finer mesh, and the field kept
   zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan_mesh.ply
   # a one-sided scan (a face, a façade, terrain): the surface cut where the scan ends
-  zeroset reconstruct face_scan.ply --trim -o face.ply";
+  zeroset reconstruct face_scan.ply --trim -o face.ply
+  # a turntable scan without its bottom: closed, capped flat where its sides end
+  zeroset reconstruct part_scan.ply --close -o part.stl";
 
 /// Clouds of up to this many points are fitted by RBF under `--method auto`, larger ones by
 /// MRAS. Measured on 2 threads (whole `zeroset reconstruct` commands): the full 34,834-point
@@ -107,6 +109,13 @@ pub struct ReconstructArgs {
     #[arg(long, value_name = "REACH", num_args = 0..=1, require_equals = true,
           default_missing_value = "1.5")]
     pub trim: Option<f64>,
+
+    /// Cap the surface where it leaves the scan's bounding box, so that the mesh is closed
+    /// (as `zeroset mesh --close=scan`): for a scan whose bottom was not seen (on a
+    /// turntable, a table), capped flat where its sides end rather than run on to the field's
+    /// box; a tilted or ragged rim is capped at the box's face past its lowest point.
+    #[arg(long, conflicts_with = "trim")]
+    pub close: bool,
 
     /// RBF fits: approximate instead of interpolate (as `zeroset fit --smoothing`): auto (from
     /// the measured noise) or MU ≥ 0.
@@ -441,6 +450,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let trim = args.trim.map(|r| format!("--trim={r}"));
     if let Some(trim) = &trim {
         argv.push(std::ffi::OsStr::new(trim));
+    }
+    if args.close {
+        argv.push(os("--close=scan"));
     }
     // MRAS fields record the points they fitted; RBF fields' centres include the off-surface
     // points, so the mesh stage reads the scan again (stray points set aside as the fit did).

@@ -3103,6 +3103,103 @@ fn smoothing_approximates_a_noisy_scan_into_one_surface() {
 }
 
 #[test]
+fn close_caps_a_scan_without_its_bottom_on_the_scans_box() {
+    // The box [−1, 1]² × [0, 1] without its bottom face, as a turntable scan sees it: its top
+    // and four sides on a lattice of spacing 0.1, with their normals (1,200 points).
+    let mut text = String::new();
+    let c = |i: usize| -1.0 + 0.1 * (i as f64 + 0.5);
+    let h = |i: usize| 0.1 * (i as f64 + 0.5);
+    for i in 0..20 {
+        for j in 0..20 {
+            text += &format!("{} {} 1 0 0 1\n", c(i), c(j));
+        }
+        for k in 0..10 {
+            text += &format!("{} -1 {} 0 -1 0\n", c(i), h(k));
+            text += &format!("{} 1 {} 0 1 0\n", c(i), h(k));
+            text += &format!("-1 {} {} -1 0 0\n", c(i), h(k));
+            text += &format!("1 {} {} 1 0 0\n", c(i), h(k));
+        }
+    }
+    let (dir, scan) = temp_file("open_box.xyzn", &text);
+    let mesh = dir.path().join("box.ply");
+    let field = dir.path().join("box.zsf");
+    let reconstruct = |extra: &[&str]| {
+        let mut args = vec![
+            "reconstruct",
+            scan.to_str().unwrap(),
+            "-o",
+            mesh.to_str().unwrap(),
+            "--field",
+            field.to_str().unwrap(),
+            "--no-preview",
+            "--force",
+            "--quiet",
+        ];
+        args.extend(extra);
+        let o = zeroset(args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let volume = |text: &str| -> f64 {
+        text.split("signed volume ")
+            .nth(1)
+            .and_then(|s| s.split(',').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no volume in {text}"))
+    };
+    // Without --close the sides run on to the field's box: open.
+    let text = reconstruct(&[]);
+    assert!(text.contains("report: open"), "{text}");
+    assert!(text.contains("--close=scan"), "{text}");
+    // With it, capped where the sides end (their lowest points at z = 0.05): closed, one box,
+    // its volume 2 × 2 × 0.95 within 1%.
+    let text = reconstruct(&["--close"]);
+    assert!(text.contains("close: capped on the scan's box"), "{text}");
+    assert!(
+        text.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{text}"
+    );
+    assert!((volume(&text) / 3.8 - 1.0).abs() < 0.01, "{text}");
+    assert!(text.contains("the caps --close made are in it"), "{text}");
+    // zeroset mesh --close (the field's box) caps it lower: more volume.
+    let capped = dir.path().join("capped.ply");
+    let mesh_with = |extra: &[&str]| {
+        let mut args = vec![
+            "mesh",
+            field.to_str().unwrap(),
+            "-o",
+            capped.to_str().unwrap(),
+            "--force",
+        ];
+        args.extend(extra);
+        zeroset(args)
+    };
+    let o = mesh_with(&["--close"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(volume(&stdout(&o)) > 1.1 * 3.8, "{}", stdout(&o));
+    // An RBF field's centres are not its scan: --close=scan wants --scan...
+    let o = mesh_with(&["--close=scan"]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("give the scan with --scan"),
+        "{}",
+        stderr(&o)
+    );
+    let o = mesh_with(&["--close=scan", "--scan", scan.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        (volume(&stdout(&o)) / 3.8 - 1.0).abs() < 0.01,
+        "{}",
+        stdout(&o)
+    );
+    // ...and a flat scan has no inside to cap.
+    let (_f, flat) = temp_file("flat.xyz", "0 0 0\n1 0 0\n0 1 0\n1 1 0\n");
+    let o = mesh_with(&["--close=scan", "--scan", flat.to_str().unwrap()]);
+    assert_clean_failure(&o);
+    assert!(stderr(&o).contains("no inside to cap"), "{}", stderr(&o));
+}
+
+#[test]
 fn a_thin_wall_without_normals_is_called_two_sheets_not_noise() {
     // Both faces of a tube wall 0.02 thick (radii 1 and 1.02, height 2), 4,000 points each
     // (a spacing of about 0.05): from its positions the wall's thickness reads as scatter.

@@ -110,7 +110,56 @@ pub fn grid_for<const D: usize>(bounds: &Aabb<D>, voxel: f64, margin: f64) -> Re
         });
     }
     let grown = bounds.expanded(margin);
-    let extent = grown.extent();
+    let cells = cells_for(&grown, voxel)?;
+    let centre = grown.center();
+    let min = std::array::from_fn(|a| centre[a] - 0.5 * cells[a] as f64 * voxel);
+    let max = std::array::from_fn(|a| centre[a] + 0.5 * cells[a] as f64 * voxel);
+    let covering = Aabb::new(min, max)?;
+    Ok(Grid::vertex_centered(covering, cells.map(|c| c + 1))?)
+}
+
+/// A vertex-centred grid whose outer samples lie on the faces of `bounds`: `⌈extent/voxel⌉`
+/// voxels per axis (at least one), each axis's spacing its extent over its count — at most
+/// `voxel`, so the voxels are nearly but not exactly cubic. For capping a surface on a box of
+/// one's choosing ([`McOptions::close_boundary`](crate::McOptions::close_boundary)), where
+/// [`grid_for`]'s overhang would put the caps up to a voxel off it.
+///
+/// ```
+/// use zeroset_field_core::geometry::Aabb;
+/// use zeroset_mesh::voxel::grid_spanning;
+///
+/// let grid = grid_spanning(&Aabb::new([0.0; 3], [1.0, 0.5, 0.26])?, 0.1)?;
+/// assert_eq!(grid.bounds(), Aabb::new([0.0; 3], [1.0, 0.5, 0.26])?);
+/// assert_eq!(grid.counts(), [11, 6, 4]);
+/// assert!((grid.spacing()[2] - 0.26 / 3.0).abs() < 1e-15);
+/// // A box flat along z spans nothing.
+/// assert!(grid_spanning(&Aabb::new([0.0; 3], [1.0, 1.0, 0.0])?, 0.1).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`grid_for`]; [`MeshError::InvalidSize`] for `bounds` flat along an axis (no voxel
+/// spans it).
+pub fn grid_spanning<const D: usize>(bounds: &Aabb<D>, voxel: f64) -> Result<Grid<D>> {
+    if !(voxel.is_finite() && voxel > 0.0) {
+        return Err(MeshError::InvalidSize {
+            what: "voxel size",
+            value: voxel,
+        });
+    }
+    if let Some(&flat) = bounds.extent().iter().find(|&&e| e.is_nan() || e <= 0.0) {
+        return Err(MeshError::InvalidSize {
+            what: "box extent along an axis (positive)",
+            value: flat,
+        });
+    }
+    let cells = cells_for(bounds, voxel)?;
+    Ok(Grid::vertex_centered(*bounds, cells.map(|c| c + 1))?)
+}
+
+/// `⌈extent/voxel⌉` voxels per axis of `bounds` (at least one).
+fn cells_for<const D: usize>(bounds: &Aabb<D>, voxel: f64) -> Result<[usize; D]> {
+    let extent = bounds.extent();
     let too_large = || MeshError::GridTooLarge {
         voxel,
         extent: extent.to_vec(),
@@ -130,11 +179,7 @@ pub fn grid_for<const D: usize>(bounds: &Aabb<D>, voxel: f64, margin: f64) -> Re
             .filter(|&s| s <= MAX_SAMPLES)
             .ok_or_else(too_large)?;
     }
-    let centre = grown.center();
-    let min = std::array::from_fn(|a| centre[a] - 0.5 * cells[a] as f64 * voxel);
-    let max = std::array::from_fn(|a| centre[a] + 0.5 * cells[a] as f64 * voxel);
-    let covering = Aabb::new(min, max)?;
-    Ok(Grid::vertex_centered(covering, cells.map(|c| c + 1))?)
+    Ok(cells)
 }
 
 /// Bytes per grid sample while meshing: the `f64` sample and marching cubes' per-sample bits

@@ -89,6 +89,21 @@ pub struct ReconstructArgs {
     #[arg(long, value_enum, default_value_t = DetailArg::Fine)]
     pub detail: DetailArg,
 
+    /// N cubic voxels along the longest axis of the field's box, instead of --detail (as
+    /// `zeroset mesh --resolution`).
+    #[arg(long, value_name = "N", conflicts_with_all = ["voxel", "detail"])]
+    pub resolution: Option<usize>,
+
+    /// An explicit voxel edge in the scan's units, instead of --detail (as `zeroset mesh
+    /// --voxel`): finer than fine voxels where sharp edges or thin parts want it.
+    #[arg(
+        long,
+        value_name = "H",
+        conflicts_with = "detail",
+        allow_hyphen_values = true
+    )]
+    pub voxel: Option<f64>,
+
     /// Keep the fitted field in this .zsf file (by default it is a temporary file, removed).
     #[arg(long, value_name = "FIELD.zsf")]
     pub field: Option<PathBuf>,
@@ -216,6 +231,16 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         && !(reach.is_finite() && reach > 0.0)
     {
         bail!("--trim takes a finite positive reach (in local point spacings), got {reach}");
+    }
+    if let Some(n) = args.resolution
+        && n < 2
+    {
+        bail!("--resolution must be at least 2 voxels along the longest axis, got {n}");
+    }
+    if let Some(h) = args.voxel
+        && !(h.is_finite() && h > 0.0)
+    {
+        bail!("--voxel must be a finite positive length, got {h}");
     }
     // `--smoothing 0` interpolates: it does not ask for an RBF fit.
     let smoothed = match args.smoothing {
@@ -440,8 +465,14 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         os("-o"),
         args.output.as_os_str(),
     ];
-    argv.extend([os("--method"), os(mesh_method), os("--detail")]);
-    argv.push(std::ffi::OsStr::new(&detail));
+    argv.extend([os("--method"), os(mesh_method)]);
+    let resolution = args.resolution.map(|n| n.to_string());
+    let voxel = args.voxel.map(|h| h.to_string());
+    match (&resolution, &voxel) {
+        (Some(n), _) => argv.extend([os("--resolution"), std::ffi::OsStr::new(n)]),
+        (None, Some(h)) => argv.extend([os("--voxel"), std::ffi::OsStr::new(h)]),
+        (None, None) => argv.extend([os("--detail"), std::ffi::OsStr::new(&detail)]),
+    }
     // A scan's mesh wants neither sheets no point supports nor blobs around stray points:
     // dropped unless the user keeps them (`zeroset mesh` only reports them by default).
     if !args.keep_spurious {

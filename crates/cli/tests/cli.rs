@@ -3161,6 +3161,31 @@ fn close_caps_a_scan_without_its_bottom_on_the_scans_box() {
     );
     assert!((volume(&text) / 3.8 - 1.0).abs() < 0.01, "{text}");
     assert!(text.contains("the caps --close made are in it"), "{text}");
+    // reconstruct passes --voxel and --resolution to its mesh stage (refused before the fit
+    // where they are out of range).
+    let text = reconstruct(&["--close", "--voxel", "0.04"]);
+    assert!(text.contains("voxel 0.04 (--voxel)"), "{text}");
+    let text = reconstruct(&["--resolution", "40"]);
+    assert!(
+        text.contains("(40 voxels along the longest axis)"),
+        "{text}"
+    );
+    let o = zeroset([
+        "reconstruct",
+        scan.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+        "--voxel",
+        "-1",
+        "--force",
+    ]);
+    assert_clean_failure(&o);
+    assert!(
+        stderr(&o).contains("--voxel must be a finite positive"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!stdout(&o).contains("== 1/3 fit"), "{}", stdout(&o));
     // zeroset mesh --close (the field's box) caps it lower: more volume.
     let capped = dir.path().join("capped.ply");
     let mesh_with = |extra: &[&str]| {

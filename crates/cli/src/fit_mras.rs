@@ -340,10 +340,11 @@ fn scatter_hint(cloud: &PointCloud3, fit: &zeroset_bases::mras::MrasFit) -> Opti
         return Some(format!(
             "{:.0}% of the points' patches lie on two parallel sheets closer than their spacing \
              (clean about them: σ ≈ {} of the spacing), so no smooth surface passes within {} of \
-             every one: a wall thinner than the sampling (or scans out of register), which the \
-             fit fuses, thickens or breaks; the distances above are that, not noise (where the \
-             normals were estimated, they cannot tell the wall's faces apart: give the scan \
-             its own, or sample the wall more densely)",
+             the diagonal of every one: a wall thinner than the sampling, which the fit fuses, \
+             thickens or breaks (where the normals were estimated, they cannot tell the wall's \
+             faces apart: give the scan its own, or sample the wall more densely), or scans of \
+             one surface out of register, which it averages; the distances above are that, not \
+             noise",
             100.0 * noise.two_sheet_share(),
             g(noise.sigma_within_sheets / noise.spacing),
             g(fit.tolerance)

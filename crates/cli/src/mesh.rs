@@ -190,9 +190,11 @@ pub struct MeshArgs {
     /// (`--close=scan`: the grid spans the points' box, so that a scan whose bottom was not
     /// seen — on a turntable, a table — is capped flat where its sides end, not a margin
     /// below; a tilted or ragged rim is capped at the box's face past its lowest point). The
-    /// points: --scan's, or those an MRAS field records.
+    /// points: --scan's (isolated stray points set aside), or those an MRAS field records; the
+    /// box is kept within the field's, and the voxel is the one the field's box gives, each
+    /// axis's shrunk to fit a whole number into the scan's box. Not with --trim.
     #[arg(long, value_enum, value_name = "box|scan", num_args = 0..=1, require_equals = true,
-          default_missing_value = "box")]
+          default_missing_value = "box", conflicts_with = "trim")]
     pub close: Option<CloseArg>,
 
     /// Remove the components of the mesh with no input point within 3 voxels, and those
@@ -288,10 +290,11 @@ fn weak_components(support: &[usize], far: &[bool]) -> Vec<bool> {
 const OPEN_SCAN_SHARE: f64 = 0.05;
 
 /// The box `--close=scan` caps on: the points' bounding box grown by [`SCAN_BOX_MARGIN`]
-/// voxels of edge `h`, so that a face the scan samples lies inside the grid, not on it.
-/// Refused where the points are flat along an axis (a one-sided scan: terrain, a façade),
-/// whose box has no inside to cap.
-fn scan_box(points: &[Point<3>], h: f64) -> anyhow::Result<Aabb<3>> {
+/// voxels of edge `h`, so that a face the scan samples lies inside the grid, not on it, and by
+/// `offset` (the distance of an outer level set from the points). Refused where the points
+/// are flat along an axis (a one-sided scan: terrain, a façade), whose box has no inside to
+/// cap.
+fn scan_box(points: &[Point<3>], h: f64, offset: f64) -> anyhow::Result<Aabb<3>> {
     let tight = Aabb::from_points(points).context("--close=scan: the scan has no points")?;
     let extent = tight.extent();
     if let Some(axis) = (0..3).find(|&a| extent[a] < SCAN_BOX_THINNEST * h) {
@@ -304,7 +307,7 @@ fn scan_box(points: &[Point<3>], h: f64) -> anyhow::Result<Aabb<3>> {
             g(h)
         );
     }
-    Ok(tight.expanded(SCAN_BOX_MARGIN * h))
+    Ok(tight.expanded(SCAN_BOX_MARGIN * h + offset))
 }
 
 /// How far past the scan's points `--close=scan` caps, in voxels: a face the scan samples
@@ -324,6 +327,15 @@ fn read_scan(path: &std::path::Path, ratio: f64) -> anyhow::Result<Vec<[f64; 3]>
     let cloud = crate::normals::read_positions(path, &Default::default(), "--scan", true)
         .context("--scan")?;
     let (kept, _) = zeroset_bases::outliers::remove_outliers(&cloud, ratio)
+        .with_context(|| format!("--scan {}", path.display()))?;
+    // A scan without normals keeps every point through that rule: its isolated ones are set
+    // aside as `zeroset reconstruct` does before estimating normals (one stray point far off
+    // would stretch --close=scan's box, and --trim's reach, to it).
+    if kept.normals().is_some() || ratio == 0.0 {
+        return Ok(kept.positions().to_vec());
+    }
+    let isolated = zeroset_bases::outliers::find_isolated(kept.positions(), ratio);
+    let kept = zeroset_bases::outliers::without(&kept, &isolated.indices)
         .with_context(|| format!("--scan {}", path.display()))?;
     Ok(kept.positions().to_vec())
 }
@@ -461,14 +473,34 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                      with --scan (only MRAS fields record their points)"
                 ),
             };
-            let scan_box = scan_box(&points, h)?;
+            // A level set outside the zero set (level > 0) lies that far past the points.
+            let offset = if args.level > 0.0 {
+                level_offset(&field, &points, args.level)
+            } else {
+                0.0
+            };
+            let wanted = scan_box(&points, h, offset)?;
+            let min = std::array::from_fn(|a| wanted.min()[a].max(bounds.min()[a]));
+            let max = std::array::from_fn(|a| wanted.max()[a].min(bounds.max()[a]));
+            let capped = Aabb::new(min, max)
+                .ok()
+                .filter(|b| b.extent().iter().all(|&e| e > 0.0))
+                .context(
+                    "--close=scan: the scan's box does not overlap the field's (is --scan the \
+                     scan this field was fitted to?)",
+                )?;
             say!(
                 out,
-                "close: capped on the scan's box, min {} max {}",
-                point(scan_box.min()),
-                point(scan_box.max())
+                "close: capped on the scan's box{}, min {} max {}",
+                if capped == wanted {
+                    String::new()
+                } else {
+                    " where it lies inside the field's (the scan reaches past it)".to_owned()
+                },
+                point(capped.min()),
+                point(capped.max())
             )?;
-            voxel::grid_spanning(&scan_box, h)
+            voxel::grid_spanning(&capped, h)
         }
         _ => voxel::grid_for(&bounds, h, 0.0),
     }
@@ -481,13 +513,25 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     })?;
     let c = grid.counts();
     let samples = grid.len();
+    // grid_spanning's voxels are at most h, each axis its own.
+    let spacing = grid.spacing();
+    let voxel_shown = if spacing.iter().all(|&d| (d - h).abs() <= 1e-9 * h) {
+        g(h)
+    } else {
+        format!(
+            "{} × {} × {} (at most {}, fitted to the scan's box)",
+            g(spacing[0]),
+            g(spacing[1]),
+            g(spacing[2]),
+            g(h)
+        )
+    };
     say!(
         out,
-        "grid {}×{}×{} = {samples} samples, voxel {} ({how})",
+        "grid {}×{}×{} = {samples} samples, voxel {voxel_shown} ({how})",
         c[0],
         c[1],
         c[2],
-        g(h)
     )?;
     ensure_memory(
         voxel::estimate_bytes(&grid),
@@ -694,7 +738,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                         match (share > OPEN_SCAN_SHARE, args.close) {
                             (false, _) => "",
                             (true, None) => " (an open scan?); --trim cuts it there",
-                            (true, Some(_)) => " (an open scan? the caps --close made are in it)",
+                            (true, Some(_)) => " (the caps --close made are in it)",
                         }
                     )?;
                 }

@@ -76,14 +76,15 @@ impl Measured {
         noise.two_sheets_explain().then(|| {
             format!(
                 "{:.0}% of the patches lie on two parallel sheets, about which the points \
-                 scatter by σ ≈ {} ({:.3} of the spacing): a wall thinner than about two point \
-                 spacings (or scans of one surface out of register), not noise. Normals \
-                 estimated from positions cannot tell such a wall's two sides apart, and a fit \
-                 fuses, thickens or perforates it: give the scan its normals, or sample the wall \
-                 more densely",
+                 scatter by σ ≈ {} ({} of the spacing): a wall thinner than about two point \
+                 spacings, or two scans of one surface out of register, not noise. A wall: \
+                 normals estimated from positions cannot tell its two faces apart, and a fit \
+                 fuses, thickens or perforates it (give the scan its normals, or sample the wall \
+                 more densely); scans out of register: a fit averages them as noise (register \
+                 them first)",
                 100.0 * noise.two_sheet_share(),
                 g(noise.sigma_within_sheets),
-                noise.sigma_within_sheets / noise.spacing
+                g(noise.sigma_within_sheets / noise.spacing)
             )
         })
     }

@@ -432,30 +432,27 @@ pub(crate) fn orient(
     quiet: bool,
 ) -> anyhow::Result<(PointCloud3, EstimatedNormals)> {
     let t = Instant::now();
-    // Measured where no count is given (and so only then warned of).
-    let mut two_sheets = None;
-    let (neighbours, why) = match neighbours {
-        Some(k) => (k, String::new()),
-        None => match default_neighbours(cloud.positions()) {
-            (k, Some(noise)) if k != NORMAL_NEIGHBOURS => {
-                let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-                two_sheets = crate::noise::Measured { noise, diagonal }.two_sheets();
-                (
-                    k,
-                    format!(
-                        " (a noisy scan{}: scatter {:.3} of the point spacing, above \
-                         {NOISY_SCATTER})",
-                        if two_sheets.is_some() {
-                            " on its face"
-                        } else {
-                            ""
-                        },
-                        noise.relative()
-                    ),
-                )
-            }
-            (k, _) => (k, String::new()),
-        },
+    // The noise, measured whether or not a count is given: for the count, and for the
+    // two-sheet warning.
+    let (default, noise) = default_neighbours(cloud.positions());
+    let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
+    let two_sheets =
+        noise.and_then(|noise| crate::noise::Measured { noise, diagonal }.two_sheets());
+    let (neighbours, why) = match (neighbours, noise) {
+        (Some(k), _) => (k, String::new()),
+        (None, Some(noise)) if default != NORMAL_NEIGHBOURS => (
+            default,
+            format!(
+                " (a noisy scan{}: scatter {:.3} of the point spacing, above {NOISY_SCATTER})",
+                if two_sheets.is_some() {
+                    " on its face"
+                } else {
+                    ""
+                },
+                noise.relative()
+            ),
+        ),
+        (None, _) => (default, String::new()),
     };
     // Fewer points than the neighbours asked for: each takes all the others.
     let used = neighbours.min(cloud.len().saturating_sub(1));

@@ -360,13 +360,18 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
                 Some(m) if m.noise.is_noisy() => (
                     ReconstructMethod::Mras,
                     format!(
-                        " (auto: {}, {}, {}; RBF would interpolate the noise)",
+                        " (auto: {}, {}, {}; RBF would interpolate {})",
                         noisy_scan(&m),
                         m.describe(),
                         if points > AUTO_SMOOTHED_POINTS {
                             format!("of more than {AUTO_SMOOTHED_POINTS} points")
                         } else {
                             "and --smoothing 0 asks not to smooth it".to_owned()
+                        },
+                        if m.noise.two_sheets_explain() {
+                            "between the sheets"
+                        } else {
+                            "the noise"
                         }
                     ),
                 ),

@@ -3106,21 +3106,21 @@ fn smoothing_approximates_a_noisy_scan_into_one_surface() {
 fn close_caps_a_scan_without_its_bottom_on_the_scans_box() {
     // The box [−1, 1]² × [0, 1] without its bottom face, as a turntable scan sees it: its top
     // and four sides on a lattice of spacing 0.1, with their normals (1,200 points).
-    let mut text = String::new();
+    let mut cloud = String::new();
     let c = |i: usize| -1.0 + 0.1 * (i as f64 + 0.5);
     let h = |i: usize| 0.1 * (i as f64 + 0.5);
     for i in 0..20 {
         for j in 0..20 {
-            text += &format!("{} {} 1 0 0 1\n", c(i), c(j));
+            cloud += &format!("{} {} 1 0 0 1\n", c(i), c(j));
         }
         for k in 0..10 {
-            text += &format!("{} -1 {} 0 -1 0\n", c(i), h(k));
-            text += &format!("{} 1 {} 0 1 0\n", c(i), h(k));
-            text += &format!("-1 {} {} -1 0 0\n", c(i), h(k));
-            text += &format!("1 {} {} 1 0 0\n", c(i), h(k));
+            cloud += &format!("{} -1 {} 0 -1 0\n", c(i), h(k));
+            cloud += &format!("{} 1 {} 0 1 0\n", c(i), h(k));
+            cloud += &format!("-1 {} {} -1 0 0\n", c(i), h(k));
+            cloud += &format!("1 {} {} 1 0 0\n", c(i), h(k));
         }
     }
-    let (dir, scan) = temp_file("open_box.xyzn", &text);
+    let (dir, scan) = temp_file("open_box.xyzn", &cloud);
     let mesh = dir.path().join("box.ply");
     let field = dir.path().join("box.zsf");
     let reconstruct = |extra: &[&str]| {
@@ -3164,7 +3164,10 @@ fn close_caps_a_scan_without_its_bottom_on_the_scans_box() {
     // reconstruct passes --voxel and --resolution to its mesh stage (refused before the fit
     // where they are out of range).
     let text = reconstruct(&["--close", "--voxel", "0.04"]);
-    assert!(text.contains("voxel 0.04 (--voxel)"), "{text}");
+    assert!(
+        text.contains("(at most 0.04, fitted to the scan's box) (--voxel)"),
+        "{text}"
+    );
     let text = reconstruct(&["--resolution", "40"]);
     assert!(
         text.contains("(40 voxels along the longest axis)"),
@@ -3217,6 +3220,34 @@ fn close_caps_a_scan_without_its_bottom_on_the_scans_box() {
         "{}",
         stdout(&o)
     );
+    // Its positions alone with a stray point far below: set aside, not capped at.
+    let positions: String = cloud
+        .lines()
+        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" ") + "\n")
+        .collect();
+    let (_p, stray) = temp_file("stray.xyz", &(positions + "0.5 0.5 -20\n"));
+    let o = mesh_with(&["--close=scan", "--scan", stray.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        (volume(&stdout(&o)) / 3.8 - 1.0).abs() < 0.01,
+        "{}",
+        stdout(&o)
+    );
+    // An outer level set lies past the scan: its box grows by the level's offset (about
+    // 0.05 here), not clipped back to the zero set's.
+    let o = mesh_with(&[
+        "--close=scan",
+        "--scan",
+        scan.to_str().unwrap(),
+        "--level",
+        "0.05",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(volume(&stdout(&o)) > 1.1 * 3.8, "{}", stdout(&o));
+    // --close and --trim pull opposite ways.
+    let o = mesh_with(&["--close=scan", "--trim"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
     // ...and a flat scan has no inside to cap.
     let (_f, flat) = temp_file("flat.xyz", "0 0 0\n1 0 0\n0 1 0\n1 1 0\n");
     let o = mesh_with(&["--close=scan", "--scan", flat.to_str().unwrap()]);
@@ -3262,6 +3293,18 @@ fn a_thin_wall_without_normals_is_called_two_sheets_not_noise() {
         text.contains(two_sheets) && text.contains("cannot tell"),
         "{text}"
     );
+    // With a neighbour count given, too.
+    let o = zeroset([
+        "normals",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--neighbours",
+        "12",
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(two_sheets), "{}", stdout(&o));
     // One face alone is a clean scan, with nothing said of sheets.
     let (_d, one) = temp_file("face.xyz", &face(1.0, 0.0));
     let described = stdout(&info(&one, &[]));

@@ -495,16 +495,7 @@ fn patch_fit(patch: &[Point<3>], sheets: bool) -> Option<PatchFit> {
         [1.0, u, v, u * u, u * v, v * v][c]
     });
     let heights = Mat::<f64>::from_fn(m, 1, |r, _| axis(&centred[r], 0));
-    let qr = design.col_piv_qr();
-    let pivots: Vec<f64> = (0..QUADRIC_TERMS).map(|j| qr.R()[(j, j)].abs()).collect();
-    let largest = pivots.iter().copied().fold(0.0, f64::max);
-    if pivots
-        .iter()
-        .any(|&p| p.is_nan() || p <= RANK_TOLERANCE * largest)
-    {
-        return None;
-    }
-    let coefficients = qr.solve_lstsq(&heights);
+    let coefficients = determined_lstsq(&design, &heights)?;
     let residual = &heights - &design * &coefficients;
     let residual: Vec<f64> = residual.col(0).iter().copied().collect();
     let rss = residual.iter().map(|r| r * r).sum::<f64>();
@@ -522,6 +513,22 @@ fn patch_fit(patch: &[Point<3>], sheets: bool) -> Option<PatchFit> {
         rss: rss * wide,
         two_sheets: two,
     })
+}
+
+/// The least-squares solution of `design · x ≈ heights` by column-pivoted QR, or `None` where
+/// a pivot is at most [`RANK_TOLERANCE`] of the largest (a coefficient the points do not
+/// determine, which would soak up a residual).
+fn determined_lstsq(design: &Mat<f64>, heights: &Mat<f64>) -> Option<Mat<f64>> {
+    let qr = design.col_piv_qr();
+    let pivots: Vec<f64> = (0..design.ncols()).map(|j| qr.R()[(j, j)].abs()).collect();
+    let largest = pivots.iter().copied().fold(0.0, f64::max);
+    if pivots
+        .iter()
+        .any(|&p| p.is_nan() || p <= RANK_TOLERANCE * largest)
+    {
+        return None;
+    }
+    Some(qr.solve_lstsq(heights))
 }
 
 /// A patch's quadric fit ([`patch_fit`]).
@@ -666,16 +673,7 @@ fn fit_sheets(
         }
     });
     let heights = Mat::<f64>::from_fn(m, 1, |r, _| axis(&centred[r], 0));
-    let qr = design.col_piv_qr();
-    let pivots: Vec<f64> = (0..=terms).map(|j| qr.R()[(j, j)].abs()).collect();
-    let largest = pivots.iter().copied().fold(0.0, f64::max);
-    if pivots
-        .iter()
-        .any(|&p| p.is_nan() || p <= RANK_TOLERANCE * largest)
-    {
-        return None;
-    }
-    let coefficients = qr.solve_lstsq(&heights);
+    let coefficients = determined_lstsq(&design, &heights)?;
     let fitted = &design * &coefficients;
     let heights: Vec<f64> = heights.col(0).iter().copied().collect();
     let fitted: Vec<f64> = fitted.col(0).iter().copied().collect();

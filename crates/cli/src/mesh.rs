@@ -318,8 +318,9 @@ const SCAN_BOX_MARGIN: f64 = 0.01;
 /// The fewest voxels the scan's box must span along every axis for `--close=scan`.
 const SCAN_BOX_THINNEST: f64 = 2.0;
 
-/// The points of `path` for trimming: positions, stray points set aside (when the scan has
-/// normals) with `ratio`.
+/// The points of `path` for trimming, the coverage line and `--close=scan`: positions, stray
+/// points set aside with `ratio` (by the fit's rule where the scan has normals, else its
+/// isolated points).
 fn read_scan(path: &std::path::Path, ratio: f64) -> anyhow::Result<Vec<[f64; 3]>> {
     if !zeroset_bases::outliers::valid_ratio(ratio) {
         bail!("the stray-point ratio must be 0 (off) or at least 1.5, got {ratio}");

@@ -289,6 +289,22 @@ fn weak_components(support: &[usize], far: &[bool]) -> Vec<bool> {
 /// sphere's 10%, a terrain patch's 19%, the bunny's front's 57%).
 const OPEN_SCAN_SHARE: f64 = 0.05;
 
+/// Refuses a `--resolution` under 2 or a `--voxel` that is not a finite positive length
+/// (`zeroset mesh`'s, and `zeroset reconstruct`'s before its fit).
+pub(crate) fn check_voxel(resolution: Option<usize>, voxel: Option<f64>) -> anyhow::Result<()> {
+    if let Some(n) = resolution
+        && n < 2
+    {
+        bail!("--resolution must be at least 2 voxels along the longest axis, got {n}");
+    }
+    if let Some(h) = voxel
+        && !(h.is_finite() && h > 0.0)
+    {
+        bail!("--voxel must be a finite positive length, got {h}");
+    }
+    Ok(())
+}
+
 /// The box `--close=scan` caps on: the points' bounding box grown by [`SCAN_BOX_MARGIN`]
 /// voxels of edge `h`, so that a face the scan samples lies inside the grid, not on it, and by
 /// `offset` (the distance of an outer level set from the points). Refused where the points
@@ -424,23 +440,16 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     )?;
 
     let l0 = voxel::l0(&bounds);
+    check_voxel(args.resolution, args.voxel)?;
     let (h, how) = match (args.resolution, args.voxel) {
         (Some(n), _) => {
-            if n < 2 {
-                bail!("--resolution must be at least 2 voxels along the longest axis, got {n}");
-            }
             let longest = bounds.extent().into_iter().fold(0.0, f64::max);
             (
                 longest / n as f64,
                 format!("{n} voxels along the longest axis"),
             )
         }
-        (None, Some(h)) => {
-            if !(h.is_finite() && h > 0.0) {
-                bail!("--voxel must be a finite positive length, got {h}");
-            }
-            (h, "--voxel".to_string())
-        }
+        (None, Some(h)) => (h, "--voxel".to_string()),
         (None, None) => {
             let default = if field.wants_fine_mesh() {
                 DetailArg::Fine

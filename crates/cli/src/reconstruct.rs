@@ -232,16 +232,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     {
         bail!("--trim takes a finite positive reach (in local point spacings), got {reach}");
     }
-    if let Some(n) = args.resolution
-        && n < 2
-    {
-        bail!("--resolution must be at least 2 voxels along the longest axis, got {n}");
-    }
-    if let Some(h) = args.voxel
-        && !(h.is_finite() && h > 0.0)
-    {
-        bail!("--voxel must be a finite positive length, got {h}");
-    }
+    crate::mesh::check_voxel(args.resolution, args.voxel)?;
     // `--smoothing 0` interpolates: it does not ask for an RBF fit.
     let smoothed = match args.smoothing {
         Some(SmoothingArg::Fixed(mu)) => mu > 0.0,

@@ -173,7 +173,9 @@ pub struct MeshArgs {
     /// Voxel edge by the l0 rule of the field's box: coarse 5·l0, general l0, fine 0.3·l0, with
     /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length [default: general;
     /// fine for MRAS fields, fitted to scans within 1e-3 of their diagonal, which general
-    /// voxels would not resolve].
+    /// voxels would not resolve, and for a scan denser than fine voxels 2 × its median point
+    /// spacing (at most 512 voxels along the longest axis): the l0 rule sees the box, not how
+    /// densely it was scanned. The scan: --scan's points, or those the MRAS field records].
     #[arg(long, value_enum, conflicts_with_all = ["resolution", "voxel"])]
     pub detail: Option<DetailArg>,
 
@@ -441,6 +443,17 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
 
     let l0 = voxel::l0(&bounds);
     check_voxel(args.resolution, args.voxel)?;
+    // The points the field was fitted to, where an MRAS field records them.
+    let recorded = match &field {
+        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
+        _ => None,
+    };
+    // The scan's reach (its local spacings): measured here when the default voxel follows the
+    // scan's density, and kept for the coverage check and --trim below.
+    let reach = args.trim.unwrap_or(DEFAULT_REACH);
+    let mut support = None;
+    // The time that takes, counted with the checks that use it.
+    let mut measuring = Duration::ZERO;
     let (h, how) = match (args.resolution, args.voxel) {
         (Some(n), _) => {
             let longest = bounds.extent().into_iter().fold(0.0, f64::max);
@@ -457,14 +470,40 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 DetailArg::General
             };
             let detail = Detail::from(args.detail.unwrap_or(default));
-            (
-                voxel::voxel_size(&bounds, detail),
-                format!(
-                    "{} × l0, {detail:?} detail; l0 = {}",
-                    g(detail.factor()),
-                    g(l0)
-                ),
-            )
+            let by_l0 = voxel::voxel_size(&bounds, detail);
+            let rule = format!(
+                "{} × l0, {detail:?} detail; l0 = {}",
+                g(detail.factor()),
+                g(l0)
+            );
+            // By default an MRAS field is meshed no coarser than its scan is sampled.
+            let points = scan.as_deref().or(recorded.as_deref());
+            if let (None, true, Some(points)) = (args.detail, field.wants_fine_mesh(), points) {
+                let t = Instant::now();
+                support = ScanSupport::new(points, reach).ok();
+                measuring = t.elapsed();
+            }
+            match support.as_ref().map(|s| s.median_spacing()) {
+                Some(s) if voxel::scan_voxel(&bounds, detail, s) < by_l0 => {
+                    let h = voxel::scan_voxel(&bounds, detail, s);
+                    let why = if h < voxel::SCAN_SPACINGS * s {
+                        format!(
+                            "{} voxels along the longest axis, the most for a dense scan",
+                            voxel::SCAN_MAX_VOXELS
+                        )
+                    } else {
+                        format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS)
+                    };
+                    let how = format!(
+                        "{why}: the scan, spaced {}, is denser than {detail:?} voxels of {} \
+                         ({rule}), which --detail fine keeps",
+                        g(s),
+                        g(by_l0)
+                    );
+                    (h, how)
+                }
+                _ => (by_l0, rule),
+            }
         }
     };
     if !(h.is_finite() && h > 0.0) {
@@ -574,10 +613,6 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut report = check(&mesh);
     // Components far from every input point (RBF and MRAS fields record their points).
-    let recorded = match &field {
-        AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
-        _ => None,
-    };
     let points = match &field {
         AnyField::Rbf(f) => Some(f.centres()),
         _ => recorded.as_deref(),
@@ -707,11 +742,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 ", which does not record them"
             }
         ),
-        (Some(points), reach) if !mesh.is_empty() => {
-            let reach_or_default = reach.unwrap_or(DEFAULT_REACH);
-            let support = match ScanSupport::new(&points, reach_or_default) {
+        (Some(points), trimming) if !mesh.is_empty() => {
+            let support = match support.map_or_else(|| ScanSupport::new(&points, reach), Ok) {
                 Ok(support) => Some(support),
-                Err(e) if reach.is_some() => return Err(e).context("--trim"),
+                Err(e) if trimming.is_some() => return Err(e).context("--trim"),
                 Err(_) => None,
             };
             if let Some(support) = support {
@@ -724,10 +758,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 };
                 let how = format!(
                     "{} local spacings (median spacing {})",
-                    g(reach_or_default),
+                    g(reach),
                     g(support.median_spacing())
                 );
-                if reach.is_some() {
+                if trimming.is_some() {
                     say!(
                         out,
                         "trim: cut {:.2}% of the area beyond the scan's reach of {how}: {} \
@@ -756,7 +790,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         }
         _ => {}
     }
-    let checking = start.elapsed();
+    let checking = start.elapsed() + measuring;
     say!(
         out,
         "mesh: {} vertices, {} triangles at level {}",

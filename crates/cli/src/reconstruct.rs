@@ -21,8 +21,8 @@ pub const EXAMPLES: &str = "\
 Examples:
   # the sample bunny to a mesh and bunny.png beside it (RBF: 2,000 points, fine voxels)
   zeroset reconstruct samples/bunny_2k.xyzn -o bunny.ply
-  # a full scan with multilevel rational algebraic splines, a finer mesh, and the field kept
-  zeroset reconstruct scan.ply --method mras --detail fine --field scan.zsf -o scan_mesh.ply
+  # a full scan with multilevel rational algebraic splines, the field kept
+  zeroset reconstruct scan.ply --method mras --field scan.zsf -o scan_mesh.ply
   # a one-sided scan (a face, a façade, terrain): the surface cut where the scan ends
   zeroset reconstruct face_scan.ply --trim -o face.ply
   # a turntable scan without its bottom: closed, capped flat where its sides end
@@ -83,11 +83,15 @@ pub struct ReconstructArgs {
     #[arg(long, value_enum, default_value_t = ReconstructMethod::Auto)]
     pub method: ReconstructMethod,
 
-    /// Voxel size by the l0 rule of the field's box (as `zeroset mesh --detail`). Fine by
-    /// default: on the full bunny (MRAS) the points' mean distance to the mesh is 3.8e-4 of the
-    /// diagonal with fine voxels (the field's own: 3.5e-4), 1.1e-3 with general ones.
-    #[arg(long, value_enum, default_value_t = DetailArg::Fine)]
-    pub detail: DetailArg,
+    /// Voxel size by the l0 rule of the field's box (as `zeroset mesh --detail`) [default:
+    /// fine; for an MRAS field of a scan denser than that, 2 × the scan's median point spacing,
+    /// at most 512 voxels along the longest axis, as `zeroset mesh` chooses]. On the full
+    /// bunny (MRAS) the points' mean distance to the mesh is 3.8e-4 of the diagonal with fine
+    /// voxels (the field's own: 3.5e-4), 1.1e-3 with general ones; on a million-point ridged
+    /// ball (spacing 1/4 of a fine voxel) 3.7e-4 with 2 spacings (the field's own: 3.3e-4),
+    /// 4.7e-4 with fine voxels.
+    #[arg(long, value_enum)]
+    pub detail: Option<DetailArg>,
 
     /// N cubic voxels along the longest axis of the field's box, instead of --detail (as
     /// `zeroset mesh --resolution`).
@@ -406,10 +410,15 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         }
     };
     let os = |s: &'static str| std::ffi::OsStr::new(s);
-    let detail = args
-        .detail
-        .to_possible_value()
-        .map_or("general".to_owned(), |v| v.get_name().to_owned());
+    // Fine unless told; an MRAS field's mesh stage picks its own default (fine, or finer for
+    // a dense scan).
+    let detail = match (args.detail, fit_method) {
+        (None, "mras") => None,
+        (detail, _) => detail
+            .unwrap_or(DetailArg::Fine)
+            .to_possible_value()
+            .map(|v| v.get_name().to_owned()),
+    };
     let mut times = Vec::new();
     // The flags every stage takes from the user (the fit always overwrites its field file).
     let common = |argv: &mut Vec<&std::ffi::OsStr>, force: bool| {
@@ -467,7 +476,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     match (&resolution, &voxel) {
         (Some(n), _) => argv.extend([os("--resolution"), std::ffi::OsStr::new(n)]),
         (None, Some(h)) => argv.extend([os("--voxel"), std::ffi::OsStr::new(h)]),
-        (None, None) => argv.extend([os("--detail"), std::ffi::OsStr::new(&detail)]),
+        (None, None) => {
+            if let Some(detail) = &detail {
+                argv.extend([os("--detail"), std::ffi::OsStr::new(detail)]);
+            }
+        }
     }
     // A scan's mesh wants neither sheets no point supports nor blobs around stray points:
     // dropped unless the user keeps them (`zeroset mesh` only reports them by default).

@@ -4315,3 +4315,82 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
         ]
     );
 }
+
+#[test]
+fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
+    // An MRAS field of 2,000 sphere points: sparser than fine voxels, so the l0 rule holds.
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(2_000));
+    let field = dir.path().join("sphere.zsf");
+    let o = zeroset([
+        "fit",
+        path.to_str().unwrap(),
+        "--method",
+        "mras",
+        "-o",
+        field.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("m.ply");
+    let grid_line = |extra: &[&str]| -> (String, usize) {
+        let mut args = vec!["--force"];
+        args.extend(extra);
+        let o = mesh(&field, &out, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = stdout(&o);
+        let grid = text
+            .lines()
+            .find(|l| l.starts_with("grid "))
+            .unwrap_or_else(|| panic!("no grid line in {text}"))
+            .to_owned();
+        let vertices = text
+            .split("mesh: ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no vertex count in {text}"));
+        (grid, vertices)
+    };
+    let (sparse, fine_vertices) = grid_line(&[]);
+    assert!(sparse.contains("(0.3 × l0, Fine detail;"), "{sparse}");
+    // A dense scan of a cap of the same sphere (a 150 × 150 lattice, spaced about 0.002):
+    // two of its spacings are finer than the fine voxel, which the mesh then takes.
+    let mut cap = String::new();
+    for i in 0..150 {
+        for j in 0..150 {
+            let d = [-0.3 + 0.004 * i as f64, -0.3 + 0.004 * j as f64, 1.0];
+            let norm = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
+            let p: [f64; 3] = std::array::from_fn(|a| CENTRE[a] + RADIUS * d[a] / norm);
+            cap += &format!("{} {} {}\n", p[0], p[1], p[2]);
+        }
+    }
+    let scan = dir.path().join("cap.xyz");
+    std::fs::write(&scan, cap).unwrap();
+    let (dense, dense_vertices) = grid_line(&["--scan", scan.to_str().unwrap()]);
+    assert!(
+        dense.contains("(2 × the scan's median spacing: the scan, spaced "),
+        "{dense}"
+    );
+    assert!(dense.contains("which --detail fine keeps"), "{dense}");
+    let number = |after: &str, line: &str| -> f64 {
+        line.split(after)
+            .nth(1)
+            .and_then(|s| s.split([' ', ',']).next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no number after {after:?} in {line}"))
+    };
+    let (voxel, spacing) = (number("voxel ", &dense), number("spaced ", &dense));
+    assert!((voxel / spacing - 2.0).abs() < 1e-6, "{dense}");
+    assert!(
+        voxel < number("voxel ", &sparse),
+        "{dense} against {sparse}"
+    );
+    assert!(
+        dense_vertices > 2 * fine_vertices,
+        "{dense_vertices} against {fine_vertices}"
+    );
+    // An explicit --detail keeps the l0 rule.
+    let (explicit, vertices) = grid_line(&["--scan", scan.to_str().unwrap(), "--detail", "fine"]);
+    assert_eq!(explicit, sparse);
+    assert_eq!(vertices, fine_vertices);
+}

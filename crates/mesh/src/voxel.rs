@@ -83,6 +83,43 @@ pub fn voxel_size(bounds: &Aabb<3>, detail: Detail) -> f64 {
     detail.factor() * l0(bounds)
 }
 
+/// The voxel edge [`scan_voxel`] refines to, in median point spacings of the scan.
+pub const SCAN_SPACINGS: f64 = 2.0;
+
+/// The most voxels along the box's longest axis [`scan_voxel`] refines to.
+pub const SCAN_MAX_VOXELS: f64 = 512.0;
+
+/// The voxel edge for meshing a field fitted to a scan whose median point spacing is
+/// `spacing`: `detail`'s voxel ([`voxel_size`]), or where the scan is denser than that,
+/// [`SCAN_SPACINGS`] spacings — but no finer than [`SCAN_MAX_VOXELS`] voxels along the box's
+/// longest axis. Never coarser than `detail`'s voxel.
+///
+/// The `l0` rule sees the box only: fine voxels are 1/133 of a chunky box's longest axis
+/// whether the scan has 35,000 points (the bunny: spacing 1.1 fine voxels) or a million (a
+/// 100 mm ball sampled every 0.2 mm: 4.2 fine voxels per spacing), and on the denser scan the
+/// mesh then loses what the field holds between the voxels. A `spacing` that is not finite
+/// and positive leaves `detail`'s voxel.
+///
+/// ```
+/// use zeroset_field_core::Aabb;
+/// use zeroset_mesh::voxel::{Detail, scan_voxel, voxel_size};
+///
+/// let ball = Aabb::new([-50.0; 3], [50.0; 3])?;
+/// let fine = voxel_size(&ball, Detail::Fine); // 0.75
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 1.0), fine); // sparse: the l0 rule
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.2), 0.4); // dense: 2 spacings
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.01), 100.0 / 512.0); // at most 512 voxels
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn scan_voxel(bounds: &Aabb<3>, detail: Detail, spacing: f64) -> f64 {
+    let h = voxel_size(bounds, detail);
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return h;
+    }
+    let longest = bounds.extent().into_iter().fold(0.0, f64::max);
+    h.min((SCAN_SPACINGS * spacing).max(longest / SCAN_MAX_VOXELS))
+}
+
 /// The most samples [`grid_for`] makes: `2^48` (2 PiB of `f64` samples), far past any memory,
 /// so that sample counts and byte estimates never overflow.
 pub const MAX_SAMPLES: u64 = 1 << 48;
@@ -252,6 +289,26 @@ mod tests {
         let b = boxed([3.0, 1.0, 0.7]);
         let scaled = Aabb::new(b.min().map(|x| 3.0 * x), b.max().map(|x| 3.0 * x)).unwrap();
         assert!((l0(&scaled) - 3.0 * l0(&b)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn scan_voxel_refines_for_dense_scans_only_and_never_coarsens() {
+        let chunky = boxed([4.0, 3.0, 2.5]);
+        let fine = voxel_size(&chunky, Detail::Fine); // 0.03
+        // Sparser than 2 spacings per fine voxel, or no spacing: the l0 rule.
+        for s in [0.015, 0.1, f64::NAN, 0.0, -1.0, f64::INFINITY] {
+            assert_eq!(scan_voxel(&chunky, Detail::Fine, s), fine, "{s}");
+        }
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 0.01), 0.02);
+        // At most 512 voxels along the longest axis (4).
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 1e-6), 4.0 / 512.0);
+        // A flat box whose fine voxels are already finer than that keeps them.
+        let flat = boxed([10.0, 5.0, 0.5]);
+        let flat_fine = voxel_size(&flat, Detail::Fine);
+        assert!(flat_fine < 10.0 / 512.0);
+        assert_eq!(scan_voxel(&flat, Detail::Fine, 1e-6), flat_fine);
+        // Coarser details are refined the same way.
+        assert_eq!(scan_voxel(&chunky, Detail::General, 0.01), 0.02);
     }
 
     #[test]

@@ -18,7 +18,7 @@ use zeroset_field_core::grid::{Centering, Grid};
 use zeroset_mesh::signed::{
     CoarseStep, SmcOptions, SmcStage, expected_evaluations, signed_marching_cubes,
 };
-use zeroset_mesh::trim::{ScanSupport, trim};
+use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, trim};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{McOptions, MeshFormat, TriMesh, marching_cubes_with_cell_max, mesh_field};
 
@@ -145,7 +145,8 @@ pub(crate) fn marching_cubes_volume<'py>(
 
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
 /// `voxel` edge, or the `detail` class of the l0 rule (`None`: fine for a field that
-/// [`AnyField::wants_fine_mesh`], general otherwise), over the field's box.
+/// [`AnyField::wants_fine_mesh`], general otherwise; for an MRAS field whose scan is denser
+/// than that, [`voxel::scan_voxel`] of its median spacing), over the field's box.
 fn field_grid(
     field: &AnyField<3>,
     detail: Option<&str>,
@@ -172,7 +173,7 @@ fn field_grid(
             } else {
                 "general"
             };
-            let detail = match detail.unwrap_or(default) {
+            let class = match detail.unwrap_or(default) {
                 "coarse" => Detail::Coarse,
                 "general" => Detail::General,
                 "fine" => Detail::Fine,
@@ -182,7 +183,16 @@ fn field_grid(
                     )));
                 }
             };
-            voxel::voxel_size(&bounds, detail)
+            match (detail, field) {
+                // As `zeroset mesh`: no coarser than the scan an MRAS field records is sampled.
+                (None, AnyField::Mras(f)) if !f.unit_points().is_empty() => {
+                    ScanSupport::new(&f.points(), DEFAULT_REACH).map_or_else(
+                        |_| voxel::voxel_size(&bounds, class),
+                        |s| voxel::scan_voxel(&bounds, class, s.median_spacing()),
+                    )
+                }
+                _ => voxel::voxel_size(&bounds, class),
+            }
         }
     };
     if !(h.is_finite() && h > 0.0) {

@@ -44,7 +44,7 @@ use zeroset_mesh::signed::{
 };
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
-use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, trim};
+use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, split};
 use zeroset_mesh::voxel::{self, Detail};
 use zeroset_mesh::{
     McOptions, MeshFormat, TriMesh, boundary_loops, check, component_support, components,
@@ -173,9 +173,10 @@ pub struct MeshArgs {
     /// Voxel edge by the l0 rule of the field's box: coarse 5·l0, general l0, fine 0.3·l0, with
     /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length [default: general;
     /// fine for MRAS fields, fitted to scans within 1e-3 of their diagonal, which general
-    /// voxels would not resolve, and for a scan denser than fine voxels 2 × its median point
-    /// spacing (at most 512 voxels along the longest axis): the l0 rule sees the box, not how
-    /// densely it was scanned. The scan: --scan's points, or those the MRAS field records].
+    /// voxels would not resolve, and for an MRAS field of points denser than fine voxels 2 × their
+    /// median spacing (at most 512 voxels along the longest axis): the l0 rule sees the box,
+    /// not how densely it was scanned. The points: those the field records (--scan's for a
+    /// field that records none)].
     #[arg(long, value_enum, conflicts_with_all = ["resolution", "voxel"])]
     pub detail: Option<DetailArg>,
 
@@ -193,7 +194,7 @@ pub struct MeshArgs {
     /// seen — on a turntable, a table — is capped flat where its sides end, not a margin
     /// below; a tilted or ragged rim is capped at the box's face past its lowest point). The
     /// points: --scan's (isolated stray points set aside), or those an MRAS field records; the
-    /// box is kept within the field's, and the voxel is the one the field's box gives, each
+    /// box is kept within the field's, and the voxel is the one chosen without --close, each
     /// axis's shrunk to fit a whole number into the scan's box. Not with --trim.
     #[arg(long, value_enum, value_name = "box|scan", num_args = 0..=1, require_equals = true,
           default_missing_value = "box", conflicts_with = "trim")]
@@ -218,7 +219,8 @@ pub struct MeshArgs {
 
     /// The scan the field was fitted to, for --trim and the report's coverage line (default:
     /// the points an MRAS field records; RBF fields record their centres, the off-surface ones
-    /// among them). Stray points are set aside first, as `zeroset fit` does.
+    /// among them); for an MRAS field that records none, also the density the default voxel
+    /// follows. Stray points are set aside first, as `zeroset fit` does.
     #[arg(long, value_name = "SCAN")]
     pub scan: Option<PathBuf>,
 
@@ -448,11 +450,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         AnyField::Mras(f) if !f.unit_points().is_empty() => Some(f.points()),
         _ => None,
     };
-    // The scan's reach (its local spacings): measured here when the default voxel follows the
-    // scan's density, and kept for the coverage check and --trim below.
+    // The scan's reach (its local spacings), for the coverage check and --trim below; measured
+    // here already when the default voxel follows the density of the same points.
     let reach = args.trim.unwrap_or(DEFAULT_REACH);
     let mut support = None;
-    // The time that takes, counted with the checks that use it.
+    // The time that takes, counted with the meshing (it chose the grid).
     let mut measuring = Duration::ZERO;
     let (h, how) = match (args.resolution, args.voxel) {
         (Some(n), _) => {
@@ -476,27 +478,38 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 g(detail.factor()),
                 g(l0)
             );
-            // By default an MRAS field is meshed no coarser than its scan is sampled.
-            let points = scan.as_deref().or(recorded.as_deref());
-            if let (None, true, Some(points)) = (args.detail, field.wants_fine_mesh(), points) {
+            // By default an MRAS field is meshed no coarser than the points it was fitted to
+            // are spaced (those it records; --scan's for a field that records none): it holds
+            // no finer detail than they do.
+            let fitted = recorded.as_deref().or(scan.as_deref());
+            let mut spacing = None;
+            if let (None, true, Some(points)) = (args.detail, field.wants_fine_mesh(), fitted) {
                 let t = Instant::now();
-                support = ScanSupport::new(points, reach).ok();
+                let measured = ScanSupport::new(points, reach).ok();
+                spacing = measured.as_ref().map(ScanSupport::median_spacing);
                 measuring = t.elapsed();
+                // The checks below measure --scan's points when given, these otherwise.
+                if scan.is_none() {
+                    support = measured;
+                }
             }
-            match support.as_ref().map(|s| s.median_spacing()) {
+            match spacing {
                 Some(s) if voxel::scan_voxel(&bounds, detail, s) < by_l0 => {
                     let h = voxel::scan_voxel(&bounds, detail, s);
-                    let why = if h < voxel::SCAN_SPACINGS * s {
+                    let why = if h > voxel::SCAN_SPACINGS * s {
                         format!(
-                            "{} voxels along the longest axis, the most for a dense scan",
-                            voxel::SCAN_MAX_VOXELS
+                            "{} voxels along the longest axis, the most for a dense scan ({} × \
+                             its median spacing would be {})",
+                            voxel::SCAN_MAX_VOXELS,
+                            voxel::SCAN_SPACINGS,
+                            g(voxel::SCAN_SPACINGS * s)
                         )
                     } else {
                         format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS)
                     };
                     let how = format!(
-                        "{why}: the scan, spaced {}, is denser than {detail:?} voxels of {} \
-                         ({rule}), which --detail fine keeps",
+                        "{why}: the points the field was fitted to, spaced {}, are denser than \
+                         {detail:?} voxels of {} ({rule}), which --detail fine keeps",
                         g(s),
                         g(by_l0)
                     );
@@ -608,7 +621,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             }
         },
     };
-    let meshing = start.elapsed();
+    let meshing = start.elapsed() + measuring;
 
     let start = Instant::now();
     let mut report = check(&mesh);
@@ -659,7 +672,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                         out,
                         "missed: {missed} of {finite} input points ({:.2}%) have no vertex \
                          within {within} ({}): stray points, or parts smaller than the voxels \
-                         (a smaller --voxel or --detail fine meshes those)",
+                         (a smaller --voxel meshes those)",
                         100.0 * missed as f64 / finite.max(1) as f64,
                         g(radius),
                     )?;
@@ -749,7 +762,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 Err(_) => None,
             };
             if let Some(support) = support {
-                let trimmed = trim(&mesh, &support);
+                // A level set off the fitted one lies that far from the points throughout.
+                let offset = level_offset(&field, &points, args.level);
+                let (trimmed, unseen) = split(&mesh, &support, offset);
                 let kept = check(&trimmed.mesh);
                 let share = if report.area > 0.0 {
                     (1.0 - kept.area / report.area).max(0.0)
@@ -757,9 +772,14 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     0.0
                 };
                 let how = format!(
-                    "{} local spacings (median spacing {})",
+                    "{} local spacings (median spacing {}){}",
                     g(reach),
-                    g(support.median_spacing())
+                    g(support.median_spacing()),
+                    if offset > 0.0 {
+                        format!(" plus the level's offset {}", g(offset))
+                    } else {
+                        String::new()
+                    }
                 );
                 if trimming.is_some() {
                     say!(
@@ -785,12 +805,25 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                             (true, Some(_)) => " (the caps --close made are in it)",
                         }
                     )?;
+                    if let Some(largest) = unseen.first() {
+                        let b = &largest.bounds;
+                        say!(
+                            out,
+                            "unseen: {} region(s) beyond the scan's reach, where the surface is \
+                             the field's guess (holes in the scan it closed, sides never \
+                             scanned); the largest, {:.2}% of the area, spans {} around {}",
+                            unseen.len(),
+                            100.0 * largest.area / report.area.max(f64::MIN_POSITIVE),
+                            b.extent().map(g).join(" × "),
+                            point(b.center())
+                        )?;
+                    }
                 }
             }
         }
         _ => {}
     }
-    let checking = start.elapsed() + measuring;
+    let checking = start.elapsed();
     say!(
         out,
         "mesh: {} vertices, {} triangles at level {}",

@@ -3879,6 +3879,21 @@ fn reconstruct_and_mesh_trim_an_open_scan_to_its_points() {
         "{}",
         stdout(&o)
     );
+    // ... and where: the largest region beyond reach is the lid the field closed the dome
+    // with, below its rim (at z = 0.3) and as wide as the dome.
+    let text = stdout(&o);
+    let unseen = text
+        .lines()
+        .find(|l| l.starts_with("unseen: "))
+        .unwrap_or_else(|| panic!("no unseen line in {text}"));
+    assert!(unseen.contains("beyond the scan's reach"), "{unseen}");
+    let centre: Vec<f64> = unseen
+        .rsplit_once("around (")
+        .and_then(|(_, rest)| rest.strip_suffix(')'))
+        .map(|c| c.split(", ").map(|v| v.parse().unwrap()).collect())
+        .unwrap_or_else(|| panic!("no centre in {unseen}"));
+    assert!(centre[2] < CENTRE[2], "{unseen}");
+    assert!(unseen.contains(" spans 1.0"), "{unseen}");
     let untrimmed = zeroset_mesh::check(&zeroset_mesh::read_mesh(&whole).unwrap());
     assert!(untrimmed.area > 1.1 * half_area, "{}", untrimmed.area);
     // Trimmed: one disc (Euler characteristic 1, one boundary loop) a little larger than
@@ -4318,24 +4333,37 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
 
 #[test]
 fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
-    // An MRAS field of 2,000 sphere points: sparser than fine voxels, so the l0 rule holds.
-    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(2_000));
-    let field = dir.path().join("sphere.zsf");
-    let o = zeroset([
-        "fit",
-        path.to_str().unwrap(),
-        "--method",
-        "mras",
-        "-o",
-        field.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let dir = tempfile::tempdir().unwrap();
+    // Two balls of radius `r` at opposite corners of a chunky box, 10,000 points each: dense
+    // against the fine voxels of the box (1/133 of its longest axis).
+    let balls = |name: &str, r: f64| -> PathBuf {
+        let mut cloud = String::new();
+        for c in [[0.0, 0.0, 0.0], [1.0, 1.0, 0.5]] {
+            for (_, n) in sphere_points(10_000) {
+                let p: [f64; 3] = std::array::from_fn(|a| c[a] + r * n[a]);
+                cloud += &format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2]);
+            }
+        }
+        let path = dir.path().join(format!("{name}.xyzn"));
+        fs::write(&path, cloud).unwrap();
+        let field = dir.path().join(format!("{name}.zsf"));
+        let o = zeroset([
+            "fit",
+            path.to_str().unwrap(),
+            "--method",
+            "mras",
+            "-o",
+            field.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        field
+    };
     let out = dir.path().join("m.ply");
-    let grid_line = |extra: &[&str]| -> (String, usize) {
+    let grid_line = |field: &Path, extra: &[&str]| -> (String, usize) {
         let mut args = vec!["--force"];
         args.extend(extra);
-        let o = mesh(&field, &out, &args);
+        let o = mesh(field, &out, &args);
         assert!(o.status.success(), "{}", stderr(&o));
         let text = stdout(&o);
         let grid = text
@@ -4351,46 +4379,56 @@ fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
             .unwrap_or_else(|| panic!("no vertex count in {text}"));
         (grid, vertices)
     };
-    let (sparse, fine_vertices) = grid_line(&[]);
-    assert!(sparse.contains("(0.3 × l0, Fine detail;"), "{sparse}");
-    // A dense scan of a cap of the same sphere (a 150 × 150 lattice, spaced about 0.002):
-    // two of its spacings are finer than the fine voxel, which the mesh then takes.
-    let mut cap = String::new();
-    for i in 0..150 {
-        for j in 0..150 {
-            let d = [-0.3 + 0.004 * i as f64, -0.3 + 0.004 * j as f64, 1.0];
-            let norm = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
-            let p: [f64; 3] = std::array::from_fn(|a| CENTRE[a] + RADIUS * d[a] / norm);
-            cap += &format!("{} {} {}\n", p[0], p[1], p[2]);
-        }
-    }
-    let scan = dir.path().join("cap.xyz");
-    std::fs::write(&scan, cap).unwrap();
-    let (dense, dense_vertices) = grid_line(&["--scan", scan.to_str().unwrap()]);
-    assert!(
-        dense.contains("(2 × the scan's median spacing: the scan, spaced "),
-        "{dense}"
-    );
-    assert!(dense.contains("which --detail fine keeps"), "{dense}");
     let number = |after: &str, line: &str| -> f64 {
         line.split(after)
             .nth(1)
-            .and_then(|s| s.split([' ', ',']).next())
+            .and_then(|s| s.split([' ', ',', ')']).next())
             .and_then(|s| s.parse().ok())
             .unwrap_or_else(|| panic!("no number after {after:?} in {line}"))
     };
+    // Balls of radius 0.05: spaced about 0.002, so 2 spacings are finer than the fine voxel.
+    let field = balls("balls", 0.05);
+    let (dense, dense_vertices) = grid_line(&field, &[]);
+    assert!(
+        dense.contains(
+            "(2 × the scan's median spacing: the points the field was fitted to, spaced "
+        ),
+        "{dense}"
+    );
+    assert!(dense.contains("which --detail fine keeps"), "{dense}");
     let (voxel, spacing) = (number("voxel ", &dense), number("spaced ", &dense));
     assert!((voxel / spacing - 2.0).abs() < 1e-6, "{dense}");
-    assert!(
-        voxel < number("voxel ", &sparse),
-        "{dense} against {sparse}"
-    );
+    // An explicit --detail keeps the l0 rule: coarser, fewer vertices.
+    let (fine, fine_vertices) = grid_line(&field, &["--detail", "fine"]);
+    assert!(fine.contains("(0.3 × l0, Fine detail;"), "{fine}");
+    assert!(voxel < number("voxel ", &fine), "{dense} against {fine}");
     assert!(
         dense_vertices > 2 * fine_vertices,
         "{dense_vertices} against {fine_vertices}"
     );
-    // An explicit --detail keeps the l0 rule.
-    let (explicit, vertices) = grid_line(&["--scan", scan.to_str().unwrap(), "--detail", "fine"]);
-    assert_eq!(explicit, sparse);
-    assert_eq!(vertices, fine_vertices);
+    // The density is the fitted points': a sparser --scan (for the coverage check) leaves it.
+    let sparse = dir.path().join("sparse.xyz");
+    let kept: String = sphere_points(500)
+        .iter()
+        .map(|(_, n)| format!("{} {} {}\n", 0.05 * n[0], 0.05 * n[1], 0.05 * n[2]))
+        .collect();
+    fs::write(&sparse, kept).unwrap();
+    let (with_scan, _) = grid_line(&field, &["--scan", sparse.to_str().unwrap()]);
+    assert_eq!(with_scan, dense);
+    // A level set 0.01 out lies 5 spacings from the points throughout: --trim measures its
+    // reach past that offset, and cuts (almost) nothing.
+    let o = mesh(&field, &out, &["--force", "--level", "0.01", "--trim"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("plus the level's offset 0.01"), "{text}");
+    let cut = number("trim: cut ", &text.replace('%', " "));
+    assert!(cut < 1.0, "{text}");
+    // Balls of radius 0.005: 2 spacings would be 1/2,400 of the box; 512 voxels at most.
+    let field = balls("tiny", 0.005);
+    let (capped, _) = grid_line(&field, &[]);
+    assert!(
+        capped.contains("(512 voxels along the longest axis, the most for a dense scan (2 × its median spacing would be "),
+        "{capped}"
+    );
+    assert!(capped.starts_with("grid 513×513×"), "{capped}");
 }

@@ -75,9 +75,11 @@ use kiddo::kd_tree::KdTree;
 use kiddo::leaf_strategies::FlatVec;
 use kiddo::stem_strategies::Eytzinger;
 use rayon::prelude::*;
-use zeroset_field_core::Point;
 use zeroset_field_core::geometry::{distance, norm};
+use zeroset_field_core::{Aabb, Point};
 
+use crate::checks::components;
+use crate::trimesh::area_vector;
 use crate::{MeshError, Result, TriMesh};
 
 /// Neighbours a point's spacing is measured over, and points a coverage distance is taken over.
@@ -253,10 +255,84 @@ pub struct Trimmed {
 /// has them, are interpolated to the new vertices (and made unit again). Deterministic: the same
 /// mesh and support give the same output, with any number of threads.
 pub fn trim(mesh: &TriMesh, support: &ScanSupport) -> Trimmed {
+    trim_by(mesh, &coverage(mesh, support, 0.0))
+}
+
+/// One connected piece of a mesh beyond a scan's reach: where the surface is the field's
+/// guess (a hole in the scan it closed, a side it never saw).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// Its area.
+    pub area: f64,
+    /// Its bounding box.
+    pub bounds: Aabb<3>,
+}
+
+/// [`trim`], and the pieces it cuts away: the connected regions of `mesh` beyond `support`'s
+/// reach, cut along the same line, largest area first (ties in the order of their first
+/// triangle). Their areas add up to the mesh's less the trimmed one's. `offset` lengthens every
+/// point's reach: for a mesh that lies that far from the points by construction (a level set
+/// other than the one fitted to them), so that the offset itself does not read as beyond
+/// reach; 0 cuts as [`trim`] does.
+///
+/// ```
+/// use zeroset_mesh::TriMesh;
+/// use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, split};
+///
+/// // Two unit squares 10 apart (a row of triangles each), a scan of the first only.
+/// let mut v = Vec::new();
+/// for x in [0.0, 10.0] {
+///     v.extend([[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x + 1.0, 1.0, 0.0], [x, 1.0, 0.0]]);
+/// }
+/// let mesh = TriMesh::new(v, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])?;
+/// let scan: Vec<[f64; 3]> = (0..=20)
+///     .flat_map(|i| (0..=20).map(move |j| [i as f64 / 20.0, j as f64 / 20.0, 0.0]))
+///     .collect();
+/// let (kept, beyond) = split(&mesh, &ScanSupport::new(&scan, DEFAULT_REACH)?, 0.0);
+/// assert_eq!(kept.mesh.num_triangles(), 2);
+/// assert_eq!(beyond.len(), 1);
+/// assert!((beyond[0].area - 1.0).abs() < 1e-12);
+/// assert_eq!(beyond[0].bounds.min(), [10.0, 0.0, 0.0]);
+/// # Ok::<(), zeroset_mesh::MeshError>(())
+/// ```
+pub fn split(mesh: &TriMesh, support: &ScanSupport, offset: f64) -> (Trimmed, Vec<Region>) {
+    let coverage = coverage(mesh, support, offset.max(0.0));
+    let kept = trim_by(mesh, &coverage);
+    // The complement cut along the same line: 2 − c crosses 1 where c does.
+    let flipped: Vec<f64> = coverage.iter().map(|c| 2.0 - c).collect();
+    let beyond = trim_by(mesh, &flipped).mesh;
+    let (labels, count) = components(&beyond);
+    // Per region: area, and the box's corners.
+    let mut sums = vec![(0.0, [f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); count];
+    for (t, &label) in labels.iter().enumerate() {
+        let corners = beyond.corners(t);
+        let (area, min, max) = &mut sums[label as usize];
+        *area += 0.5 * norm(&area_vector(&corners));
+        for c in &corners {
+            for a in 0..3 {
+                min[a] = min[a].min(c[a]);
+                max[a] = max[a].max(c[a]);
+            }
+        }
+    }
+    let regions = sums.into_iter().filter_map(|(area, min, max)| {
+        Aabb::new(min, max)
+            .ok()
+            .map(|bounds| Region { area, bounds })
+    });
+    let mut regions: Vec<Region> = regions.collect();
+    regions.sort_by(|a, b| b.area.total_cmp(&a.area));
+    (kept, regions)
+}
+
+/// The coverage distance at each vertex of `mesh` ([`ScanSupport::coverages`] with half the
+/// mean edge plus `offset` as slack), smoothed over about half a median spacing: below 1
+/// within reach.
+fn coverage(mesh: &TriMesh, support: &ScanSupport, offset: f64) -> Vec<f64> {
     let edge = mean_edge(mesh);
-    let coverage = support.coverages(mesh.vertices(), 0.5 * edge);
+    let coverage = support.coverages(mesh.vertices(), 0.5 * edge + offset);
     let passes = smoothing_passes(edge, support.median_spacing());
-    trim_by(mesh, &smoothed(mesh, coverage, passes))
+    smoothed(mesh, coverage, passes)
 }
 
 /// The mean length of the triangles' sides (0 without triangles).
@@ -516,6 +592,50 @@ mod tests {
         for v in trimmed.mesh.vertices() {
             assert!(support.coverage_with_slack(v, slack) < 1.0 + 1.0 / 60.0 / (2.0 * s));
         }
+    }
+
+    #[test]
+    fn split_returns_each_hole_the_scan_left_as_a_region_largest_first() {
+        // A scan of the unit square with two holes: radius 0.15 about (0.3, 0.3), 0.1 about
+        // (0.7, 0.7). The mesh beyond reach is two discs, a little smaller than the holes.
+        let holes = [([0.3, 0.3], 0.15), ([0.7, 0.7], 0.1)];
+        let mut scan = Vec::new();
+        for i in 0..=100 {
+            for j in 0..=100 {
+                let p = [i as f64 / 100.0, j as f64 / 100.0, 0.0];
+                if holes
+                    .iter()
+                    .all(|(c, r)| (p[0] - c[0]).hypot(p[1] - c[1]) > *r)
+                {
+                    scan.push(p);
+                }
+            }
+        }
+        let support = ScanSupport::new(&scan, DEFAULT_REACH).unwrap();
+        let mesh = square(80);
+        let (kept, regions) = split(&mesh, &support, 0.0);
+        assert_eq!(kept, trim(&mesh, &support));
+        assert_eq!(regions.len(), 2, "{regions:?}");
+        assert!(regions[0].area > regions[1].area);
+        let kept_area = check(&kept.mesh).area;
+        let total: f64 = regions.iter().map(|r| r.area).sum();
+        assert!(
+            (kept_area + total - 1.0).abs() < 1e-9,
+            "{kept_area} + {total}"
+        );
+        for (region, (centre, radius)) in regions.iter().zip(holes) {
+            let c = region.bounds.center();
+            assert!(
+                (c[0] - centre[0]).hypot(c[1] - centre[1]) < 0.02,
+                "{region:?}"
+            );
+            let width = region.bounds.extent()[0];
+            assert!(width > 0.0 && width < 2.0 * radius, "{region:?}");
+        }
+        // Nothing beyond reach: no regions.
+        let all: Vec<Point<3>> = mesh.vertices().to_vec();
+        let (_, none) = split(&mesh, &ScanSupport::new(&all, DEFAULT_REACH).unwrap(), 0.0);
+        assert!(none.is_empty());
     }
 
     #[test]

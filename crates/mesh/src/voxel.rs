@@ -96,7 +96,7 @@ pub const SCAN_MAX_VOXELS: f64 = 512.0;
 ///
 /// The `l0` rule sees the box only: fine voxels are 1/133 of a chunky box's longest axis
 /// whether the scan has 35,000 points (the bunny: spacing 1.1 fine voxels) or a million (a
-/// 100 mm ball sampled every 0.2 mm: 4.2 fine voxels per spacing), and on the denser scan the
+/// 100 mm ball sampled every 0.2 mm: a fine voxel spans 4.2 spacings), and on the denser scan the
 /// mesh then loses what the field holds between the voxels. A `spacing` that is not finite
 /// and positive leaves `detail`'s voxel.
 ///

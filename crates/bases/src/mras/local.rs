@@ -278,6 +278,8 @@ impl PointBasis {
         let (val, _) = self.expand();
         for (k, &v) in val.iter().enumerate() {
             if let Some(i) = self.global(m, k) {
+                // i < m³, and the cell's dense m³ × m³ matrix already bounds m³ far below 2³².
+                debug_assert!(i <= u32::MAX as usize);
                 row.idx[row.len] = i as u32;
                 row.val[row.len] = v;
                 row.len += 1;

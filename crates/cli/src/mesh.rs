@@ -45,7 +45,7 @@ use zeroset_mesh::signed::{
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, split};
-use zeroset_mesh::voxel::{self, Detail};
+use zeroset_mesh::voxel::{self, Detail, ScanFloor};
 use zeroset_mesh::{
     McOptions, MeshFormat, TriMesh, boundary_loops, check, component_support, components,
     mesh_field, unsupported_components, write_mesh,
@@ -173,10 +173,11 @@ pub struct MeshArgs {
     /// Voxel edge by the l0 rule of the field's box: coarse 5·l0, general l0, fine 0.3·l0, with
     /// l0 = clamp(0.05·shortest, 0.005·longest, 0.025·longest) axis length [default: general;
     /// fine for MRAS fields, fitted to scans within 1e-3 of their diagonal, which general
-    /// voxels would not resolve, and for an MRAS field of points denser than fine voxels 2 × their
-    /// median spacing (at most 512 voxels along the longest axis): the l0 rule sees the box,
-    /// not how densely it was scanned. The points: those the field records (--scan's for a
-    /// field that records none)].
+    /// voxels would not resolve; for an MRAS field of points denser than fine voxels, 2 × their
+    /// median spacing, but no finer than half its finest splines' knot spacing (the finest
+    /// detail it holds) nor 512 voxels along the longest axis: the l0 rule sees the box, not
+    /// how densely it was scanned. The points: those the field records (--scan's for a field
+    /// that records none)].
     #[arg(long, value_enum, conflicts_with_all = ["resolution", "voxel"])]
     pub detail: Option<DetailArg>,
 
@@ -493,19 +494,34 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     support = measured;
                 }
             }
+            // The smallest detail the field holds: its finest splines' knot spacing.
+            let field_detail = match &field {
+                AnyField::Mras(f) => f.finest_spacing().unwrap_or(0.0),
+                _ => 0.0,
+            };
             match spacing {
-                Some(s) if voxel::scan_voxel(&bounds, detail, s) < by_l0 => {
-                    let h = voxel::scan_voxel(&bounds, detail, s);
-                    let why = if h > voxel::SCAN_SPACINGS * s {
-                        format!(
+                Some(s) if voxel::scan_voxel(&bounds, detail, s, field_detail) < by_l0 => {
+                    let h = voxel::scan_voxel(&bounds, detail, s, field_detail);
+                    let dense = voxel::SCAN_SPACINGS * s;
+                    let why = match voxel::scan_floor(&bounds, field_detail) {
+                        _ if h <= dense => {
+                            format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS)
+                        }
+                        (_, ScanFloor::MaxVoxels) => format!(
                             "{} voxels along the longest axis, the most for a dense scan ({} × \
                              its median spacing would be {})",
                             voxel::SCAN_MAX_VOXELS,
                             voxel::SCAN_SPACINGS,
-                            g(voxel::SCAN_SPACINGS * s)
-                        )
-                    } else {
-                        format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS)
+                            g(dense)
+                        ),
+                        (_, ScanFloor::FieldDetail) => format!(
+                            "{} × the knot spacing {} of the field's finest splines, the finest \
+                             detail it holds ({} × the scan's median spacing would be {})",
+                            voxel::SCAN_DETAIL_SHARE,
+                            g(field_detail),
+                            voxel::SCAN_SPACINGS,
+                            g(dense)
+                        ),
                     };
                     let how = format!(
                         "{why}: the points the field was fitted to, spaced {}, are denser than \

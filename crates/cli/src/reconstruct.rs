@@ -84,8 +84,8 @@ pub struct ReconstructArgs {
     pub method: ReconstructMethod,
 
     /// Voxel size by the l0 rule of the field's box (as `zeroset mesh --detail`) [default:
-    /// fine; for an MRAS field of a scan denser than that, 2 × the scan's median point spacing,
-    /// at most 512 voxels along the longest axis, as `zeroset mesh` chooses]. On the full
+    /// fine; for an MRAS field of a scan denser than that, 2 × the scan's median point spacing
+    /// where the field holds detail that fine, as `zeroset mesh` chooses]. On the full
     /// bunny (MRAS) the points' mean distance to the mesh is 3.8e-4 of the diagonal with fine
     /// voxels (the field's own: 3.5e-4), 1.1e-3 with general ones; on a million-point ridged
     /// ball (spacing 1/4 of a fine voxel) 3.7e-4 with 2 spacings (the field's own: 3.3e-4),

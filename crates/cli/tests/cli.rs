@@ -4334,9 +4334,11 @@ fn normals_orients_a_scan_of_positions_and_reconstruct_uses_them() {
 #[test]
 fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
     let dir = tempfile::tempdir().unwrap();
-    // Two balls of radius `r` at opposite corners of a chunky box, 10,000 points each: dense
-    // against the fine voxels of the box (1/133 of its longest axis).
-    let balls = |name: &str, r: f64| -> PathBuf {
+    // Two balls of radius 0.05 at opposite corners of a chunky box, 10,000 points each (spaced
+    // about 0.002): dense against the fine voxels of the box (1/133 of its longest axis, 0.009),
+    // fitted by MRAS to `tolerance`.
+    let r = 0.05;
+    let balls = |name: &str, tolerance: &str| -> PathBuf {
         let mut cloud = String::new();
         for c in [[0.0, 0.0, 0.0], [1.0, 1.0, 0.5]] {
             for (_, n) in sphere_points(10_000) {
@@ -4352,6 +4354,8 @@ fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
             path.to_str().unwrap(),
             "--method",
             "mras",
+            "--tolerance",
+            tolerance,
             "-o",
             field.to_str().unwrap(),
             "--quiet",
@@ -4386,8 +4390,26 @@ fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
             .and_then(|s| s.parse().ok())
             .unwrap_or_else(|| panic!("no number after {after:?} in {line}"))
     };
-    // Balls of radius 0.05: spaced about 0.002, so 2 spacings are finer than the fine voxel.
-    let field = balls("balls", 0.05);
+    // At the default tolerance the field's finest splines are coarser than the fine voxels:
+    // nothing to gain from finer ones.
+    let smooth = balls("smooth", "0.001");
+    let (l0_rule, _) = grid_line(&smooth, &[]);
+    assert!(l0_rule.contains("(0.3 × l0, Fine detail;"), "{l0_rule}");
+    // At 1e-4 its finest knots are 0.012 apart: half of that, coarser than 2 spacings.
+    let medium = balls("medium", "0.0001");
+    let (by_knots, _) = grid_line(&medium, &[]);
+    assert!(
+        by_knots.contains("(0.5 × the knot spacing ")
+            && by_knots.contains("of the field's finest splines, the finest detail it holds"),
+        "{by_knots}"
+    );
+    let knots = number("the knot spacing ", &by_knots);
+    assert!(
+        (number("voxel ", &by_knots) / knots - 0.5).abs() < 1e-6,
+        "{by_knots}"
+    );
+    // At 2e-5 they are finer than that: 2 spacings, finer than the fine voxel.
+    let field = balls("balls", "0.00002");
     let (dense, dense_vertices) = grid_line(&field, &[]);
     assert!(
         dense.contains(
@@ -4410,7 +4432,7 @@ fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
     let sparse = dir.path().join("sparse.xyz");
     let kept: String = sphere_points(500)
         .iter()
-        .map(|(_, n)| format!("{} {} {}\n", 0.05 * n[0], 0.05 * n[1], 0.05 * n[2]))
+        .map(|(_, n)| format!("{} {} {}\n", r * n[0], r * n[1], r * n[2]))
         .collect();
     fs::write(&sparse, kept).unwrap();
     let (with_scan, _) = grid_line(&field, &["--scan", sparse.to_str().unwrap()]);
@@ -4423,12 +4445,4 @@ fn an_mras_field_of_a_dense_scan_is_meshed_no_coarser_than_the_scan() {
     assert!(text.contains("plus the level's offset 0.01"), "{text}");
     let cut = number("trim: cut ", &text.replace('%', " "));
     assert!(cut < 1.0, "{text}");
-    // Balls of radius 0.005: 2 spacings would be 1/2,400 of the box; 512 voxels at most.
-    let field = balls("tiny", 0.005);
-    let (capped, _) = grid_line(&field, &[]);
-    assert!(
-        capped.contains("(512 voxels along the longest axis, the most for a dense scan (2 × its median spacing would be "),
-        "{capped}"
-    );
-    assert!(capped.starts_with("grid 513×513×"), "{capped}");
 }

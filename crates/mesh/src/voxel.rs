@@ -89,10 +89,17 @@ pub const SCAN_SPACINGS: f64 = 2.0;
 /// The most voxels along the box's longest axis [`scan_voxel`] refines to.
 pub const SCAN_MAX_VOXELS: f64 = 512.0;
 
+/// The finest voxel [`scan_voxel`] refines to, as a share of the smallest detail the field
+/// holds: finer voxels only sample the same splines more densely.
+pub const SCAN_DETAIL_SHARE: f64 = 0.5;
+
 /// The voxel edge for meshing a field fitted to a scan whose median point spacing is
-/// `spacing`: `detail`'s voxel ([`voxel_size`]), or where the scan is denser than that,
-/// [`SCAN_SPACINGS`] spacings — but no finer than [`SCAN_MAX_VOXELS`] voxels along the box's
-/// longest axis. Never coarser than `detail`'s voxel.
+/// `spacing`, and which holds no detail smaller than `field_detail` (an MRAS field's finest
+/// knot spacing; 0 where not known): `detail`'s voxel ([`voxel_size`]), or where the scan is
+/// denser than that, [`SCAN_SPACINGS`] spacings — but no finer than [`SCAN_DETAIL_SHARE`] of
+/// `field_detail`, nor than [`SCAN_MAX_VOXELS`] voxels along the box's longest axis (points
+/// repeated with a jitter, as overlapping scans give, read as a spacing far below the
+/// field's). Never coarser than `detail`'s voxel; [`scan_floor`] says which bound holds.
 ///
 /// The `l0` rule sees the box only: fine voxels are 1/133 of a chunky box's longest axis
 /// whether the scan has 35,000 points (the bunny: spacing 1.1 fine voxels) or a million (a
@@ -106,18 +113,40 @@ pub const SCAN_MAX_VOXELS: f64 = 512.0;
 ///
 /// let ball = Aabb::new([-50.0; 3], [50.0; 3])?;
 /// let fine = voxel_size(&ball, Detail::Fine); // 0.75
-/// assert_eq!(scan_voxel(&ball, Detail::Fine, 1.0), fine); // sparse: the l0 rule
-/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.2), 0.4); // dense: 2 spacings
-/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.01), 100.0 / 512.0); // at most 512 voxels
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 1.0, 0.0), fine); // sparse: the l0 rule
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.2, 0.0), 0.4); // dense: 2 spacings
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.2, 1.0), 0.5); // half the field's detail
+/// assert_eq!(scan_voxel(&ball, Detail::Fine, 0.01, 0.0), 100.0 / 512.0); // at most 512
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn scan_voxel(bounds: &Aabb<3>, detail: Detail, spacing: f64) -> f64 {
+pub fn scan_voxel(bounds: &Aabb<3>, detail: Detail, spacing: f64, field_detail: f64) -> f64 {
     let h = voxel_size(bounds, detail);
     if !(spacing.is_finite() && spacing > 0.0) {
         return h;
     }
+    h.min((SCAN_SPACINGS * spacing).max(scan_floor(bounds, field_detail).0))
+}
+
+/// Which bound [`scan_voxel`] refines no further than.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScanFloor {
+    /// [`SCAN_MAX_VOXELS`] along the longest axis.
+    MaxVoxels,
+    /// [`SCAN_DETAIL_SHARE`] of the field's smallest detail.
+    FieldDetail,
+}
+
+/// The finest voxel [`scan_voxel`] takes for a field of smallest detail `field_detail` over
+/// `bounds`, and which bound it is.
+pub fn scan_floor(bounds: &Aabb<3>, field_detail: f64) -> (f64, ScanFloor) {
     let longest = bounds.extent().into_iter().fold(0.0, f64::max);
-    h.min((SCAN_SPACINGS * spacing).max(longest / SCAN_MAX_VOXELS))
+    let by_count = longest / SCAN_MAX_VOXELS;
+    let by_detail = SCAN_DETAIL_SHARE * field_detail;
+    if by_detail.is_finite() && by_detail > by_count {
+        (by_detail, ScanFloor::FieldDetail)
+    } else {
+        (by_count, ScanFloor::MaxVoxels)
+    }
 }
 
 /// The most samples [`grid_for`] makes: `2^48` (2 PiB of `f64` samples), far past any memory,
@@ -297,18 +326,26 @@ mod tests {
         let fine = voxel_size(&chunky, Detail::Fine); // 0.03
         // Sparser than 2 spacings per fine voxel, or no spacing: the l0 rule.
         for s in [0.015, 0.1, f64::NAN, 0.0, -1.0, f64::INFINITY] {
-            assert_eq!(scan_voxel(&chunky, Detail::Fine, s), fine, "{s}");
+            assert_eq!(scan_voxel(&chunky, Detail::Fine, s, 0.0), fine, "{s}");
         }
-        assert_eq!(scan_voxel(&chunky, Detail::Fine, 0.01), 0.02);
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 0.01, 0.0), 0.02);
         // At most 512 voxels along the longest axis (4).
-        assert_eq!(scan_voxel(&chunky, Detail::Fine, 1e-6), 4.0 / 512.0);
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 1e-6, 0.0), 4.0 / 512.0);
         // A flat box whose fine voxels are already finer than that keeps them.
         let flat = boxed([10.0, 5.0, 0.5]);
         let flat_fine = voxel_size(&flat, Detail::Fine);
         assert!(flat_fine < 10.0 / 512.0);
-        assert_eq!(scan_voxel(&flat, Detail::Fine, 1e-6), flat_fine);
+        assert_eq!(scan_voxel(&flat, Detail::Fine, 1e-6, 0.0), flat_fine);
+        // No finer than half the field's detail, where that is coarser than 1/512 of the box.
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 1e-6, 0.05), 0.025);
+        assert_eq!(scan_floor(&chunky, 0.05), (0.025, ScanFloor::FieldDetail));
+        assert_eq!(
+            scan_floor(&chunky, 0.01),
+            (4.0 / 512.0, ScanFloor::MaxVoxels)
+        );
+        assert_eq!(scan_voxel(&chunky, Detail::Fine, 0.01, 0.01), 0.02);
         // Coarser details are refined the same way.
-        assert_eq!(scan_voxel(&chunky, Detail::General, 0.01), 0.02);
+        assert_eq!(scan_voxel(&chunky, Detail::General, 0.01, 0.0), 0.02);
     }
 
     #[test]

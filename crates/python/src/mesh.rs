@@ -186,9 +186,10 @@ fn field_grid(
             match (detail, field) {
                 // As `zeroset mesh`: no coarser than the scan an MRAS field records is sampled.
                 (None, AnyField::Mras(f)) if !f.unit_points().is_empty() => {
+                    let field_detail = f.finest_spacing().unwrap_or(0.0);
                     ScanSupport::new(&f.points(), DEFAULT_REACH).map_or_else(
                         |_| voxel::voxel_size(&bounds, class),
-                        |s| voxel::scan_voxel(&bounds, class, s.median_spacing()),
+                        |s| voxel::scan_voxel(&bounds, class, s.median_spacing(), field_detail),
                     )
                 }
                 _ => voxel::voxel_size(&bounds, class),

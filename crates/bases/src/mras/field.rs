@@ -459,6 +459,14 @@ impl<const D: usize> MrasField<D> {
         LevelGeometry::new(D, level.level, level.knots, self.alpha)
     }
 
+    /// The knot spacing of the finest level's splines, in the points' units: about the
+    /// smallest detail the field holds (`None` without levels).
+    pub fn finest_spacing(&self) -> Option<f64> {
+        self.levels
+            .last()
+            .map(|l| self.geometry(l).spacing * self.side)
+    }
+
     /// Numbers stored as the paper counts them (§6.2): every cell's spline (`3·m·R` for CP
     /// factors) plus its blending function (centre and radius, `D + 1`).
     pub fn storage(&self) -> usize {

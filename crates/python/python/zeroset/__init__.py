@@ -885,7 +885,8 @@ def mesh(
     The voxel edge follows the ``detail`` class (``"coarse"``, ``"general"``, ``"fine"``:
     5, 1 or 0.3 times the box's reference length; by default ``"fine"`` for MRAS fields,
     fitted to scans within 1e-3 of their diagonal, or twice the median spacing of the scan
-    the field records where that is finer, at most 512 voxels along the longest axis; and
+    the field records where that is finer, but no finer than half the knot spacing of its
+    finest splines nor 512 voxels along the longest axis; and
     ``"general"`` for the others), or
     ``resolution`` voxels along the
     longest axis, or the edge ``voxel``. ``method="mc"`` samples the field on the grid and

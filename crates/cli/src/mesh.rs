@@ -264,6 +264,10 @@ fn level_offset(field: &AnyField<3>, points: &[Point<3>], level: f64) -> f64 {
     level.abs() / norms[norms.len() / 2]
 }
 
+/// The share of the mesh's area below which the largest region beyond the scan's reach is not
+/// reported (the `unseen:` line).
+const UNSEEN_SHARE: f64 = 1e-4;
+
 /// A mesh component with no input point within this many voxels is reported as spurious.
 const SPURIOUS_VOXELS: f64 = 3.0;
 
@@ -483,8 +487,17 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             // are spaced (those it records; --scan's for a field that records none): it holds
             // no finer detail than they do.
             let fitted = recorded.as_deref().or(scan.as_deref());
+            // The smallest detail the field holds: its finest splines' knot spacing.
+            let field_detail = match &field {
+                AnyField::Mras(f) => f.finest_spacing().unwrap_or(0.0),
+                _ => 0.0,
+            };
+            // Measured only where a finer voxel could follow (not for a smooth field).
+            let finer = voxel::scan_floor(&bounds, field_detail).0 < by_l0;
             let mut spacing = None;
-            if let (None, true, Some(points)) = (args.detail, field.wants_fine_mesh(), fitted) {
+            if let (None, true, true, Some(points)) =
+                (args.detail, field.wants_fine_mesh(), finer, fitted)
+            {
                 let t = Instant::now();
                 let measured = ScanSupport::new(points, reach).ok();
                 spacing = measured.as_ref().map(ScanSupport::median_spacing);
@@ -494,11 +507,6 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     support = measured;
                 }
             }
-            // The smallest detail the field holds: its finest splines' knot spacing.
-            let field_detail = match &field {
-                AnyField::Mras(f) => f.finest_spacing().unwrap_or(0.0),
-                _ => 0.0,
-            };
             match spacing {
                 Some(s) if voxel::scan_voxel(&bounds, detail, s, field_detail) < by_l0 => {
                     let h = voxel::scan_voxel(&bounds, detail, s, field_detail);
@@ -821,7 +829,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                             (true, Some(_)) => " (the caps --close made are in it)",
                         }
                     )?;
-                    if let Some(largest) = unseen.first() {
+                    // (Regions under 0.01% of the area are specks, not worth a line.)
+                    if let Some(largest) = unseen
+                        .first()
+                        .filter(|r| r.area >= UNSEEN_SHARE * report.area)
+                    {
                         let b = &largest.bounds;
                         say!(
                             out,

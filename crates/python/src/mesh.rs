@@ -223,7 +223,9 @@ pub(crate) fn mesh_native<'py>(
         return Err(value_error(format!("level must be finite, got {level}")));
     }
     let f = &field.inner;
-    let grid = field_grid(f, detail, resolution, voxel)?;
+    // Without the GIL: an MRAS field's default voxel measures the spacing of the points it
+    // records (about 2 s for a million).
+    let grid = py.detach(|| field_grid(f, detail, resolution, voxel))?;
     // As `zeroset mesh`: refused before anything is allocated (signed marching cubes had no
     // check of its own, and aborted the process on a 2000³ grid).
     let c = grid.counts();

@@ -45,7 +45,7 @@ use zeroset_mesh::signed::{
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
 use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, split};
-use zeroset_mesh::voxel::{self, Detail, ScanFloor};
+use zeroset_mesh::voxel::{self, Detail, ScanFloor, VoxelRule};
 use zeroset_mesh::{
     McOptions, MeshFormat, TriMesh, boundary_loops, check, component_support, components,
     mesh_field, unsupported_components, write_mesh,
@@ -492,55 +492,57 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 AnyField::Mras(f) => f.finest_spacing().unwrap_or(0.0),
                 _ => 0.0,
             };
-            // Measured only where a finer voxel could follow (not for a smooth field).
-            let finer = voxel::scan_floor(&bounds, field_detail).0 < by_l0;
-            let mut spacing = None;
-            if let (None, true, true, Some(points)) =
-                (args.detail, field.wants_fine_mesh(), finer, fitted)
-            {
+            let measure = || {
+                let (None, true, Some(points)) = (args.detail, field.wants_fine_mesh(), fitted)
+                else {
+                    return None;
+                };
                 let t = Instant::now();
                 let measured = ScanSupport::new(points, reach).ok();
-                spacing = measured.as_ref().map(ScanSupport::median_spacing);
+                let spacing = measured.as_ref().map(ScanSupport::median_spacing);
                 measuring = t.elapsed();
                 // The checks below measure --scan's points when given, these otherwise.
                 if scan.is_none() {
                     support = measured;
                 }
-            }
-            match spacing {
-                Some(s) if voxel::scan_voxel(&bounds, detail, s, field_detail) < by_l0 => {
-                    let h = voxel::scan_voxel(&bounds, detail, s, field_detail);
-                    let dense = voxel::SCAN_SPACINGS * s;
-                    let why = match voxel::scan_floor(&bounds, field_detail) {
-                        _ if h <= dense => {
-                            format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS)
-                        }
-                        (_, ScanFloor::MaxVoxels) => format!(
+                spacing
+            };
+            let (h, chosen) = voxel::default_voxel(&bounds, detail, field_detail, measure);
+            let how = match chosen {
+                VoxelRule::Detail => rule,
+                VoxelRule::Spacing(s) | VoxelRule::Floor { spacing: s, .. } => {
+                    let dense = g(voxel::SCAN_SPACINGS * s);
+                    let why = match chosen {
+                        VoxelRule::Floor {
+                            floor: ScanFloor::MaxVoxels,
+                            ..
+                        } => format!(
                             "{} voxels along the longest axis, the most for a dense scan ({} × \
-                             its median spacing would be {})",
+                             its median spacing would be {dense})",
                             voxel::SCAN_MAX_VOXELS,
                             voxel::SCAN_SPACINGS,
-                            g(dense)
                         ),
-                        (_, ScanFloor::FieldDetail) => format!(
+                        VoxelRule::Floor {
+                            floor: ScanFloor::FieldDetail,
+                            ..
+                        } => format!(
                             "{} × the knot spacing {} of the field's finest splines, the finest \
-                             detail it holds ({} × the scan's median spacing would be {})",
+                             detail it holds ({} × the scan's median spacing would be {dense})",
                             voxel::SCAN_DETAIL_SHARE,
                             g(field_detail),
                             voxel::SCAN_SPACINGS,
-                            g(dense)
                         ),
+                        _ => format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS),
                     };
-                    let how = format!(
+                    format!(
                         "{why}: the points the field was fitted to, spaced {}, are denser than \
                          {detail:?} voxels of {} ({rule}), which --detail fine keeps",
                         g(s),
                         g(by_l0)
-                    );
-                    (h, how)
+                    )
                 }
-                _ => (by_l0, rule),
-            }
+            };
+            (h, how)
         }
     };
     if !(h.is_finite() && h > 0.0) {

@@ -146,7 +146,7 @@ pub(crate) fn marching_cubes_volume<'py>(
 /// The grid a field is meshed on: `resolution` voxels along the longest axis, an explicit
 /// `voxel` edge, or the `detail` class of the l0 rule (`None`: fine for a field that
 /// [`AnyField::wants_fine_mesh`], general otherwise; for an MRAS field whose scan is denser
-/// than that, [`voxel::scan_voxel`] of its median spacing), over the field's box.
+/// than that, [`voxel::default_voxel`] of its median spacing), over the field's box.
 fn field_grid(
     field: &AnyField<3>,
     detail: Option<&str>,
@@ -187,10 +187,12 @@ fn field_grid(
                 // As `zeroset mesh`: no coarser than the scan an MRAS field records is sampled.
                 (None, AnyField::Mras(f)) if !f.unit_points().is_empty() => {
                     let field_detail = f.finest_spacing().unwrap_or(0.0);
-                    ScanSupport::new(&f.points(), DEFAULT_REACH).map_or_else(
-                        |_| voxel::voxel_size(&bounds, class),
-                        |s| voxel::scan_voxel(&bounds, class, s.median_spacing(), field_detail),
-                    )
+                    let spacing = || {
+                        ScanSupport::new(&f.points(), DEFAULT_REACH)
+                            .ok()
+                            .map(|s| s.median_spacing())
+                    };
+                    voxel::default_voxel(&bounds, class, field_detail, spacing).0
                 }
                 _ => voxel::voxel_size(&bounds, class),
             }

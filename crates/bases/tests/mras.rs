@@ -5,6 +5,7 @@
 use zeroset_bases::field_file::{AnyField, decode_any, encode_mras};
 use zeroset_bases::mras::{CellSpline, MrasError, MrasFit, MrasOptions, MrasProgress, fit_mras};
 use zeroset_field_core::field::{ScalarField, central_difference_gradient, distance_to_zero_set};
+use zeroset_field_core::geometry::Aabb;
 use zeroset_field_core::io::read_point_cloud;
 
 #[path = "../../../examples/common/shapes.rs"]
@@ -385,6 +386,75 @@ fn grid_rows_give_the_single_point_bits() {
         for (l, v) in sampled.iter().enumerate() {
             let x = grid.point(grid.multi_index(l));
             assert_eq!(v.to_bits(), f.value(&x).to_bits(), "at {x:?}");
+        }
+    }
+}
+
+#[test]
+fn value_range_encloses_the_field_and_settles_boxes_away_from_the_surface() {
+    // Every value sampled in a box lies in the box's enclosure — on CP and full cells, boxes
+    // small and large, inside the cube, across its faces and outside it (clamped) — and small
+    // boxes away from the torus are settled: their enclosure clears 0.
+    let (p, n) = torus(60, 24, 1.0, 0.4);
+    let options = MrasOptions::default().max_level(4).tolerance(1e-4);
+    let mut rng = zeroset_field_core::rng::SplitMix64::new(11);
+    for compress in [true, false] {
+        let f = fit(&p, &n, &options.clone().compress(compress)).field;
+        assert!(f.levels().len() >= 3, "a multilevel field");
+        let b = f.bounds().expect("a box");
+        let (lo, hi) = (b.min(), b.max());
+        // Boxes of 1% of the extent, and how many of them the enclosure settles.
+        let (mut settled, mut boxes) = (0, 0);
+        for size in [0.01, 0.05, 0.2, 0.6] {
+            for _ in 0..60 {
+                let c: P = std::array::from_fn(|a| {
+                    let w = hi[a] - lo[a];
+                    lo[a] - 0.1 * w + 1.2 * w * rng.unit()
+                });
+                let half: P = std::array::from_fn(|a| 0.5 * size * (hi[a] - lo[a]));
+                let region = Aabb::new(
+                    std::array::from_fn(|a| c[a] - half[a]),
+                    std::array::from_fn(|a| c[a] + half[a]),
+                )
+                .expect("a box");
+                let [rl, rh] = f.value_range(&region).expect("an enclosure");
+                assert!(rl <= rh);
+                for i in 0..5 {
+                    for j in 0..5 {
+                        for k in 0..5 {
+                            let t = [i, j, k].map(|v| v as f64 / 4.0);
+                            let x: P = std::array::from_fn(|a| {
+                                region.min()[a] + t[a] * (region.max()[a] - region.min()[a])
+                            });
+                            let v = f.value(&x);
+                            assert!(
+                                rl <= v && v <= rh,
+                                "{v} outside [{rl}, {rh}] at {x:?} (box of size {size})"
+                            );
+                        }
+                    }
+                }
+                if size == 0.01 {
+                    boxes += 1;
+                    if rl > 0.0 || rh < 0.0 {
+                        settled += 1;
+                    }
+                }
+            }
+        }
+        // The torus fills a small part of its box: most small boxes miss the surface by far,
+        // and their enclosures clear it.
+        assert!(
+            settled * 3 > boxes * 2,
+            "only {settled} of {boxes} boxes settled (compress {compress})"
+        );
+        let corner =
+            Aabb::new(lo, std::array::from_fn(|a| lo[a] + 0.05 * (hi[a] - lo[a]))).expect("a box");
+        let [rl, _] = f.value_range(&corner).expect("an enclosure");
+        assert!(rl > 0.0, "the box's corner is outside the torus: {rl}");
+        let nan = Aabb::new([f64::NAN; 3], [f64::NAN; 3]);
+        if let Ok(nan) = nan {
+            assert_eq!(f.value_range(&nan), None);
         }
     }
 }

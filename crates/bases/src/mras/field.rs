@@ -26,6 +26,55 @@ pub enum CellSpline<const D: usize> {
 }
 
 impl<const D: usize> CellSpline<D> {
+    /// Per axis `a`, the largest `|c[…, i_a, …] − c[…, i_a − 1, …]|` over the coefficients
+    /// with `span[b].0 ≤ i_b ≤ span[b].1` on every axis (`m` B-splines per axis): the window's
+    /// coefficients are formed (from the CP factors where stored so) and differenced.
+    fn difference_bounds(&self, m: usize, span: &[(usize, usize); D]) -> [f64; D] {
+        let len: [usize; D] = std::array::from_fn(|a| span[a].1 - span[a].0 + 1);
+        let mut window = Vec::with_capacity(len.iter().product());
+        let mut index: [usize; D] = std::array::from_fn(|a| span[a].0);
+        'fill: loop {
+            window.push(match self {
+                CellSpline::Cp { rank, factors } => (0..*rank)
+                    .map(|r| {
+                        (0..D)
+                            .map(|a| factors[a][index[a] * rank + r])
+                            .product::<f64>()
+                    })
+                    .sum::<f64>(),
+                CellSpline::Full { coefficients } => {
+                    coefficients[index.iter().fold(0, |acc, &i| acc * m + i)]
+                }
+            });
+            let mut a = D;
+            loop {
+                if a == 0 {
+                    break 'fill;
+                }
+                a -= 1;
+                if index[a] < span[a].1 {
+                    index[a] += 1;
+                    break;
+                }
+                index[a] = span[a].0;
+            }
+        }
+        // Row-major strides of the window, the last axis fastest.
+        let mut stride = [1usize; D];
+        for a in (0..D.saturating_sub(1)).rev() {
+            stride[a] = stride[a + 1] * len[a + 1];
+        }
+        let mut out = [0.0f64; D];
+        for (flat, &v) in window.iter().enumerate() {
+            for a in 0..D {
+                if (flat / stride[a]) % len[a] > 0 {
+                    out[a] = out[a].max((v - window[flat - stride[a]]).abs());
+                }
+            }
+        }
+        out
+    }
+
     /// The numbers stored: `D·m·R` for CP factors, `m^D` for a full tensor.
     pub fn stored_numbers(&self) -> usize {
         match self {
@@ -312,6 +361,13 @@ pub(crate) fn pu_weight(r: f64, radius: f64) -> (f64, f64) {
     }
 }
 
+/// `[lo, hi]` widened by a few units of rounding of its magnitude: evaluation sums and
+/// divides in floating point, so a value may leave the exact hull by that much.
+fn widened(lo: f64, hi: f64) -> [f64; 2] {
+    let slack = 1e-12 * lo.abs().max(hi.abs());
+    [lo - slack, hi + slack]
+}
+
 /// A multilevel rational algebraic spline (MRAS) field (paper 004 §4, eqs. 6–9):
 /// `f = side · Σ_k o_k(u)` with `u = (p − origin)/side` in the unit cube and `o_k` the level's
 /// blended offsets `Σ_j w_j φ_j / Σ_i w_i` (the denominator summing over every cell of the
@@ -320,6 +376,11 @@ pub(crate) fn pu_weight(r: f64, radius: f64) -> (f64, f64) {
 /// Points outside the cube are clamped onto it (the field is constant along the clamped
 /// directions there). Evaluation reads the CP factors directly; the full tensors are never
 /// formed. Single and batched evaluation give the same bits on any number of threads.
+/// [`ScalarField::value_range`] encloses the field over a box from each level's cells near it
+/// (no evaluation of the box's points): what the signed marching cubes settle blocks with. For
+/// meshing, plain marching cubes remains the faster on MRAS fields (batched evaluation along
+/// grid rows: 0.67 s against 1.41 s for the bunny's field at 136×136×116, 2 threads; the
+/// `mras_enclosures` example).
 ///
 /// A fitted field also records the points it was fitted to ([`MrasField::points`]), in `f32`
 /// unit-cube coordinates: not part of the field's value, but what `zeroset mesh` checks a
@@ -457,6 +518,92 @@ impl<const D: usize> MrasField<D> {
     /// The geometry of level `k` (from 1).
     pub fn geometry(&self, level: &MrasLevel<D>) -> LevelGeometry {
         LevelGeometry::new(D, level.level, level.knots, self.alpha)
+    }
+
+    /// An enclosure `[lo, hi]` of one level's blended offset `o_k` over the unit-cube box
+    /// `[lo_u, hi_u]` (inside the cube). `o_k(u) = Σ_j w_j φ_j(u) / Σ_i w_i(u)`, the
+    /// denominator over every lattice cell within reach, fitted or not, is a convex combination
+    /// of the fitted cells' `φ_j(u)` and of 0 (an unfitted cell's offset). Each `φ_j` differs
+    /// from its value at the box's centre `c` by at most `Σ_a D_a |u_a − c_a|`, `D_a` the
+    /// largest first difference of the coefficients along axis `a` over the B-splines that reach
+    /// the box, divided by the knot spacing (the derivative of a quadratic B-spline sum is a
+    /// linear B-spline sum of those differences; evaluation's clamping only flattens it). So
+    /// `o_k` lies in the hull of `φ_j(c) ± Σ_a D_a r_a` over the cells whose support box meets
+    /// the region, and of 0 where one of the lattice cells there is not fitted. (A first
+    /// version took each cell's coefficient extremes over those B-splines, the convex hull,
+    /// which spans three knot intervals — a third of the cube at the root — and settled none of
+    /// 240 boxes of 1–60% of a torus's box; this one settles over two thirds of those of 1%.)
+    fn level_range(&self, level: &MrasLevel<D>, lo_u: &Point<D>, hi_u: &Point<D>) -> [f64; 2] {
+        let g = self.geometry(level);
+        let n = g.lattice;
+        let centre: Point<D> = std::array::from_fn(|a| 0.5 * (lo_u[a] + hi_u[a]));
+        let reach: Point<D> = std::array::from_fn(|a| 0.5 * (hi_u[a] - lo_u[a]));
+        // The lattice cells whose support box c ± ρ meets the region, per axis.
+        let mut first = [0u64; D];
+        let mut last = [0u64; D];
+        for a in 0..D {
+            let from = ((lo_u[a] - g.radius) / g.side - 0.5).ceil().max(0.0);
+            let to = ((hi_u[a] + g.radius) / g.side - 0.5).floor();
+            if to < from {
+                return [0.0, 0.0];
+            }
+            first[a] = from as u64;
+            last[a] = (to as u64).min(n - 1);
+        }
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut fitted = 0u64;
+        let mut meets = |cell: &MrasCell<D>| {
+            let index: [u64; D] = std::array::from_fn(|a| u64::from(cell.index[a]));
+            if (0..D).any(|a| index[a] < first[a] || index[a] > last[a]) {
+                return;
+            }
+            fitted += 1;
+            // The B-splines that reach the region in this cell's box: indices ⌊x + ½⌋ − 1 …
+            // ⌊x + ½⌋ + 1 of the region's ends, clamped as evaluation clamps.
+            let span: [(usize, usize); D] = std::array::from_fn(|a| {
+                let c = g.centre(index[a]);
+                let from = g.spline_index(lo_u[a], c);
+                let to = g.spline_index(hi_u[a], c);
+                let i0 = ((from + 0.5).floor() as usize).saturating_sub(1);
+                let i1 = ((to + 0.5).floor() as usize + 1).min(g.knots - 1);
+                (i0, i1)
+            });
+            let slopes = cell.spline.difference_bounds(g.knots, &span);
+            let spread: f64 = (0..D).map(|a| slopes[a] / g.spacing * reach[a]).sum();
+            let (v, _) = spline_at(&cell.spline, &g, &index, &centre, false);
+            lo = lo.min(v - spread);
+            hi = hi.max(v + spread);
+        };
+        let boxed: u64 = (0..D).map(|a| last[a] - first[a] + 1).product();
+        if boxed < level.cells.len() as u64 {
+            let mut index = first;
+            'walk: loop {
+                if let Some(pos) = level.position(&index) {
+                    meets(&level.cells[pos]);
+                }
+                // The next index of the box, the last axis fastest.
+                let mut a = D;
+                loop {
+                    if a == 0 {
+                        break 'walk;
+                    }
+                    a -= 1;
+                    if index[a] < last[a] {
+                        index[a] += 1;
+                        break;
+                    }
+                    index[a] = first[a];
+                }
+            }
+        } else {
+            level.cells.iter().for_each(&mut meets);
+        }
+        // A lattice cell there without an offset blends in as 0.
+        if fitted < boxed {
+            lo = lo.min(0.0);
+            hi = hi.max(0.0);
+        }
+        widened(lo, hi)
     }
 
     /// The knot spacing of the finest level's splines, in the points' units: about the
@@ -1133,6 +1280,30 @@ impl<const D: usize> ScalarField<D> for MrasField<D> {
         let min = std::array::from_fn(|a| grown.min()[a].max(cube.min()[a]));
         let max = std::array::from_fn(|a| grown.max()[a].min(cube.max()[a]));
         Aabb::new(min, max).ok().or(Some(cube))
+    }
+
+    /// The sum over the levels of each level's enclosure (see `level_range`): per cell whose
+    /// support box meets the region, its offset at the region's centre widened by its
+    /// coefficients' largest differences times the region's half-extent — about one
+    /// evaluation's work per level and a window of coefficients per cell. Tight for small
+    /// regions, loose where the fine levels' cells disagree; far from the surface only the
+    /// coarse levels have cells and their values clear the level set. `None` for a region that
+    /// is not finite.
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        let (min, max) = (region.min(), region.max());
+        if !(is_finite(&min) && is_finite(&max)) {
+            return None;
+        }
+        // Points outside the cube are clamped onto it: so is the region.
+        let (lo_u, hi_u) = (self.to_unit(&min), self.to_unit(&max));
+        let (mut lo, mut hi) = (0.0, 0.0);
+        for level in &self.levels {
+            let [l, h] = self.level_range(level, &lo_u, &hi_u);
+            lo += l;
+            hi += h;
+        }
+        let [lo, hi] = widened(lo, hi);
+        Some([lo * self.side, hi * self.side])
     }
 }
 

@@ -44,7 +44,7 @@ use zeroset_mesh::signed::{
 };
 use zeroset_mesh::squares::contour_field;
 use zeroset_mesh::svg::SvgPlot;
-use zeroset_mesh::trim::{DEFAULT_REACH, ScanSupport, split};
+use zeroset_mesh::trim::{DEFAULT_REACH, Region, ScanSupport, split};
 use zeroset_mesh::voxel::{self, Detail, ScanFloor, VoxelRule};
 use zeroset_mesh::{
     McOptions, MeshFormat, TriMesh, boundary_loops, check, component_support, components,
@@ -264,9 +264,38 @@ fn level_offset(field: &AnyField<3>, points: &[Point<3>], level: f64) -> f64 {
     level.abs() / norms[norms.len() / 2]
 }
 
-/// The share of the mesh's area below which the largest region beyond the scan's reach is not
-/// reported (the `unseen:` line).
+/// The share of the mesh's area below which a region beyond the scan's reach is a speck: not
+/// counted with the regions of the `unseen:` line (only as specks), and no line where the
+/// largest is one.
 const UNSEEN_SHARE: f64 = 1e-4;
+
+/// The `unseen:` line for the regions beyond the scan's reach (largest first) of a mesh of
+/// area `area`: how many, the largest one's share, extent and centre; the specks (under
+/// [`UNSEEN_SHARE`] of the area each) counted apart, so that crumbs do not swell the count.
+/// `None` where the largest region is itself a speck.
+fn unseen_line(unseen: &[Region], area: f64) -> Option<String> {
+    let regions = unseen
+        .iter()
+        .take_while(|r| r.area >= UNSEEN_SHARE * area)
+        .count();
+    let largest = unseen.first().filter(|_| regions > 0)?;
+    let specks = match unseen.len() - regions {
+        0 => String::new(),
+        n => format!(
+            " (and {n} speck(s), each under {}% of the area)",
+            100.0 * UNSEEN_SHARE
+        ),
+    };
+    let b = &largest.bounds;
+    Some(format!(
+        "unseen: {regions} region(s){specks} beyond the scan's reach, where the surface is the \
+         field's guess (holes in the scan it closed, sides never scanned); the largest, {:.2}% \
+         of the area, spans {} around {}",
+        100.0 * largest.area / area.max(f64::MIN_POSITIVE),
+        b.extent().map(g).join(" × "),
+        point(b.center())
+    ))
+}
 
 /// A mesh component with no input point within this many voxels is reported as spurious.
 const SPURIOUS_VOXELS: f64 = 3.0;
@@ -831,22 +860,8 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                             (true, Some(_)) => " (the caps --close made are in it)",
                         }
                     )?;
-                    // (Regions under 0.01% of the area are specks, not worth a line.)
-                    if let Some(largest) = unseen
-                        .first()
-                        .filter(|r| r.area >= UNSEEN_SHARE * report.area)
-                    {
-                        let b = &largest.bounds;
-                        say!(
-                            out,
-                            "unseen: {} region(s) beyond the scan's reach, where the surface is \
-                             the field's guess (holes in the scan it closed, sides never \
-                             scanned); the largest, {:.2}% of the area, spans {} around {}",
-                            unseen.len(),
-                            100.0 * largest.area / report.area.max(f64::MIN_POSITIVE),
-                            b.extent().map(g).join(" × "),
-                            point(b.center())
-                        )?;
+                    if let Some(line) = unseen_line(&unseen, report.area) {
+                        say!(out, "{line}")?;
                     }
                 }
             }
@@ -1385,6 +1400,39 @@ fn hint_signed(field: &AnyField<3>, grid: &Grid<3>, out: &mut Say) -> anyhow::Re
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_unseen_line_counts_specks_apart() {
+        let region = |area: f64, at: f64| Region {
+            area,
+            bounds: zeroset_field_core::Aabb::new([at; 3], [at + 1.0; 3]).unwrap(),
+        };
+        // Two regions and two specks of a mesh of area 10,000 (specks under 1).
+        let unseen = [
+            region(300.0, 0.0),
+            region(1.0, 5.0),
+            region(0.5, 9.0),
+            region(0.2, 7.0),
+        ];
+        let line = unseen_line(&unseen, 10_000.0).unwrap();
+        assert!(
+            line.starts_with(
+                "unseen: 2 region(s) (and 2 speck(s), each under 0.01% of the area) beyond"
+            ),
+            "{line}"
+        );
+        assert!(
+            line.ends_with(
+                "the largest, 3.00% of the area, spans 1 × 1 × 1 around (0.5, 0.5, 0.5)"
+            ),
+            "{line}"
+        );
+        // No specks: no parenthesis; only specks, or nothing beyond reach: no line.
+        let line = unseen_line(&unseen[..1], 10_000.0).unwrap();
+        assert!(line.starts_with("unseen: 1 region(s) beyond"), "{line}");
+        assert_eq!(unseen_line(&unseen[2..], 10_000.0), None);
+        assert_eq!(unseen_line(&[], 10_000.0), None);
+    }
 
     #[test]
     fn spinner_returns_the_work() {

@@ -30,7 +30,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let (mut path, mut resolutions, mut repeat) = (None, vec![135.0, 256.0], 3usize);
+    let (mut path, mut resolutions, mut repeat): (_, Vec<f64>, usize) =
+        (None, vec![135.0, 256.0], 3);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--resolution" => {
@@ -42,6 +43,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let path = path.ok_or("usage: mras_enclosures FIELD.zsf [--resolution N,..] [--repeat R]")?;
+    if repeat == 0 {
+        return Err("--repeat needs at least 1 run".into());
+    }
+    if let Some(n) = resolutions.iter().find(|&&n| !(n.is_finite() && n >= 2.0)) {
+        return Err(format!("--resolution: {n} is not a count of at least 2 voxels").into());
+    }
     let AnyField::Mras(field) = read_any_field::<3>(&path)? else {
         return Err(format!("{path} does not hold an MRAS field").into());
     };

@@ -411,6 +411,9 @@ impl<const D: usize> ScalarField<D> for AnyField<D> {
     fn bounds(&self) -> Option<Aabb<D>> {
         each_field!(self, f => ScalarField::bounds(f))
     }
+    fn value_range(&self, region: &Aabb<D>) -> Option<[f64; 2]> {
+        each_field!(self, f => f.value_range(region))
+    }
 }
 
 /// The bytes of the field file of `field`, whatever its kind: what [`write_any_field`] writes,

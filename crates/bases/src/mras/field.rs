@@ -32,8 +32,9 @@ impl<const D: usize> CellSpline<D> {
     fn difference_bounds(&self, m: usize, span: &[(usize, usize); D]) -> [f64; D] {
         let len: [usize; D] = std::array::from_fn(|a| span[a].1 - span[a].0 + 1);
         let mut window = Vec::with_capacity(len.iter().product());
-        let mut index: [usize; D] = std::array::from_fn(|a| span[a].0);
-        'fill: loop {
+        let (first, last) = (span.map(|s| s.0), span.map(|s| s.1));
+        let mut index = first;
+        loop {
             window.push(match self {
                 CellSpline::Cp { rank, factors } => (0..*rank)
                     .map(|r| {
@@ -46,17 +47,8 @@ impl<const D: usize> CellSpline<D> {
                     coefficients[index.iter().fold(0, |acc, &i| acc * m + i)]
                 }
             });
-            let mut a = D;
-            loop {
-                if a == 0 {
-                    break 'fill;
-                }
-                a -= 1;
-                if index[a] < span[a].1 {
-                    index[a] += 1;
-                    break;
-                }
-                index[a] = span[a].0;
+            if !next_in_box(&mut index, &first, &last) {
+                break;
             }
         }
         // Row-major strides of the window, the last axis fastest.
@@ -361,6 +353,22 @@ pub(crate) fn pu_weight(r: f64, radius: f64) -> (f64, f64) {
     }
 }
 
+/// Steps `index` to the next index of the box `first ..= last` (each axis), the last axis
+/// fastest; `false` (and `index` back at `first`) after the box's last index.
+fn next_in_box<const D: usize, T>(index: &mut [T; D], first: &[T; D], last: &[T; D]) -> bool
+where
+    T: Copy + PartialOrd + std::ops::AddAssign + From<u8>,
+{
+    for a in (0..D).rev() {
+        if index[a] < last[a] {
+            index[a] += T::from(1);
+            return true;
+        }
+        index[a] = first[a];
+    }
+    false
+}
+
 /// `[lo, hi]` widened by a few units of rounding of its magnitude: evaluation sums and
 /// divides in floating point, so a value may leave the exact hull by that much.
 fn widened(lo: f64, hi: f64) -> [f64; 2] {
@@ -576,22 +584,12 @@ impl<const D: usize> MrasField<D> {
         let boxed: u64 = (0..D).map(|a| last[a] - first[a] + 1).product();
         if boxed < level.cells.len() as u64 {
             let mut index = first;
-            'walk: loop {
+            loop {
                 if let Some(pos) = level.position(&index) {
                     meets(&level.cells[pos]);
                 }
-                // The next index of the box, the last axis fastest.
-                let mut a = D;
-                loop {
-                    if a == 0 {
-                        break 'walk;
-                    }
-                    a -= 1;
-                    if index[a] < last[a] {
-                        index[a] += 1;
-                        break;
-                    }
-                    index[a] = first[a];
+                if !next_in_box(&mut index, &first, &last) {
+                    break;
                 }
             }
         } else {

@@ -537,39 +537,49 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 spacing
             };
             let (h, chosen) = voxel::default_voxel(&bounds, detail, field_detail, measure);
+            // Why the scan's spacing gave a finer voxel than the l0 rule, in the grid line.
+            let dense = |s: f64, why: String| {
+                format!(
+                    "{why}: the points the field was fitted to, spaced {}, are denser than \
+                     {detail:?} voxels of {} ({rule}), which --detail fine keeps",
+                    g(s),
+                    g(by_l0)
+                )
+            };
+            let spacings = |s: f64| g(voxel::SCAN_SPACINGS * s);
             let how = match chosen {
-                VoxelRule::Detail => rule,
-                VoxelRule::Spacing(s) | VoxelRule::Floor { spacing: s, .. } => {
-                    let dense = g(voxel::SCAN_SPACINGS * s);
-                    let why = match chosen {
-                        VoxelRule::Floor {
-                            floor: ScanFloor::MaxVoxels,
-                            ..
-                        } => format!(
-                            "{} voxels along the longest axis, the most for a dense scan ({} × \
-                             its median spacing would be {dense})",
-                            voxel::SCAN_MAX_VOXELS,
-                            voxel::SCAN_SPACINGS,
-                        ),
-                        VoxelRule::Floor {
-                            floor: ScanFloor::FieldDetail,
-                            ..
-                        } => format!(
-                            "{} × the knot spacing {} of the field's finest splines, the finest \
-                             detail it holds ({} × the scan's median spacing would be {dense})",
-                            voxel::SCAN_DETAIL_SHARE,
-                            g(field_detail),
-                            voxel::SCAN_SPACINGS,
-                        ),
-                        _ => format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS),
-                    };
+                VoxelRule::Detail => rule.clone(),
+                VoxelRule::Spacing(s) => dense(
+                    s,
+                    format!("{} × the scan's median spacing", voxel::SCAN_SPACINGS),
+                ),
+                VoxelRule::Floor {
+                    spacing: s,
+                    floor: ScanFloor::MaxVoxels,
+                } => dense(
+                    s,
                     format!(
-                        "{why}: the points the field was fitted to, spaced {}, are denser than \
-                         {detail:?} voxels of {} ({rule}), which --detail fine keeps",
-                        g(s),
-                        g(by_l0)
-                    )
-                }
+                        "{} voxels along the longest axis, the most for a dense scan ({} × its \
+                         median spacing would be {})",
+                        voxel::SCAN_MAX_VOXELS,
+                        voxel::SCAN_SPACINGS,
+                        spacings(s)
+                    ),
+                ),
+                VoxelRule::Floor {
+                    spacing: s,
+                    floor: ScanFloor::FieldDetail,
+                } => dense(
+                    s,
+                    format!(
+                        "{} × the knot spacing {} of the field's finest splines, the finest \
+                         detail it holds ({} × the scan's median spacing would be {})",
+                        voxel::SCAN_DETAIL_SHARE,
+                        g(field_detail),
+                        voxel::SCAN_SPACINGS,
+                        spacings(s)
+                    ),
+                ),
             };
             (h, how)
         }

@@ -194,6 +194,84 @@ fn noisy_scan(m: &crate::noise::Measured) -> &'static str {
     }
 }
 
+/// The field `zeroset reconstruct` fits, with the reason `--method auto` gives for it.
+#[derive(Debug)]
+struct Choice {
+    /// Rbf or Mras (never Auto).
+    method: ReconstructMethod,
+    /// ` (auto: …)` after the method's name, or empty where the user named the method.
+    why: String,
+    /// Whether `auto` chose an RBF fit smoothed by the measured noise (`--smoothing auto`).
+    auto_smoothing: bool,
+}
+
+/// What `--method auto` fits: MRAS beyond [`AUTO_RBF_POINTS`]; RBF where `--smoothing` asks to
+/// smooth; otherwise by the scan's noise, which `measure` reads only then — a noisy scan by RBF
+/// smoothed by that noise up to [`AUTO_SMOOTHED_POINTS`] (unless `--smoothing` was given, as 0),
+/// MRAS beyond, and a clean one by RBF. `smoothed`: `--smoothing` asks to smooth;
+/// `smoothing_given`: any `--smoothing`, 0 included.
+fn choose(
+    asked: ReconstructMethod,
+    points: usize,
+    smoothed: bool,
+    smoothing_given: bool,
+    measure: impl FnOnce() -> anyhow::Result<Option<crate::noise::Measured>>,
+) -> anyhow::Result<Choice> {
+    let chosen = |method, why: String| Choice {
+        method,
+        why,
+        auto_smoothing: false,
+    };
+    Ok(match asked {
+        ReconstructMethod::Auto if points > AUTO_RBF_POINTS => chosen(
+            ReconstructMethod::Mras,
+            format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
+        ),
+        ReconstructMethod::Auto if smoothed => chosen(
+            ReconstructMethod::Rbf,
+            format!(" (auto: RBF up to {AUTO_RBF_POINTS} points, smoothed as --smoothing asks)"),
+        ),
+        ReconstructMethod::Auto => match measure()? {
+            // `--smoothing 0` asks to interpolate: then MRAS, not an RBF of the noise.
+            Some(m) if m.noise.is_noisy() && points <= AUTO_SMOOTHED_POINTS && !smoothing_given => {
+                Choice {
+                    method: ReconstructMethod::Rbf,
+                    why: format!(
+                        " (auto: {}, {}; up to {AUTO_SMOOTHED_POINTS} points RBF smoothed by \
+                         that noise, --smoothing auto, MRAS beyond)",
+                        noisy_scan(&m),
+                        m.describe()
+                    ),
+                    auto_smoothing: true,
+                }
+            }
+            Some(m) if m.noise.is_noisy() => chosen(
+                ReconstructMethod::Mras,
+                format!(
+                    " (auto: {}, {}, {}; RBF would interpolate {})",
+                    noisy_scan(&m),
+                    m.describe(),
+                    if points > AUTO_SMOOTHED_POINTS {
+                        format!("of more than {AUTO_SMOOTHED_POINTS} points")
+                    } else {
+                        "and --smoothing 0 asks not to smooth it".to_owned()
+                    },
+                    if m.noise.two_sheets_explain() {
+                        "between the sheets"
+                    } else {
+                        "the noise"
+                    }
+                ),
+            ),
+            _ => chosen(
+                ReconstructMethod::Rbf,
+                format!(" (auto: RBF up to {AUTO_RBF_POINTS} points unless noisy)"),
+            ),
+        },
+        m => chosen(m, String::new()),
+    })
+}
+
 /// The arguments of one stage, parsed as the command line would be.
 #[derive(Debug, Parser)]
 struct Stage<T: Args> {
@@ -320,64 +398,21 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     } else {
         (cloud, args.scan.clone(), TemporaryFile::new(None))
     };
-    // Whether --method auto chose to smooth an RBF fit of a noisy scan.
-    let mut auto_smoothing = false;
-    let (method, why) = match args.method {
-        ReconstructMethod::Auto if points > AUTO_RBF_POINTS => (
-            ReconstructMethod::Mras,
-            format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
-        ),
-        ReconstructMethod::Auto if smoothed => (
-            ReconstructMethod::Rbf,
-            format!(" (auto: RBF up to {AUTO_RBF_POINTS} points, smoothed as --smoothing asks)"),
-        ),
-        ReconstructMethod::Auto => {
+    let Choice {
+        method,
+        why,
+        auto_smoothing,
+    } = choose(
+        args.method,
+        points,
+        smoothed,
+        args.smoothing.is_some(),
+        || {
             // Measured on the points the fit will take, as the RBF fit's own warning is.
             let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
-            match crate::noise::measure(&kept) {
-                // `--smoothing 0` asks to interpolate: then MRAS, not an RBF of the noise.
-                Some(m)
-                    if m.noise.is_noisy()
-                        && points <= AUTO_SMOOTHED_POINTS
-                        && args.smoothing.is_none() =>
-                {
-                    auto_smoothing = true;
-                    (
-                        ReconstructMethod::Rbf,
-                        format!(
-                            " (auto: {}, {}; up to {AUTO_SMOOTHED_POINTS} points RBF \
-                             smoothed by that noise, --smoothing auto, MRAS beyond)",
-                            noisy_scan(&m),
-                            m.describe()
-                        ),
-                    )
-                }
-                Some(m) if m.noise.is_noisy() => (
-                    ReconstructMethod::Mras,
-                    format!(
-                        " (auto: {}, {}, {}; RBF would interpolate {})",
-                        noisy_scan(&m),
-                        m.describe(),
-                        if points > AUTO_SMOOTHED_POINTS {
-                            format!("of more than {AUTO_SMOOTHED_POINTS} points")
-                        } else {
-                            "and --smoothing 0 asks not to smooth it".to_owned()
-                        },
-                        if m.noise.two_sheets_explain() {
-                            "between the sheets"
-                        } else {
-                            "the noise"
-                        }
-                    ),
-                ),
-                _ => (
-                    ReconstructMethod::Rbf,
-                    format!(" (auto: RBF up to {AUTO_RBF_POINTS} points unless noisy)"),
-                ),
-            }
-        }
-        m => (m, String::new()),
-    };
+            Ok(crate::noise::measure(&kept))
+        },
+    )?;
     drop(cloud);
     if smoothed && method == ReconstructMethod::Mras {
         bail!(
@@ -574,4 +609,123 @@ fn temporary_file(output: &Path, extension: &str) -> PathBuf {
         pid.parse().ok()
     });
     output.with_file_name(format!("{prefix}{}.{extension}", std::process::id()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::noise::Measured;
+    use zeroset_bases::noise::{NOISY_SCATTER, Noise};
+
+    /// A scan whose scatter is `relative` of its spacing; two sheets explain all of it where
+    /// `sheets`.
+    fn measured(relative: f64, sheets: bool) -> Measured {
+        Measured {
+            noise: Noise {
+                sigma: relative * 0.01,
+                spacing: 0.01,
+                patches: 100,
+                two_sheets: if sheets { 10 } else { 0 },
+                sheet_patches: 10,
+                sigma_within_sheets: if sheets { 1e-4 } else { relative * 0.01 },
+            },
+            diagonal: 1.0,
+        }
+    }
+
+    /// `choose` under `--method auto`, with `--smoothing` as given, on `points` points that
+    /// measure as `noise` (`None`: too few to measure); and whether it measured.
+    fn auto(points: usize, smoothing: Option<f64>, noise: Option<Measured>) -> (Choice, bool) {
+        let mut asked = false;
+        let choice = choose(
+            ReconstructMethod::Auto,
+            points,
+            smoothing.is_some_and(|mu| mu > 0.0),
+            smoothing.is_some(),
+            || {
+                asked = true;
+                Ok(noise)
+            },
+        )
+        .unwrap();
+        (choice, asked)
+    }
+
+    #[test]
+    fn auto_chooses_by_size_then_by_noise_and_measures_only_where_it_decides() {
+        let noisy = Some(measured(2.0 * NOISY_SCATTER, false));
+        let clean = Some(measured(0.5 * NOISY_SCATTER, false));
+        // Beyond the RBF bound: MRAS, noisy or not, unmeasured.
+        let (c, asked) = auto(AUTO_RBF_POINTS + 1, None, noisy);
+        assert_eq!(c.method, ReconstructMethod::Mras);
+        assert!(!asked && !c.auto_smoothing);
+        assert!(
+            c.why
+                .contains(&format!("more than {AUTO_RBF_POINTS} points")),
+            "{}",
+            c.why
+        );
+        // Up to it, a clean scan: RBF, interpolating.
+        let (c, asked) = auto(AUTO_RBF_POINTS, None, clean);
+        assert_eq!(c.method, ReconstructMethod::Rbf);
+        assert!(asked && !c.auto_smoothing);
+        assert!(c.why.contains("unless noisy"), "{}", c.why);
+        // --smoothing asks for a smoothed RBF: no measurement.
+        let (c, asked) = auto(AUTO_RBF_POINTS, Some(0.1), noisy);
+        assert_eq!(c.method, ReconstructMethod::Rbf);
+        assert!(!asked && !c.auto_smoothing);
+        assert!(c.why.contains("smoothed as --smoothing asks"), "{}", c.why);
+        // A noisy scan up to the smoothed bound: RBF smoothed by its noise.
+        let (c, _) = auto(AUTO_SMOOTHED_POINTS, None, noisy);
+        assert_eq!(c.method, ReconstructMethod::Rbf);
+        assert!(c.auto_smoothing);
+        assert!(
+            c.why.contains("a noisy scan") && c.why.contains("--smoothing auto, MRAS beyond"),
+            "{}",
+            c.why
+        );
+        // One point more: MRAS, and why.
+        let (c, _) = auto(AUTO_SMOOTHED_POINTS + 1, None, noisy);
+        assert_eq!(c.method, ReconstructMethod::Mras);
+        assert!(!c.auto_smoothing);
+        assert!(
+            c.why
+                .contains(&format!("of more than {AUTO_SMOOTHED_POINTS} points"))
+                && c.why.contains("interpolate the noise"),
+            "{}",
+            c.why
+        );
+        // --smoothing 0 on a small noisy scan: not an RBF through the noise.
+        let (c, _) = auto(100, Some(0.0), noisy);
+        assert_eq!(c.method, ReconstructMethod::Mras);
+        assert!(
+            c.why.contains("--smoothing 0 asks not to smooth it"),
+            "{}",
+            c.why
+        );
+        // Two sheets that explain the reading are named as such.
+        let (c, _) = auto(AUTO_SMOOTHED_POINTS + 1, None, Some(measured(1.0, true)));
+        assert_eq!(c.method, ReconstructMethod::Mras);
+        assert!(
+            c.why.contains("two parallel sheets") && c.why.contains("between the sheets"),
+            "{}",
+            c.why
+        );
+        // Too few points to measure: as clean.
+        let (c, asked) = auto(20, None, None);
+        assert_eq!(c.method, ReconstructMethod::Rbf);
+        assert!(asked && !c.auto_smoothing);
+    }
+
+    #[test]
+    fn a_named_method_is_kept_unmeasured_and_unexplained() {
+        for asked in [ReconstructMethod::Rbf, ReconstructMethod::Mras] {
+            let c = choose(asked, AUTO_RBF_POINTS + 1, false, false, || {
+                panic!("a named method measures nothing")
+            })
+            .unwrap();
+            assert_eq!(c.method, asked);
+            assert!(c.why.is_empty() && !c.auto_smoothing);
+        }
+    }
 }

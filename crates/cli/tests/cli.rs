@@ -3370,24 +3370,17 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
     );
     // An MRAS fit misses its tolerance because of the noise, and says so; on the clean sample
     // (sparse: its curvature reads as a scatter of 1e-3 of the diagonal) it does not.
+    // --smoothing 0 asks not to smooth: MRAS then, not an RBF through the noise (its fit
+    // stage's report is the `fit --method mras` command's).
     let scatter = "the points scatter about their surface by σ ≈";
-    let o = zeroset(["fit", path.to_str().unwrap(), "--method", "mras", "--quiet"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = stdout(&o);
-    assert!(text.contains(scatter), "{text}");
-    // --smoothing 0 asks not to smooth: MRAS then, not an RBF through the noise.
     let text = reconstruct(&path, &["--smoothing", "0"]);
     assert!(
         text.contains("and --smoothing 0 asks not to smooth it"),
         "{text}"
     );
-    // More points than that: MRAS.
-    let (_d, large) = temp_file("large.xyzn", &noisy_sphere_of(15_001, 0.03));
-    let text = reconstruct(&large, &[]);
-    assert!(
-        text.contains("mras field (auto: a noisy scan") && text.contains("of more than 15000"),
-        "{text}"
-    );
+    assert!(text.contains(scatter), "{text}");
+    // (More points than 15,000: MRAS, by the rule `reconstruct`'s unit tests check; a
+    // 15,001-point reconstruct here took 40 to 130 s of CI.)
     let o = zeroset([
         "fit",
         sample().to_str().unwrap(),

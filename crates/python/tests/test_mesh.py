@@ -1,12 +1,14 @@
 """Marching cubes against scikit-image on the same volume, meshes of fields against their
 analytic truth (Euler characteristic, distance to the sphere), and mesh files."""
 
+import subprocess
 import warnings
 
 import numpy as np
 import pytest
 
 import zeroset
+from conftest import sphere_cloud
 
 measure = pytest.importorskip("skimage.measure")
 
@@ -253,3 +255,31 @@ def test_trim_mesh_refuses_bad_scans(scan, kwargs, message):
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
     with pytest.raises(ValueError, match=message):
         zeroset.trim_mesh(v, np.array([[0, 1, 2]]), scan, **kwargs)
+
+
+def test_a_dense_scans_mras_field_is_meshed_as_the_command_meshes_it(tmp_path, zeroset_bin):
+    # Two balls of radius 0.05 at opposite corners of a box, 10,000 points each (spaced about
+    # 0.002), fitted to 2e-5 of the diagonal: the scan is denser than the fine voxels (0.009),
+    # so `zeroset mesh` samples at twice its median spacing, and so does the default here.
+    parts = [sphere_cloud(10_000, 0.05, c) for c in [(0.0, 0.0, 0.0), (1.0, 1.0, 0.5)]]
+    points = np.vstack([p for p, _ in parts])
+    normals = np.vstack([n for _, n in parts])
+    field = zeroset.fit(points, normals, method="mras", tolerance=2e-5)
+    path = tmp_path / "balls.zsf"
+    field.save(path)
+    ply = tmp_path / "balls.ply"
+    out = subprocess.run(
+        [zeroset_bin, "mesh", str(path), "-o", str(ply), "--quiet"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    grid = next(line for line in out.splitlines() if line.startswith("grid "))
+    assert "(2 × the scan's median spacing" in grid, grid
+    v_cli, f_cli, _ = zeroset.read_mesh(ply)
+    v, f, _ = zeroset.mesh(field)
+    assert f.shape == f_cli.shape
+    assert np.allclose(v, v_cli, atol=1e-9)
+    # the fine voxel the l0 rule gives is coarser: fewer triangles
+    _, fine, _ = zeroset.mesh(field, detail="fine")
+    assert len(fine) < len(f) / 2, (len(fine), len(f))

@@ -665,6 +665,10 @@ mod tests {
             "{}",
             c.why
         );
+        // ... even where --smoothing asks to smooth (the run then says MRAS takes none).
+        let (c, asked) = auto(AUTO_RBF_POINTS + 1, Some(0.1), noisy);
+        assert_eq!(c.method, ReconstructMethod::Mras);
+        assert!(!asked && c.why.contains("more than"), "{}", c.why);
         // Up to it, a clean scan: RBF, interpolating.
         let (c, asked) = auto(AUTO_RBF_POINTS, None, clean);
         assert_eq!(c.method, ReconstructMethod::Rbf);
@@ -695,14 +699,17 @@ mod tests {
             "{}",
             c.why
         );
-        // --smoothing 0 on a small noisy scan: not an RBF through the noise.
-        let (c, _) = auto(100, Some(0.0), noisy);
-        assert_eq!(c.method, ReconstructMethod::Mras);
-        assert!(
-            c.why.contains("--smoothing 0 asks not to smooth it"),
-            "{}",
-            c.why
-        );
+        // --smoothing 0 on a noisy scan up to that bound: not an RBF through the noise.
+        for points in [100, AUTO_SMOOTHED_POINTS] {
+            let (c, _) = auto(points, Some(0.0), noisy);
+            assert_eq!(c.method, ReconstructMethod::Mras);
+            assert!(
+                c.why.contains("--smoothing 0 asks not to smooth it")
+                    && !c.why.contains("more than"),
+                "{}",
+                c.why
+            );
+        }
         // Two sheets that explain the reading are named as such.
         let (c, _) = auto(AUTO_SMOOTHED_POINTS + 1, None, Some(measured(1.0, true)));
         assert_eq!(c.method, ReconstructMethod::Mras);
@@ -715,6 +722,14 @@ mod tests {
         let (c, asked) = auto(20, None, None);
         assert_eq!(c.method, ReconstructMethod::Rbf);
         assert!(asked && !c.auto_smoothing);
+    }
+
+    #[test]
+    fn a_failed_measure_fails_the_choice() {
+        let failed = choose(ReconstructMethod::Auto, 100, false, false, || {
+            anyhow::bail!("unreadable")
+        });
+        assert_eq!(failed.unwrap_err().to_string(), "unreadable");
     }
 
     #[test]

@@ -3379,8 +3379,13 @@ fn a_noisy_scan_is_measured_warned_of_and_not_interpolated() {
         "{text}"
     );
     assert!(text.contains(scatter), "{text}");
-    // (More points than 15,000: MRAS, by the rule `reconstruct`'s unit tests check; a
-    // 15,001-point reconstruct here took 40 to 130 s of CI.)
+    // More points than that: MRAS.
+    let (_d, large) = temp_file("large.xyzn", &noisy_sphere_of(15_001, 0.03));
+    let text = reconstruct(&large, &[]);
+    assert!(
+        text.contains("mras field (auto: a noisy scan") && text.contains("of more than 15000"),
+        "{text}"
+    );
     let o = zeroset([
         "fit",
         sample().to_str().unwrap(),

@@ -194,6 +194,15 @@ fn noisy_scan(m: &crate::noise::Measured) -> &'static str {
     }
 }
 
+/// Whether `--smoothing` asks for a smoothed RBF fit: `auto` or `μ > 0` (`0` interpolates).
+fn asks_to_smooth(smoothing: Option<SmoothingArg>) -> bool {
+    match smoothing {
+        Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
+        Some(SmoothingArg::Auto) => true,
+        None => false,
+    }
+}
+
 /// The field `zeroset reconstruct` fits, with the reason `--method auto` gives for it.
 #[derive(Debug)]
 struct Choice {
@@ -208,13 +217,11 @@ struct Choice {
 /// What `--method auto` fits: MRAS beyond [`AUTO_RBF_POINTS`]; RBF where `--smoothing` asks to
 /// smooth; otherwise by the scan's noise, which `measure` reads only then — a noisy scan by RBF
 /// smoothed by that noise up to [`AUTO_SMOOTHED_POINTS`] (unless `--smoothing` was given, as 0),
-/// MRAS beyond, and a clean one by RBF. `smoothed`: `--smoothing` asks to smooth;
-/// `smoothing_given`: any `--smoothing`, 0 included.
+/// MRAS beyond, and a clean one by RBF.
 fn choose(
     asked: ReconstructMethod,
     points: usize,
-    smoothed: bool,
-    smoothing_given: bool,
+    smoothing: Option<SmoothingArg>,
     measure: impl FnOnce() -> anyhow::Result<Option<crate::noise::Measured>>,
 ) -> anyhow::Result<Choice> {
     let chosen = |method, why: String| Choice {
@@ -227,13 +234,15 @@ fn choose(
             ReconstructMethod::Mras,
             format!(" (auto: more than {AUTO_RBF_POINTS} points)"),
         ),
-        ReconstructMethod::Auto if smoothed => chosen(
+        ReconstructMethod::Auto if asks_to_smooth(smoothing) => chosen(
             ReconstructMethod::Rbf,
             format!(" (auto: RBF up to {AUTO_RBF_POINTS} points, smoothed as --smoothing asks)"),
         ),
         ReconstructMethod::Auto => match measure()? {
             // `--smoothing 0` asks to interpolate: then MRAS, not an RBF of the noise.
-            Some(m) if m.noise.is_noisy() && points <= AUTO_SMOOTHED_POINTS && !smoothing_given => {
+            Some(m)
+                if m.noise.is_noisy() && points <= AUTO_SMOOTHED_POINTS && smoothing.is_none() =>
+            {
                 Choice {
                     method: ReconstructMethod::Rbf,
                     why: format!(
@@ -315,12 +324,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         bail!("--trim takes a finite positive reach (in local point spacings), got {reach}");
     }
     crate::mesh::check_voxel(args.resolution, args.voxel)?;
-    // `--smoothing 0` interpolates: it does not ask for an RBF fit.
-    let smoothed = match args.smoothing {
-        Some(SmoothingArg::Fixed(mu)) => mu > 0.0,
-        Some(SmoothingArg::Auto) => true,
-        None => false,
-    };
+    let smoothed = asks_to_smooth(args.smoothing);
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
@@ -402,17 +406,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         method,
         why,
         auto_smoothing,
-    } = choose(
-        args.method,
-        points,
-        smoothed,
-        args.smoothing.is_some(),
-        || {
-            // Measured on the points the fit will take, as the RBF fit's own warning is.
-            let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
-            Ok(crate::noise::measure(&kept))
-        },
-    )?;
+    } = choose(args.method, points, args.smoothing, || {
+        // Measured on the points the fit will take, as the RBF fit's own warning is.
+        let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
+        Ok(crate::noise::measure(&kept))
+    })?;
     drop(cloud);
     if smoothed && method == ReconstructMethod::Mras {
         bail!(
@@ -640,8 +638,7 @@ mod tests {
         let choice = choose(
             ReconstructMethod::Auto,
             points,
-            smoothing.is_some_and(|mu| mu > 0.0),
-            smoothing.is_some(),
+            smoothing.map(SmoothingArg::Fixed),
             || {
                 asked = true;
                 Ok(noise)
@@ -726,7 +723,7 @@ mod tests {
 
     #[test]
     fn a_failed_measure_fails_the_choice() {
-        let failed = choose(ReconstructMethod::Auto, 100, false, false, || {
+        let failed = choose(ReconstructMethod::Auto, 100, None, || {
             anyhow::bail!("unreadable")
         });
         assert_eq!(failed.unwrap_err().to_string(), "unreadable");
@@ -735,7 +732,7 @@ mod tests {
     #[test]
     fn a_named_method_is_kept_unmeasured_and_unexplained() {
         for asked in [ReconstructMethod::Rbf, ReconstructMethod::Mras] {
-            let c = choose(asked, AUTO_RBF_POINTS + 1, false, false, || {
+            let c = choose(asked, AUTO_RBF_POINTS + 1, None, || {
                 panic!("a named method measures nothing")
             })
             .unwrap();

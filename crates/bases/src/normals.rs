@@ -341,6 +341,24 @@ pub enum NormalError {
         /// The count given.
         got: usize,
     },
+    /// [`fill_missing_normals`] was given normals that are all zero: none to sign the
+    /// missing ones by.
+    #[error(
+        "every one of the {points} normals is zero (0 0 0: what some writers put where a point \
+         has none): there are no normals to complete; estimate them all instead"
+    )]
+    NoneGiven {
+        /// Points (and normals) given.
+        points: usize,
+    },
+    /// Normals that are not one per point.
+    #[error("{got} normals for {points} points: give one per point")]
+    Normals {
+        /// Normals given.
+        got: usize,
+        /// Points.
+        points: usize,
+    },
     /// Most points' neighbourhoods span no plane.
     #[error(
         "{undetermined} of {points} points have neighbourhoods that span no plane (their \
@@ -475,6 +493,120 @@ pub fn estimate_normals_from_scanners(
         });
     }
     estimate(positions, options.neighbours, &Facing::Scanners(scanners))
+}
+
+/// Completes an oriented cloud whose normals are missing at some points: a normal that is the
+/// zero vector (exactly `0 0 0`, what CGAL, PCL exports and others write where they could not
+/// estimate one) is replaced by the unit normal of the plane through the point and its `k`
+/// nearest others (as [`estimate_normals`] fits it), signed to agree with the sum of the given
+/// normals among those neighbours — or, where none of them has one, with the given normal of
+/// the nearest point that has one. A point whose neighbourhood spans no plane
+/// ([`LINE_PATCH`]) takes that reference direction itself. The given normals are not touched.
+/// Returns the indices of the points completed, increasing (empty where no normal is zero).
+///
+/// Deterministic: exact nearest neighbours ordered by distance, then index; each point
+/// completed from the given normals alone, so the same bits on any number of threads.
+///
+/// ```
+/// use zeroset_bases::normals::fill_missing_normals;
+///
+/// // A 20 × 20 grid on the plane z = 0 facing +z; two points lost their normals.
+/// let positions: Vec<[f64; 3]> =
+///     (0..400).map(|i| [(i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, 0.0]).collect();
+/// let mut normals = vec![[0.0, 0.0, 1.0]; 400];
+/// normals[7] = [0.0; 3];
+/// normals[210] = [0.0; 3];
+/// let filled = fill_missing_normals(&positions, &mut normals, 16)?;
+/// assert_eq!(filled, vec![7, 210]);
+/// assert!(normals.iter().all(|n| n[2] > 0.999));
+/// # Ok::<(), zeroset_bases::normals::NormalError>(())
+/// ```
+///
+/// # Errors
+/// [`NormalError::Normals`] unless there is one normal per point, [`NormalError::NoneGiven`]
+/// where every normal is zero (use [`estimate_normals`]), [`NormalError::NonFinite`] for a
+/// position that is not finite, [`NormalError::Neighbours`] for `k` outside
+/// [`MIN_NEIGHBOURS`]..=[`MAX_NEIGHBOURS`], [`NormalError::TooManyPoints`] past `u32::MAX`.
+pub fn fill_missing_normals(
+    positions: &[Point<3>],
+    normals: &mut [Point<3>],
+    k: usize,
+) -> Result<Vec<usize>, NormalError> {
+    let n = positions.len();
+    if normals.len() != n {
+        return Err(NormalError::Normals {
+            got: normals.len(),
+            points: n,
+        });
+    }
+    if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
+        return Err(NormalError::Neighbours { got: k });
+    }
+    let is_missing = |v: &Point<3>| v.iter().all(|&x| x == 0.0);
+    let missing: Vec<usize> = (0..n).filter(|&i| is_missing(&normals[i])).collect();
+    if missing.is_empty() {
+        return Ok(missing);
+    }
+    if missing.len() == n {
+        return Err(NormalError::NoneGiven { points: n });
+    }
+    if n > u32::MAX as usize {
+        return Err(NormalError::TooManyPoints { got: n });
+    }
+    if let Some(index) = positions
+        .iter()
+        .position(|p| !p.iter().all(|x| x.is_finite()))
+    {
+        return Err(NormalError::NonFinite {
+            index,
+            value: positions[index],
+        });
+    }
+    let k = k.min(n - 1);
+    let tree = Tree::new_from_slice(positions).expect("at most u32::MAX finite points");
+    let given: Vec<u32> = (0..n as u32)
+        .filter(|&i| !is_missing(&normals[i as usize]))
+        .collect();
+    let given_positions: Vec<Point<3>> = given.iter().map(|&i| positions[i as usize]).collect();
+    let given_tree = Tree::new_from_slice(&given_positions).expect("fewer points than the cloud");
+    let wanted = NonZero::new(k + 1).expect("k + 1 > 0");
+    let completed: Vec<Point<3>> = missing
+        .par_iter()
+        .map(|&i| {
+            let p = &positions[i];
+            let mut found = tree
+                .query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(wanted)
+                .execute();
+            found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
+            let others: Vec<usize> = found
+                .iter()
+                .map(|f| f.item as usize)
+                .filter(|&j| j != i)
+                .take(k)
+                .collect();
+            let plane = plane_normal(p, others.iter().map(|&j| &positions[j]));
+            let around = others
+                .iter()
+                .filter(|&&j| !is_missing(&normals[j]))
+                .fold([0.0; 3], |s, &j| geometry::add(&s, &normals[j]));
+            let reference = if is_missing(&around) {
+                let nearest = given_tree
+                    .query(p)
+                    .nearest_one::<SquaredEuclidean<f64>>()
+                    .execute();
+                normals[given[nearest.item as usize] as usize]
+            } else {
+                around
+            };
+            let length = geometry::norm(&reference);
+            agreeing(plane, &reference.map(|x| x / length))
+        })
+        .collect();
+    for (&i, normal) in missing.iter().zip(completed) {
+        normals[i] = normal;
+    }
+    Ok(missing)
 }
 
 /// Which way each large piece is turned.

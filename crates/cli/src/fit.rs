@@ -784,6 +784,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
             )
         })?,
     };
+    let (cloud, _) = crate::normals::complete_normals(path, cloud)?;
     if let Some(note) = crate::normals::formations_note(path, &options) {
         line("formations", &note);
     }
@@ -806,7 +807,44 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
+    check_not_curves(path, &cloud)?;
     Ok(cloud)
+}
+
+/// Refuses a cloud whose points all lie on one axis-aligned plane (`z = 0`, as 2-D data is
+/// written) with every normal in that plane: samples of curves in the plane, bounding no solid
+/// in space, whose field every 3-D fit leaves undetermined across the plane (the RBF solve
+/// fails on a singular polynomial block, MRAS on its flat box). Sheets scanned flat have
+/// normals across their plane and pass.
+pub(crate) fn check_not_curves(path: &Path, cloud: &PointCloud3) -> anyhow::Result<()> {
+    let (Some(normals), Some(bounds)) = (cloud.normals(), cloud.bounds()) else {
+        return Ok(());
+    };
+    let flat = (0..3).find(|&a| bounds.extent()[a] <= 1e-12 * bounds.diagonal());
+    let Some(axis) = flat else {
+        return Ok(());
+    };
+    let in_plane = normals
+        .iter()
+        .all(|n| n[axis].abs() <= 1e-3 * zeroset_field_core::geometry::norm(n));
+    if in_plane {
+        let name = ["x", "y", "z"][axis];
+        let others = match axis {
+            0 => "y z",
+            1 => "x z",
+            _ => "x y",
+        };
+        bail!(
+            "{}: every point lies on the plane {name} = {} and every normal lies in it: these are \
+             samples of curves in that plane (2-D data), which bound no solid in space. Fit them \
+             as 2-D constraints: a value file (.xyv) of `{others} value` lines (0 at each point, ±d at \
+             the point moved ±d along its normal), which `zeroset fit` and `zeroset mesh` (SVG) \
+             take; or, for a flat sheet, give normals across the plane",
+            path.display(),
+            g(bounds.min()[axis])
+        );
+    }
+    Ok(())
 }
 
 /// Refuses a cloud whose points all lie at one position (a box of diagonal 0): no surface

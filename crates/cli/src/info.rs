@@ -665,7 +665,17 @@ fn write_normals(s: &mut String, stats: &CloudStats<3>) {
         );
         return;
     }
-    let bad = stats.non_unit_normals;
+    let (bad, zero) = (stats.non_unit_normals, stats.zero_normals);
+    if zero > 0 && zero == stats.count {
+        line(
+            s,
+            "normals",
+            "all 0 0 0: placeholders (some writers put them where a point has none), read as \
+             positions only (`zeroset normals` estimates normals; `zeroset reconstruct` does so \
+             itself)",
+        );
+        return;
+    }
     let mut text = format!(
         "yes; {bad} not unit length (tolerance {})",
         g(CloudStats::<3>::UNIT_TOLERANCE)
@@ -674,6 +684,15 @@ fn write_normals(s: &mut String, stats: &CloudStats<3>) {
         let _ = write!(text, "; lengths from {lo:.7} to {hi:.7}");
     }
     line(s, "normals", &text);
+    if zero > 0 {
+        more(
+            s,
+            &format!(
+                "{zero} of them 0 0 0 (no normal there): fit, restore and reconstruct estimate \
+                 those from their neighbours' plane, signed as the given normals around them"
+            ),
+        );
+    }
 }
 
 fn write_non_finite(s: &mut String, stats: &CloudStats<3>, first: Option<&Error>) {

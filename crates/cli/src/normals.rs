@@ -13,6 +13,7 @@ use zeroset_bases::noise::NOISY_SCATTER;
 use zeroset_bases::normals::{
     EstimatedNormals, FlatPiece, MAX_NEIGHBOURS, MIN_NEIGHBOURS, MIN_PIECE, NORMAL_NEIGHBOURS,
     NormalOptions, default_neighbours, estimate_normals, estimate_normals_from_scanners,
+    fill_missing_normals,
 };
 use zeroset_field_core::geometry;
 use zeroset_field_core::io::{
@@ -181,7 +182,7 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
     }
     let start = Instant::now();
     let options = read_options(args.format.as_deref(), args.formation.as_deref())?;
-    let cloud = read_positions(&args.scan, &options, "zeroset normals", true)?;
+    let (cloud, _) = read_positions(&args.scan, &options, "zeroset normals", true)?;
     crate::fit::check_extent(&args.scan, &cloud)?;
     if let Some(note) = formations_note(&args.scan, &options) {
         outln!("{:<14}{note}", "formations");
@@ -219,8 +220,19 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
 /// (the caller estimates normals where the file has none), where a normal is not finite (PCL
 /// writes NaN for the normals it could not estimate) or only some of an E57 file's scans have
 /// normals (the note says so). `command` names the caller in a
-/// non-finite value's error.
+/// non-finite value's error. Zero normals are then made whole, or dropped where every one is
+/// zero ([`complete_normals`]); returns the cloud and how many normals were estimated.
 pub(crate) fn read_positions(
+    path: &Path,
+    options: &ReadOptions,
+    command: &str,
+    normals_optional: bool,
+) -> anyhow::Result<(PointCloud3, usize)> {
+    complete_normals(path, read_file(path, options, command, normals_optional)?)
+}
+
+/// [`read_positions`] before the zero normals are seen to.
+fn read_file(
     path: &Path,
     options: &ReadOptions,
     command: &str,
@@ -298,6 +310,60 @@ pub(crate) fn read_positions(
         }
         read => read.map_err(error),
     }
+}
+
+/// A cloud's normals made whole where some are missing: a zero normal (`0 0 0`, what CGAL and
+/// others write where a point has none) is estimated from the plane of the point's
+/// [`NORMAL_NEIGHBOURS`] nearest and signed as the given normals around it
+/// ([`fill_missing_normals`]); where every normal is zero they are placeholders, and the cloud
+/// is returned without them. A note says which. Returns the cloud and how many normals were
+/// estimated.
+pub(crate) fn complete_normals(
+    path: &Path,
+    cloud: PointCloud3,
+) -> anyhow::Result<(PointCloud3, usize)> {
+    let zero = |n: &[f64; 3]| n.iter().all(|&x| x == 0.0);
+    let Some(normals) = cloud.normals() else {
+        return Ok((cloud, 0));
+    };
+    let missing = normals.iter().filter(|n| zero(n)).count();
+    if missing == 0 {
+        return Ok((cloud, 0));
+    }
+    let (positions, normals) = cloud.into_parts();
+    if missing == positions.len() {
+        outln!(
+            "{:<14}{}: every normal is 0 0 0 (placeholders, which some writers put where a \
+             point has none): read as positions only",
+            "note",
+            path.display()
+        );
+        return Ok((PointCloud3::new(positions)?, 0));
+    }
+    let mut normals = normals.expect("the cloud had normals");
+    let filled = fill_missing_normals(&positions, &mut normals, NORMAL_NEIGHBOURS)
+        .with_context(|| format!("estimating the missing normals of {}", path.display()))?;
+    const SHOWN: usize = 5;
+    let records: Vec<String> = filled.iter().take(SHOWN).map(usize::to_string).collect();
+    outln!(
+        "{:<14}{}: {} point{} without a normal (0 0 0; record{} {}{}): estimated from the plane \
+         of {} {} nearest points, signed as the given normals around {}",
+        "normals",
+        path.display(),
+        filled.len(),
+        plural(filled.len()),
+        plural(filled.len()),
+        records.join(", "),
+        if filled.len() > SHOWN { ", …" } else { "" },
+        if filled.len() == 1 {
+            "its"
+        } else {
+            "each one's"
+        },
+        NORMAL_NEIGHBOURS,
+        if filled.len() == 1 { "it" } else { "them" },
+    );
+    Ok((PointCloud3::with_normals(positions, normals)?, filled.len()))
 }
 
 /// `--viewpoint`: where the scanner stood, or each point's scanner.

@@ -328,7 +328,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
-    let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+    let (cloud, completed) =
+        crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
@@ -391,9 +392,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::write_cloud(&path, &oriented)
             .with_context(|| format!("writing the oriented scan {}", path.display()))?;
         (oriented, path, temporary)
-    } else if args.format.is_some() || args.formation.is_some() {
+    } else if args.format.is_some() || args.formation.is_some() || completed > 0 {
         // The stages read the scan by its extension, and whole: give them a copy that has the
-        // right one and holds the formation asked for.
+        // right one, holds the formation asked for and the normals completed above.
         let path = temporary_file(&args.output, "ply");
         let temporary = TemporaryFile::new(Some(path.clone()));
         crate::normals::write_cloud(&path, &cloud)

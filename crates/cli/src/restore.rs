@@ -866,6 +866,7 @@ impl Source {
                 )
             })?,
         };
+        let (cloud, _) = crate::normals::complete_normals(input, cloud)?;
         if cloud.normals().is_none() {
             bail!(
                 "{} has no normals: a point cloud is restored through its tangent-plane field, \

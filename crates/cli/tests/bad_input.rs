@@ -115,6 +115,27 @@ fn make_inputs(dir: &Path) -> Vec<Input> {
             .as_bytes(),
     );
     m.put(
+        "zero_normals.xyzn",
+        "the 50 points of `bunny.xyzn` with every normal `0 0 0` (placeholders, as CGAL writes \
+         where a point has none)",
+        bunny
+            .lines()
+            .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" ") + " 0 0 0\n")
+            .collect::<String>()
+            .as_bytes(),
+    );
+    m.put(
+        "curves.xyzn",
+        "64 points of a circle on the plane z = 0, their normals in that plane: 2-D data",
+        (0..64)
+            .map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 64.0;
+                format!("{} {} 0 {} {} 0\n", t.cos(), t.sin(), t.cos(), t.sin())
+            })
+            .collect::<String>()
+            .as_bytes(),
+    );
+    m.put(
         "same.xyzn",
         "5 copies of one oriented point: a degenerate cloud with no extent",
         p.repeat(5).as_bytes(),
@@ -781,6 +802,12 @@ fn cases() -> Vec<Case> {
         .says("inf"),
         cli("no normals", "fit positions.xyz --method rbf").says("normals"),
         cli("colour columns read as normals", "fit rgb.xyz --method rbf"),
+        cli("every normal 0 0 0", "fit zero_normals.xyzn --method rbf").says("no normals"),
+        cli(
+            "curves in a plane (2-D data)",
+            "fit curves.xyzn --method rbf",
+        )
+        .says("2-D"),
         cli(
             "all points identical (degenerate cloud)",
             "fit same.xyzn --method rbf",
@@ -1089,6 +1116,16 @@ fn cases() -> Vec<Case> {
         cli("NaN coordinate", "reconstruct nan.xyzn -o out.ply --quiet"),
         cli("no normals", "reconstruct positions.xyz -o out.ply --quiet")
             .accepted("has no normals: estimating them"),
+        cli(
+            "every normal 0 0 0",
+            "reconstruct zero_normals.xyzn -o out.ply --quiet",
+        )
+        .accepted("every normal is 0 0 0"),
+        cli(
+            "curves in a plane (2-D data)",
+            "reconstruct curves.xyzn -o out.ply --quiet",
+        )
+        .says("2-D"),
         cli(
             "all points identical (degenerate cloud)",
             "reconstruct same.xyzn -o out.ply --quiet",

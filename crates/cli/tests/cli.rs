@@ -2498,6 +2498,150 @@ fn a_ply_count_the_file_cannot_hold_is_reported_as_truncated() {
 }
 
 #[test]
+fn zero_normals_are_estimated_where_some_are_missing_and_read_as_none_where_all_are() {
+    // CGAL and others write `0 0 0` where a point has no normal.
+    let points = sphere_points(400);
+    let text = |zero: &dyn Fn(usize) -> bool| -> String {
+        points
+            .iter()
+            .enumerate()
+            .map(|(k, (p, n))| {
+                let n = if zero(k) { [0.0; 3] } else { *n };
+                format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2])
+            })
+            .collect()
+    };
+    let volume = |out: &str| -> f64 {
+        out.split("signed volume ")
+            .nth(1)
+            .and_then(|s| s.split(',').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no volume in {out}"))
+    };
+    let sphere = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
+    let reconstruct = |path: &Path| -> String {
+        let mesh = path.with_extension("ply");
+        let o = zeroset([
+            "reconstruct",
+            path.to_str().unwrap(),
+            "-o",
+            mesh.to_str().unwrap(),
+            "--no-preview",
+        ]);
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        stdout(&o)
+    };
+
+    // Every 50th normal missing (8 of them): estimated, outward, and the file untouched.
+    let (dir, path) = temp_file("some.xyzn", &text(&|k| k % 50 == 0));
+    let before = fs::read(&path).unwrap();
+    let said = "8 points without a normal (0 0 0; records 0, 50, 100, 150, 200, …)";
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("8 of them 0 0 0 (no normal there)"),
+        "{described}"
+    );
+    let field = dir.path().join("some.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        path.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("-o"),
+        field.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "{}", stdout(&o));
+    let out = reconstruct(&path);
+    assert!(out.contains(said), "{out}");
+    // Said once: the later stages read the completed copy.
+    assert_eq!(out.matches("without a normal").count(), 1, "{out}");
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+    assert!((volume(&out) / sphere - 1.0).abs() < 0.01, "{out}");
+    let restored = dir.path().join("restored.zsf");
+    let o = zeroset([
+        "restore",
+        path.to_str().unwrap(),
+        "--mode",
+        "denoise",
+        "--mask",
+        "0,0,0:0.2,0.2,0.2",
+        "--coarse",
+        "2,2,2",
+        "-o",
+        restored.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "{}", stdout(&o));
+    assert_eq!(fs::read(&path).unwrap(), before);
+
+    // Every normal 0 0 0: placeholders, read as none.
+    let (dir, path) = temp_file("none.xyzn", &text(&|_| true));
+    let described = stdout(&info(&path, &[]));
+    assert!(described.contains("normals:     all 0 0 0"), "{described}");
+    let field = dir.path().join("none.zsf");
+    let o = fit(&path, &["-o", field.to_str().unwrap()]);
+    assert_one_line_refusal(&o, "has no normals");
+    assert!(!field.exists());
+    let out = reconstruct(&path);
+    assert!(out.contains("every normal is 0 0 0 (placeholders"), "{out}");
+    assert!(out.contains("has no normals: estimating them"), "{out}");
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+    assert!((volume(&out) / sphere - 1.0).abs() < 0.01, "{out}");
+}
+
+#[test]
+fn curves_in_a_plane_are_refused_as_2d_data_and_a_flat_sheet_is_fitted() {
+    // Two circles on z = 0 with normals in the plane (CGAL's circles.ply is such a file).
+    let circles: String = (0..200)
+        .map(|k| {
+            let t = k as f64 * std::f64::consts::TAU / 100.0;
+            let r = if k < 100 { 1.0 } else { 0.4 };
+            let (c, s) = (t.cos(), t.sin());
+            format!("{} {} 0 {c} {s} 0\n", r * c + 0.5, r * s)
+        })
+        .collect();
+    let (dir, path) = temp_file("circles.xyzn", &circles);
+    let out = dir.path().join("c.zsf");
+    for method in ["rbf", "mras"] {
+        let o = zeroset([
+            "fit",
+            path.to_str().unwrap(),
+            "--method",
+            method,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_one_line_refusal(
+            &o,
+            "every point lies on the plane z = 0 and every normal lies in it",
+        );
+        assert!(stderr(&o).contains("value file (.xyv)"), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+    // A flat sheet on z = 0 facing +z is a surface: the check lets it through.
+    let sheet: String = (0..400)
+        .map(|k| {
+            format!(
+                "{} {} 0 0 0 1\n",
+                (k % 20) as f64 * 0.05,
+                (k / 20) as f64 * 0.05
+            )
+        })
+        .collect();
+    let (dir, path) = temp_file("sheet.xyzn", &sheet);
+    let out = dir.path().join("s.zsf");
+    let o = fit(&path, &["-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
 fn fit_refuses_colours_and_non_unit_normals_in_xyz_files() {
     let points = sphere_points(100);
     let colours: String = points

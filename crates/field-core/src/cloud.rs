@@ -41,6 +41,9 @@ pub struct CloudStats<const D: usize> {
     pub non_unit_normals: usize,
     /// Shortest and longest finite normal (`None` without normals).
     pub normal_length_range: Option<(f64, f64)>,
+    /// Normals that are the zero vector (`0 0 0`: what some writers put where a point has no
+    /// normal; counted among [`non_unit_normals`](Self::non_unit_normals) too).
+    pub zero_normals: usize,
     /// Points whose position exactly equals that of an earlier point.
     pub duplicate_points: usize,
 }
@@ -190,7 +193,7 @@ impl<const D: usize> PointCloud<D> {
     pub fn stats(&self) -> CloudStats<D> {
         let finite = |p: &Point<D>| p.iter().all(|v| v.is_finite());
         let non_finite_positions = self.positions.iter().filter(|p| !finite(p)).count();
-        let (mut non_finite_normals, mut non_unit_normals) = (0, 0);
+        let (mut non_finite_normals, mut non_unit_normals, mut zero_normals) = (0, 0, 0);
         let mut range: Option<(f64, f64)> = None;
         if let Some(normals) = &self.normals {
             for n in normals {
@@ -199,6 +202,9 @@ impl<const D: usize> PointCloud<D> {
                     continue;
                 }
                 let len = norm(n);
+                if len == 0.0 {
+                    zero_normals += 1;
+                }
                 if (len - 1.0).abs() > CloudStats::<D>::UNIT_TOLERANCE {
                     non_unit_normals += 1;
                 }
@@ -216,6 +222,7 @@ impl<const D: usize> PointCloud<D> {
             non_finite_normals,
             non_unit_normals,
             normal_length_range: range,
+            zero_normals,
             duplicate_points: count_duplicates(&self.positions),
         }
     }
@@ -258,7 +265,7 @@ mod tests {
             Some(vec![
                 [1.0, 0.0, 0.0],
                 [0.0, 2.0, 0.0],
-                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 0.0],
                 [0.0, 0.0, 1.0],
             ]),
         )
@@ -266,9 +273,10 @@ mod tests {
         let s = cloud.stats();
         assert_eq!(s.count, 4);
         assert_eq!(s.non_finite_positions, 1);
-        assert_eq!(s.non_unit_normals, 1);
+        assert_eq!(s.non_unit_normals, 2);
+        assert_eq!(s.zero_normals, 1);
         assert_eq!(s.duplicate_points, 1);
-        assert_eq!(s.normal_length_range, Some((1.0, 2.0)));
+        assert_eq!(s.normal_length_range, Some((0.0, 2.0)));
         assert_eq!(s.bounds.unwrap().max(), [1.0, 0.0, 0.0]);
     }
 

@@ -142,6 +142,12 @@ pub struct ReconstructArgs {
           allow_hyphen_values = true)]
     pub smoothing: Option<SmoothingArg>,
 
+    /// MRAS fits: the target largest distance from the points to the surface, as a fraction
+    /// of the box diagonal (as `zeroset fit --method mras --tolerance`; default 0.001). On a
+    /// very noisy scan a looser one smooths the bubbles the finest levels make of the noise.
+    #[arg(long, value_name = "T")]
+    pub tolerance: Option<f64>,
+
     /// The fit's stray-point options (as `zeroset fit`'s).
     #[command(flatten)]
     pub outliers: crate::outliers::OutlierArgs,
@@ -419,6 +425,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
              fits by least squares already: drop --smoothing, or give --method rbf"
         );
     }
+    if let (Some(t), ReconstructMethod::Rbf) = (args.tolerance, method) {
+        bail!(
+            "--tolerance {t} applies to MRAS fits, and this reconstruction fits RBF{why}, which \
+             interpolates (or smooths, --smoothing): drop --tolerance, or give --method mras"
+        );
+    }
     let smoothing = args
         .smoothing
         .or(auto_smoothing.then_some(SmoothingArg::Auto));
@@ -487,6 +499,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     }
     if let Some(mu) = smoothing.as_ref().filter(|_| fit_method == "rbf") {
         argv.extend([os("--smoothing"), std::ffi::OsStr::new(mu)]);
+    }
+    let tolerance = args.tolerance.map(|t| t.to_string());
+    if let Some(t) = tolerance.as_ref().filter(|_| fit_method == "mras") {
+        argv.extend([os("--tolerance"), std::ffi::OsStr::new(t)]);
     }
     common(&mut argv, true);
     let mut fit_args = stage::<FitArgs>(&argv)?;

@@ -2642,6 +2642,36 @@ fn curves_in_a_plane_are_refused_as_2d_data_and_a_flat_sheet_is_fitted() {
 }
 
 #[test]
+fn reconstruct_passes_tolerance_to_an_mras_fit_and_refuses_it_for_rbf() {
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(400));
+    let mesh = dir.path().join("sphere.ply");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "reconstruct",
+            path.to_str().unwrap(),
+            "-o",
+            mesh.to_str().unwrap(),
+            "--no-preview",
+            "--force",
+        ];
+        args.extend(extra);
+        zeroset(args)
+    };
+    let o = run(&["--method", "mras", "--tolerance", "0.005"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("tolerance 0.005 of the diagonal"),
+        "{}",
+        stdout(&o)
+    );
+    // 400 clean points: auto fits RBF, which takes no tolerance.
+    fs::remove_file(&mesh).unwrap();
+    let o = run(&["--tolerance", "0.005"]);
+    assert_one_line_refusal(&o, "--tolerance 0.005 applies to MRAS fits");
+    assert!(!mesh.exists());
+}
+
+#[test]
 fn fit_refuses_colours_and_non_unit_normals_in_xyz_files() {
     let points = sphere_points(100);
     let colours: String = points

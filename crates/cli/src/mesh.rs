@@ -427,9 +427,14 @@ fn smc_refusal(args: &MeshArgs, field: &AnyField<3>) -> anyhow::Error {
 
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
+    run_counting(args).map(|_| ())
+}
+
+/// [`run`], returning the written surface's component count (`None` for a 2-D field's curves).
+pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<usize>> {
     let mut out = Say;
     match read_dimension(&args.field) {
-        Ok(2) => return curve(args, &mut out),
+        Ok(2) => return curve(args, &mut out).map(|()| None),
         // An SVG is a curve's output: say why the field cannot be read rather than that the
         // extension is not a mesh's.
         Err(e)
@@ -1024,7 +1029,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         seconds(writing),
         seconds(total.elapsed())
     )?;
-    Ok(())
+    Ok(Some(report.components))
 }
 
 /// `--method smc`: the signed marching cubes where the cost model says they win (or with

@@ -409,6 +409,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     } else {
         (cloud, args.scan.clone(), TemporaryFile::new(None))
     };
+    // The noise `auto` measured, if it did (for the bubbles' hint below).
+    let mut measured = None;
     let Choice {
         method,
         why,
@@ -416,7 +418,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     } = choose(args.method, points, args.smoothing, || {
         // Measured on the points the fit will take, as the RBF fit's own warning is.
         let (kept, _) = remove_outliers(&cloud, args.outliers.ratio()?)?;
-        Ok(crate::noise::measure(&kept))
+        measured = crate::noise::measure(&kept);
+        Ok(measured)
     })?;
     drop(cloud);
     if smoothed && method == ReconstructMethod::Mras {
@@ -555,8 +558,10 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         ]);
     }
     common(&mut argv, args.force);
-    crate::mesh::run(&stage::<MeshArgs>(&argv)?).context("reconstruct, stage 2 (mesh)")?;
+    let components = crate::mesh::run_counting(&stage::<MeshArgs>(&argv)?)
+        .context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));
+    let bubbles = bubbles_hint(method, args.tolerance, components, measured.as_ref());
 
     if let Some(png) = &preview {
         outln!("\n== 3/3 preview");
@@ -596,7 +601,33 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if let Some(f) = &args.field {
         outln!("{:<14}{}", "field", f.display());
     }
+    if let Some(hint) = bubbles {
+        outln!("{:<14}{hint}", "note");
+    }
     Ok(())
+}
+
+/// Where an MRAS reconstruction of a scan `auto` measured noisy came out in several pieces:
+/// one object's scan so noisy that the finest levels followed the noise into bubbles (CGAL's
+/// `sphere_20k_normal.xyz`: 48 components at the default tolerance, one sphere at 1.5–2.5σ̂,
+/// see `fit_mras::scatter_hint`), unless `--tolerance` was given. The hint names about 2σ̂.
+fn bubbles_hint(
+    method: ReconstructMethod,
+    tolerance: Option<f64>,
+    components: Option<usize>,
+    measured: Option<&crate::noise::Measured>,
+) -> Option<String> {
+    let m = measured.filter(|m| m.noise.is_noisy() && m.diagonal > 0.0)?;
+    let pieces = components.filter(|&c| c > 1)?;
+    (method == ReconstructMethod::Mras && tolerance.is_none()).then(|| {
+        format!(
+            "the mesh has {pieces} components: if the scan is of one object, the extra ones are \
+             bubbles of its noise, which the finest MRAS levels followed (scatter σ ≈ {} of the \
+             diagonal); --tolerance {:.1e}, about 2σ, smooths them",
+            g(m.noise.sigma / m.diagonal),
+            2.0 * m.noise.sigma / m.diagonal
+        )
+    })
 }
 
 /// A temporary file beside the output, `.NAME.reconstruct-PID.EXTENSION` (the field, or the
@@ -756,5 +787,25 @@ mod tests {
             assert_eq!(c.method, asked);
             assert!(c.why.is_empty() && !c.auto_smoothing);
         }
+    }
+
+    #[test]
+    fn bubbles_are_hinted_only_for_an_mras_mesh_of_a_noisy_scan_in_pieces() {
+        use ReconstructMethod::{Mras, Rbf};
+        // σ = 0.6 of a spacing of 0.01: 0.006 of the diagonal, so 2σ is 1.2e-2.
+        let noisy = measured(0.6, false);
+        let hint = bubbles_hint(Mras, None, Some(48), Some(&noisy)).expect("a hint");
+        assert!(hint.contains("48 components"), "{hint}");
+        assert!(hint.contains("--tolerance 1.2e-2"), "{hint}");
+        // One piece, a tolerance given, an RBF fit, a clean or unmeasured scan, curves: none.
+        assert_eq!(bubbles_hint(Mras, None, Some(1), Some(&noisy)), None);
+        assert_eq!(bubbles_hint(Mras, Some(0.01), Some(48), Some(&noisy)), None);
+        assert_eq!(bubbles_hint(Rbf, None, Some(48), Some(&noisy)), None);
+        assert_eq!(
+            bubbles_hint(Mras, None, Some(48), Some(&measured(0.1, false))),
+            None
+        );
+        assert_eq!(bubbles_hint(Mras, None, Some(48), None), None);
+        assert_eq!(bubbles_hint(Mras, None, None, Some(&noisy)), None);
     }
 }

@@ -318,6 +318,14 @@ pub enum NormalError {
         /// Its coordinates.
         value: Point<3>,
     },
+    /// A normal with a NaN or infinite component.
+    #[error("point {index}: normal {value:?} is not finite")]
+    NonFiniteNormal {
+        /// The record.
+        index: usize,
+        /// Its components.
+        value: Point<3>,
+    },
     /// A viewpoint with a NaN or infinite coordinate.
     #[error("viewpoint {value:?} is not finite")]
     Viewpoint {
@@ -495,17 +503,27 @@ pub fn estimate_normals_from_scanners(
     estimate(positions, options.neighbours, &Facing::Scanners(scanners))
 }
 
+/// The most rounds [`fill_missing_normals`] spreads signs from point to point before the
+/// points still unsigned take the nearest given normal's.
+pub const FILL_ROUNDS: usize = 64;
+
 /// Completes an oriented cloud whose normals are missing at some points: a normal that is the
 /// zero vector (exactly `0 0 0`, what CGAL, PCL exports and others write where they could not
 /// estimate one) is replaced by the unit normal of the plane through the point and its `k`
-/// nearest others (as [`estimate_normals`] fits it), signed to agree with the sum of the given
-/// normals among those neighbours — or, where none of them has one, with the given normal of
-/// the nearest point that has one. A point whose neighbourhood spans no plane
-/// ([`LINE_PATCH`]) takes that reference direction itself. The given normals are not touched.
-/// Returns the indices of the points completed, increasing (empty where no normal is zero).
+/// nearest others (as [`estimate_normals`] fits it), signed to agree with the normals its
+/// neighbours have, each unit and weighted by `1 − |n · ê|` (`ê` the direction to the
+/// neighbour: one across a thin wall, on the far face, counts less than one along the
+/// surface). Signs spread in rounds: the first from the given normals, each next one also from
+/// the normals completed before it, so a large gap is signed from its rim inward; after
+/// [`FILL_ROUNDS`] rounds, or where no neighbour has a normal, a point takes the sign of the
+/// nearest given normal. A point whose neighbourhood spans no plane ([`LINE_PATCH`]) takes its
+/// reference direction itself. The given normals are not touched. Returns the indices of the
+/// points completed, increasing (empty where no normal is zero).
 ///
-/// Deterministic: exact nearest neighbours ordered by distance, then index; each point
-/// completed from the given normals alone, so the same bits on any number of threads.
+/// Deterministic: exact nearest neighbours (ordered by distance, then index; which of the
+/// points tied at the `k`-th distance are returned is the tree's choice, the same every run),
+/// and each round reads only the normals known before it, so the same bits on any number of
+/// threads.
 ///
 /// ```
 /// use zeroset_bases::normals::fill_missing_normals;
@@ -525,8 +543,9 @@ pub fn estimate_normals_from_scanners(
 /// # Errors
 /// [`NormalError::Normals`] unless there is one normal per point, [`NormalError::NoneGiven`]
 /// where every normal is zero (use [`estimate_normals`]), [`NormalError::NonFinite`] for a
-/// position that is not finite, [`NormalError::Neighbours`] for `k` outside
-/// [`MIN_NEIGHBOURS`]..=[`MAX_NEIGHBOURS`], [`NormalError::TooManyPoints`] past `u32::MAX`.
+/// position or [`NormalError::NonFiniteNormal`] for a normal that is not finite,
+/// [`NormalError::Neighbours`] for `k` outside [`MIN_NEIGHBOURS`]..=[`MAX_NEIGHBOURS`],
+/// [`NormalError::TooManyPoints`] past `u32::MAX`.
 pub fn fill_missing_normals(
     positions: &[Point<3>],
     normals: &mut [Point<3>],
@@ -541,6 +560,15 @@ pub fn fill_missing_normals(
     }
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
+    }
+    if let Some(index) = normals
+        .iter()
+        .position(|v| !v.iter().all(|x| x.is_finite()))
+    {
+        return Err(NormalError::NonFiniteNormal {
+            index,
+            value: normals[index],
+        });
     }
     let is_missing = |v: &Point<3>| v.iter().all(|&x| x == 0.0);
     let missing: Vec<usize> = (0..n).filter(|&i| is_missing(&normals[i])).collect();
@@ -564,13 +592,9 @@ pub fn fill_missing_normals(
     }
     let k = k.min(n - 1);
     let tree = Tree::new_from_slice(positions).expect("at most u32::MAX finite points");
-    let given: Vec<u32> = (0..n as u32)
-        .filter(|&i| !is_missing(&normals[i as usize]))
-        .collect();
-    let given_positions: Vec<Point<3>> = given.iter().map(|&i| positions[i as usize]).collect();
-    let given_tree = Tree::new_from_slice(&given_positions).expect("fewer points than the cloud");
     let wanted = NonZero::new(k + 1).expect("k + 1 > 0");
-    let completed: Vec<Point<3>> = missing
+    // Each missing point's neighbours and plane.
+    let patches: Vec<(Vec<usize>, Option<Point<3>>)> = missing
         .par_iter()
         .map(|&i| {
             let p = &positions[i];
@@ -586,27 +610,164 @@ pub fn fill_missing_normals(
                 .take(k)
                 .collect();
             let plane = plane_normal(p, others.iter().map(|&j| &positions[j]));
-            let around = others
-                .iter()
-                .filter(|&&j| !is_missing(&normals[j]))
-                .fold([0.0; 3], |s, &j| geometry::add(&s, &normals[j]));
-            let reference = if is_missing(&around) {
-                let nearest = given_tree
-                    .query(p)
-                    .nearest_one::<SquaredEuclidean<f64>>()
-                    .execute();
-                normals[given[nearest.item as usize] as usize]
-            } else {
-                around
-            };
-            let length = geometry::norm(&reference);
-            agreeing(plane, &reference.map(|x| x / length))
+            (others, plane)
         })
         .collect();
-    for (&i, normal) in missing.iter().zip(completed) {
-        normals[i] = normal;
+    // The unit normals known so far: the given ones, then the completed ones round by round.
+    let mut known: Vec<Option<Point<3>>> = normals
+        .iter()
+        .map(|v| (!is_missing(v)).then(|| v.map(|x| x / geometry::norm(v))))
+        .collect();
+    let mut pending: Vec<usize> = (0..missing.len()).collect();
+    for _ in 0..FILL_ROUNDS {
+        let signed: Vec<(usize, Point<3>)> = pending
+            .par_iter()
+            .filter_map(|&m| {
+                let (others, plane) = &patches[m];
+                let p = &positions[missing[m]];
+                let reference = others.iter().fold([0.0; 3], |sum, &j| {
+                    let Some(normal) = known[j] else { return sum };
+                    let weight = plane.map_or(1.0, |plane| {
+                        let e = geometry::sub(&positions[j], p);
+                        let length = geometry::norm(&e);
+                        if length > 0.0 {
+                            1.0 - geometry::dot(&plane, &e).abs() / length
+                        } else {
+                            1.0
+                        }
+                    });
+                    geometry::add(&sum, &normal.map(|x| weight * x))
+                });
+                let length = geometry::norm(&reference);
+                (length > 0.0).then(|| (m, agreeing(*plane, &reference.map(|x| x / length))))
+            })
+            .collect();
+        if signed.is_empty() {
+            break;
+        }
+        for (m, normal) in signed {
+            known[missing[m]] = Some(normal);
+        }
+        pending.retain(|&m| known[missing[m]].is_none());
+        if pending.is_empty() {
+            break;
+        }
+    }
+    if !pending.is_empty() {
+        // Out of reach of every sign: the nearest given normal signs them.
+        let given: Vec<u32> = (0..n as u32)
+            .filter(|&i| !is_missing(&normals[i as usize]))
+            .collect();
+        let given_positions: Vec<Point<3>> = given.iter().map(|&i| positions[i as usize]).collect();
+        let given_tree =
+            Tree::new_from_slice(&given_positions).expect("fewer points than the cloud");
+        for &m in &pending {
+            let nearest = given_tree
+                .query(&positions[missing[m]])
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute();
+            let reference = known[given[nearest.item as usize] as usize].expect("a given normal");
+            known[missing[m]] = Some(agreeing(patches[m].1, &reference));
+        }
+    }
+    for &i in &missing {
+        normals[i] = known[i].expect("every missing normal completed");
     }
     Ok(missing)
+}
+
+/// Signs for normals that have a line but no consistent sign — principal-component normals
+/// written unoriented (CGAL's `cube.pwn`: every face's normal along `+x`, `+y` or `+z`, half of
+/// them inward): the orientation of [`estimate_normals`] run on `lines` instead of the planes it
+/// would fit, each large piece turned outward (or towards [`NormalOptions::viewpoint`]). Each
+/// returned normal is `±` its line, scaled to unit length; a zero line counts as a point
+/// without a plane and takes its neighbour's normal. Compare the result's signs with the
+/// lines' own to see whether they were oriented.
+///
+/// ```
+/// use zeroset_bases::normals::{orient_normals, NormalOptions};
+///
+/// // 800 points on the unit sphere, their normals all turned to point up (z ≥ 0).
+/// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+/// let points: Vec<[f64; 3]> = (0..800)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / 800.0;
+///         let r = (1.0 - z * z).sqrt();
+///         [r * (golden * i as f64).cos(), r * (golden * i as f64).sin(), z]
+///     })
+///     .collect();
+/// let up: Vec<[f64; 3]> = points.iter().map(|p| if p[2] < 0.0 { p.map(|x| -x) } else { *p }).collect();
+/// let oriented = orient_normals(&points, &up, &NormalOptions::default())?;
+/// assert_eq!(oriented.turned, 400); // the lower half
+/// assert!(oriented.inconsistent > 300);
+/// assert!(points.iter().zip(&oriented.estimated.normals).all(|(p, n)| p.iter().zip(n).all(|(a, b)| (a - b).abs() < 1e-12)));
+/// # Ok::<(), zeroset_bases::normals::NormalError>(())
+/// ```
+///
+/// # Errors
+/// As [`estimate_normals`]; [`NormalError::Normals`] unless there is one line per point.
+pub fn orient_normals(
+    positions: &[Point<3>],
+    lines: &[Point<3>],
+    options: &NormalOptions,
+) -> Result<Orientation, NormalError> {
+    if lines.len() != positions.len() {
+        return Err(NormalError::Normals {
+            got: lines.len(),
+            points: positions.len(),
+        });
+    }
+    let facing = match options.viewpoint {
+        Some(v) => Facing::Viewpoint(v),
+        None => Facing::Outward,
+    };
+    let (estimated, inconsistent) =
+        estimate_from(positions, options.neighbours, &facing, Some(lines))?;
+    let turned = lines
+        .iter()
+        .zip(&estimated.normals)
+        .filter(|(l, n)| geometry::dot(l, n) < 0.0)
+        .count();
+    Ok(Orientation {
+        estimated,
+        inconsistent,
+        turned,
+    })
+}
+
+/// Normals whose [`Orientation::inconsistent`] share is at least this are unoriented: their
+/// signs about as often against their neighbours' as with them. Measured (2026-12-07,
+/// [`orient_normals`] at 16 neighbours): scans with oriented normals 0% (the bunny, the kitten,
+/// `bunny_2k`, CGAL's `hippo1`, `point_set_3`, `sphere926`, `fin90_with_PCA_normals`),
+/// 0.3–1.4% (CGAL's `ball`, its noisy `sphere_20k_normal`, the bunny with noise of 0.5%), 10%
+/// and 25% where the orientation itself errs on oriented input (CGAL's `oni`, a face with
+/// thin detail; `spheres`, nine spheres, some overlapping, one taken for a cavity — turning
+/// their normals made both worse); unoriented principal-component normals 46.6% (CGAL's
+/// `building`) and 49.9% (`cube.pwn`, a CAD part: each face's normal along `+x`, `+y` or `+z`).
+pub const UNORIENTED_SHARE: f64 = 0.4;
+
+/// What [`orient_normals`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Orientation {
+    /// The oriented normals (each `±` its line, unit) and how they were signed.
+    pub estimated: EstimatedNormals,
+    /// Points whose line's own sign disagrees with the orientation up to one sign per connected
+    /// piece: of each piece, the smaller of the points that agree and those that disagree. 0
+    /// where the lines were oriented consistently (outward or not); about half of a piece whose
+    /// signs are arbitrary.
+    pub inconsistent: usize,
+    /// Points whose returned normal is the opposite of their line.
+    pub turned: usize,
+}
+
+impl Orientation {
+    /// Whether the lines were unoriented: [`inconsistent`](Self::inconsistent) at least
+    /// [`UNORIENTED_SHARE`] of the points.
+    #[must_use]
+    pub fn unoriented(&self) -> bool {
+        let n = self.estimated.normals.len();
+        n > 0 && self.inconsistent as f64 >= UNORIENTED_SHARE * n as f64
+    }
 }
 
 /// Which way each large piece is turned.
@@ -625,6 +786,17 @@ fn estimate(
     k: usize,
     facing: &Facing<'_>,
 ) -> Result<EstimatedNormals, NormalError> {
+    estimate_from(positions, k, facing, None).map(|(estimated, _)| estimated)
+}
+
+/// [`estimate`], with the planes' normals given as `lines` (unit or not; zero for none) where
+/// they are known.
+fn estimate_from(
+    positions: &[Point<3>],
+    k: usize,
+    facing: &Facing<'_>,
+    lines: Option<&[Point<3>]>,
+) -> Result<(EstimatedNormals, usize), NormalError> {
     let n = positions.len();
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
@@ -650,10 +822,16 @@ fn estimate(
         });
     }
     if n > u32::MAX as usize {
-        return Err(NormalError::TooFewPoints { needed: 3, got: n });
+        return Err(NormalError::TooManyPoints { got: n });
     }
     let k = k.min(n - 1);
-    let (neighbours, planes) = tangent_planes(positions, k);
+    let (neighbours, mut planes) = tangent_planes(positions, k);
+    if let Some(lines) = lines {
+        for (plane, line) in planes.iter_mut().zip(lines) {
+            let length = geometry::norm(line);
+            *plane = (length > 0.0 && length.is_finite()).then(|| line.map(|x| x / length));
+        }
+    }
     let undetermined = planes.iter().filter(|p| p.is_none()).count();
     if 2 * undetermined > n {
         return Err(NormalError::Degenerate {
@@ -667,15 +845,32 @@ fn estimate(
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
     let signed = sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
-    Ok(EstimatedNormals {
-        normals,
-        pieces: signed.large,
-        attached: signed.attached,
-        undetermined,
-        facing_scanner: signed.facing_scanner,
-        nested: signed.nested,
-        flat: signed.flat,
-    })
+    // Of each piece, the points on the smaller side of its split by agreement with the lines'
+    // own signs: 0 for lines oriented consistently, whichever way the piece faces.
+    let inconsistent = lines.map_or(0, |lines| {
+        pieces
+            .iter()
+            .map(|piece| {
+                let against = piece
+                    .iter()
+                    .filter(|&&i| geometry::dot(&lines[i as usize], &normals[i as usize]) < 0.0)
+                    .count();
+                against.min(piece.len() - against)
+            })
+            .sum()
+    });
+    Ok((
+        EstimatedNormals {
+            normals,
+            pieces: signed.large,
+            attached: signed.attached,
+            undetermined,
+            facing_scanner: signed.facing_scanner,
+            nested: signed.nested,
+            flat: signed.flat,
+        },
+        inconsistent,
+    ))
 }
 
 /// Each point's `k` nearest others (row `i` of an `n × k` table, nearest first, ties by

@@ -7,7 +7,7 @@ use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
     NormalOptions, default_neighbours, estimate_noise_unoriented, estimate_normals,
-    estimate_normals_from_scanners, fill_missing_normals,
+    estimate_normals_from_scanners, fill_missing_normals, orient_normals,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -730,6 +730,23 @@ fn missing_normals_are_completed_from_their_neighbours_and_the_given_ones_kept()
 }
 
 #[test]
+fn a_few_given_normals_sign_the_whole_cloud_round_by_round() {
+    // 3,000 sphere points with 6 normals given (one of them 100 long): the signs spread from
+    // them outward through the completed ones, and every normal comes out outward.
+    let (points, truth) = sphere(3000, [0.0; 3], 1.0);
+    let mut normals = vec![[0.0; 3]; 3000];
+    for i in (0..3000).step_by(500) {
+        normals[i] = truth[i];
+    }
+    normals[500] = truth[500].map(|x| 100.0 * x);
+    let filled = fill_missing_normals(&points, &mut normals, NORMAL_NEIGHBOURS).expect("filled");
+    assert_eq!(filled.len(), 2994);
+    let (flipped, worst) = against(&normals, &truth);
+    assert_eq!(flipped, 0.0);
+    assert!(worst < 5.0, "{worst}°");
+}
+
+#[test]
 fn completing_normals_refuses_what_it_cannot_complete() {
     let (points, truth) = sphere(200, [0.0; 3], 1.0);
     // Nothing missing: nothing done.
@@ -759,10 +776,103 @@ fn completing_normals_refuses_what_it_cannot_complete() {
         fill_missing_normals(&bad, &mut normals, 16),
         Err(NormalError::NonFinite { index: 5, .. })
     ));
+    let mut infinite = normals.clone();
+    infinite[9][0] = f64::INFINITY;
+    assert!(matches!(
+        fill_missing_normals(&points, &mut infinite, 16),
+        Err(NormalError::NonFiniteNormal { index: 9, .. })
+    ));
     // A point whose neighbours lie on a line takes the reference direction itself.
     let line: Vec<P> = (0..50).map(|i| [i as f64, 0.0, 0.0]).collect();
     let mut up = vec![[0.0, 0.0, 2.0]; 50];
     up[20] = [0.0; 3];
     assert_eq!(fill_missing_normals(&line, &mut up, 4), Ok(vec![20]));
     assert_eq!(up[20], [0.0, 0.0, 1.0]);
+}
+
+/// The closed box `[0, 1] × [0, 1] × [0, 0.6]` sampled on every face every 0.04 (faces' shared
+/// edges once per face), with outward normals.
+fn closed_box() -> (Vec<P>, Vec<P>) {
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
+    let size = [1.0, 1.0, 0.6];
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (nu, nv) = (
+            (size[u] / 0.04f64).round() as usize,
+            (size[v] / 0.04f64).round() as usize,
+        );
+        for side in [0.0, 1.0] {
+            for a in 0..=nu {
+                for b in 0..=nv {
+                    let mut p = [0.0; 3];
+                    p[axis] = side * size[axis];
+                    p[u] = a as f64 * size[u] / nu as f64;
+                    p[v] = b as f64 * size[v] / nv as f64;
+                    let mut n = [0.0; 3];
+                    n[axis] = if side == 0.0 { -1.0 } else { 1.0 };
+                    points.push(p);
+                    normals.push(n);
+                }
+            }
+        }
+    }
+    (points, normals)
+}
+
+#[test]
+fn unoriented_normals_are_told_from_oriented_ones_and_turned_outward() {
+    let options = NormalOptions::default();
+    // Principal-component normals written without a sign: the box's estimated normals (tilted
+    // where a patch straddles two faces, which carries the sign round the edges), each turned
+    // to point to the positive side of its face's axis — the three faces at the origin inward
+    // (CGAL's cube.pwn is such a file).
+    let (points, truth) = closed_box();
+    let estimated = estimate(&points).normals;
+    assert_eq!(against(&estimated, &truth).0, 0.0);
+    let unsigned: Vec<P> = estimated
+        .iter()
+        .zip(&truth)
+        .map(|(e, t)| {
+            let axis = t.map(f64::abs);
+            if dot(e, &axis) < 0.0 {
+                e.map(|x| -x)
+            } else {
+                *e
+            }
+        })
+        .collect();
+    let inward = unsigned
+        .iter()
+        .zip(&truth)
+        .filter(|(u, t)| dot(u, t) < 0.0)
+        .count();
+    assert!(inward * 3 > points.len(), "{inward}");
+    let o = orient_normals(&points, &unsigned, &options).expect("oriented");
+    assert!(o.unoriented(), "{} of {}", o.inconsistent, points.len());
+    let differ = o
+        .estimated
+        .normals
+        .iter()
+        .zip(&estimated)
+        .filter(|(a, b)| dot(a, b) < 1.0 - 1e-12)
+        .count();
+    assert_eq!(differ, 0, "of {}", points.len());
+    assert_eq!(o.turned, inward);
+    // Oriented normals are consistent whichever way they face: the bunny's own, and turned
+    // all inward (then each is turned back outward: that is for the fit's inward warning).
+    let (points, truth) = scan("bunny_points.ply");
+    let o = orient_normals(&points, &truth, &options).expect("oriented");
+    assert_eq!((o.inconsistent, o.turned), (0, 0));
+    assert!(!o.unoriented());
+    let inward: Vec<P> = truth.iter().map(|n| n.map(|x| -x)).collect();
+    let o = orient_normals(&points, &inward, &options).expect("oriented");
+    assert_eq!((o.inconsistent, o.turned), (0, points.len()));
+    assert!(!o.unoriented());
+    assert_eq!(
+        orient_normals(&points, &truth[1..], &options),
+        Err(NormalError::Normals {
+            got: points.len() - 1,
+            points: points.len()
+        })
+    );
 }

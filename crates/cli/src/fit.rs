@@ -784,7 +784,9 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
             )
         })?,
     };
-    let (cloud, _) = crate::normals::complete_normals(path, cloud)?;
+    // Curves in a plane first: a zero normal completed there would stand across the plane.
+    check_not_curves(path, &cloud)?;
+    let (cloud, _) = crate::normals::complete_normals(path, cloud, None)?;
     if let Some(note) = crate::normals::formations_note(path, &options) {
         line("formations", &note);
     }
@@ -807,7 +809,18 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
-    check_not_curves(path, &cloud)?;
+    if let Some(o) = crate::normals::unoriented(&cloud) {
+        line(
+            "normals",
+            &format!(
+                "warning: {}: the fit takes them as they are, and half the surface comes out \
+                 inside out; estimate normals from the positions (`zeroset normals {} -o \
+                 ORIENTED.ply`), or let `zeroset reconstruct` turn these",
+                crate::normals::unoriented_text(path, &o),
+                path.display()
+            ),
+        );
+    }
     Ok(cloud)
 }
 
@@ -820,13 +833,19 @@ pub(crate) fn check_not_curves(path: &Path, cloud: &PointCloud3) -> anyhow::Resu
     let (Some(normals), Some(bounds)) = (cloud.normals(), cloud.bounds()) else {
         return Ok(());
     };
+    // A cloud without extent is `check_extent`'s to refuse.
+    if bounds.diagonal().is_nan() || bounds.diagonal() <= 0.0 {
+        return Ok(());
+    }
     let flat = (0..3).find(|&a| bounds.extent()[a] <= 1e-12 * bounds.diagonal());
     let Some(axis) = flat else {
         return Ok(());
     };
-    let in_plane = normals
-        .iter()
-        .all(|n| n[axis].abs() <= 1e-3 * zeroset_field_core::geometry::norm(n));
+    // Zero normals (none there) lie in every plane; all zero, the cloud has none.
+    let in_plane = normals.iter().any(|n| n.iter().any(|&x| x != 0.0))
+        && normals
+            .iter()
+            .all(|n| n[axis].abs() <= 1e-3 * zeroset_field_core::geometry::norm(n));
     if in_plane {
         let name = ["x", "y", "z"][axis];
         let others = match axis {

@@ -688,8 +688,9 @@ fn write_normals(s: &mut String, stats: &CloudStats<3>) {
         more(
             s,
             &format!(
-                "{zero} of them 0 0 0 (no normal there): fit, restore and reconstruct estimate \
-                 those from their neighbours' plane, signed as the given normals around them"
+                "{zero} of them 0 0 0 (no normal there): fit, restore, studio, reconstruct and \
+                 mesh --scan estimate those from their neighbours' plane, signed as the normals \
+                 around them"
             ),
         );
     }

@@ -153,7 +153,8 @@ pub struct ReconstructArgs {
     pub outliers: crate::outliers::OutlierArgs,
 
     /// Neighbours of each point when the scan has no normals and they are estimated (as
-    /// `zeroset normals --neighbours`; default 16, or 32 for a noisy scan).
+    /// `zeroset normals --neighbours`; default 16, or 32 for a noisy scan), and of each point
+    /// whose normal is 0 0 0 when it is completed (default 16).
     #[arg(long, value_name = "K")]
     pub normal_neighbours: Option<usize>,
 
@@ -334,8 +335,30 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
+    let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+    // Curves in a plane before zero normals are completed (across the plane, there).
+    crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
     let (cloud, completed) =
-        crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+        crate::normals::complete_normals(&args.scan, cloud, args.normal_neighbours)?;
+    // Unoriented normals (signs set arbitrarily): their lines kept, signed by the orientation
+    // propagated over the scan, and the stages given that copy.
+    let (cloud, turned) = match crate::normals::unoriented(&cloud) {
+        Some(o) => {
+            outln!(
+                "{:<14}{}: turned as the orientation propagated over the scan gives (their lines \
+                 kept, each piece outward; {} of them turned)",
+                "normals",
+                crate::normals::unoriented_text(&args.scan, &o),
+                o.turned
+            );
+            let (positions, _) = cloud.into_parts();
+            (
+                zeroset_field_core::PointCloud3::with_normals(positions, o.estimated.normals)?,
+                true,
+            )
+        }
+        None => (cloud, false),
+    };
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
@@ -398,9 +421,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::write_cloud(&path, &oriented)
             .with_context(|| format!("writing the oriented scan {}", path.display()))?;
         (oriented, path, temporary)
-    } else if args.format.is_some() || args.formation.is_some() || completed > 0 {
+    } else if args.format.is_some() || args.formation.is_some() || completed > 0 || turned {
         // The stages read the scan by its extension, and whole: give them a copy that has the
-        // right one, holds the formation asked for and the normals completed above.
+        // right one, holds the formation asked for and the normals completed or turned above.
         let path = temporary_file(&args.output, "ply");
         let temporary = TemporaryFile::new(Some(path.clone()));
         crate::normals::write_cloud(&path, &cloud)

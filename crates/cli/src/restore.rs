@@ -866,7 +866,7 @@ impl Source {
                 )
             })?,
         };
-        let (cloud, _) = crate::normals::complete_normals(input, cloud)?;
+        let (cloud, _) = crate::normals::complete_normals(input, cloud, None)?;
         if cloud.normals().is_none() {
             bail!(
                 "{} has no normals: a point cloud is restored through its tangent-plane field, \

@@ -2535,7 +2535,7 @@ fn zero_normals_are_estimated_where_some_are_missing_and_read_as_none_where_all_
     // Every 50th normal missing (8 of them): estimated, outward, and the file untouched.
     let (dir, path) = temp_file("some.xyzn", &text(&|k| k % 50 == 0));
     let before = fs::read(&path).unwrap();
-    let said = "8 points without a normal (0 0 0; records 0, 50, 100, 150, 200, …)";
+    let said = "8 points without a normal (0 0 0; records 0, 50, 100, 150, 200, …, counted from 0)";
     let described = stdout(&info(&path, &[]));
     assert!(
         described.contains("8 of them 0 0 0 (no normal there)"),
@@ -2607,9 +2607,23 @@ fn curves_in_a_plane_are_refused_as_2d_data_and_a_flat_sheet_is_fitted() {
             format!("{} {} 0 {c} {s} 0\n", r * c + 0.5, r * s)
         })
         .collect();
+    // Two of them with no normal (0 0 0): completed, they would stand across the plane.
+    let gaps: String = circles
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 5 || k == 150 {
+                let xyz: Vec<&str> = l.split_whitespace().take(3).collect();
+                format!("{} 0 0 0\n", xyz.join(" "))
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
     let (dir, path) = temp_file("circles.xyzn", &circles);
+    let (_gaps_dir, gaps) = temp_file("gaps.xyzn", &gaps);
     let out = dir.path().join("c.zsf");
-    for method in ["rbf", "mras"] {
+    for (method, path) in [("rbf", &path), ("mras", &path), ("rbf", &gaps)] {
         let o = zeroset([
             "fit",
             path.to_str().unwrap(),
@@ -2669,6 +2683,70 @@ fn reconstruct_passes_tolerance_to_an_mras_fit_and_refuses_it_for_rbf() {
     let o = run(&["--tolerance", "0.005"]);
     assert_one_line_refusal(&o, "--tolerance 0.005 applies to MRAS fits");
     assert!(!mesh.exists());
+}
+
+#[test]
+fn unoriented_normals_are_turned_by_reconstruct_and_warned_of_by_fit() {
+    // A sphere whose normals all point up (principal components written without a sign, as in
+    // CGAL's cube.pwn): half of them inward.
+    let text: String = sphere_points(800)
+        .iter()
+        .map(|(p, n)| {
+            let n = if n[2] < 0.0 { n.map(|x| -x) } else { *n };
+            format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2])
+        })
+        .collect();
+    let (dir, path) = temp_file("up.xyzn", &text);
+    let mesh = dir.path().join("up.ply");
+    let o = zeroset([
+        "reconstruct",
+        path.to_str().unwrap(),
+        "-o",
+        mesh.to_str().unwrap(),
+        "--no-preview",
+    ]);
+    let out = stdout(&o);
+    assert!(o.status.success(), "{out}{}", stderr(&o));
+    assert!(out.contains("normals look unoriented"), "{out}");
+    assert!(
+        out.contains("(their lines kept, each piece outward; 400 of them turned)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
+        "{out}"
+    );
+    let volume: f64 = out
+        .split("signed volume ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no volume in {out}"));
+    let sphere = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
+    assert!((volume / sphere - 1.0).abs() < 0.01, "{out}");
+    // `fit` fits what it is given, and says so.
+    let field = dir.path().join("up.zsf");
+    let o = zeroset([
+        OsStr::new("fit"),
+        path.as_os_str(),
+        OsStr::new("--method"),
+        OsStr::new("rbf"),
+        OsStr::new("-o"),
+        field.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("normals:      warning: ") && stdout(&o).contains("look unoriented"),
+        "{}",
+        stdout(&o)
+    );
+    // Oriented normals draw no such line.
+    let (_d, good) = temp_file("good.xyzn", &sphere_xyzn(800));
+    let o = fit(
+        &good,
+        &["-o", dir.path().join("good.zsf").to_str().unwrap()],
+    );
+    assert!(!stdout(&o).contains("unoriented"), "{}", stdout(&o));
 }
 
 #[test]

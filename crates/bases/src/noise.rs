@@ -271,17 +271,9 @@ pub(crate) fn estimate_noise_over(
     let local: Vec<(f64, Option<Fitted>)> = queries
         .par_iter()
         .map(|&i| {
-            let mut found = tree
-                .query(&positions[i])
-                .nearest_n::<SquaredEuclidean<f64>>(k)
-                .execute();
-            // Nearest first, ties by index. (Which of the points tied at the last distance come
-            // back is kiddo's choice; the tree, built serially, makes it the same every run.)
-            found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-            let others: Vec<usize> = found
-                .iter()
-                .map(|f| f.item as usize)
-                .filter(|&j| j != i)
+            let others: Vec<usize> = nearest_others(&tree, positions, i, k)
+                .into_iter()
+                .map(|j| j as usize)
                 .collect();
             let spacing = others
                 .iter()
@@ -461,6 +453,27 @@ pub fn object_size(positions: &[Point<3>], spacing: f64) -> Option<f64> {
 }
 
 /// The root of `i`'s piece in the union–find forest `parent` (halving the path on the way).
+/// The `wanted` points of `tree` nearest to `positions[i]`, nearest first, ties by index, less
+/// `i` itself. (Which of the points tied at the last distance come back is kiddo's choice; a
+/// tree built serially makes it the same every run.)
+pub(crate) fn nearest_others(
+    tree: &Tree,
+    positions: &[Point<3>],
+    i: usize,
+    wanted: NonZero<usize>,
+) -> Vec<u32> {
+    let mut found = tree
+        .query(&positions[i])
+        .nearest_n::<SquaredEuclidean<f64>>(wanted)
+        .execute();
+    found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
+    found
+        .iter()
+        .map(|f| f.item)
+        .filter(|&j| j as usize != i)
+        .collect()
+}
+
 pub(crate) fn root(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         parent[i as usize] = parent[parent[i as usize] as usize];

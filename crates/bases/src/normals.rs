@@ -121,7 +121,7 @@ use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{self, Point};
 
-use crate::noise::{Noise, Tree, estimate_noise_over, root};
+use crate::noise::{Noise, Tree, estimate_noise_over, nearest_others, root};
 
 /// The neighbours each point's plane is fitted to by default (the point itself makes 17).
 pub const NORMAL_NEIGHBOURS: usize = 16;
@@ -561,10 +561,7 @@ pub fn fill_missing_normals(
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
     }
-    if let Some(index) = normals
-        .iter()
-        .position(|v| !v.iter().all(|x| x.is_finite()))
-    {
+    if let Some(index) = first_non_finite(normals) {
         return Err(NormalError::NonFiniteNormal {
             index,
             value: normals[index],
@@ -581,10 +578,7 @@ pub fn fill_missing_normals(
     if n > u32::MAX as usize {
         return Err(NormalError::TooManyPoints { got: n });
     }
-    if let Some(index) = positions
-        .iter()
-        .position(|p| !p.iter().all(|x| x.is_finite()))
-    {
+    if let Some(index) = first_non_finite(positions) {
         return Err(NormalError::NonFinite {
             index,
             value: positions[index],
@@ -597,19 +591,12 @@ pub fn fill_missing_normals(
     let patches: Vec<(Vec<usize>, Option<Point<3>>)> = missing
         .par_iter()
         .map(|&i| {
-            let p = &positions[i];
-            let mut found = tree
-                .query(p)
-                .nearest_n::<SquaredEuclidean<f64>>(wanted)
-                .execute();
-            found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-            let others: Vec<usize> = found
-                .iter()
-                .map(|f| f.item as usize)
-                .filter(|&j| j != i)
+            let others: Vec<usize> = nearest_others(&tree, positions, i, wanted)
+                .into_iter()
                 .take(k)
+                .map(|j| j as usize)
                 .collect();
-            let plane = plane_normal(p, others.iter().map(|&j| &positions[j]));
+            let plane = plane_normal(&positions[i], others.iter().map(|&j| &positions[j]));
             (others, plane)
         })
         .collect();
@@ -770,6 +757,11 @@ impl Orientation {
     }
 }
 
+/// The first of `points` with a NaN or infinite coordinate.
+fn first_non_finite(points: &[Point<3>]) -> Option<usize> {
+    points.iter().position(|p| !p.iter().all(|x| x.is_finite()))
+}
+
 /// Which way each large piece is turned.
 enum Facing<'a> {
     /// Outward, by its divergence.
@@ -812,10 +804,7 @@ fn estimate_from(
     if n < 3 {
         return Err(NormalError::TooFewPoints { needed: 3, got: n });
     }
-    if let Some(index) = positions
-        .iter()
-        .position(|p| !p.iter().all(|x| x.is_finite()))
-    {
+    if let Some(index) = first_non_finite(positions) {
         return Err(NormalError::NonFinite {
             index,
             value: positions[index],
@@ -882,17 +871,8 @@ fn tangent_planes(positions: &[Point<3>], k: usize) -> (Vec<u32>, Vec<Option<Poi
         .par_iter()
         .enumerate()
         .map(|(i, p)| {
-            let mut found = tree
-                .query(p)
-                .nearest_n::<SquaredEuclidean<f64>>(wanted)
-                .execute();
-            found.sort_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-            let others: Vec<u32> = found
-                .iter()
-                .map(|f| f.item)
-                .filter(|&j| j as usize != i)
-                .take(k)
-                .collect();
+            let mut others = nearest_others(&tree, positions, i, wanted);
+            others.truncate(k);
             let plane = plane_normal(p, others.iter().map(|&j| &positions[j as usize]));
             (others, plane)
         })

@@ -725,12 +725,13 @@ pub fn orient_normals(
 /// Normals whose [`Orientation::inconsistent`] share is at least this are unoriented: their
 /// signs about as often against their neighbours' as with them. Measured (2026-12-07,
 /// [`orient_normals`] at 16 neighbours): scans with oriented normals 0% (the bunny, the kitten,
-/// `bunny_2k`, CGAL's `hippo1`, `point_set_3`, `sphere926`, `fin90_with_PCA_normals`),
-/// 0.3–1.4% (CGAL's `ball`, its noisy `sphere_20k_normal`, the bunny with noise of 0.5%), 10%
-/// and 25% where the orientation itself errs on oriented input (CGAL's `oni`, a face with
-/// thin detail; `spheres`, nine spheres, some overlapping, one taken for a cavity — turning
-/// their normals made both worse); unoriented principal-component normals 46.6% (CGAL's
-/// `building`) and 49.9% (`cube.pwn`, a CAD part: each face's normal along `+x`, `+y` or `+z`).
+/// `bunny_2k`, CGAL's `hippo1`, `oni`, `point_set_3`; closed boxes 1 × 1 × 0.01–0.05 sampled
+/// every 0.01, walls thinner than their sampling), 0.04–0.3% (CGAL's noisy
+/// `sphere_20k_normal`, `ball`), 9.9% (CGAL's `building`, an open façade), 25% where the
+/// orientation itself errs (CGAL's `spheres`: overlapping spheres, one taken for a cavity);
+/// unoriented normals 45% (the bunny's turned to face up), 49.9% (CGAL's `cube.pwn`, a CAD
+/// part whose every face's normal points along `+x`, `+y` or `+z`; the bunny's with a random
+/// half turned), 50% (a sphere's turned to face up).
 pub const UNORIENTED_SHARE: f64 = 0.4;
 
 /// What [`orient_normals`] found.
@@ -829,7 +830,7 @@ fn estimate_from(
             neighbours: k,
         });
     }
-    let forest = spanning_forest(positions, &neighbours, k, &planes);
+    let forest = spanning_forest(positions, &neighbours, k, &planes, lines.is_some());
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
     let pieces = orient_pieces(&forest, &planes, &mut normals);
@@ -917,8 +918,19 @@ fn plane_normal<'a>(p: &Point<3>, others: impl Iterator<Item = &'a Point<3>>) ->
 
 /// The cost of propagating a sign along the edge `i`–`j`: `1 − |n_i · n_j|` plus how far
 /// the edge runs along the two normals, `½ (|n_i · ê| + |n_j · ê|)` (see the
-/// [module docs](self)); 3, above every other, where either plane is missing.
-fn edge_cost(positions: &[Point<3>], planes: &[Option<Point<3>>], i: usize, j: usize) -> f64 {
+/// [module docs](self)); 3, above every other, where either plane is missing. With `signed`
+/// planes (given normals, [`orient_normals`]), an edge between normals that point apart
+/// (`n_i · n_j < −½`: the two faces of a thin wall) costs 3 too: crossing a wall thinner than
+/// its rim is round costs about 1 or less against the rim's 1.7, and the walk would carry one
+/// face's sign onto the other (a closed box 1 × 1 × 0.02 sampled every 0.01 with its own
+/// normals read 47% against the orientation — as unoriented normals do).
+fn edge_cost(
+    positions: &[Point<3>],
+    planes: &[Option<Point<3>>],
+    signed: bool,
+    i: usize,
+    j: usize,
+) -> f64 {
     let (Some(a), Some(b)) = (&planes[i], &planes[j]) else {
         return 3.0;
     };
@@ -929,7 +941,11 @@ fn edge_cost(positions: &[Point<3>], planes: &[Option<Point<3>>], i: usize, j: u
     } else {
         0.0
     };
-    1.0 - geometry::dot(a, b).abs() + across
+    let cos = geometry::dot(a, b);
+    if signed && cos < -0.5 {
+        return 3.0;
+    }
+    1.0 - cos.abs() + across
 }
 
 /// The minimum spanning forest of the `k`-nearest-neighbour graph under [`edge_cost`]
@@ -939,6 +955,7 @@ fn spanning_forest(
     neighbours: &[u32],
     k: usize,
     planes: &[Option<Point<3>>],
+    signed: bool,
 ) -> Vec<Vec<u32>> {
     let n = positions.len();
     // Each pair once: from its lower end, or from its upper end where the lower one's row does
@@ -953,7 +970,11 @@ fn spanning_forest(
                 .filter(move |&j| j > i || (j < i && !row(j).contains(&(i as u32))))
                 .map(move |j| {
                     let (a, b) = (i.min(j), i.max(j));
-                    (edge_cost(positions, planes, a, b), a as u32, b as u32)
+                    (
+                        edge_cost(positions, planes, signed, a, b),
+                        a as u32,
+                        b as u32,
+                    )
                 })
         })
         .collect();

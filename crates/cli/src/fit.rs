@@ -206,6 +206,11 @@ pub struct FitArgs {
     #[arg(skip)]
     pub points_shown_as: Option<String>,
 
+    /// Whether the normals' orientation was read already (`zeroset reconstruct` reads it, and
+    /// turns unoriented normals, before its fit stage); not an option.
+    #[arg(skip)]
+    pub orientation_checked: bool,
+
     /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel
     /// rational algebraic splines, stored at low rank).
     #[arg(long, value_enum)]
@@ -809,7 +814,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
-    if let Some(o) = crate::normals::unoriented(&cloud) {
+    if let Some(o) = crate::normals::unoriented(&cloud).filter(|_| !args.orientation_checked) {
         line(
             "normals",
             &format!(

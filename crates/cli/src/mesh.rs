@@ -432,8 +432,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     run_counting(args).map(|_| ())
 }
 
-/// [`run`], returning the written surface's component count (`None` for a 2-D field's curves).
-pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<usize>> {
+/// [`run`], returning the triangles of each of the written surface's components, largest
+/// first (`None` for a 2-D field's curves).
+pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<Vec<usize>>> {
     let mut out = Say;
     match read_dimension(&args.field) {
         Ok(2) => return curve(args, &mut out).map(|()| None),
@@ -1031,7 +1032,13 @@ pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<usize>> {
         seconds(writing),
         seconds(total.elapsed())
     )?;
-    Ok(Some(report.components))
+    let (labels, count) = components(&mesh);
+    let mut sizes = vec![0; count];
+    for label in labels {
+        sizes[label as usize] += 1;
+    }
+    sizes.sort_unstable_by(|a, b| b.cmp(a));
+    Ok(Some(sizes))
 }
 
 /// `--method smc`: the signed marching cubes where the cost model says they win (or with

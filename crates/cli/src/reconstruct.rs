@@ -336,6 +336,14 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
     let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+    if let (Some(v), Some(_)) = (args.viewpoint, cloud.normals()) {
+        bail!(
+            "--viewpoint {v} turns estimated normals, but {} has normals of its own, which \
+             the fit uses as they are (drop --viewpoint, or give the positions only to have \
+             them estimated)",
+            args.scan.display()
+        );
+    }
     // Curves in a plane before zero normals are completed (across the plane, there).
     crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
     let (cloud, completed) =
@@ -362,14 +370,6 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
     // beside the output, removed however the command ends).
-    if let (Some(v), Some(_)) = (args.viewpoint, cloud.normals()) {
-        bail!(
-            "--viewpoint {v} turns estimated normals, but {} has normals of its own, which \
-             the fit uses as they are (drop --viewpoint, or give the positions only to have \
-             them estimated)",
-            args.scan.display()
-        );
-    }
     // The isolated points set aside before normals are estimated (`None`: the scan has its own).
     let mut isolated_count = None;
     let (cloud, scan, _oriented) = if cloud.normals().is_none() {
@@ -535,6 +535,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if scan != args.scan {
         fit_args.points_shown_as = Some(shown);
     }
+    // Their orientation was read above (and turned where they were unoriented).
+    fit_args.orientation_checked = true;
     crate::fit::run(&fit_args).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));
 
@@ -584,7 +586,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let components = crate::mesh::run_counting(&stage::<MeshArgs>(&argv)?)
         .context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));
-    let bubbles = bubbles_hint(method, args.tolerance, components, measured.as_ref());
+    let bubbles = bubbles_hint(
+        method,
+        args.tolerance,
+        components.as_deref(),
+        measured.as_ref(),
+    );
 
     if let Some(png) = &preview {
         outln!("\n== 3/3 preview");
@@ -630,23 +637,41 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Where an MRAS reconstruction of a scan `auto` measured noisy came out in several pieces:
+/// A component under this share of the largest one's triangles is small enough to be a bubble
+/// ([`bubbles_hint`]).
+const BUBBLE_SHARE: f64 = 0.05;
+
+/// Where an MRAS reconstruction of a scan `auto` measured noisy (not two sheets: a thin wall)
+/// came out with small pieces beside its largest (under [`BUBBLE_SHARE`] of its triangles):
 /// one object's scan so noisy that the finest levels followed the noise into bubbles (CGAL's
 /// `sphere_20k_normal.xyz`: 48 components at the default tolerance, one sphere at 1.5–2.5σ̂,
 /// see `fit_mras::scatter_hint`), unless `--tolerance` was given. The hint names about 2σ̂.
+/// `components`: each component's triangles, largest first.
 fn bubbles_hint(
     method: ReconstructMethod,
     tolerance: Option<f64>,
-    components: Option<usize>,
+    components: Option<&[usize]>,
     measured: Option<&crate::noise::Measured>,
 ) -> Option<String> {
-    let m = measured.filter(|m| m.noise.is_noisy() && m.diagonal > 0.0)?;
-    let pieces = components.filter(|&c| c > 1)?;
+    let m = measured
+        .filter(|m| m.noise.is_noisy() && !m.noise.two_sheets_explain() && m.diagonal > 0.0)?;
+    let sizes = components?;
+    let largest = *sizes.first()?;
+    let small = sizes
+        .iter()
+        .filter(|&&t| (t as f64) < BUBBLE_SHARE * largest as f64)
+        .count();
+    let pieces = sizes.len();
+    if small == 0 {
+        return None;
+    }
     (method == ReconstructMethod::Mras && tolerance.is_none()).then(|| {
         format!(
-            "the mesh has {pieces} components: if the scan is of one object, the extra ones are \
-             bubbles of its noise, which the finest MRAS levels followed (scatter σ ≈ {} of the \
-             diagonal); --tolerance {:.1e}, about 2σ, smooths them",
+            "the mesh has {pieces} components, {small} of them under {}% of the largest: if the \
+             scan is of one object, they are bubbles of its noise, which the finest MRAS levels \
+             followed (scatter σ ≈ {} of the diagonal); --tolerance {:.1e}, about 2σ, smooths \
+             them",
+            100.0 * BUBBLE_SHARE,
             g(m.noise.sigma / m.diagonal),
             2.0 * m.noise.sigma / m.diagonal
         )
@@ -817,18 +842,32 @@ mod tests {
         use ReconstructMethod::{Mras, Rbf};
         // σ = 0.6 of a spacing of 0.01: 0.006 of the diagonal, so 2σ is 1.2e-2.
         let noisy = measured(0.6, false);
-        let hint = bubbles_hint(Mras, None, Some(48), Some(&noisy)).expect("a hint");
-        assert!(hint.contains("48 components"), "{hint}");
+        // A large piece and 47 small ones.
+        let mut pieces = vec![100_000];
+        pieces.extend([400; 47]);
+        let pieces = Some(pieces.as_slice());
+        let hint = bubbles_hint(Mras, None, pieces, Some(&noisy)).expect("a hint");
+        assert!(
+            hint.contains("48 components, 47 of them under 5%"),
+            "{hint}"
+        );
         assert!(hint.contains("--tolerance 1.2e-2"), "{hint}");
-        // One piece, a tolerance given, an RBF fit, a clean or unmeasured scan, curves: none.
-        assert_eq!(bubbles_hint(Mras, None, Some(1), Some(&noisy)), None);
-        assert_eq!(bubbles_hint(Mras, Some(0.01), Some(48), Some(&noisy)), None);
-        assert_eq!(bubbles_hint(Rbf, None, Some(48), Some(&noisy)), None);
+        // One piece, pieces of like size (two objects), a tolerance given, an RBF fit, a clean,
+        // two-sheet (a thin wall) or unmeasured scan, curves: none.
         assert_eq!(
-            bubbles_hint(Mras, None, Some(48), Some(&measured(0.1, false))),
+            bubbles_hint(Mras, None, Some(&[100_000]), Some(&noisy)),
             None
         );
-        assert_eq!(bubbles_hint(Mras, None, Some(48), None), None);
+        let two = Some([100_000, 90_000].as_slice());
+        assert_eq!(bubbles_hint(Mras, None, two, Some(&noisy)), None);
+        assert_eq!(bubbles_hint(Mras, Some(0.01), pieces, Some(&noisy)), None);
+        assert_eq!(bubbles_hint(Rbf, None, pieces, Some(&noisy)), None);
+        let clean = measured(0.1, false);
+        assert_eq!(bubbles_hint(Mras, None, pieces, Some(&clean)), None);
+        let sheets = measured(0.6, true);
+        assert!(sheets.noise.is_noisy() && sheets.noise.two_sheets_explain());
+        assert_eq!(bubbles_hint(Mras, None, pieces, Some(&sheets)), None);
+        assert_eq!(bubbles_hint(Mras, None, pieces, None), None);
         assert_eq!(bubbles_hint(Mras, None, None, Some(&noisy)), None);
     }
 }

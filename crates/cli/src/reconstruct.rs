@@ -336,6 +336,11 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
     let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+    // Curves in a plane before zero normals are completed (across the plane, there).
+    crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
+    let (cloud, completed) =
+        crate::normals::complete_normals(&args.scan, cloud, args.normal_neighbours)?;
+    // (After the completion: normals all 0 0 0 are none, and --viewpoint turns estimated ones.)
     if let (Some(v), Some(_)) = (args.viewpoint, cloud.normals()) {
         bail!(
             "--viewpoint {v} turns estimated normals, but {} has normals of its own, which \
@@ -344,10 +349,6 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
             args.scan.display()
         );
     }
-    // Curves in a plane before zero normals are completed (across the plane, there).
-    crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
-    let (cloud, completed) =
-        crate::normals::complete_normals(&args.scan, cloud, args.normal_neighbours)?;
     // Unoriented normals (signs set arbitrarily): their lines kept, signed by the orientation
     // propagated over the scan, and the stages given that copy.
     let (cloud, turned) = match crate::normals::unoriented(&cloud) {
@@ -369,8 +370,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     };
     let points = cloud.len();
     // A scan without normals: estimate them, and fit the oriented copy (a temporary file
-    // beside the output, removed however the command ends).
-    // The isolated points set aside before normals are estimated (`None`: the scan has its own).
+    // beside the output, removed however the command ends). The isolated points set aside
+    // before normals are estimated (`None`: the scan has its own).
     let mut isolated_count = None;
     let (cloud, scan, _oriented) = if cloud.normals().is_none() {
         crate::fit::check_extent(&args.scan, &cloud)?;

@@ -2589,6 +2589,17 @@ fn zero_normals_are_estimated_where_some_are_missing_and_read_as_none_where_all_
     let out = reconstruct(&path);
     assert!(out.contains("every normal is 0 0 0 (placeholders"), "{out}");
     assert!(out.contains("has no normals: estimating them"), "{out}");
+    // They are none: --viewpoint, which turns estimated normals, is taken.
+    let o = zeroset([
+        "reconstruct",
+        path.to_str().unwrap(),
+        "-o",
+        dir.path().join("facing.ply").to_str().unwrap(),
+        "--viewpoint",
+        "0,0,10",
+        "--no-preview",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
         "{out}"

@@ -815,13 +815,7 @@ fn estimate_from(
         return Err(NormalError::TooManyPoints { got: n });
     }
     let k = k.min(n - 1);
-    let (neighbours, mut planes) = tangent_planes(positions, k);
-    if let Some(lines) = lines {
-        for (plane, line) in planes.iter_mut().zip(lines) {
-            let length = geometry::norm(line);
-            *plane = (length > 0.0 && length.is_finite()).then(|| line.map(|x| x / length));
-        }
-    }
+    let (neighbours, planes) = tangent_planes(positions, k, lines);
     let undetermined = planes.iter().filter(|p| p.is_none()).count();
     if 2 * undetermined > n {
         return Err(NormalError::Degenerate {
@@ -864,8 +858,13 @@ fn estimate_from(
 }
 
 /// Each point's `k` nearest others (row `i` of an `n × k` table, nearest first, ties by
-/// index) and its plane's unit normal (`None` where the patch spans no plane).
-fn tangent_planes(positions: &[Point<3>], k: usize) -> (Vec<u32>, Vec<Option<Point<3>>>) {
+/// index) and its plane's unit normal (`None` where the patch spans no plane), or its line of
+/// `lines` scaled to unit length where they are given (`None` for a zero line).
+fn tangent_planes(
+    positions: &[Point<3>],
+    k: usize,
+    lines: Option<&[Point<3>]>,
+) -> (Vec<u32>, Vec<Option<Point<3>>>) {
     let tree = Tree::new_from_slice(positions).expect("at most u32::MAX finite points");
     let wanted = NonZero::new(k + 1).expect("k + 1 > 0");
     let rows: Vec<(Vec<u32>, Option<Point<3>>)> = positions
@@ -874,7 +873,13 @@ fn tangent_planes(positions: &[Point<3>], k: usize) -> (Vec<u32>, Vec<Option<Poi
         .map(|(i, p)| {
             let mut others = nearest_others(&tree, positions, i, wanted);
             others.truncate(k);
-            let plane = plane_normal(p, others.iter().map(|&j| &positions[j as usize]));
+            let plane = match lines {
+                Some(lines) => {
+                    let length = geometry::norm(&lines[i]);
+                    (length > 0.0 && length.is_finite()).then(|| lines[i].map(|x| x / length))
+                }
+                None => plane_normal(p, others.iter().map(|&j| &positions[j as usize])),
+            };
             (others, plane)
         })
         .collect();

@@ -814,7 +814,10 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
-    if let Some(o) = crate::normals::unoriented(&cloud).filter(|_| !args.orientation_checked) {
+    let unoriented = (!args.orientation_checked)
+        .then(|| crate::normals::unoriented(&cloud))
+        .flatten();
+    if let Some(o) = unoriented {
         line(
             "normals",
             &format!(
@@ -861,9 +864,9 @@ pub(crate) fn check_not_curves(path: &Path, cloud: &PointCloud3) -> anyhow::Resu
         bail!(
             "{}: every point lies on the plane {name} = {} and every normal lies in it: these are \
              samples of curves in that plane (2-D data), which bound no solid in space. Fit them \
-             as 2-D constraints: a value file (.xyv) of `{others} value` lines (0 at each point, ±d at \
-             the point moved ±d along its normal), which `zeroset fit` and `zeroset mesh` (SVG) \
-             take; or, for a flat sheet, give normals across the plane",
+             as 2-D constraints: a value file (.xyv) of `{others} value` lines (0 at each point, \
+             ±d at the point moved ±d along its normal), which `zeroset fit` and `zeroset mesh` \
+             (SVG) take; or, for a flat sheet, give normals across the plane",
             path.display(),
             g(bounds.min()[axis])
         );

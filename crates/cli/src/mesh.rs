@@ -429,12 +429,18 @@ fn smc_refusal(args: &MeshArgs, field: &AnyField<3>) -> anyhow::Error {
 
 /// Runs `zeroset mesh`.
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
-    run_counting(args).map(|_| ())
+    mesh_and_count(args, false).map(|_| ())
 }
 
 /// [`run`], returning the triangles of each of the written surface's components, largest
 /// first (`None` for a 2-D field's curves).
 pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<Vec<usize>>> {
+    mesh_and_count(args, true)
+}
+
+/// [`run`]; with `count`, the components' triangles as [`run_counting`] gives them (a second
+/// labelling of the mesh, which plain `zeroset mesh` does not pay for).
+fn mesh_and_count(args: &MeshArgs, count: bool) -> anyhow::Result<Option<Vec<usize>>> {
     let mut out = Say;
     match read_dimension(&args.field) {
         Ok(2) => return curve(args, &mut out).map(|()| None),
@@ -1032,6 +1038,9 @@ pub(crate) fn run_counting(args: &MeshArgs) -> anyhow::Result<Option<Vec<usize>>
         seconds(writing),
         seconds(total.elapsed())
     )?;
+    if !count {
+        return Ok(None);
+    }
     let (labels, count) = components(&mesh);
     let mut sizes = vec![0; count];
     for label in labels {

@@ -1220,6 +1220,14 @@ fn print_offset(auto: bool, r: &OffsetReport, points: usize) -> Vec<String> {
         more(&format!("warning: {w}"));
     }
     print_merged(r.merged);
+    if r.touching > 0 {
+        more(&format!(
+            "({} of them at a place where an earlier point's normal points the other way: two \
+             sheets touching there (a mesh touching itself, a thin sheet's two faces, a sharp \
+             edge's split normals), fitted with the outside on both sides)",
+            r.touching
+        ));
+    }
     let thin = thin_wall_warning(r.thin_wall, points);
     if let Some(w) = &thin {
         more(&format!("warning: {w}"));

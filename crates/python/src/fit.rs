@@ -264,6 +264,7 @@ pub(crate) fn fit_rbf<'py>(
                 ("offsets_shrunk", ReportValue::Int(o.shrunk)),
                 ("offsets_dropped", ReportValue::Int(o.dropped)),
                 ("merged", ReportValue::Int(o.merged)),
+                ("touching", ReportValue::Int(o.touching)),
             ]);
             c
         };

@@ -85,6 +85,14 @@ pub struct OffsetReport {
     /// a wall (or another thin part) thinner than the points' spacing, which an interpolant
     /// between its two faces thickens, pits or breaks.
     pub thin_wall: usize,
+    /// Places where points merged into one ([`MERGE_DISTANCE`]) have normals that point apart
+    /// (negative dot product): two sheets back to back — a closed mesh touching itself (two
+    /// legs meeting at a vertex each has), a thin sheet's two faces, or a sharp edge whose
+    /// faces keep their own vertices. Each is fitted as a place with the outside on both
+    /// sides: value 0, `+ε` along each of the two normals, no inside offset (it would lie
+    /// where the other's outside offset does). A flipped normal at a repeated sample reads
+    /// the same way.
+    pub touching: usize,
 }
 
 /// How many nearest neighbours [`OffsetReport::opposed_normals`] compares each normal with.
@@ -107,8 +115,9 @@ pub const WALL_FACES: f64 = -0.7;
 /// Input points closer than this fraction of the bounding-box diagonal are one point to
 /// [`Constraints::off_surface`] (the first is kept, with its normal): about a float32
 /// coordinate's resolution, where a scanner's or a merge's repeated samples are the same
-/// measurement. Two of them with opposite normals are refused
-/// ([`RbfError::ConflictingDuplicates`]).
+/// measurement. Two of them whose normals point apart are a place where two sheets touch
+/// ([`OffsetReport::touching`]; refused by [`Constraints::hermite`], whose gradient there
+/// would be both normals: [`RbfError::ConflictingDuplicates`]).
 pub const MERGE_DISTANCE: f64 = 1e-7;
 
 /// An ordered list of constraints.
@@ -187,13 +196,14 @@ impl<const D: usize> Constraints<D> {
 
     /// Value 0 at every point and `±εᵢ` at `pᵢ ± εᵢ nᵢ` (Carr et al.), `εᵢ` as `offset` says;
     /// see the [module docs](self). Normals are normalised here; points within
-    /// [`MERGE_DISTANCE`] of an earlier one are merged into it ([`OffsetReport::merged`]).
+    /// [`MERGE_DISTANCE`] of an earlier one are merged into it ([`OffsetReport::merged`]),
+    /// and where their normals point apart the place is fitted as two sheets touching
+    /// ([`OffsetReport::touching`]).
     ///
     /// # Errors
     /// [`RbfError::Empty`], [`RbfError::NonFinite`], [`RbfError::ZeroNormal`], a cloud
     /// without normals or (with the automatic offset) without extent as
-    /// [`RbfError::Degenerate`], [`RbfError::InvalidOffset`],
-    /// [`RbfError::ConflictingDuplicates`], and for a fixed offset
+    /// [`RbfError::Degenerate`], [`RbfError::InvalidOffset`], and for a fixed offset
     /// [`RbfError::OffsetCrossesSurface`].
     pub fn off_surface(
         cloud: &PointCloud<D>,
@@ -219,12 +229,14 @@ impl<const D: usize> Constraints<D> {
             return Err(RbfError::InvalidOffset(initial));
         }
         let all = index(points)?;
-        let kept = distinct(
-            &all,
-            points,
-            MERGE_DISTANCE * diagonal,
-            opposite_normals(points, &normals),
-        )?;
+        // Of each kept point, the first merged into it whose normal points against its own.
+        let mut touching: Vec<Option<usize>> = vec![None; points.len()];
+        let kept = distinct(&all, points, MERGE_DISTANCE * diagonal, |i, j| {
+            if touching[i].is_none() && dot(&normals[i], &normals[j]) < 0.0 {
+                touching[i] = Some(j);
+            }
+            Ok(())
+        })?;
         let positions: Vec<Point<D>> = kept.iter().map(|&i| points[i]).collect();
         // The offset test's tree: over the kept points (the same as `all` when none merged).
         let tree = if kept.len() == points.len() {
@@ -240,13 +252,19 @@ impl<const D: usize> Constraints<D> {
             initial,
             smallest: initial,
             merged: points.len() - kept.len(),
+            touching: touching.iter().flatten().count(),
             ..OffsetReport::default()
         };
         (report.opposed_normals, report.thin_wall) =
             opposed_normals(&tree, &positions, &kept, &normals);
         for (k, (p, &i)) in positions.iter().zip(&kept).enumerate() {
-            let n = &normals[i];
-            for side in [1.0, -1.0] {
+            // Outside along the normal and inside against it; where two sheets touch, outside
+            // along each one's normal.
+            let sides = match touching[i] {
+                Some(j) => [(normals[i], 1.0), (normals[j], 1.0)],
+                None => [(normals[i], 1.0), (normals[i], -1.0)],
+            };
+            for (n, side) in sides {
                 let mut eps = initial;
                 let mut placed = false;
                 for attempt in 0..=halvings {
@@ -354,14 +372,15 @@ impl<const D: usize> Constraints<D> {
             points,
             MERGE_DISTANCE * diagonal,
             |i, j| {
-                ((values[i] - values[j]).abs() > 1e-12 * scale).then(|| {
-                    RbfError::ConflictingValues {
+                if (values[i] - values[j]).abs() > 1e-12 * scale {
+                    return Err(RbfError::ConflictingValues {
                         first: i,
                         second: j,
                         point: points[i].to_vec(),
                         values: (values[i], values[j]),
-                    }
-                })
+                    });
+                }
+                Ok(())
             },
         )?;
         let mut c = Self::new();
@@ -379,14 +398,15 @@ fn index<const D: usize>(points: &[Point<D>]) -> Result<Tree<D>, RbfError> {
     })
 }
 
-/// The indices of the points to keep, in order (`tree` indexes `points`): each point closer than `radius` to an earlier
-/// kept one is merged into it (exact duplicates always), unless `conflict(kept, other)` says
-/// the two cannot be one ([`opposite_normals`], different values).
+/// The indices of the points to keep, in order (`tree` indexes `points`): each point closer
+/// than `radius` to an earlier kept one is merged into it (exact duplicates always), told to
+/// `merge(kept, other)`, whose error says the two cannot be one ([`opposite_normals`],
+/// different values).
 fn distinct<const D: usize>(
     tree: &Tree<D>,
     points: &[Point<D>],
     radius: f64,
-    conflict: impl Fn(usize, usize) -> Option<RbfError>,
+    mut merge: impl FnMut(usize, usize) -> Result<(), RbfError>,
 ) -> Result<Vec<usize>, RbfError> {
     // `within` keeps distances below the bound: the smallest positive one catches exact
     // duplicates when the radius is 0.
@@ -403,29 +423,36 @@ fn distinct<const D: usize>(
             if j <= i || merged[j] {
                 continue;
             }
-            if let Some(e) = conflict(i, j) {
-                return Err(e);
-            }
+            merge(i, j)?;
             merged[j] = true;
         }
     }
     Ok(kept)
 }
 
-/// Opposite normals at one place: the inside and the outside cannot both be right.
+/// Normals that point apart at one place, refused where the gradient is prescribed (it cannot
+/// be both).
 fn opposite_normals<const D: usize>(
     points: &[Point<D>],
     normals: &[Point<D>],
-) -> impl Fn(usize, usize) -> Option<RbfError> {
+) -> impl Fn(usize, usize) -> Result<(), RbfError> {
     move |i, j| {
-        let dot: f64 = (0..D).map(|a| normals[i][a] * normals[j][a]).sum();
-        (dot < 0.0).then(|| RbfError::ConflictingDuplicates {
-            first: i,
-            second: j,
-            point: points[i].to_vec(),
-            dot,
-        })
+        let dot = dot(&normals[i], &normals[j]);
+        if dot < 0.0 {
+            return Err(RbfError::ConflictingDuplicates {
+                first: i,
+                second: j,
+                point: points[i].to_vec(),
+                dot,
+            });
+        }
+        Ok(())
     }
+}
+
+/// `a · b`.
+fn dot<const D: usize>(a: &Point<D>, b: &Point<D>) -> f64 {
+    (0..D).map(|x| a[x] * b[x]).sum()
 }
 
 /// How many of the kept points have a normal with a negative dot product with more than half
@@ -442,7 +469,6 @@ fn opposed_normals<const D: usize>(
     let Some(k) = std::num::NonZero::new(k) else {
         return (0, 0);
     };
-    let dot = |a: &Point<D>, b: &Point<D>| (0..D).map(|x| a[x] * b[x]).sum::<f64>();
     let mut thin = 0;
     let opposed = positions
         .iter()
@@ -596,7 +622,7 @@ mod tests {
     }
 
     #[test]
-    fn repeated_samples_are_merged_and_opposite_ones_refused() {
+    fn repeated_samples_are_merged_and_opposite_ones_touch() {
         let cloud = two_sheets();
         let (base, _) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.2 }).unwrap();
         // Every point again: exactly, and moved by a tenth of the merge distance.
@@ -633,15 +659,34 @@ mod tests {
             .map(|(a, b)| squared(&a.point, &b.point).sqrt())
             .fold(0.0, f64::max);
         assert!(moved < 1e-6, "constraints moved by {moved:.1e}");
-        // One copy with its normal reversed: refused, naming both records.
+        // One copy with its normal reversed: two sheets touching there — the outside on both
+        // sides (+ε along each normal), no inside offset; as many constraints as before.
         n[cloud.len() + 3] = n[3].map(|v| -v);
         let conflicting = PointCloud::with_normals(p, n).unwrap();
-        let err =
-            Constraints::off_surface(&conflicting, Offset::Auto { fraction: 0.2 }).unwrap_err();
-        assert!(
-            matches!(err, RbfError::ConflictingDuplicates { first: 3, second, .. } if second == cloud.len() + 3),
-            "{err}"
-        );
+        let (c, report) =
+            Constraints::off_surface(&conflicting, Offset::Auto { fraction: 0.2 }).unwrap();
+        assert_eq!((report.merged, report.touching), (cloud.len(), 1));
+        assert_eq!(c.len(), base.len());
+        // Its inside offset (−ε) became a second outside one (+ε), along the copy's normal.
+        let signs = |c: &Constraints<3>| {
+            c.as_slice()
+                .iter()
+                .fold((0, 0), |(neg, pos), k| match k.prescribed {
+                    Prescribed::Value(v) if v < 0.0 => (neg + 1, pos),
+                    Prescribed::Value(v) if v > 0.0 => (neg, pos + 1),
+                    _ => (neg, pos),
+                })
+        };
+        let ((neg, pos), (base_neg, base_pos)) = (signs(&c), signs(&base));
+        assert_eq!((neg + 1, pos), (base_neg, base_pos + 1));
+        let at = cloud.positions()[3];
+        // Point 3 (on the upper sheet, facing +z) has an outside offset below it now.
+        assert!(c.as_slice().iter().any(|k| {
+            k.point[2] < at[2]
+                && (k.point[0], k.point[1]) == (at[0], at[1])
+                && matches!(k.prescribed, Prescribed::Value(v) if v > 0.0)
+        }));
+        // Hermite constraints cannot hold both gradients: refused, naming both records.
         let err = Constraints::hermite(&conflicting).unwrap_err();
         assert!(
             matches!(err, RbfError::ConflictingDuplicates { first: 3, .. }),

@@ -39,10 +39,13 @@ pub enum RbfError {
         point: Vec<f64>,
     },
     /// Two input points at one place (within [`MERGE_DISTANCE`](super::MERGE_DISTANCE) of
-    /// the diagonal) with opposite normals.
+    /// the diagonal) with opposite normals, given as gradients
+    /// ([`Constraints::hermite`](super::Constraints::hermite); off-surface constraints fit
+    /// them as two sheets touching).
     #[error(
         "points {first} and {second} are at the same place {point:?} with opposite normals \
-         (dot product {dot:.3}): the inside and the outside cannot both be right"
+         (dot product {dot:.3}): the gradient there cannot be both (two sheets touching, or a \
+         flipped normal); off-surface constraints (not Hermite) fit such a place"
     )]
     ConflictingDuplicates {
         /// The first point's index.

@@ -843,3 +843,32 @@ fn incremental_constraints_keep_the_smoothing() {
     let d = field_diff(&inc.field(), &want.field);
     assert!(d < 1e-8, "incremental vs full smoothed fit: {d:.1e}");
 }
+
+#[test]
+fn two_spheres_touching_at_a_point_fit_with_the_outside_between_them() {
+    // Unit spheres around (±1, 0, 0) meet at the origin, which each samples with its own
+    // normal (∓x): two points at one place with opposite normals.
+    let mut points = Vec::new();
+    let mut normals = Vec::new();
+    for centre in [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]] {
+        for (p, u) in sphere(400, centre, 1.0) {
+            points.push(p);
+            normals.push(u);
+        }
+        points.push([0.0; 3]);
+        normals.push([-centre[0], 0.0, 0.0]);
+    }
+    let cloud = zeroset_field_core::PointCloud::with_normals(points, normals).unwrap();
+    let (c, report) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.01 }).unwrap();
+    assert_eq!((report.merged, report.touching), (1, 1));
+    let fit = RbfFit::new(Biharmonic).fit(&c).unwrap();
+    let f = |p: [f64; 3]| fit.field.value(&p);
+    assert!(f([0.0; 3]).abs() < 1e-9, "{}", f([0.0; 3]));
+    // Inside each sphere beside the contact, outside between them above and below it.
+    for x in [-0.1, 0.1, -1.0, 1.0] {
+        assert!(f([x, 0.0, 0.0]) < 0.0, "{x}: {}", f([x, 0.0, 0.0]));
+    }
+    for y in [-0.3, 0.3] {
+        assert!(f([0.0, y, 0.0]) > 0.0, "{y}: {}", f([0.0, y, 0.0]));
+    }
+}

@@ -567,6 +567,12 @@ pub fn fill_missing_normals(
             value: normals[index],
         });
     }
+    if let Some(index) = first_non_finite(positions) {
+        return Err(NormalError::NonFinite {
+            index,
+            value: positions[index],
+        });
+    }
     let is_missing = |v: &Point<3>| v.iter().all(|&x| x == 0.0);
     let missing: Vec<usize> = (0..n).filter(|&i| is_missing(&normals[i])).collect();
     if missing.is_empty() {
@@ -577,12 +583,6 @@ pub fn fill_missing_normals(
     }
     if n > u32::MAX as usize {
         return Err(NormalError::TooManyPoints { got: n });
-    }
-    if let Some(index) = first_non_finite(positions) {
-        return Err(NormalError::NonFinite {
-            index,
-            value: positions[index],
-        });
     }
     let k = k.min(n - 1);
     let tree = Tree::new_from_slice(positions).expect("at most u32::MAX finite points");
@@ -727,9 +727,10 @@ pub fn orient_normals(
 /// [`orient_normals`] at 16 neighbours): scans with oriented normals 0% (the bunny, the kitten,
 /// `bunny_2k`, CGAL's `hippo1`, `oni`, `point_set_3`; closed boxes 1 × 1 × 0.01–0.05 sampled
 /// every 0.01, walls thinner than their sampling), 0.04–0.3% (CGAL's noisy
-/// `sphere_20k_normal`, `ball`), 9.9% (CGAL's `building`, an open façade), 25% where the
+/// `sphere_20k_normal`, `ball`), 29.9% (CGAL's `building`, an open façade: 9.9% while every
+/// edge between normals pointing apart cost 3, 28–34% for wall weights 3–10), 25% where the
 /// orientation itself errs (CGAL's `spheres`: overlapping spheres, one taken for a cavity);
-/// unoriented normals 45% (the bunny's turned to face up), 49.9% (CGAL's `cube.pwn`, a CAD
+/// unoriented normals 47% (the bunny's turned to face up; 49% its 2,000-point sample), 49.9% (CGAL's `cube.pwn`, a CAD
 /// part whose every face's normal points along `+x`, `+y` or `+z`; the bunny's with a random
 /// half turned), 50% (a sphere's turned to face up).
 pub const UNORIENTED_SHARE: f64 = 0.4;
@@ -756,6 +757,110 @@ impl Orientation {
         let n = self.estimated.normals.len();
         n > 0 && self.inconsistent as f64 >= UNORIENTED_SHARE * n as f64
     }
+}
+
+/// Signs for normals that are consistent within parts but not between them: an open mesh's
+/// winding normals (`zeroset_mesh::points::MeshPoints::parts`), where each patch modelled
+/// apart is wound its own way — some of an airplane's panels outward, some inward, their
+/// seams' vertices repeated with opposite normals. Each part keeps its normals (exact, from
+/// the winding) or is turned whole. [`orient_normals`] run on all of them splits the parts
+/// in two, by the vote of each part's points: those that mostly agree with it and those that
+/// mostly disagree — the parts on one side agree with each other. The side holding the
+/// fewer points is turned to agree with the other: the parts are signed against each other,
+/// and the file's winding, taken as it is for an open mesh, is the majority's (so a scene or
+/// a sheet whose orientation has no inside to read keeps the way most of it was wound).
+/// `parts[i]` is point `i`'s part (any labels).
+///
+/// ```
+/// use zeroset_bases::normals::{orient_parts, NormalOptions};
+///
+/// // The unit sphere's points in two hemispheres, the lower one wound inward.
+/// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+/// let points: Vec<[f64; 3]> = (0..800)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / 800.0;
+///         let r = (1.0 - z * z).sqrt();
+///         [r * (golden * i as f64).cos(), r * (golden * i as f64).sin(), z]
+///     })
+///     .collect();
+/// let parts: Vec<u32> = points.iter().map(|p| u32::from(p[2] < -0.2)).collect();
+/// let wound: Vec<[f64; 3]> =
+///     points.iter().map(|p| if p[2] < -0.2 { p.map(|x| -x) } else { *p }).collect();
+/// let oriented = orient_parts(&points, &wound, &parts, &NormalOptions::default())?;
+/// assert_eq!((oriented.turned_parts, oriented.turned_points), (1, 320));
+/// assert_eq!(oriented.normals, points);
+/// # Ok::<(), zeroset_bases::normals::NormalError>(())
+/// ```
+///
+/// # Errors
+/// As [`orient_normals`]; [`NormalError::Normals`] unless there is one normal and one part
+/// per point.
+pub fn orient_parts(
+    positions: &[Point<3>],
+    normals: &[Point<3>],
+    parts: &[u32],
+    options: &NormalOptions,
+) -> Result<PartsOrientation, NormalError> {
+    if parts.len() != positions.len() {
+        return Err(NormalError::Normals {
+            got: parts.len(),
+            points: positions.len(),
+        });
+    }
+    let orientation = orient_normals(positions, normals, options)?;
+    // Each part's points that agree with the orientation, less those that do not, and its
+    // size.
+    let mut votes: std::collections::BTreeMap<u32, (i64, usize)> =
+        std::collections::BTreeMap::new();
+    for ((n, o), &part) in normals
+        .iter()
+        .zip(&orientation.estimated.normals)
+        .zip(parts)
+    {
+        let (vote, size) = votes.entry(part).or_default();
+        *vote += if geometry::dot(n, o) < 0.0 { -1 } else { 1 };
+        *size += 1;
+    }
+    let against_points: usize = votes.values().filter(|(v, _)| *v < 0).map(|(_, s)| s).sum();
+    // Turn the side with fewer points (ties: the parts against the orientation).
+    let turn_against = 2 * against_points <= positions.len();
+    let turned: std::collections::BTreeSet<u32> = votes
+        .iter()
+        .filter(|&(_, &(v, _))| (v < 0) == turn_against)
+        .map(|(&part, _)| part)
+        .collect();
+    let mut turned_points = 0;
+    let normals = normals
+        .iter()
+        .zip(parts)
+        .map(|(n, part)| {
+            if turned.contains(part) {
+                turned_points += 1;
+                n.map(|x| -x)
+            } else {
+                *n
+            }
+        })
+        .collect();
+    Ok(PartsOrientation {
+        normals,
+        parts: votes.len(),
+        turned_parts: turned.len(),
+        turned_points,
+    })
+}
+
+/// What [`orient_parts`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartsOrientation {
+    /// The normals, each part's as given or turned whole.
+    pub normals: Vec<Point<3>>,
+    /// Distinct parts.
+    pub parts: usize,
+    /// Parts turned.
+    pub turned_parts: usize,
+    /// Points in them.
+    pub turned_points: usize,
 }
 
 /// The first of `points` with a NaN or infinite coordinate.
@@ -923,12 +1028,15 @@ fn plane_normal<'a>(p: &Point<3>, others: impl Iterator<Item = &'a Point<3>>) ->
 
 /// The cost of propagating a sign along the edge `i`–`j`: `1 − |n_i · n_j|` plus how far
 /// the edge runs along the two normals, `½ (|n_i · ê| + |n_j · ê|)` (see the
-/// [module docs](self)); 3, above every other, where either plane is missing. With `signed`
-/// planes (given normals, [`orient_normals`]), an edge between normals that point apart
-/// (`n_i · n_j < −½`: the two faces of a thin wall) costs 3 too: crossing a wall thinner than
-/// its rim is round costs about 1 or less against the rim's 1.7, and the walk would carry one
-/// face's sign onto the other (a closed box 1 × 1 × 0.02 sampled every 0.01 with its own
-/// normals read 47% against the orientation — as unoriented normals do).
+/// [module docs](self)); 3 where either plane is missing. With `signed` planes (given
+/// normals, [`orient_normals`]), an edge between normals that point apart (`n_i · n_j < −½`)
+/// counts how far it runs along them [`WALL_WEIGHT`] times: across a thin wall (its two
+/// faces) it costs more than the rim, which would cost about 1 or less against the rim's 1.7
+/// and let the walk carry one face's sign onto the other (a closed box 1 × 1 × 0.02 sampled
+/// every 0.01 with its own normals read 47% against the orientation — as unoriented normals
+/// do); along the surface, where unoriented normals change sign, it costs what it would
+/// unsigned (costing 3 there too, the walk crossed the sparse bunny's ears instead: 2,000
+/// points signed to face up read 1.7% inconsistent).
 fn edge_cost(
     positions: &[Point<3>],
     planes: &[Option<Point<3>>],
@@ -947,11 +1055,20 @@ fn edge_cost(
         0.0
     };
     let cos = geometry::dot(a, b);
-    if signed && cos < -0.5 {
-        return 3.0;
-    }
-    1.0 - cos.abs() + across
+    let across_weight = if signed && cos < -0.5 {
+        WALL_WEIGHT
+    } else {
+        1.0
+    };
+    1.0 - cos.abs() + across_weight * across
 }
+
+/// How much more an edge between given normals that point apart costs per unit of how far it
+/// runs along them ([`edge_cost`]): such an edge across a thin wall (running along its
+/// normals, `½ (|n_i · ê| + |n_j · ê|)` from 0.45 for a wall as thick as its sampling to 1)
+/// costs from 2.25 up, above a rim's 1.7; along the surface (where unoriented normals change
+/// sign) it costs what it would unsigned, so the walk crosses there.
+const WALL_WEIGHT: f64 = 5.0;
 
 /// The minimum spanning forest of the `k`-nearest-neighbour graph under [`edge_cost`]
 /// (Kruskal; edges in order of cost, then of their ends), as adjacency lists.

@@ -1406,6 +1406,57 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(dir.path().join("cube.stl")).unwrap());
     assert!(r.is_oriented_closed() && r.components == 1, "{r}");
     assert!((r.signed_volume - 1.0).abs() < 0.02, "{r}");
+
+    // The sphere as two patches modelled apart (an OFF whose bottom cap, 30% of its height,
+    // has vertices of its own along the seam) and wound against each other: open, so each
+    // part is as wound — but they are signed against each other, the cap (fewer points)
+    // turned to agree with the rest, and the fit closes one outward sphere.
+    let (bottom, top) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p[2]), hi.max(p[2]))
+        });
+    let cut = bottom + 0.3 * (top - bottom);
+    let lower = |tri: &[u32; 3]| tri.iter().map(|&i| v[i as usize][2]).sum::<f64>() < 3.0 * cut;
+    let mut vertices = v.clone();
+    let mut triangles: Vec<[u32; 3]> = t.iter().filter(|tri| !lower(tri)).copied().collect();
+    triangles.extend(
+        t.iter()
+            .filter(|tri| lower(tri))
+            .map(|&[a, b, c]| [c + n, b + n, a + n]),
+    );
+    vertices.extend(v.iter().copied());
+    let halves = zeroset_mesh::TriMesh::new(vertices, triangles)
+        .unwrap()
+        .retain_triangles(|_| true);
+    let patches = dir.path().join("halves.off");
+    zeroset_mesh::write_off(&patches, &halves).unwrap();
+    let o = fit(
+        &patches,
+        &["-o", dir.path().join("halves.zsf").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("(an open mesh: as wound)")
+            && stdout(&o).contains("1 of its 2 parts,")
+            && stdout(&o).contains("wound against the rest where they meet, turned over"),
+        "{}",
+        stdout(&o)
+    );
+    let o = mesh(
+        &dir.path().join("halves.zsf"),
+        &dir.path().join("halves.ply"),
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(dir.path().join("halves.ply")).unwrap());
+    assert!(
+        r.is_oriented_closed()
+            && r.components == 1
+            && r.euler_characteristic == 2
+            && r.signed_volume > 0.0,
+        "{r}"
+    );
 }
 
 #[test]

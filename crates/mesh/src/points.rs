@@ -65,6 +65,12 @@ pub struct MeshPoints {
     /// Points sampled inside the triangles, after the vertices in
     /// [`positions`](Self::positions) (0 for a mesh of at least [`MIN_MESH_POINTS`] vertices).
     pub sampled: usize,
+    /// For normals from an open mesh's winding ([`NormalSource::WindingOpen`]) of more than
+    /// one part (edge-connected component), each position's part: the winding holds within a
+    /// part, but nothing ties one part's sign to another's (patches modelled apart, some wound
+    /// inward), so the caller may sign the parts against each other
+    /// (`zeroset_bases::normals::orient_parts`). `None` otherwise.
+    pub parts: Option<Vec<u32>>,
 }
 
 /// The fewest points a mesh with triangles gives. A mesh of fewer vertices — a CAD part's few,
@@ -167,8 +173,26 @@ pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
     };
     let left_out = all - mesh.num_vertices();
     let (mut normals, source, sign) = normals(&mesh);
-    let (inside, inside_normals) = sample_triangles(&mesh, normals.as_deref(), &sign);
+    let (inside, inside_normals, inside_triangles) =
+        sample_triangles(&mesh, normals.as_deref(), &sign);
     let sampled = inside.len();
+    let parts = (source == NormalSource::WindingOpen)
+        .then(|| components(&mesh))
+        .filter(|&(_, count)| count > 1)
+        .map(|(labels, _)| {
+            // A vertex's part is its first triangle's (parts that meet at a vertex only
+            // share it).
+            let mut of_vertex = vec![u32::MAX; mesh.num_vertices()];
+            for (tri, &label) in mesh.triangles().iter().zip(&labels) {
+                for &v in tri {
+                    if of_vertex[v as usize] == u32::MAX {
+                        of_vertex[v as usize] = label;
+                    }
+                }
+            }
+            of_vertex.extend(inside_triangles.iter().map(|&t| labels[t as usize]));
+            of_vertex
+        });
     let (mut positions, _, _) = mesh.into_parts();
     positions.extend(inside);
     if let Some(n) = &mut normals {
@@ -180,6 +204,7 @@ pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
         source,
         left_out,
         sampled,
+        parts,
     }
 }
 
@@ -288,19 +313,19 @@ fn spread_in_triangle(count: usize) -> impl Iterator<Item = (f64, f64)> {
 
 /// [`MIN_MESH_POINTS`] points inside the triangles of `mesh` (none for a mesh of that many
 /// vertices), each triangle its share by area, with normals (the triangle's, or the file's
-/// interpolated) where the vertices have them.
+/// interpolated) where the vertices have them, and the triangle of each.
 fn sample_triangles(
     mesh: &TriMesh,
     vertex_normals: Option<&[Point<3>]>,
     sign: &[f64],
-) -> (Vec<Point<3>>, Vec<Point<3>>) {
-    let (mut points, mut normals) = (Vec::new(), Vec::new());
+) -> (Vec<Point<3>>, Vec<Point<3>>, Vec<u32>) {
+    let (mut points, mut normals, mut triangles) = (Vec::new(), Vec::new(), Vec::new());
     let areas: Vec<f64> = (0..mesh.num_triangles())
         .map(|t| 0.5 * norm(&area_vector(&mesh.corners(t))))
         .collect();
     let total: f64 = areas.iter().sum();
     if mesh.num_vertices() >= MIN_MESH_POINTS || !(total > 0.0 && total.is_finite()) {
-        return (points, normals);
+        return (points, normals, triangles);
     }
     // Each triangle gets its share of N points by area, rounded so that the shares add up
     // (systematic rounding of the running sum): a sliver of a CAD export (a cylinder's side
@@ -321,6 +346,7 @@ fn sample_triangles(
         for (u, v) in spread_in_triangle(count) {
             let w = 1.0 - u - v;
             points.push(std::array::from_fn(|x| w * a[x] + u * b[x] + v * c[x]));
+            triangles.push(t as u32);
             if let Some(n) = vertex_normals {
                 let normal = if sign.is_empty() {
                     // The file's normals, interpolated (the face's where they cancel).
@@ -335,5 +361,5 @@ fn sample_triangles(
             }
         }
     }
-    (points, normals)
+    (points, normals, triangles)
 }

@@ -605,10 +605,27 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
     ] {
         let p = mesh_points(TriMesh::new(v.clone(), tris.to_vec()).unwrap());
         assert_eq!(p.source, NormalSource::WindingOpen);
+        assert_eq!(p.parts, None, "one part");
         let n = p.normals.unwrap();
         assert_eq!(n.len(), 4 + p.sampled);
         assert!(n.iter().all(|n| *n == [0.0, 0.0, z]));
     }
+    // Two squares side by side, unwelded (the seam's vertices repeated), the second wound the
+    // other way: open, consistent within each part, and each point's part named — the
+    // vertices' and those sampled inside the triangles.
+    let mut two = v.clone();
+    two.extend(v.iter().map(|p| [p[0] + 1.0, p[1], p[2]]));
+    let p =
+        mesh_points(TriMesh::new(two, vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]).unwrap());
+    assert_eq!(p.source, NormalSource::WindingOpen);
+    let (parts, n) = (p.parts.expect("two parts"), p.normals.expect("normals"));
+    assert_eq!(parts.len(), p.positions.len());
+    for ((x, n), part) in p.positions.iter().zip(&n).zip(&parts) {
+        let right = x[0] > 1.0 || (x[0] == 1.0 && *part == parts[4]);
+        assert_eq!(*part == parts[4], right, "{x:?}");
+        assert_eq!(n[2], if right { -1.0 } else { 1.0 }, "{x:?}");
+    }
+    assert_ne!(parts[0], parts[4]);
     // The second triangle wound the other way: inconsistent, no normals.
     let p = mesh_points(TriMesh::new(v.clone(), vec![[0, 1, 2], [0, 3, 2]]).unwrap());
     assert!(p.normals.is_none());

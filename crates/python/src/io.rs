@@ -3,14 +3,11 @@
 
 use std::path::PathBuf;
 
-use numpy::{PyArray2, PyReadonlyArray2};
+use numpy::PyArray2;
 use pyo3::prelude::*;
-use zeroset_bases::normals::{
-    NormalOptions, default_neighbours, estimate_normals as estimate, estimate_normals_from_scanners,
-};
 use zeroset_field_core::io::{ReadOptions, read_point_cloud, read_point_cloud_with};
 
-use crate::arrays::{points as rows, rows_array};
+use crate::arrays::rows_array;
 use crate::errors::to_py;
 
 /// Reads a point cloud: `(points, normals)`, normals `None` when the file has none. A mesh
@@ -40,7 +37,23 @@ pub(crate) fn read_points(
             zeroset_mesh::MeshFormat::from_path(&path) == Some(zeroset_mesh::MeshFormat::Ply);
         // A PLY whose few faces use under half its vertices is a point cloud (as the CLI reads it).
         if !(is_ply && zeroset_mesh::points::is_mostly_unused(&mesh)) {
-            let points = zeroset_mesh::points::mesh_points(mesh);
+            let mut points = zeroset_mesh::points::mesh_points(mesh);
+            // An open mesh's parts wound against each other are turned to agree, as the
+            // command does (`zeroset_bases::normals::orient_parts`).
+            if let (Some(parts), Some(normals)) = (&points.parts, &mut points.normals) {
+                let options = zeroset_bases::normals::NormalOptions::default();
+                let o = py
+                    .detach(|| {
+                        zeroset_bases::normals::orient_parts(
+                            &points.positions,
+                            normals,
+                            parts,
+                            &options,
+                        )
+                    })
+                    .map_err(to_py)?;
+                *normals = o.normals;
+            }
             let normals = points.normals.map(|n| rows_array(py, n));
             return Ok((rows_array(py, points.positions), normals));
         }
@@ -120,35 +133,4 @@ pub(crate) fn read_e57(
     let normals = read.cloud.normals().map(|n| rows_array(py, n.to_vec()));
     let points = rows_array(py, read.cloud.positions().to_vec());
     Ok((points, normals, origins, scans))
-}
-
-/// Outward unit normals for `points` (see `zeroset.estimate_normals`); with `scanners`, each
-/// point faces its own scanner.
-#[pyfunction]
-#[pyo3(signature = (points, neighbours, viewpoint=None, scanners=None))]
-pub(crate) fn estimate_normals<'py>(
-    py: Python<'py>,
-    points: PyReadonlyArray2<'py, f64>,
-    neighbours: Option<usize>,
-    viewpoint: Option<[f64; 3]>,
-    scanners: Option<PyReadonlyArray2<'py, f64>>,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let positions = rows(&points, "points", true)?;
-    let neighbours = match neighbours {
-        Some(k) => k,
-        None => py.detach(|| default_neighbours(positions).0),
-    };
-    let options = NormalOptions {
-        neighbours,
-        viewpoint,
-    };
-    let estimated = match &scanners {
-        None => py.detach(|| estimate(positions, &options)),
-        Some(scanners) => {
-            let scanners = rows(scanners, "scanners", true)?;
-            py.detach(|| estimate_normals_from_scanners(positions, scanners, &options))
-        }
-    }
-    .map_err(to_py)?;
-    Ok(rows_array(py, estimated.normals))
 }

@@ -17,6 +17,7 @@ mod fit;
 mod io;
 mod linalg;
 mod mesh;
+mod normals;
 mod progress;
 mod restore;
 
@@ -36,7 +37,9 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit::fit_mras_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_points, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_e57, m)?)?;
-    m.add_function(wrap_pyfunction!(io::estimate_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(normals::estimate_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(normals::fill_missing_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(normals::orient_normals, m)?)?;
     m.add_function(wrap_pyfunction!(io::sample_xyzn, m)?)?;
     m.add_function(wrap_pyfunction!(linalg::lstsq_native, m)?)?;
     m.add_function(wrap_pyfunction!(linalg::cp_als, m)?)?;

@@ -534,6 +534,87 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(points, viewpoint=(0, 0, 0), scanners=np.zeros((100, 3)))
 
 
+def test_missing_normals_are_completed_and_fit_like_the_command(tmp_path, zeroset_bin):
+    points, truth = sphere_cloud(1200)
+    holed = truth.copy()
+    lost = np.flatnonzero((np.arange(1200) % 9 == 0) | (points[:, 2] > 0.9))
+    holed[lost] = 0.0
+    before = holed.copy()
+    completed, filled = zeroset.fill_missing_normals(points, holed)
+    np.testing.assert_array_equal(holed, before)  # the input is not modified
+    np.testing.assert_array_equal(filled, lost)
+    assert filled.dtype == np.intp
+    np.testing.assert_array_equal(np.delete(completed, lost, 0), np.delete(truth, lost, 0))
+    cos = (completed[lost] * truth[lost]).sum(axis=1)
+    assert cos.min() > np.cos(np.radians(5)), cos.min()
+    np.testing.assert_allclose(np.linalg.norm(completed, axis=1), 1.0, atol=1e-12)
+    # Nothing missing: the normals back, nothing filled.
+    same, none = zeroset.fill_missing_normals(points, truth)
+    np.testing.assert_array_equal(same, truth)
+    assert none.size == 0
+    # `fit` refuses the zeros and names the cure; `zeroset fit` completes them itself, and
+    # fits the field Python fits to the completed normals, bit for bit.
+    with pytest.raises(ValueError, match=rf"{lost.size} of the 1200 normals are 0 0 0 \(row 0 "
+                       r"first\).*fill_missing_normals"):
+        zeroset.fit(points, holed)
+    with pytest.raises(ValueError, match="every normal is 0 0 0.*estimate_normals"):
+        zeroset.fit(points, np.zeros_like(points))
+    cloud = tmp_path / "holed.xyzn"
+    np.savetxt(cloud, np.hstack([points, holed]), fmt="%.17g")
+    rust = tmp_path / "holed.zsf"
+    subprocess.run(
+        [zeroset_bin, "fit", str(cloud), "--method", "rbf", "-o", str(rust), "--quiet"],
+        check=True, capture_output=True,
+    )
+    ours = zeroset.fit(points, completed)
+    probes = np.random.default_rng(3).uniform(-1.3, 1.3, (500, 3))
+    np.testing.assert_array_equal(zeroset.load(rust)(probes), ours(probes))
+
+
+def test_fill_missing_normals_rejects_bad_input():
+    points, normals = sphere_cloud(100)
+    with pytest.raises(ValueError, match="every one of the 100 normals is zero"):
+        zeroset.fill_missing_normals(points, np.zeros_like(points))
+    bad = normals.copy()
+    bad[4] = (np.nan, 0.0, 1.0)
+    with pytest.raises(ValueError, match=r"point 4: normal .* is not finite"):
+        zeroset.fill_missing_normals(points, bad)
+    bad = points.copy()
+    bad[6, 0] = np.inf
+    with pytest.raises(ValueError, match=r"point 6: position .* is not finite"):
+        zeroset.fill_missing_normals(bad, normals)
+    with pytest.raises(ValueError, match="99 normals for 100 points"):
+        zeroset.fill_missing_normals(points, normals[:99])
+    for k in (1, -3, 257):
+        with pytest.raises(ValueError, match=f"neighbours = {k}"):
+            zeroset.fill_missing_normals(points, normals, neighbours=k)
+    with pytest.raises(TypeError, match="whole number"):
+        zeroset.fill_missing_normals(points, normals, neighbours=2.5)
+
+
+def test_unoriented_normals_are_told_and_turned():
+    points, truth = sphere_cloud(1000)
+    up = np.where(points[:, 2:3] < 0, -truth, truth)  # each line right, the lower half inward
+    oriented, report = zeroset.orient_normals(points, up)
+    assert report.unoriented and report.turned == int((points[:, 2] < 0).sum())
+    assert report.inconsistent > 0.4 * len(points) and report.points == 1000
+    np.testing.assert_allclose(oriented, truth, atol=1e-12)
+    # Oriented normals: consistent, none turned, returned as they were.
+    again, clean = zeroset.orient_normals(points, truth)
+    assert not clean.unoriented and clean.inconsistent == 0 and clean.turned == 0
+    np.testing.assert_allclose(again, truth, atol=1e-12)
+    # Towards a viewpoint inside: every one turned inward.
+    inward, seen = zeroset.orient_normals(points, truth, viewpoint=(0, 0, 0))
+    np.testing.assert_allclose(inward, -truth, atol=1e-12)
+    assert seen.turned == 1000 and seen.inconsistent == 0
+    with pytest.raises(ValueError, match="99 normals for 100 points"):
+        zeroset.orient_normals(points[:100], truth[:99])
+    with pytest.raises(ValueError, match=r"normals\[2\].*not finite"):
+        bad = truth.copy()
+        bad[2, 1] = np.nan
+        zeroset.orient_normals(points, bad)
+
+
 def test_read_points_takes_pcd_and_named_text_columns(tmp_path):
     rng = np.random.default_rng(3)
     points = rng.normal(size=(50, 3)).astype(np.float32)

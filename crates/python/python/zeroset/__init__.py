@@ -44,11 +44,13 @@ __all__ = [
     "cp_als",
     "demo",
     "estimate_normals",
+    "fill_missing_normals",
     "fit",
     "load",
     "lstsq",
     "marching_cubes",
     "mesh",
+    "orient_normals",
     "read_e57",
     "read_mesh",
     "read_points",
@@ -200,6 +202,15 @@ def _count(v: Any, name: str, negative: bool = False) -> int:
     if n < 0 and not negative:
         raise ValueError(f"{name} must be >= 0, got {n}")
     return n
+
+
+def _neighbours(v: Any) -> int:
+    """A neighbour count, checked as :func:`_count` but for its range, which a negative one is
+    told (the native layer names it for the others)."""
+    k = _count(v, "neighbours", negative=True)
+    if k < 0:
+        raise ValueError(f"neighbours = {k}: from 2 to 256")
+    return k
 
 
 def _counts(v: Any, name: str) -> Tuple[int, int, int]:
@@ -417,14 +428,77 @@ def estimate_normals(
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
     out of range, a cloud whose neighbourhoods mostly span no plane (points on a line), both
     ``viewpoint`` and ``scanners``, or ``scanners`` not one finite position per point."""
-    k = None if neighbours is None else _count(neighbours, "neighbours", negative=True)
-    if k is not None and k < 0:
-        raise ValueError(f"neighbours = {k}: from 2 to 256")
+    k = None if neighbours is None else _neighbours(neighbours)
     if viewpoint is not None and scanners is not None:
         raise ValueError("give viewpoint (one scanner) or scanners (one per point), not both")
     v = None if viewpoint is None else _triple(viewpoint, "viewpoint")
     s = None if scanners is None else _rows(scanners, "scanners")
     return _native.estimate_normals(_rows(points, "points"), k, v, s)
+
+
+def fill_missing_normals(
+    points: Any, normals: Any, neighbours: int = 16
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Completes a scan's normals where some are missing: each normal that is the zero vector
+    (``0 0 0``, what CGAL, PCL and others write where they could not estimate one) is replaced
+    by the unit normal of the plane through its point and its ``neighbours`` nearest (2 to
+    256), signed to agree with the normals around it (a neighbour across a thin wall counts
+    less than one along the surface); a large gap is signed from its rim inward. Returns
+    ``(completed, indices)``: a new ``(n, 3)`` array, the given normals unchanged in it, and
+    the indices of the rows completed, increasing (empty where none was zero). The arrays
+    given are not modified.
+
+    >>> import numpy as np, zeroset
+    >>> points, normals = zeroset.sample_points()
+    >>> holed = normals.copy()
+    >>> holed[::50] = 0.0
+    >>> completed, filled = zeroset.fill_missing_normals(points, holed)
+    >>> len(filled), bool((completed[filled] * normals[filled]).sum(axis=1).min() > 0.5)
+    (40, True)
+
+    Raises ``ValueError`` where every normal is zero (positions only: ``estimate_normals``),
+    for a NaN or infinite coordinate or normal (naming the row), ``normals`` not one per
+    point, or ``neighbours`` out of range."""
+    k = _neighbours(neighbours)
+    completed, filled = _native.fill_missing_normals(
+        _rows(points, "points"), _rows(normals, "normals"), k
+    )
+    return completed, np.asarray(filled, dtype=np.intp)
+
+
+def orient_normals(
+    points: Any,
+    normals: Any,
+    neighbours: Optional[int] = None,
+    *,
+    viewpoint: Optional[Sequence[float]] = None,
+) -> Tuple[np.ndarray, Report]:
+    """Signs normals consistently over the scan: for normals whose lines are right but whose
+    signs are not (principal-component normals written unoriented, half of them inward, as
+    CGAL's ``cube.pwn``). The lines' signs are propagated as :func:`estimate_normals`
+    propagates its planes' (``neighbours`` as there), each connected piece turned outward, or
+    towards ``viewpoint``. Returns ``(oriented, report)``: unit normals, each ``±`` its line,
+    and a :class:`Report` with ``inconsistent`` (of each piece, the smaller of the points
+    that agree with the orientation and those that disagree: 0 for oriented normals, about
+    half the points for unoriented ones), ``turned`` (the normals reversed) and
+    ``unoriented`` (``inconsistent`` at least 40% of the points, where ``zeroset
+    reconstruct`` turns them; oriented scans measure 0–0.3%).
+
+    >>> import zeroset
+    >>> points, normals = zeroset.sample_points()
+    >>> up = normals * np.sign(normals[:, 2:3] + 1e-300)    # every normal turned to face up
+    >>> oriented, report = zeroset.orient_normals(points, up)
+    >>> bool(report.unoriented), bool((oriented * normals).sum(axis=1).mean() > 0.9)
+    (True, True)
+
+    Raises ``ValueError`` as :func:`estimate_normals`, and for ``normals`` not one finite row
+    per point."""
+    k = None if neighbours is None else _neighbours(neighbours)
+    v = None if viewpoint is None else _triple(viewpoint, "viewpoint")
+    oriented, report = _native.orient_normals(
+        _rows(points, "points"), _rows(normals, "normals"), k, v
+    )
+    return oriented, Report(report)
 
 
 def read_mesh(path: PathLike) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
@@ -599,12 +673,27 @@ def fit(
     ``smoothing="auto"`` or ``"mras"`` averages it. Both
     keys are absent below 64 points or where the points span no surface.
 
+    Normals ``0 0 0`` are refused (:func:`fill_missing_normals` completes them); normals
+    written without a consistent sign (half inward) fit a wrong surface without an error
+    (:func:`orient_normals` tells and turns them, as ``zeroset fit`` warns).
+
     ``progress``: ``True`` for a line on stderr, or a callable ``(stage, done, total)``;
     raising in it stops the fit. Returns a :class:`Field` whose ``report`` says what the fit
     did (iterations, residuals, time).
     """
     p = _rows(points, "points")
     n = _rows(normals, "normals")
+    zero = np.flatnonzero(~n.any(axis=1))
+    if len(zero):
+        what = "every normal is" if len(zero) == len(n) else f"{len(zero)} of the {len(n)} normals are"
+        cure = (
+            "estimate them with zeroset.estimate_normals(points)"
+            if len(zero) == len(n)
+            else "complete them with zeroset.fill_missing_normals(points, normals)"
+        )
+        raise ValueError(
+            f"{what} 0 0 0 (row {zero[0]} first), which marks a normal missing: {cure}"
+        )
     neural_given = [
         name
         for name, value, default in (

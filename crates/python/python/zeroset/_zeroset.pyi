@@ -71,6 +71,15 @@ def estimate_normals(
     viewpoint: Optional[Tuple[float, float, float]] = None,
     scanners: Optional[_F64] = None,
 ) -> _F64: ...
+def fill_missing_normals(
+    points: _F64, normals: _F64, neighbours: int
+) -> Tuple[_F64, List[int]]: ...
+def orient_normals(
+    points: _F64,
+    normals: _F64,
+    neighbours: Optional[int],
+    viewpoint: Optional[Tuple[float, float, float]] = None,
+) -> Tuple[_F64, Dict[str, Any]]: ...
 def sample_xyzn() -> str: ...
 def lstsq_native(
     b: _F64,

@@ -7,7 +7,7 @@ use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::normals::{
     EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
     NormalOptions, default_neighbours, estimate_noise_unoriented, estimate_normals,
-    estimate_normals_from_scanners, fill_missing_normals, orient_normals, orient_parts,
+    estimate_normals_from_scanners, fill_missing_normals, orient_normals,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -894,62 +894,6 @@ fn unoriented_normals_are_told_from_oriented_ones_and_turned_outward() {
     assert!(!o.unoriented());
     assert_eq!(
         orient_normals(&points, &truth[1..], &options),
-        Err(NormalError::Normals {
-            got: points.len() - 1,
-            points: points.len()
-        })
-    );
-}
-
-#[test]
-fn parts_wound_against_each_other_are_turned_to_the_majority() {
-    let options = NormalOptions::default();
-    // A closed box whose six faces are six parts, as an OFF of six unwelded patches: each
-    // part's normals consistent (the box's estimated normals, tilted where a patch straddles
-    // an edge, which carries the sign round it), some parts turned over.
-    let (points, truth) = closed_box(0.6, 0.04);
-    let estimated = estimate(&points).normals;
-    assert_eq!(against(&estimated, &truth).0, 0.0);
-    let parts: Vec<u32> = truth
-        .iter()
-        .map(|n| {
-            let axis = (0..3).find(|&a| n[a] != 0.0).expect("an axis");
-            (2 * axis) as u32 + u32::from(n[axis] > 0.0)
-        })
-        .collect();
-    let wound = |turned: &[u32]| -> Vec<P> {
-        estimated
-            .iter()
-            .zip(&parts)
-            .map(|(n, p)| {
-                if turned.contains(p) {
-                    n.map(|x| -x)
-                } else {
-                    *n
-                }
-            })
-            .collect()
-    };
-    let size = |of: &[u32]| parts.iter().filter(|p| of.contains(p)).count();
-    // Two faces (832 of 3,016 points) wound inward: turned back.
-    let o = orient_parts(&points, &wound(&[0, 3]), &parts, &options).expect("oriented");
-    assert_eq!((o.parts, o.turned_parts), (6, 2));
-    assert_eq!(o.turned_points, size(&[0, 3]));
-    assert_eq!(o.normals, estimated);
-    // Four faces (1,664 points) wound inward: the majority's winding is the file's, and the
-    // other two are turned to agree with it.
-    let o = orient_parts(&points, &wound(&[0, 1, 2, 3]), &parts, &options).expect("oriented");
-    assert_eq!(o.turned_parts, 2);
-    let inward: Vec<P> = estimated.iter().map(|n| n.map(|x| -x)).collect();
-    assert_eq!(o.normals, inward);
-    // Consistent parts, outward or all inward: none turned.
-    for normals in [&estimated, &inward] {
-        let o = orient_parts(&points, normals, &parts, &options).expect("oriented");
-        assert_eq!((o.turned_parts, o.turned_points), (0, 0));
-        assert_eq!(&o.normals, normals);
-    }
-    assert_eq!(
-        orient_parts(&points, &estimated, &parts[1..], &options),
         Err(NormalError::Normals {
             got: points.len() - 1,
             points: points.len()

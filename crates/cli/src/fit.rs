@@ -1223,8 +1223,9 @@ fn print_offset(auto: bool, r: &OffsetReport, points: usize) -> Vec<String> {
     if r.touching > 0 {
         more(&format!(
             "({} of them at a place where an earlier point's normal points the other way: two \
-             sheets touching there (a mesh touching itself, a thin sheet's two faces, a sharp \
-             edge's split normals), fitted with the outside on both sides)",
+             sheets meeting there (a mesh touching itself, two solids touching, a sharp edge's \
+             split normals; or a flipped normal), each fitted with value 0 and offsets on the \
+             side where the other sheet's points around it say the outside is)",
             r.touching
         ));
     }

@@ -241,6 +241,12 @@ pub struct MeshArgs {
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
+
+    /// Whether a closed mesh that comes out inside out is turned over before it is written
+    /// (`zeroset reconstruct` does, for a scan whose normals point inward, unless they were
+    /// turned towards a --viewpoint); not an option.
+    #[arg(skip)]
+    pub turn_inside_out: bool,
 }
 
 /// How far the level set `f = level` lies from the zero set near `points`: `|level|` over the
@@ -947,6 +953,19 @@ fn mesh_and_count(args: &MeshArgs, count: bool) -> anyhow::Result<Option<Vec<usi
             )?;
         }
     }
+    // Marching cubes face the triangles along the gradient: a field positive inside gives a
+    // closed mesh that encloses a negative volume.
+    let inside_out = report.closed && report.signed_volume < 0.0 && !mesh.is_empty();
+    if inside_out && args.turn_inside_out {
+        mesh = mesh.turned_over();
+        report.signed_volume = -report.signed_volume;
+        say!(
+            out,
+            "turned: the mesh came out inside out (closed, with a negative signed volume: the \
+             field is positive inside, the scan's normals pointing inward), so its triangles \
+             are turned over to face out; a field kept with --field stays as fitted"
+        )?;
+    }
     say!(
         out,
         "report: {}, Euler characteristic {}, {} component(s), {} boundary edge(s), {} \
@@ -982,9 +1001,7 @@ fn mesh_and_count(args: &MeshArgs, count: bool) -> anyhow::Result<Option<Vec<usi
         )?;
     }
 
-    if report.closed && report.signed_volume < 0.0 && !mesh.is_empty() {
-        // Marching cubes face the triangles along the gradient: a field positive inside
-        // gives a closed mesh that encloses a negative volume.
+    if inside_out && !args.turn_inside_out {
         say!(
             out,
             "warning: the mesh is inside out (closed, with a negative signed volume): the field \

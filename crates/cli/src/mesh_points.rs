@@ -13,26 +13,8 @@ use std::path::Path;
 use anyhow::{Context, bail};
 use zeroset_field_core::PointCloud3;
 use zeroset_field_core::io::ReadOptions;
-use zeroset_mesh::points::{MeshPoints, is_mostly_unused, mesh_points};
+use zeroset_mesh::points::{is_mostly_unused, mesh_points};
 use zeroset_mesh::{MeshFormat, is_mesh_file};
-
-/// Signs the parts of an open mesh against each other where their winding normals disagree
-/// ([`zeroset_bases::normals::orient_parts`]); what was turned, if anything.
-pub(crate) fn sign_parts(
-    points: &mut MeshPoints,
-) -> anyhow::Result<Option<zeroset_bases::normals::PartsOrientation>> {
-    let (Some(parts), Some(normals)) = (&points.parts, &mut points.normals) else {
-        return Ok(None);
-    };
-    let options = zeroset_bases::normals::NormalOptions::default();
-    let mut o = zeroset_bases::normals::orient_parts(&points.positions, normals, parts, &options)
-        .context("signing the mesh's parts against each other")?;
-    if o.turned_parts == 0 {
-        return Ok(None);
-    }
-    std::mem::swap(normals, &mut o.normals);
-    Ok(Some(o))
-}
 
 /// The points of `path` if it is a mesh file ([`is_mesh_file`]; unless `options` name a
 /// point-cloud format), `None` for any other file. A line says what was taken and why.
@@ -59,8 +41,7 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
         );
         return Ok(None);
     }
-    let mut points = mesh_points(mesh);
-    let turned = sign_parts(&mut points)?;
+    let points = mesh_points(mesh);
     let format = match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj) => "an OBJ",
         Some(MeshFormat::Ply) => "a PLY",
@@ -105,13 +86,6 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
             },
             points.source
         );
-        if let Some(t) = turned {
-            crate::fit::more(&format!(
-                "({} of its {} parts, {} points, wound against the rest where they meet, \
-                 turned over)",
-                t.turned_parts, t.parts, t.turned_points
-            ));
-        }
     }
     Ok(Some(PointCloud3::from_raw(
         points.positions,

@@ -584,8 +584,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         ]);
     }
     common(&mut argv, args.force);
-    let components = crate::mesh::run_counting(&stage::<MeshArgs>(&argv)?)
-        .context("reconstruct, stage 2 (mesh)")?;
+    let mut mesh_args = stage::<MeshArgs>(&argv)?;
+    // Normals turned towards a viewpoint face into the solid by request (a room scanned from
+    // inside: the solid is what lies outside it).
+    mesh_args.turn_inside_out = args.viewpoint.is_none();
+    let components =
+        crate::mesh::run_counting(&mesh_args).context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));
     let bubbles = bubbles_hint(
         method,

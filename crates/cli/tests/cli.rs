@@ -1152,6 +1152,31 @@ fn an_inside_out_mesh_and_voxels_too_coarse_are_said() {
     assert!(o.status.success(), "{}", stderr(&o));
     let inside_out = "warning: the mesh is inside out";
     assert!(stdout(&o).contains(inside_out), "{}", stdout(&o));
+    let inside_out_volume = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    assert!(inside_out_volume.signed_volume < 0.0, "{inside_out_volume}");
+    // `reconstruct` turns such a mesh over: the same surface, facing out.
+    let turned = dir.path().join("turned.ply");
+    let o = zeroset([
+        "reconstruct",
+        cloud.to_str().unwrap(),
+        "-o",
+        turned.to_str().unwrap(),
+        "--method",
+        "rbf",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("turned: the mesh came out inside out")
+            && !stdout(&o).contains(inside_out),
+        "{}",
+        stdout(&o)
+    );
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&turned).unwrap());
+    assert!(r.is_oriented_closed() && r.signed_volume > 0.0, "{r}");
+    assert!(
+        (r.signed_volume + inside_out_volume.signed_volume).abs() < 0.02 * r.signed_volume,
+        "{r} against {inside_out_volume}"
+    );
     let (_d, outward) = sphere_field();
     let o = mesh(&outward, &ply, &["--force"]);
     assert!(!stdout(&o).contains(inside_out), "{}", stdout(&o));
@@ -1408,9 +1433,9 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     assert!((r.signed_volume - 1.0).abs() < 0.02, "{r}");
 
     // The sphere as two patches modelled apart (an OFF whose bottom cap, 30% of its height,
-    // has vertices of its own along the seam) and wound against each other: open, so each
-    // part is as wound — but they are signed against each other, the cap (fewer points)
-    // turned to agree with the rest, and the fit closes one outward sphere.
+    // has vertices of its own along the seam) and wound against each other: open, so taken
+    // as wound — but the seam says the two disagree, the cap (fewer triangles) is turned to
+    // agree with the rest, and the fit closes one outward sphere.
     let (bottom, top) = v
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
@@ -1437,9 +1462,10 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
     );
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     assert!(
-        stdout(&o).contains("(an open mesh: as wound)")
-            && stdout(&o).contains("1 of its 2 parts,")
-            && stdout(&o).contains("wound against the rest where they meet, turned over"),
+        stdout(&o).contains(
+            "(an open mesh: as wound, but 1 of its 2 parts turned over to agree with the parts \
+             they meet along seams)"
+        ),
         "{}",
         stdout(&o)
     );

@@ -11,7 +11,9 @@
 //!    opposite ways in them, and by no more than two): each vertex's area-weighted face normal
 //!    ([`TriMesh::winding_normals`]). In a closed mesh, each closed part wound inward (negative
 //!    volume) is turned over on its own; an open mesh has no inside to measure and is taken as
-//!    wound (counter-clockwise seen from outside, zeroset's and STL's convention). Where the
+//!    wound (counter-clockwise seen from outside, zeroset's and STL's convention) — but of
+//!    parts modelled apart that meet along seams (their border vertices repeated), those wound
+//!    against the parts they meet are turned over, the fewer triangles turned. Where the
 //!    winding holds, this is exact information a nearest-neighbour estimate can only
 //!    approximate (thin parts, sparse CAD vertices);
 //! 3. none otherwise — inconsistent winding, non-manifold edges, a vertex used only by
@@ -42,6 +44,7 @@
 //! # Ok::<(), zeroset_mesh::MeshError>(())
 //! ```
 
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::fmt;
 
 use zeroset_field_core::Point;
@@ -65,12 +68,6 @@ pub struct MeshPoints {
     /// Points sampled inside the triangles, after the vertices in
     /// [`positions`](Self::positions) (0 for a mesh of at least [`MIN_MESH_POINTS`] vertices).
     pub sampled: usize,
-    /// For normals from an open mesh's winding ([`NormalSource::WindingOpen`]) of more than
-    /// one part (edge-connected component), each position's part: the winding holds within a
-    /// part, but nothing ties one part's sign to another's (patches modelled apart, some wound
-    /// inward), so the caller may sign the parts against each other
-    /// (`zeroset_bases::normals::orient_parts`). `None` otherwise.
-    pub parts: Option<Vec<u32>>,
 }
 
 /// The fewest points a mesh with triangles gives. A mesh of fewer vertices — a CAD part's few,
@@ -98,6 +95,14 @@ pub enum NormalSource {
     },
     /// The winding of an open mesh, as wound.
     WindingOpen,
+    /// The winding of an open mesh of several parts, `turned` of them turned over to agree
+    /// with the parts they meet along seams (edges at the same positions in two parts).
+    WindingOpenParts {
+        /// Parts turned over.
+        turned: usize,
+        /// Parts (edge-connected components).
+        parts: usize,
+    },
     /// None: the winding is inconsistent or edges are non-manifold.
     Inconsistent {
         /// Edges used twice the same way.
@@ -128,6 +133,11 @@ impl fmt::Display for NormalSource {
                  part(s) wound inward"
             ),
             Self::WindingOpen => write!(f, "from the triangles' winding (an open mesh: as wound)"),
+            Self::WindingOpenParts { turned, parts } => write!(
+                f,
+                "from the triangles' winding (an open mesh: as wound, but {turned} of its {parts} \
+                 parts turned over to agree with the parts they meet along seams)"
+            ),
             Self::Inconsistent {
                 inconsistent_edges,
                 non_manifold_edges,
@@ -173,26 +183,8 @@ pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
     };
     let left_out = all - mesh.num_vertices();
     let (mut normals, source, sign) = normals(&mesh);
-    let (inside, inside_normals, inside_triangles) =
-        sample_triangles(&mesh, normals.as_deref(), &sign);
+    let (inside, inside_normals) = sample_triangles(&mesh, normals.as_deref(), &sign);
     let sampled = inside.len();
-    let parts = (source == NormalSource::WindingOpen)
-        .then(|| components(&mesh))
-        .filter(|&(_, count)| count > 1)
-        .map(|(labels, _)| {
-            // A vertex's part is its first triangle's (parts that meet at a vertex only
-            // share it).
-            let mut of_vertex = vec![u32::MAX; mesh.num_vertices()];
-            for (tri, &label) in mesh.triangles().iter().zip(&labels) {
-                for &v in tri {
-                    if of_vertex[v as usize] == u32::MAX {
-                        of_vertex[v as usize] = label;
-                    }
-                }
-            }
-            of_vertex.extend(inside_triangles.iter().map(|&t| labels[t as usize]));
-            of_vertex
-        });
     let (mut positions, _, _) = mesh.into_parts();
     positions.extend(inside);
     if let Some(n) = &mut normals {
@@ -204,7 +196,6 @@ pub fn mesh_points(mesh: TriMesh) -> MeshPoints {
         source,
         left_out,
         sampled,
-        parts,
     }
 }
 
@@ -239,10 +230,25 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
         return (None, NormalSource::Flat { vertices: flat }, Vec::new());
     }
     if report.boundary_edges > 0 {
+        let (labels, parts) = components(mesh);
+        let turn = seam_turns(mesh, &labels, parts);
+        let turned = turn.iter().filter(|&&t| t).count();
+        if turned == 0 {
+            return (
+                Some(normals),
+                NormalSource::WindingOpen,
+                vec![1.0; mesh.num_triangles()],
+            );
+        }
+        let sign: Vec<f64> = labels
+            .iter()
+            .map(|&part| if turn[part as usize] { -1.0 } else { 1.0 })
+            .collect();
+        turn_vertices(mesh, &sign, &mut normals);
         return (
             Some(normals),
-            NormalSource::WindingOpen,
-            vec![1.0; mesh.num_triangles()],
+            NormalSource::WindingOpenParts { turned, parts },
+            sign,
         );
     }
     // Each closed part's volume, from a corner of the box (for fewer cancelling digits).
@@ -263,8 +269,19 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
             }
         })
         .collect();
+    turn_vertices(mesh, &sign, &mut normals);
+    let source = NormalSource::Winding {
+        turned: volume.iter().filter(|v| **v < 0.0).count(),
+        closed_parts: parts,
+    };
+    (Some(normals), source, sign)
+}
+
+/// Negates the normals of the vertices of the triangles whose `sign` is negative (turned
+/// over).
+fn turn_vertices(mesh: &TriMesh, sign: &[f64], normals: &mut [Point<3>]) {
     let mut turn = vec![false; normals.len()];
-    for (tri, &s) in mesh.triangles().iter().zip(&sign) {
+    for (tri, &s) in mesh.triangles().iter().zip(sign) {
         if s < 0.0 {
             for &v in tri {
                 turn[v as usize] = true;
@@ -276,11 +293,103 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
             *n = n.map(|x| -x);
         }
     }
-    let source = NormalSource::Winding {
-        turned: volume.iter().filter(|v| **v < 0.0).count(),
-        closed_parts: parts,
-    };
-    (Some(normals), source, sign)
+}
+
+/// Which of an open mesh's `parts` (edge-connected components, `labels` per triangle) to turn
+/// over so that they agree along their seams: where two parts have an edge at the same two
+/// positions (a patch modelled apart, its border vertices repeated), the edge runs opposite
+/// ways in the two triangles if the parts are wound alike, as one welded surface would be.
+/// Parts joined by seams are signed against each other (each pair by the majority of its
+/// seam edges, along a breadth-first tree from the lowest part); of each group so joined,
+/// the side with fewer triangles is turned, the file's winding being the majority's. A part
+/// without seams keeps its winding.
+fn seam_turns(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
+    let mut turn = vec![false; parts];
+    if parts < 2 {
+        return turn;
+    }
+    // Positions welded: equal coordinates, one id (the first vertex's order).
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    let welded: Vec<u32> = mesh
+        .vertices()
+        .iter()
+        .map(|p| {
+            let next = ids.len() as u32;
+            *ids.entry(p.map(f64::to_bits)).or_insert(next)
+        })
+        .collect();
+    // Each welded edge's uses: (part, runs from the lower id to the higher).
+    let mut edges: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::new();
+    for (tri, &part) in mesh.triangles().iter().zip(labels) {
+        for e in 0..3 {
+            let (a, b) = (welded[tri[e] as usize], welded[tri[(e + 1) % 3] as usize]);
+            if a != b {
+                edges
+                    .entry((a.min(b), a.max(b)))
+                    .or_default()
+                    .push((part, a < b));
+            }
+        }
+    }
+    // Of each pair of parts meeting along seams: edges wound alike, and against each other.
+    let mut pairs: BTreeMap<(u32, u32), (usize, usize)> = BTreeMap::new();
+    for uses in edges.values() {
+        for (x, &(p, dp)) in uses.iter().enumerate() {
+            for &(q, dq) in &uses[x + 1..] {
+                if p != q {
+                    let votes = pairs.entry((p.min(q), p.max(q))).or_default();
+                    if dp != dq {
+                        votes.0 += 1;
+                    } else {
+                        votes.1 += 1;
+                    }
+                }
+            }
+        }
+    }
+    let mut adjacent: Vec<Vec<(u32, bool)>> = vec![Vec::new(); parts];
+    for (&(p, q), &(alike, against)) in &pairs {
+        if alike != against {
+            adjacent[p as usize].push((q, against > alike));
+            adjacent[q as usize].push((p, against > alike));
+        }
+    }
+    let mut triangles = vec![0usize; parts];
+    for &part in labels {
+        triangles[part as usize] += 1;
+    }
+    let mut parity: Vec<Option<bool>> = vec![None; parts];
+    for root in 0..parts {
+        if parity[root].is_some() {
+            continue;
+        }
+        parity[root] = Some(false);
+        let mut group = vec![root];
+        let mut queue = VecDeque::from([root]);
+        while let Some(p) = queue.pop_front() {
+            let flipped = parity[p].expect("set before queued");
+            for &(q, against) in &adjacent[p] {
+                let q = q as usize;
+                if parity[q].is_none() {
+                    parity[q] = Some(flipped ^ against);
+                    group.push(q);
+                    queue.push_back(q);
+                }
+            }
+        }
+        let weight = |side: bool| -> usize {
+            group
+                .iter()
+                .filter(|&&p| parity[p] == Some(side))
+                .map(|&p| triangles[p])
+                .sum()
+        };
+        let side = weight(true) > weight(false);
+        for &p in &group {
+            turn[p] = parity[p] == Some(!side);
+        }
+    }
+    turn
 }
 
 /// `count` barycentric coordinates `(u, v)` spread evenly over a triangle: the centroid for
@@ -313,19 +422,19 @@ fn spread_in_triangle(count: usize) -> impl Iterator<Item = (f64, f64)> {
 
 /// [`MIN_MESH_POINTS`] points inside the triangles of `mesh` (none for a mesh of that many
 /// vertices), each triangle its share by area, with normals (the triangle's, or the file's
-/// interpolated) where the vertices have them, and the triangle of each.
+/// interpolated) where the vertices have them.
 fn sample_triangles(
     mesh: &TriMesh,
     vertex_normals: Option<&[Point<3>]>,
     sign: &[f64],
-) -> (Vec<Point<3>>, Vec<Point<3>>, Vec<u32>) {
-    let (mut points, mut normals, mut triangles) = (Vec::new(), Vec::new(), Vec::new());
+) -> (Vec<Point<3>>, Vec<Point<3>>) {
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
     let areas: Vec<f64> = (0..mesh.num_triangles())
         .map(|t| 0.5 * norm(&area_vector(&mesh.corners(t))))
         .collect();
     let total: f64 = areas.iter().sum();
     if mesh.num_vertices() >= MIN_MESH_POINTS || !(total > 0.0 && total.is_finite()) {
-        return (points, normals, triangles);
+        return (points, normals);
     }
     // Each triangle gets its share of N points by area, rounded so that the shares add up
     // (systematic rounding of the running sum): a sliver of a CAD export (a cylinder's side
@@ -346,7 +455,6 @@ fn sample_triangles(
         for (u, v) in spread_in_triangle(count) {
             let w = 1.0 - u - v;
             points.push(std::array::from_fn(|x| w * a[x] + u * b[x] + v * c[x]));
-            triangles.push(t as u32);
             if let Some(n) = vertex_normals {
                 let normal = if sign.is_empty() {
                     // The file's normals, interpolated (the face's where they cancel).
@@ -361,5 +469,5 @@ fn sample_triangles(
             }
         }
     }
-    (points, normals, triangles)
+    (points, normals)
 }

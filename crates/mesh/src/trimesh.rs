@@ -138,6 +138,33 @@ impl TriMesh {
         }
     }
 
+    /// The mesh turned over: each triangle's winding reversed and each vertex normal negated
+    /// (the same surface, its other side out).
+    ///
+    /// ```
+    /// use zeroset_mesh::TriMesh;
+    ///
+    /// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    /// let m = TriMesh::new(v, vec![[0, 1, 2]])?.with_normals(vec![[0.0, 0.0, 1.0]; 3])?;
+    /// let turned = m.turned_over();
+    /// assert_eq!(turned.triangles(), &[[0, 2, 1]]);
+    /// assert_eq!(turned.normals()[0], [0.0, 0.0, -1.0]);
+    /// assert_eq!(turned.turned_over(), m);
+    /// # Ok::<(), zeroset_mesh::MeshError>(())
+    /// ```
+    #[must_use]
+    pub fn turned_over(self) -> TriMesh {
+        TriMesh {
+            vertices: self.vertices,
+            normals: self.normals.into_iter().map(|n| n.map(|x| -x)).collect(),
+            triangles: self
+                .triangles
+                .into_iter()
+                .map(|[a, b, c]| [a, c, b])
+                .collect(),
+        }
+    }
+
     /// The number of vertices.
     pub fn num_vertices(&self) -> usize {
         self.vertices.len()

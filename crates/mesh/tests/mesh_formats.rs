@@ -605,27 +605,80 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
     ] {
         let p = mesh_points(TriMesh::new(v.clone(), tris.to_vec()).unwrap());
         assert_eq!(p.source, NormalSource::WindingOpen);
-        assert_eq!(p.parts, None, "one part");
         let n = p.normals.unwrap();
         assert_eq!(n.len(), 4 + p.sampled);
         assert!(n.iter().all(|n| *n == [0.0, 0.0, z]));
     }
     // Two squares side by side, unwelded (the seam's vertices repeated), the second wound the
-    // other way: open, consistent within each part, and each point's part named — the
-    // vertices' and those sampled inside the triangles.
-    let mut two = v.clone();
-    two.extend(v.iter().map(|p| [p[0] + 1.0, p[1], p[2]]));
-    let p =
-        mesh_points(TriMesh::new(two, vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]).unwrap());
-    assert_eq!(p.source, NormalSource::WindingOpen);
-    let (parts, n) = (p.parts.expect("two parts"), p.normals.expect("normals"));
-    assert_eq!(parts.len(), p.positions.len());
-    for ((x, n), part) in p.positions.iter().zip(&n).zip(&parts) {
-        let right = x[0] > 1.0 || (x[0] == 1.0 && *part == parts[4]);
-        assert_eq!(*part == parts[4], right, "{x:?}");
-        assert_eq!(n[2], if right { -1.0 } else { 1.0 }, "{x:?}");
+    // other way: each part is consistent, and the seam says they disagree — the second (the
+    // tie goes to the first) is turned over, its sampled points with it. Moved apart, without
+    // a seam, each keeps its winding.
+    for (gap, turned) in [(0.0, true), (0.5, false)] {
+        let mut two = v.clone();
+        two.extend(v.iter().map(|p| [p[0] + 1.0 + gap, p[1], p[2]]));
+        let mesh = TriMesh::new(two, vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]).unwrap();
+        let p = mesh_points(mesh);
+        let n = p.normals.expect("normals");
+        if turned {
+            assert_eq!(
+                p.source,
+                NormalSource::WindingOpenParts {
+                    turned: 1,
+                    parts: 2
+                }
+            );
+            assert!(n.iter().all(|n| *n == [0.0, 0.0, 1.0]), "{n:?}");
+        } else {
+            assert_eq!(p.source, NormalSource::WindingOpen);
+            let right = |x: &[f64; 3]| x[0] > 1.2;
+            assert!(
+                p.positions
+                    .iter()
+                    .zip(&n)
+                    .all(|(x, n)| n[2] == if right(x) { -1.0 } else { 1.0 })
+            );
+        }
     }
-    assert_ne!(parts[0], parts[4]);
+    // A tetrahedron as four unwelded faces (each its own part, every edge a seam, the faces
+    // 70.5° apart: a crease no normal-propagation signs reliably): wound outward, none is
+    // turned; one face wound inward is turned back.
+    let corners = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    for inward in [None, Some(2)] {
+        let mut vertices = Vec::new();
+        let mut triangles = Vec::new();
+        for (f, face) in faces.iter().enumerate() {
+            let base = vertices.len() as u32;
+            vertices.extend(face.iter().map(|&c| corners[c]));
+            triangles.push(if inward == Some(f) {
+                [base, base + 2, base + 1]
+            } else {
+                [base, base + 1, base + 2]
+            });
+        }
+        let p = mesh_points(TriMesh::new(vertices, triangles).unwrap());
+        let want = match inward {
+            None => NormalSource::WindingOpen,
+            Some(_) => NormalSource::WindingOpenParts {
+                turned: 1,
+                parts: 4,
+            },
+        };
+        assert_eq!(p.source, want);
+        let centroid = [0.25; 3];
+        let n = p.normals.expect("normals");
+        assert!(
+            p.positions
+                .iter()
+                .zip(&n)
+                .all(|(x, n)| { (0..3).map(|a| (x[a] - centroid[a]) * n[a]).sum::<f64>() > 0.0 })
+        );
+    }
     // The second triangle wound the other way: inconsistent, no normals.
     let p = mesh_points(TriMesh::new(v.clone(), vec![[0, 1, 2], [0, 3, 2]]).unwrap());
     assert!(p.normals.is_none());

@@ -37,23 +37,7 @@ pub(crate) fn read_points(
             zeroset_mesh::MeshFormat::from_path(&path) == Some(zeroset_mesh::MeshFormat::Ply);
         // A PLY whose few faces use under half its vertices is a point cloud (as the CLI reads it).
         if !(is_ply && zeroset_mesh::points::is_mostly_unused(&mesh)) {
-            let mut points = zeroset_mesh::points::mesh_points(mesh);
-            // An open mesh's parts wound against each other are turned to agree, as the
-            // command does (`zeroset_bases::normals::orient_parts`).
-            if let (Some(parts), Some(normals)) = (&points.parts, &mut points.normals) {
-                let options = zeroset_bases::normals::NormalOptions::default();
-                let o = py
-                    .detach(|| {
-                        zeroset_bases::normals::orient_parts(
-                            &points.positions,
-                            normals,
-                            parts,
-                            &options,
-                        )
-                    })
-                    .map_err(to_py)?;
-                *normals = o.normals;
-            }
+            let points = zeroset_mesh::points::mesh_points(mesh);
             let normals = points.normals.map(|n| rows_array(py, n));
             return Ok((rows_array(py, points.positions), normals));
         }

@@ -847,7 +847,8 @@ fn incremental_constraints_keep_the_smoothing() {
 #[test]
 fn two_spheres_touching_at_a_point_fit_with_the_outside_between_them() {
     // Unit spheres around (±1, 0, 0) meet at the origin, which each samples with its own
-    // normal (∓x): two points at one place with opposite normals.
+    // normal (±x, pointing into the other sphere): two points at one place with opposite
+    // normals, whose outside offsets would lie inside the other sphere.
     let mut points = Vec::new();
     let mut normals = Vec::new();
     for centre in [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]] {
@@ -864,8 +865,10 @@ fn two_spheres_touching_at_a_point_fit_with_the_outside_between_them() {
     let fit = RbfFit::new(Biharmonic).fit(&c).unwrap();
     let f = |p: [f64; 3]| fit.field.value(&p);
     assert!(f([0.0; 3]).abs() < 1e-9, "{}", f([0.0; 3]));
-    // Inside each sphere beside the contact, outside between them above and below it.
-    for x in [-0.1, 0.1, -1.0, 1.0] {
+    // Inside each sphere beside the contact — within half the offset of it, and farther —
+    // and outside between them above and below it.
+    let half = 0.5 * report.initial;
+    for x in [-half, half, -0.1, 0.1, -1.0, 1.0] {
         assert!(f([x, 0.0, 0.0]) < 0.0, "{x}: {}", f([x, 0.0, 0.0]));
     }
     for y in [-0.3, 0.3] {

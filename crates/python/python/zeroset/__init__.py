@@ -477,7 +477,8 @@ def orient_normals(
     signs are not (principal-component normals written unoriented, half of them inward, as
     CGAL's ``cube.pwn``). The lines' signs are propagated as :func:`estimate_normals`
     propagates its planes' (``neighbours`` as there), each connected piece turned outward, or
-    towards ``viewpoint``. Returns ``(oriented, report)``: unit normals, each ``±`` its line,
+    towards ``viewpoint``; a ``0 0 0`` row takes its nearest neighbour's normal, as a point
+    without a plane does. Returns ``(oriented, report)``: unit normals, each ``±`` its line,
     and a :class:`Report` with ``inconsistent`` (of each piece, the smaller of the points
     that agree with the orientation and those that disagree: 0 for oriented normals, about
     half the points for unoriented ones), ``turned`` (the normals reversed) and

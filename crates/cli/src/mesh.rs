@@ -963,7 +963,8 @@ fn mesh_and_count(args: &MeshArgs, count: bool) -> anyhow::Result<Option<Vec<usi
             out,
             "turned: the mesh came out inside out (closed, with a negative signed volume: the \
              field is positive inside, the scan's normals pointing inward), so its triangles \
-             are turned over to face out; a field kept with --field stays as fitted"
+             are turned over to face out (--keep-inside-out keeps it as fitted, for normals \
+             that face into the solid on purpose); a field kept with --field stays as fitted"
         )?;
     }
     say!(

@@ -166,6 +166,13 @@ pub struct ReconstructArgs {
           allow_hyphen_values = true)]
     pub viewpoint: Option<crate::normals::Viewpoint>,
 
+    /// Keep a closed mesh that comes out inside out (a negative signed volume) as fitted,
+    /// instead of turning it over: for normals that face into the solid on purpose (a room
+    /// scanned from inside, its normals facing the scanner, as `zeroset normals --viewpoint`
+    /// writes them). Implied by --viewpoint.
+    #[arg(long)]
+    pub keep_inside_out: bool,
+
     #[arg(long, value_name = "FORMAT", help = crate::normals::FORMAT_HELP)]
     pub format: Option<String>,
 
@@ -587,7 +594,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     let mut mesh_args = stage::<MeshArgs>(&argv)?;
     // Normals turned towards a viewpoint face into the solid by request (a room scanned from
     // inside: the solid is what lies outside it).
-    mesh_args.turn_inside_out = args.viewpoint.is_none();
+    mesh_args.turn_inside_out = args.viewpoint.is_none() && !args.keep_inside_out;
     let components =
         crate::mesh::run_counting(&mesh_args).context("reconstruct, stage 2 (mesh)")?;
     times.push(("mesh", t.elapsed()));

@@ -1173,6 +1173,21 @@ fn an_inside_out_mesh_and_voxels_too_coarse_are_said() {
     );
     let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&turned).unwrap());
     assert!(r.is_oriented_closed() && r.signed_volume > 0.0, "{r}");
+    // Normals that face into the solid on purpose (a room seen from inside): kept as fitted.
+    let kept = dir.path().join("kept.ply");
+    let o = zeroset([
+        "reconstruct",
+        cloud.to_str().unwrap(),
+        "-o",
+        kept.to_str().unwrap(),
+        "--method",
+        "rbf",
+        "--keep-inside-out",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(inside_out), "{}", stdout(&o));
+    let k = zeroset_mesh::check(&zeroset_mesh::read_mesh(&kept).unwrap());
+    assert!(k.signed_volume < 0.0, "{k}");
     assert!(
         (r.signed_volume + inside_out_volume.signed_volume).abs() < 0.02 * r.signed_volume,
         "{r} against {inside_out_volume}"

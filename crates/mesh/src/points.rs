@@ -299,10 +299,12 @@ fn turn_vertices(mesh: &TriMesh, sign: &[f64], normals: &mut [Point<3>]) {
 /// over so that they agree along their seams: where two parts have an edge at the same two
 /// positions (a patch modelled apart, its border vertices repeated), the edge runs opposite
 /// ways in the two triangles if the parts are wound alike, as one welded surface would be.
-/// Parts joined by seams are signed against each other (each pair by the majority of its
-/// seam edges, along a breadth-first tree from the lowest part); of each group so joined,
-/// the side with fewer triangles is turned, the file's winding being the majority's. A part
-/// without seams keeps its winding.
+/// A seam edge is one of exactly two triangles, in different parts. Parts joined by seams
+/// are signed against each other (each pair by the majority of its seam edges, along a
+/// breadth-first tree from the lowest part); of each group so joined whose pairs all agree
+/// with that signing, the side with fewer triangles is turned, the file's winding being the
+/// majority's. A part without seams, or in a group whose seams contradict each other round
+/// a loop, keeps its winding.
 fn seam_turns(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
     let mut turn = vec![false; parts];
     if parts < 2 {
@@ -315,7 +317,8 @@ fn seam_turns(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
         .iter()
         .map(|p| {
             let next = ids.len() as u32;
-            *ids.entry(p.map(f64::to_bits)).or_insert(next)
+            // + 0.0 makes −0 the same position as 0.
+            *ids.entry(p.map(|x| (x + 0.0).to_bits())).or_insert(next)
         })
         .collect();
     // Each welded edge's uses: (part, runs from the lower id to the higher).
@@ -332,18 +335,18 @@ fn seam_turns(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
         }
     }
     // Of each pair of parts meeting along seams: edges wound alike, and against each other.
+    // Only an edge of exactly two triangles says how its two sides are wound: where more
+    // meet (two boxes sharing an edge), every pairing but one is no seam of a surface.
     let mut pairs: BTreeMap<(u32, u32), (usize, usize)> = BTreeMap::new();
     for uses in edges.values() {
-        for (x, &(p, dp)) in uses.iter().enumerate() {
-            for &(q, dq) in &uses[x + 1..] {
-                if p != q {
-                    let votes = pairs.entry((p.min(q), p.max(q))).or_default();
-                    if dp != dq {
-                        votes.0 += 1;
-                    } else {
-                        votes.1 += 1;
-                    }
-                }
+        if let &[(p, dp), (q, dq)] = uses.as_slice()
+            && p != q
+        {
+            let votes = pairs.entry((p.min(q), p.max(q))).or_default();
+            if dp != dq {
+                votes.0 += 1;
+            } else {
+                votes.1 += 1;
             }
         }
     }
@@ -376,6 +379,16 @@ fn seam_turns(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
                     queue.push_back(q);
                 }
             }
+        }
+        // A group whose seams disagree round a loop (a part that would be turned and kept)
+        // says nothing reliable: it keeps its winding.
+        let consistent = group.iter().all(|&p| {
+            adjacent[p]
+                .iter()
+                .all(|&(q, against)| parity[q as usize] == parity[p].map(|x| x ^ against))
+        });
+        if !consistent {
+            continue;
         }
         let weight = |side: bool| -> usize {
             group

@@ -639,6 +639,41 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
             );
         }
     }
+    // Cubes whose every triangle is a part of its own (a soup), wound outward: one alone, two
+    // sharing an edge, two stacked (their faces coincide) — edges of four triangles are no
+    // seams of a surface, and nothing is turned; one triangle wound inward is turned back.
+    let soup = |offsets: &[[f64; 3]], inward: Option<usize>| {
+        let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+        for o in offsets {
+            let cube = cube_at(*o);
+            for t in 0..cube.num_triangles() {
+                let base = vertices.len() as u32;
+                vertices.extend(cube.corners(t));
+                triangles.push(if inward == Some(triangles.len()) {
+                    [base, base + 2, base + 1]
+                } else {
+                    [base, base + 1, base + 2]
+                });
+            }
+        }
+        mesh_points(TriMesh::new(vertices, triangles).unwrap()).source
+    };
+    assert_eq!(soup(&[[0.0; 3]], None), NormalSource::WindingOpen);
+    assert_eq!(
+        soup(&[[0.0; 3], [1.0, 1.0, 0.0]], None),
+        NormalSource::WindingOpen
+    );
+    assert_eq!(
+        soup(&[[0.0; 3], [0.0, 0.0, 1.0]], None),
+        NormalSource::WindingOpen
+    );
+    assert_eq!(
+        soup(&[[0.0; 3]], Some(5)),
+        NormalSource::WindingOpenParts {
+            turned: 1,
+            parts: 12
+        }
+    );
     // A tetrahedron as four unwelded faces (each its own part, every edge a seam, the faces
     // 70.5° apart: a crease no normal-propagation signs reliably): wound outward, none is
     // turned; one face wound inward is turned back.

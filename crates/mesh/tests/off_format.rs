@@ -592,3 +592,20 @@ fn four_d_n_d_and_binary_off_are_refused() {
         );
     }
 }
+
+#[test]
+fn a_non_convex_face_is_cut_inside_itself() {
+    // An L-shaped hexagon (area 3) whose first corner does not see the whole of it: a fan
+    // from there laid a triangle outside it, wound the other way (CGAL's `mpi.off`, whose
+    // faces are the letters of a logo, came out in bubbles).
+    let text = "OFF\n6 1 0\n2 0 0\n2 1 0\n1 1 0\n1 2 0\n0 2 0\n0 0 0\n6 0 1 2 3 4 5\n";
+    let mesh = off_from_bytes(text.as_bytes(), "l.off").unwrap();
+    assert_eq!(mesh.num_triangles(), 4);
+    let report = zeroset_mesh::check(&mesh);
+    assert!((report.area - 3.0).abs() < 1e-12, "{report}");
+    for t in 0..4 {
+        let [a, b, c] = mesh.corners(t);
+        let z = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        assert!(z > 0.0, "triangle {t} faces −z");
+    }
+}

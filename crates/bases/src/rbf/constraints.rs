@@ -88,12 +88,13 @@ pub struct OffsetReport {
     /// Places where points merged into one ([`MERGE_DISTANCE`]) have normals that point apart
     /// (negative dot product): two sheets meeting there — a closed mesh touching itself, two
     /// solids touching, a thin sheet's two faces, a sharp edge or a crease whose faces keep
-    /// their own vertices; or a flipped normal at a repeated sample. Each gets value 0 and
-    /// offsets along both normals on one side, chosen by where the other sheet's points
-    /// around it lie (those of its [`NORMAL_NEIGHBOURS`] nearest whose normals point against
-    /// the kept point's): ahead of the kept point's normal, two solids touching, inside (`−ε`
-    /// against each normal); behind it, a wall pinched to nothing, outside (`+ε` along each);
-    /// no offset where none is found.
+    /// their own vertices. Each gets value 0 and offsets along both normals on one side,
+    /// chosen by where the other sheet's points around it lie (those of its
+    /// [`NORMAL_NEIGHBOURS`] nearest that face the other normal's way): ahead of the kept
+    /// point's normal, two solids touching, inside (`−ε` against each normal); behind it, a
+    /// wall pinched to nothing, outside (`+ε` along each); no offset where there is no
+    /// telling. Where the neighbours all face one of the two ways, it is one sheet with a
+    /// flipped normal at a repeated sample (not counted here): that way is its normal.
     pub touching: usize,
 }
 
@@ -254,7 +255,6 @@ impl<const D: usize> Constraints<D> {
             initial,
             smallest: initial,
             merged: points.len() - kept.len(),
-            touching: touching.iter().flatten().count(),
             ..OffsetReport::default()
         };
         (report.opposed_normals, report.thin_wall) =
@@ -262,18 +262,21 @@ impl<const D: usize> Constraints<D> {
         for (k, (p, &i)) in positions.iter().zip(&kept).enumerate() {
             // Outside along the normal and inside against it; where two sheets meet, along
             // both normals on the side the sheets around say (none where they say nothing).
-            let sides = match touching[i] {
-                None => vec![(normals[i], 1.0), (normals[i], -1.0)],
-                Some(j) => {
-                    let ahead = other_sheet_ahead(&tree, &positions, &kept, &normals, k, i);
-                    if ahead == 0.0 {
-                        Vec::new()
-                    } else {
-                        let side = -ahead.signum();
-                        vec![(normals[i], side), (normals[j], side)]
+            let sides =
+                match touching[i].map(|j| (j, meeting(&tree, &positions, &kept, &normals, k, j))) {
+                    None => vec![(normals[i], 1.0), (normals[i], -1.0)],
+                    // A flipped normal at a repeated sample: the sheet around has one side.
+                    Some((_, Meeting::OneSheet(m))) => vec![(normals[m], 1.0), (normals[m], -1.0)],
+                    Some((j, Meeting::Sheets { ahead })) => {
+                        report.touching += 1;
+                        if ahead == 0.0 {
+                            Vec::new()
+                        } else {
+                            let side = -ahead.signum();
+                            vec![(normals[i], side), (normals[j], side)]
+                        }
                     }
-                }
-            };
+                };
             for (n, side) in sides {
                 let mut eps = initial;
                 let mut placed = false;
@@ -440,33 +443,57 @@ fn distinct<const D: usize>(
     Ok(kept)
 }
 
-/// How far ahead of kept point `k`'s normal (`normals[i]`, `i = kept[k]`) the other sheet's
-/// points lie about it: the sum of `(q − p)·n` over those of its [`NORMAL_NEIGHBOURS`]
-/// nearest kept points whose normals point against `n` (0 where there are none).
-fn other_sheet_ahead<const D: usize>(
+/// How two sheets meet at kept point `k` (input point `kept[k]`, its normal against that of
+/// input point `j`, merged into it).
+enum Meeting {
+    /// Only one of the two normals has neighbours facing its way (of the point's
+    /// [`NORMAL_NEIGHBOURS`] nearest kept points): a flipped normal at a repeated sample on one
+    /// sheet, whose side is the input point `m`'s normal.
+    OneSheet(usize),
+    /// Both have: two sheets. `ahead` is how far ahead of the kept normal the other sheet's
+    /// points lie, `Σ (q − p)·n` over the neighbours facing `j`'s way.
+    Sheets {
+        /// `> 0`: two solids touching; `< 0`: a wall pinched to nothing.
+        ahead: f64,
+    },
+}
+
+/// See [`Meeting`].
+fn meeting<const D: usize>(
     tree: &Tree<D>,
     positions: &[Point<D>],
     kept: &[usize],
     normals: &[Point<D>],
     k: usize,
-    i: usize,
-) -> f64 {
-    let wanted = (NORMAL_NEIGHBOURS + 1).min(positions.len());
-    let Some(wanted) = std::num::NonZero::new(wanted) else {
-        return 0.0;
-    };
-    let (p, n) = (&positions[k], &normals[i]);
-    tree.query(p)
+    j: usize,
+) -> Meeting {
+    let (i, p) = (kept[k], &positions[k]);
+    let wanted = std::num::NonZero::new((NORMAL_NEIGHBOURS + 1).min(positions.len()))
+        .expect("the point itself is kept");
+    let (mut own, mut other, mut ahead) = (0, 0, 0.0);
+    for found in tree
+        .query(p)
         .nearest_n::<SquaredEuclidean<f64>>(wanted)
         .execute()
-        .iter()
-        .map(|f| f.item as usize)
-        .filter(|&m| m != k && dot(&normals[kept[m]], n) < 0.0)
-        .map(|m| {
+    {
+        let m = found.item as usize;
+        if m == k {
+            continue;
+        }
+        let facing = &normals[kept[m]];
+        if dot(facing, &normals[i]) > 0.0 {
+            own += 1;
+        } else if dot(facing, &normals[j]) > 0.0 {
+            other += 1;
             let q = &positions[m];
-            dot(&std::array::from_fn(|a| q[a] - p[a]), n)
-        })
-        .sum()
+            ahead += dot(&std::array::from_fn(|a| q[a] - p[a]), &normals[i]);
+        }
+    }
+    match (own, other) {
+        (0, 1..) => Meeting::OneSheet(j),
+        (1.., 0) => Meeting::OneSheet(i),
+        _ => Meeting::Sheets { ahead },
+    }
 }
 
 /// Normals that point apart at one place, refused where the gradient is prescribed (it cannot

@@ -875,3 +875,30 @@ fn two_spheres_touching_at_a_point_fit_with_the_outside_between_them() {
         assert!(f([0.0, y, 0.0]) > 0.0, "{y}: {}", f([0.0, y, 0.0]));
     }
 }
+
+#[test]
+fn a_flipped_normal_at_a_repeated_sample_takes_its_sheets_side() {
+    // A sphere whose point 0 was recorded twice, the first record with its normal flipped:
+    // the flipped one is the point kept, but its neighbours all face the other copy's way,
+    // so that is the side its offsets take (the other sheet's rule put −ε outside).
+    let on = sphere(400, [0.0; 3], 1.0);
+    let mut points = vec![on[0].0];
+    let mut normals = vec![on[0].1.map(|x| -x)];
+    for (p, u) in &on {
+        points.push(*p);
+        normals.push(*u);
+    }
+    let cloud = zeroset_field_core::PointCloud::with_normals(points, normals).unwrap();
+    let (c, report) = Constraints::off_surface(&cloud, Offset::Auto { fraction: 0.01 }).unwrap();
+    assert_eq!((report.merged, report.touching), (1, 0));
+    let fit = RbfFit::new(Biharmonic).fit(&c).unwrap();
+    let (p, u) = on[0];
+    let at = |t: f64| fit.field.value(&std::array::from_fn(|a| p[a] + t * u[a]));
+    let half = 0.5 * report.initial;
+    assert!(
+        at(half) > 0.0 && at(-half) < 0.0,
+        "{} {}",
+        at(half),
+        at(-half)
+    );
+}

@@ -34,6 +34,7 @@
 pub mod obj;
 pub mod off;
 pub mod ply;
+mod polygon;
 pub mod stl;
 
 use std::path::Path;

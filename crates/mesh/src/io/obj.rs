@@ -6,7 +6,8 @@
 //! - [`read_obj_mesh`] reads the geometry statements: `v x y z` (a fourth coordinate `w`, or
 //!   the colour `r g b` some exporters append, is ignored), `vn`, and `f` with corners written
 //!   `v`, `v/vt`, `v/vt/vn` or `v//vn`, indices from 1 or negative (counted back from the
-//!   last vertex read, as the format allows); polygons are fan-triangulated. Every other
+//!   last vertex read, as the format allows); convex polygons are fan-triangulated, others cut
+//!   into ears inside them. Every other
 //!   statement (`vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, `l`, `p`, ...) is skipped, as are
 //!   comments (`#`) and a UTF-8 byte-order mark; a line ending in `\` continues on the next.
 //!   Texture indices are checked to be integers, not looked up: a mesh keeps no texture. The
@@ -151,9 +152,8 @@ fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                         _ => VertexNormal::Mixed,
                     };
                 }
-                for k in 1..corners.len() - 1 {
-                    triangles.push([corners[0].0, corners[k].0, corners[k + 1].0]);
-                }
+                let indices: Vec<u32> = corners.iter().map(|&(v, _)| v).collect();
+                super::polygon::triangulate(&indices, &vertices, &mut triangles);
             }
             // Texture coordinates, groups, materials, smoothing, lines, points and the rest:
             // nothing a triangle mesh keeps.

@@ -24,7 +24,8 @@
 //!     `N` keyword, the normal `nx ny nz`, which the mesh keeps per vertex, as written (not
 //!     normalised); the colour (`C`), texture coordinates (`ST`) and any other numbers after
 //!     those are ignored. A face line is `k` and `k` indices; what follows them on the line
-//!     (a colour) is ignored. Polygons are fan-triangulated (`i1 i2 i3`, `i1 i3 i4`, ...).
+//!     (a colour) is ignored. Convex polygons are fan-triangulated (`i1 i2 i3`, `i1 i3 i4`, ...),
+//!     others cut into ears inside them.
 //!   - Comments (`#` to the end of the line), blank lines, any whitespace, lines ending in
 //!     `\n`, `\r\n` or `\r`, and a UTF-8 byte-order mark are allowed anywhere; anything after
 //!     the last announced face is ignored.
@@ -48,7 +49,7 @@
 //!             0 0 0  255 0 0 255\n1 0 0  0 255 0 255\n1 1 0  0 0 255 255\n0 1 0  9 9 9 255\n\
 //!             4  0 1 2 3  0.8 0.8 0.8\n";
 //! let square = off_from_bytes(text.as_bytes(), "square.off")?;
-//! // The quad is fan-triangulated; the colours are not kept.
+//! // The (convex) quad is fan-triangulated; the colours are not kept.
 //! assert_eq!(square.triangles(), &[[0, 1, 2], [0, 2, 3]]);
 //! assert!((zeroset_mesh::check(&square).area - 1.0).abs() < 1e-12);
 //! // Written back: `OFF`, a comment, the counts, the vertices, the triangles.
@@ -371,9 +372,9 @@ fn parse_off(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                 format!("face {j} has {k} corner(s); at least 3 are needed"),
             ));
         }
-        // Streamed, never allocated for `k`: the line holds what it holds.
-        let mut first = 0;
-        let mut previous = 0;
+        // Grown as the corners are read, never allocated for `k`: the line holds what it
+        // holds.
+        let mut corners = Vec::new();
         for c in 0..k {
             let Some(word) = words.next() else {
                 return Err(malformed(
@@ -402,13 +403,9 @@ fn parse_off(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                     ));
                 }
             };
-            match c {
-                0 => first = v,
-                1 => {}
-                _ => triangles.push([first, previous, v]),
-            }
-            previous = v;
+            corners.push(v);
         }
+        super::polygon::triangulate(&corners, &vertices, &mut triangles);
         // A colour after the indices: not kept.
     }
     // Anything after the announced faces is ignored.

@@ -11,7 +11,8 @@
 //!   and its `int8 ... float64` alias): the `vertex` element's `x y z` (and `nx ny nz` when
 //!   all three are there) found by name among any other properties; faces are the list
 //!   `vertex_indices` (or `vertex_index`) of the `face` element, with any count and index
-//!   types; polygons with more than three corners are fan-triangulated; other elements are
+//!   types; polygons with more than three corners are fan-triangulated where convex, cut into ears
+//!   inside them otherwise; other elements are
 //!   skipped. Vertices that no face uses are kept.
 //!
 //! Errors name the file and the place: the header line, or the record with its line (ASCII)
@@ -313,7 +314,7 @@ fn parse_ply(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
                 }
             } else if Some(e) == face_el {
                 let items = record.list(face_list.unwrap_or(0));
-                push_face(path, &here, items, vertex_count, &mut triangles)?;
+                push_face(path, &here, items, &vertices, vertex_count, &mut triangles)?;
             }
         }
     }
@@ -325,11 +326,13 @@ fn parse_ply(path: &Path, bytes: &[u8]) -> Result<TriMesh> {
     }
 }
 
-/// Fan-triangulates one face's corner indices `items` into `triangles`.
+/// Triangulates one face's corner indices `items` into `triangles` (a fan where it is convex
+/// or the vertices come after the faces; see `polygon`).
 fn push_face(
     path: &Path,
     here: &Place,
     items: &[f64],
+    vertices: &[Point<3>],
     vertex_count: usize,
     triangles: &mut Vec<[u32; 3]>,
 ) -> Result<()> {
@@ -357,11 +360,11 @@ fn push_face(
             detail: format!("{here}: vertex index {v} does not fit 32 bits"),
         })
     };
-    let mut corners = [corner(0, items[0])?, 0, corner(1, items[1])?];
-    for (k, &v) in items.iter().enumerate().skip(2) {
-        corners[1] = corners[2];
-        corners[2] = corner(k, v)?;
-        triangles.push(corners);
-    }
+    let corners = items
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| corner(k, v))
+        .collect::<Result<Vec<u32>>>()?;
+    super::polygon::triangulate(&corners, vertices, triangles);
     Ok(())
 }

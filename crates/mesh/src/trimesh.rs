@@ -146,7 +146,7 @@ impl TriMesh {
     ///
     /// let v = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
     /// let m = TriMesh::new(v, vec![[0, 1, 2]])?.with_normals(vec![[0.0, 0.0, 1.0]; 3])?;
-    /// let turned = m.turned_over();
+    /// let turned = m.clone().turned_over();
     /// assert_eq!(turned.triangles(), &[[0, 2, 1]]);
     /// assert_eq!(turned.normals()[0], [0.0, 0.0, -1.0]);
     /// assert_eq!(turned.turned_over(), m);

@@ -30,6 +30,7 @@
 
 pub mod bspline;
 pub mod field_file;
+mod meeting;
 pub mod mras;
 pub mod neural;
 pub mod noise;

@@ -78,7 +78,8 @@ const PLANE_OFFSET: f64 = 0.5;
 /// 0.01, 18 at 0.05, 35 at 0.1.
 pub const SPARSE_PLANE: f64 = 0.01;
 
-type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
+/// A k-d tree over 3-D points, items their indices.
+pub(crate) type Tree = KdTree<f64, u32, Eytzinger, FlatVec<f64, u32, 3, 32>, 3, 32>;
 
 /// Whether `ratio` is a ratio [`find_outliers`] takes as an option: 0 (off) or finite and at
 /// least 1.5 (below, most of a surface's points would be isolated).

@@ -275,18 +275,25 @@ fn bad_clouds_get_specific_errors() {
             ..
         }
     ));
-    // Duplicates with agreeing normals are merged; with opposite normals refused.
+    // Duplicates with agreeing normals are merged; a repeat with its normal flipped is one
+    // sheet sampled twice (all the points around face the first's way): the same field, bit
+    // for bit, whichever copy comes first.
     let mut q = p.clone();
     let mut m = n.clone();
     q.push(p[5]);
     m.push(n[5]);
-    let f = fit_mras(&q, &m, &o, &|_| true).unwrap();
-    assert_eq!(f.duplicates, 1);
+    let agreeing = fit_mras(&q, &m, &o, &|_| true).unwrap();
+    assert_eq!(agreeing.duplicates, 1);
+    let bits = |f: &MrasFit| encode_mras(&f.field);
     *m.last_mut().unwrap() = n[5].map(|v| -v);
-    assert!(matches!(
-        err(&q, &m),
-        MrasError::ConflictingDuplicates { first: 5, .. }
-    ));
+    let flipped_repeat = fit_mras(&q, &m, &o, &|_| true).unwrap();
+    assert_eq!((flipped_repeat.duplicates, flipped_repeat.touching), (1, 0));
+    assert_eq!(bits(&flipped_repeat), bits(&agreeing));
+    m[5] = n[5].map(|v| -v);
+    *m.last_mut().unwrap() = n[5];
+    let flipped_first = fit_mras(&q, &m, &o, &|_| true).unwrap();
+    assert_eq!((flipped_first.duplicates, flipped_first.touching), (1, 0));
+    assert_eq!(bits(&flipped_first), bits(&agreeing));
     // 20 copies of 10 points: 10 distinct.
     let q: Vec<P> = (0..20).flat_map(|_| p[..10].to_vec()).collect();
     let m: Vec<P> = (0..20).flat_map(|_| n[..10].to_vec()).collect();
@@ -329,6 +336,68 @@ fn bad_clouds_get_specific_errors() {
             ..
         })
     ));
+}
+
+#[test]
+fn two_spheres_touching_at_one_sampled_point_fit_as_two_solids() {
+    // Unit spheres centred at z = ±1, both sampled at the origin where they touch (normal down
+    // on the upper one, up on the lower): one place with normals pointing apart, two sheets.
+    let (p, n) = sphere(1500, 1.0);
+    let mut points = Vec::new();
+    let mut normals = Vec::new();
+    for dz in [1.0, -1.0] {
+        points.extend(p.iter().map(|q| [q[0], q[1], q[2] + dz]));
+        normals.extend(n.iter().copied());
+        points.push([0.0; 3]);
+        normals.push([0.0, 0.0, -dz]);
+    }
+    let o = MrasOptions::default().max_level(5);
+    let f = fit(&points, &normals, &o);
+    assert_eq!((f.duplicates, f.touching), (1, 1));
+    // The field is flat only around the meeting place (the warning is above 1%).
+    assert!(
+        f.flat_points * 100 < f.fitted_points,
+        "{} flat points",
+        f.flat_points
+    );
+    let value = |x: P| f.field.value(&x);
+    assert!(
+        value([0.0; 3]).abs() < 2e-3,
+        "f = {} where they touch",
+        value([0.0; 3])
+    );
+    for z in [0.5, 1.0, -0.5, -1.0] {
+        assert!(
+            value([0.0, 0.0, z]) < 0.0,
+            "inside at z = {z}: {}",
+            value([0.0, 0.0, z])
+        );
+    }
+    // Between the spheres near where they touch, and beside it: outside.
+    for x in [0.3, 0.6] {
+        assert!(
+            value([x, 0.0, 0.0]) > 0.0,
+            "outside at x = {x}: {}",
+            value([x, 0.0, 0.0])
+        );
+    }
+    // Near where they touch the gap between the spheres closes as the square of the distance
+    // and no smooth field follows both sheets there: the shared sample must not make that
+    // worse than the same fit without it.
+    let apart: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i] != [0.0; 3])
+        .collect();
+    let without = fit(
+        &apart.iter().map(|&i| points[i]).collect::<Vec<_>>(),
+        &apart.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
+        &o,
+    );
+    assert!(
+        f.max_error() <= without.max_error(),
+        "largest distance {:.2e} of the diagonal, {:.2e} without the shared sample",
+        f.max_error(),
+        without.max_error()
+    );
 }
 
 #[test]

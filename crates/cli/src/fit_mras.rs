@@ -222,6 +222,14 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             &format!("{} exact duplicate positions merged", fit.duplicates),
         );
     }
+    if fit.touching > 0 {
+        more(&format!(
+            "({} of them where normals pointing apart meet as two sheets (a mesh touching \
+                 itself, two solids touching, a crease's split normals), each fitted with value \
+                 0 and the mean of the two normals as the gradient)",
+            fit.touching
+        ));
+    }
     args.outliers.report(
         &cloud,
         &fit.outliers,

@@ -8,7 +8,8 @@
 //! winding gives no normals, `reconstruct` estimates them as `zeroset normals` does and `fit`
 //! asks for them.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use anyhow::{Context, bail};
 use zeroset_field_core::PointCloud3;
@@ -16,12 +17,28 @@ use zeroset_field_core::io::ReadOptions;
 use zeroset_mesh::points::{is_mostly_unused, mesh_points};
 use zeroset_mesh::{MeshFormat, is_mesh_file};
 
+/// The mesh files this process has described: `reconstruct`'s stages each read the input, and
+/// the line saying what was taken is printed once.
+static DESCRIBED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Whether `path` is described for the first time (and from now on, has been).
+fn first_description(path: &Path) -> bool {
+    let mut described = DESCRIBED.lock().unwrap_or_else(|e| e.into_inner());
+    let first = !described.iter().any(|p| p == path);
+    if first {
+        described.push(path.to_path_buf());
+    }
+    first
+}
+
 /// The points of `path` if it is a mesh file ([`is_mesh_file`]; unless `options` name a
-/// point-cloud format), `None` for any other file. A line says what was taken and why.
+/// point-cloud format), `None` for any other file. A line says what was taken and why (once
+/// per file and process).
 pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<PointCloud3>> {
     if options.format.is_some() || !is_mesh_file(path) {
         return Ok(None);
     }
+    let say = first_description(path);
     if options.formation.is_some() {
         bail!(
             "--formation picks the rows of a GemPy table; {} is a mesh",
@@ -33,12 +50,14 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
     let (triangles, vertices) = (mesh.num_triangles(), mesh.num_vertices());
     if MeshFormat::from_path(path) == Some(MeshFormat::Ply) && is_mostly_unused(&mesh) {
         // A scan's PLY that carries a few faces is still a point cloud.
-        outln!(
-            "{:<14}{}: its {triangles} faces use fewer than half of its {vertices} vertices: \
+        say.then(|| {
+            outln!(
+                "{:<14}{}: its {triangles} faces use fewer than half of its {vertices} vertices: \
              read as a point cloud of every vertex, the faces ignored",
-            "note",
-            path.display()
-        );
+                "note",
+                path.display()
+            )
+        });
         return Ok(None);
     }
     let points = mesh_points(mesh);
@@ -53,7 +72,7 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
         if vertices == 0 {
             bail!("{}: the mesh is empty: no points to fit", path.display());
         }
-        outln!(
+        say.then(|| outln!(
             "{:<14}{}: {format} of {vertices} vertices and no triangle, read as a point cloud{}",
             "points",
             path.display(),
@@ -62,8 +81,8 @@ pub(crate) fn read(path: &Path, options: &ReadOptions) -> anyhow::Result<Option<
             } else {
                 ""
             }
-        );
-    } else {
+        ));
+    } else if say {
         outln!(
             "{:<14}{}: {format} mesh of {triangles} triangles; its {} vertices{} are the \
              points{}, normals {}",

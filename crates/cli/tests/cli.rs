@@ -1383,6 +1383,21 @@ fn mesh_writes_a_closed_sphere_as_ply_and_obj() {
         r.is_oriented_closed() && r.euler_characteristic == 2 && r.signed_volume > 0.0,
         "{r}"
     );
+    // `reconstruct` reads the mesh in each stage and says what it took once.
+    let o = zeroset([
+        "reconstruct",
+        stl.to_str().unwrap(),
+        "-o",
+        dir.path().join("rebuilt.ply").to_str().unwrap(),
+        "--no-preview",
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(
+        stdout(&o).matches("an STL mesh of").count(),
+        1,
+        "{}",
+        stdout(&o)
+    );
 
     // The same sphere wound inward beside a copy wound outward, as OBJ: the inward part is
     // turned over on its own, and the fit is outward on both.

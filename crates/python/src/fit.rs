@@ -435,6 +435,7 @@ pub(crate) fn fit_mras_cloud<'py>(
             ),
             ("max_error", ReportValue::Float(max_error)),
             ("duplicates", ReportValue::Int(fit.duplicates)),
+            ("touching", ReportValue::Int(fit.touching)),
             ("outliers", ReportValue::Ints(fit.outliers.clone())),
             ("kept_sparse", ReportValue::Int(fit.kept_sparse)),
             ("tolerance", ReportValue::Float(options.tolerance)),

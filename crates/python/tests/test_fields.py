@@ -200,6 +200,24 @@ def test_a_loose_mras_tolerance_keeps_the_surface_and_a_flat_field_is_warned_of(
         zeroset.fit(points, normals, lam=0.1)
 
 
+def test_two_spheres_touching_at_a_shared_sample_fit_by_rbf_and_mras():
+    # Unit spheres centred at z = ±1, both sampled at the origin where they touch (normal
+    # down on the upper one, up on the lower): one place, normals pointing apart, two sheets.
+    points, normals = sphere_cloud(800)
+    parts = []
+    for dz in (1.0, -1.0):
+        parts.append((points + [0.0, 0.0, dz], normals))
+        parts.append((np.zeros((1, 3)), np.array([[0.0, 0.0, -dz]])))
+    p = np.vstack([q for q, _ in parts])
+    n = np.vstack([m for _, m in parts])
+    for method in ("rbf", "mras"):
+        f = zeroset.fit(p, n, method=method)
+        assert f.report["touching"] == 1, method
+        assert abs(f(np.zeros(3))) < 2e-3, method
+        assert f(np.array([0.0, 0.0, 0.5])) < 0 and f(np.array([0.0, 0.0, -0.5])) < 0, method
+        assert f(np.array([0.5, 0.0, 0.0])) > 0, method
+
+
 def test_rbf_and_mras_set_stray_points_aside():
     # 2,000 points on the unit sphere and 10 scattered well off it with random normals: the
     # MRAS report lists exactly those 10 and the field keeps them off its zero set;

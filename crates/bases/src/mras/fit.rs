@@ -1,9 +1,12 @@
 //! [`fit_mras`]: the adaptive octree fit of paper 004 §5.1 (see the module docs).
 
+use std::collections::BTreeMap;
+use std::num::NonZero;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use faer::Mat;
+use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{self, Aabb, Point};
 use zeroset_tensor::thin_svd;
@@ -15,6 +18,9 @@ use super::local::{
     CellSolve, CpBound, LAMBDA_SCALE_CAP, LocalSettings, Target, ThinPlate, compress_cell,
     solve_cell,
 };
+use crate::meeting::{Meeting, meeting};
+use crate::outliers::Tree as NeighbourTree;
+use crate::rbf::NORMAL_NEIGHBOURS;
 
 /// Options of [`fit_mras`]. The paper's values where it gives one; the others measured on
 /// `bunny_points.ply` and `kitten.xyz` (the issue note has the runs), in the normalised energy of
@@ -369,6 +375,13 @@ pub struct MrasFit {
     pub diagonal: f64,
     /// Exact duplicate positions merged before fitting.
     pub duplicates: usize,
+    /// Of the places where [`MrasFit::duplicates`] were merged, those where normals pointing
+    /// apart meet as two sheets (a mesh touching itself, two solids touching, a crease's split
+    /// normals), judged by the normals around: fitted with value 0 and the two unit normals'
+    /// mean as the gradient, and measured by `|f|` in the errors. Where the points around all
+    /// face one of the two ways, the place is one sheet with a flipped normal, fitted with
+    /// that side (not counted here).
+    pub touching: usize,
     /// The input points set aside as outliers ([`MrasOptions::outlier_ratio`]), by index,
     /// increasing; the field is not fitted to them.
     pub outliers: Vec<usize>,
@@ -415,9 +428,13 @@ impl MrasFit {
 /// `progress` is called from worker threads after each cell; when it answers `false` the fit
 /// stops ([`MrasError::Cancelled`]) as soon as the cells in progress are done.
 ///
+/// Points at exactly one position are fitted as one ([`MrasFit::duplicates`]); where their
+/// normals point apart, as two sheets meeting there or as one with a flipped normal, as the
+/// points around say ([`MrasFit::touching`]).
+///
 /// # Errors
 /// Bad input: [`MrasError::Normals`], [`MrasError::NonFinite`], [`MrasError::ZeroNormal`],
-/// [`MrasError::ConflictingDuplicates`], [`MrasError::TooFewPoints`] (fewer than `N_min`
+/// [`MrasError::TooFewPoints`] (fewer than `N_min`
 /// distinct points), [`MrasError::Degenerate`] (all points on a plane or line),
 /// [`MrasError::Option`]; numerical breakdowns as [`MrasError::Admm`] or [`MrasError::Tensor`];
 /// [`MrasError::Cancelled`] when `progress` answers `false`.
@@ -561,7 +578,7 @@ pub fn fit_mras(
                     let (o, og) = field.level_offset(&full, &u[i], true);
                     let v = f[i] + o;
                     let g: Point<3> = std::array::from_fn(|a| grad[i][a] + og[a]);
-                    (v.abs(), sampson_distance(v, &g))
+                    (v.abs(), cloud.distance(i, v, &g))
                 })
                 .collect();
             let (mut residual, mut distance) = (vec![0.0; np], vec![0.0; np]);
@@ -616,7 +633,7 @@ pub fn fit_mras(
         let lvl = MrasLevel::new(level, m, cells).map_err(MrasError::Field)?;
         // f^k and ∇f^k at every point (unit-cube units), and the Sampson distances.
         add_level(&field, &lvl, u, &mut f, &mut grad);
-        let sampson = sampson_distances(&f, &grad);
+        let sampson = cloud.distances(&f, &grad);
         let max_error = sampson.iter().fold(0.0f64, |a, &b| a.max(b));
         let mean_error = sampson.iter().sum::<f64>() / np as f64;
         // A cell splits where its own points need it after compression, or where step 2
@@ -625,7 +642,10 @@ pub fn fit_mras(
         points_over = sampson.iter().filter(|&&d| d > eps0).count();
         flat = grad
             .iter()
-            .filter(|g| g.iter().map(|v| v * v).sum::<f64>() < FLAT_GRADIENT * FLAT_GRADIENT)
+            .zip(&cloud.touching)
+            .filter(|(g, touching)| {
+                !**touching && g.iter().map(|v| v * v).sum::<f64>() < FLAT_GRADIENT * FLAT_GRADIENT
+            })
             .count();
         // The cells whose own points need a finer level; at the level cap, those it stops.
         let late = refined(&buckets, &fitted_indices, &sampson, eps0, options);
@@ -679,6 +699,7 @@ pub fn fit_mras(
         levels: reports,
         diagonal,
         duplicates: cloud.duplicates,
+        touching: cloud.touching.iter().filter(|&&t| t).count(),
         outliers: cloud.outliers,
         kept_sparse: cloud.kept_sparse,
         tolerance: options.tolerance,
@@ -713,14 +734,6 @@ fn add_level(
         });
 }
 
-/// The Sampson distance `|f| / |∇f|` at every point (unit-cube units).
-fn sampson_distances(f: &[f64], grad: &[Point<3>]) -> Vec<f64> {
-    f.par_iter()
-        .zip(grad.par_iter())
-        .map(|(&v, g)| sampson_distance(v, g))
-        .collect()
-}
-
 /// The Sampson distance `|f| / |∇f|` of value `f` and gradient `g` (infinite where `∇f = 0`).
 fn sampson_distance(f: f64, g: &Point<3>) -> f64 {
     let n = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
@@ -749,7 +762,11 @@ fn refined(
 /// The checked, de-duplicated cloud in unit-cube coordinates.
 struct Cloud {
     u: Vec<Point<3>>,
+    /// The gradient each point is fitted to: its unit normal, or where two sheets meet the
+    /// mean of theirs.
     normals: Vec<Point<3>>,
+    /// Per point, whether two sheets meet there ([`sheets_meeting`]).
+    touching: Vec<bool>,
     origin: Point<3>,
     side: f64,
     diagonal: f64,
@@ -760,12 +777,34 @@ struct Cloud {
 }
 
 impl Cloud {
+    /// How far fitted point `i` lies from the zero set of a field of value `f` and gradient
+    /// `g` there: the Sampson distance `|f| / |∇f|`, or `|f|` where two sheets meet (the
+    /// gradient is fitted short there, and around it the field is a distance of unit slope:
+    /// the normals are unit).
+    fn distance(&self, i: usize, f: f64, g: &Point<3>) -> f64 {
+        if self.touching[i] {
+            f.abs()
+        } else {
+            sampson_distance(f, g)
+        }
+    }
+
+    /// [`Cloud::distance`] at every point (unit-cube units).
+    fn distances(&self, f: &[f64], grad: &[Point<3>]) -> Vec<f64> {
+        (f, grad)
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, (&v, g))| self.distance(i, v, g))
+            .collect()
+    }
+
     /// The distinct, finite points with unit normals, outliers set aside, in the unit cube.
     fn new(
         positions: &[Point<3>],
-        normals: &[Point<3>],
+        normals_in: &[Point<3>],
         options: &MrasOptions,
     ) -> Result<Self, MrasError> {
+        let normals = normals_in;
         let (n_min, margin) = (options.n_min, options.margin);
         if normals.len() != positions.len() {
             return Err(MrasError::Normals {
@@ -797,7 +836,8 @@ impl Cloud {
                 });
             }
         }
-        // Exact duplicates: keep the first; opposite normals are contradictory input.
+        // Exact duplicates: one point each, the first. Where a repeat's normal points against
+        // the first's, the points around say which (`crate::meeting`).
         let mut order: Vec<usize> = (0..positions.len()).collect();
         let key = |i: usize| positions[i].map(f64::to_bits);
         order.sort_by_key(|&i| (key(i), i));
@@ -807,19 +847,15 @@ impl Cloud {
             let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             n.map(|v| v / l)
         };
+        // The first of each place, and the first repeat whose normal points against its own.
+        let mut apart: Vec<(usize, usize)> = Vec::new();
         let mut run = 0;
         for w in 1..order.len() {
-            if key(order[w]) == key(order[run]) {
-                let (a, b) = (order[run], order[w]);
-                let (na, nb) = (unit(&normals[a]), unit(&normals[b]));
-                let dot = na[0] * nb[0] + na[1] * nb[1] + na[2] * nb[2];
-                if dot < 0.0 {
-                    return Err(MrasError::ConflictingDuplicates {
-                        first: a.min(b),
-                        second: a.max(b),
-                        position: positions[a],
-                        dot,
-                    });
+            let (a, b) = (order[run], order[w]);
+            if key(b) == key(a) {
+                let opposed = geometry::dot(&unit(&normals[a]), &unit(&normals[b])) < 0.0;
+                if opposed && apart.last().is_none_or(|&(first, _)| first != a) {
+                    apart.push((a, b));
                 }
                 keep[b] = false;
                 duplicates += 1;
@@ -827,6 +863,8 @@ impl Cloud {
                 run = w;
             }
         }
+        let (normals, touching) = sheets_meeting(positions, normals, &keep, &apart);
+        let normals = normals.as_deref().unwrap_or(normals_in);
         let mut idx: Vec<usize> = (0..positions.len()).filter(|&i| keep[i]).collect();
         // Outliers: before the box, which they would stretch.
         let found = {
@@ -867,10 +905,20 @@ impl Cloud {
             .iter()
             .map(|&i| std::array::from_fn(|a| (positions[i][a] - origin[a]) / side))
             .collect();
-        let normals = idx.iter().map(|&i| unit(&normals[i])).collect();
+        let normals = idx
+            .iter()
+            .map(|i| {
+                touching
+                    .get(i)
+                    .copied()
+                    .unwrap_or_else(|| unit(&normals[*i]))
+            })
+            .collect();
+        let touching: Vec<bool> = idx.iter().map(|i| touching.contains_key(i)).collect();
         Ok(Self {
             u,
             normals,
+            touching,
             origin,
             side,
             diagonal,
@@ -879,6 +927,59 @@ impl Cloud {
             kept_sparse: found.kept_sparse,
         })
     }
+}
+
+/// The places where a repeat's normal points against the first point's (`apart`: the two
+/// input indices; `keep`: the distinct points), judged by the [`NORMAL_NEIGHBOURS`] nearest
+/// distinct points ([`crate::meeting`]). Returns the normals to fit with where one place is one
+/// sheet with its first normal flipped (the repeat's taken; `None` where none is), and by kept
+/// index the places where two sheets meet, with the mean of their unit normals: the gradient
+/// fitted there, short where they point nearly opposite ways (the field's gradient vanishes
+/// where two solids touch or a wall is pinched to nothing), a crease's mean where they meet at
+/// an angle.
+fn sheets_meeting(
+    positions: &[Point<3>],
+    normals: &[Point<3>],
+    keep: &[bool],
+    apart: &[(usize, usize)],
+) -> (Option<Vec<Point<3>>>, BTreeMap<usize, Point<3>>) {
+    let mut touching = BTreeMap::new();
+    if apart.is_empty() {
+        return (None, touching);
+    }
+    let unit = |n: &Point<3>| geometry::scale(1.0 / geometry::norm(n), n);
+    let distinct: Vec<usize> = (0..positions.len()).filter(|&i| keep[i]).collect();
+    let at: Vec<Point<3>> = distinct.iter().map(|&i| positions[i]).collect();
+    let tree = NeighbourTree::new_from_slice(&at).ok();
+    let mut flipped: Vec<(usize, usize)> = Vec::new();
+    for &(a, b) in apart {
+        let (na, nb) = (unit(&normals[a]), unit(&normals[b]));
+        let wanted = NonZero::new((NORMAL_NEIGHBOURS + 1).min(at.len())).expect("a is kept");
+        let around = tree.iter().flat_map(|tree| {
+            tree.query(&positions[a])
+                .nearest_n::<SquaredEuclidean<f64>>(wanted)
+                .execute()
+        });
+        let around = around
+            .map(|found| distinct[found.item as usize])
+            .filter(|&m| m != a)
+            .map(|m| (positions[m], unit(&normals[m])));
+        match meeting(&positions[a], &na, &nb, around) {
+            Meeting::OneSheet { first: true } => {}
+            Meeting::OneSheet { first: false } => flipped.push((a, b)),
+            Meeting::Sheets { .. } => {
+                touching.insert(a, std::array::from_fn(|x| 0.5 * (na[x] + nb[x])));
+            }
+        }
+    }
+    let chosen = (!flipped.is_empty()).then(|| {
+        let mut chosen = normals.to_vec();
+        for (a, b) in flipped {
+            chosen[a] = normals[b];
+        }
+        chosen
+    });
+    (chosen, touching)
 }
 
 /// Rejects clouds on a plane, a line or a point: their covariance has a (near) zero eigenvalue.
@@ -1091,7 +1192,8 @@ fn gather(
                             u: p,
                             value: -f[i],
                             gradient: std::array::from_fn(|a| cloud.normals[i][a] - grad[i][a]),
-                            slack: if steepness {
+                            // Where sheets meet the distance is `|f|` (`Cloud::distance`).
+                            slack: if steepness && !cloud.touching[i] {
                                 slack[i] * steepness_factor(&grad[i])
                             } else {
                                 slack[i]

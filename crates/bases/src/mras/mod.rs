@@ -217,21 +217,6 @@ pub enum MrasError {
         /// Its length.
         length: f64,
     },
-    /// Two copies of one position with opposite normals.
-    #[error(
-        "points {first} and {second} are the same position {position:?} with opposite normals \
-         (dot product {dot:.3}): the inside and outside cannot both be right"
-    )]
-    ConflictingDuplicates {
-        /// The first record.
-        first: usize,
-        /// The second record.
-        second: usize,
-        /// The position.
-        position: [f64; 3],
-        /// The normals' dot product.
-        dot: f64,
-    },
     /// All points on one plane or line: no volume to wrap a surface around.
     #[error(
         "all points lie within {thickness:.3e} of a {shape} (extent {extent:.3e}): MRAS sizes \

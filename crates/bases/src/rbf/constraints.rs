@@ -21,6 +21,7 @@ use zeroset_field_core::geometry::norm as point_norm;
 use zeroset_field_core::{Point, PointCloud};
 
 use super::RbfError;
+use crate::meeting::{Meeting, meeting};
 
 /// What a constraint prescribes at its point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -262,21 +263,25 @@ impl<const D: usize> Constraints<D> {
         for (k, (p, &i)) in positions.iter().zip(&kept).enumerate() {
             // Outside along the normal and inside against it; where two sheets meet, along
             // both normals on the side the sheets around say (none where they say nothing).
-            let sides =
-                match touching[i].map(|j| (j, meeting(&tree, &positions, &kept, &normals, k, j))) {
-                    None => vec![(normals[i], 1.0), (normals[i], -1.0)],
-                    // A flipped normal at a repeated sample: the sheet around has one side.
-                    Some((_, Meeting::OneSheet(m))) => vec![(normals[m], 1.0), (normals[m], -1.0)],
-                    Some((j, Meeting::Sheets { ahead })) => {
-                        report.touching += 1;
-                        if ahead == 0.0 {
-                            Vec::new()
-                        } else {
-                            let side = -ahead.signum();
-                            vec![(normals[i], side), (normals[j], side)]
-                        }
+            let meets =
+                touching[i].map(|j| (j, meeting_at(&tree, &positions, &kept, &normals, k, j)));
+            let sides = match meets {
+                None => vec![(normals[i], 1.0), (normals[i], -1.0)],
+                // A flipped normal at a repeated sample: the sheet around has one side.
+                Some((j, Meeting::OneSheet { first })) => {
+                    let m = if first { i } else { j };
+                    vec![(normals[m], 1.0), (normals[m], -1.0)]
+                }
+                Some((j, Meeting::Sheets { ahead })) => {
+                    report.touching += 1;
+                    if ahead == 0.0 {
+                        Vec::new()
+                    } else {
+                        let side = -ahead.signum();
+                        vec![(normals[i], side), (normals[j], side)]
                     }
-                };
+                }
+            };
             for (n, side) in sides {
                 let mut eps = initial;
                 let mut placed = false;
@@ -443,23 +448,10 @@ fn distinct<const D: usize>(
     Ok(kept)
 }
 
-/// How two sheets meet at kept point `k` (input point `kept[k]`, its normal against that of
-/// input point `j`, merged into it).
-enum Meeting {
-    /// Only one of the two normals has neighbours facing its way (of the point's
-    /// [`NORMAL_NEIGHBOURS`] nearest kept points): a flipped normal at a repeated sample on one
-    /// sheet, whose side is the input point `m`'s normal.
-    OneSheet(usize),
-    /// Both have: two sheets. `ahead` is how far ahead of the kept normal the other sheet's
-    /// points lie, `Σ (q − p)·n` over the neighbours facing `j`'s way.
-    Sheets {
-        /// `> 0`: two solids touching; `< 0`: a wall pinched to nothing.
-        ahead: f64,
-    },
-}
-
-/// See [`Meeting`].
-fn meeting<const D: usize>(
+/// How the sheets meet at kept point `k` (input point `kept[k]`), whose normal points against
+/// that of input point `j`, merged into it: judged by its [`NORMAL_NEIGHBOURS`] nearest kept
+/// points ([`crate::meeting`]).
+fn meeting_at<const D: usize>(
     tree: &Tree<D>,
     positions: &[Point<D>],
     kept: &[usize],
@@ -467,33 +459,19 @@ fn meeting<const D: usize>(
     k: usize,
     j: usize,
 ) -> Meeting {
-    let (i, p) = (kept[k], &positions[k]);
+    let p = &positions[k];
     let wanted = std::num::NonZero::new((NORMAL_NEIGHBOURS + 1).min(positions.len()))
         .expect("the point itself is kept");
-    let (mut own, mut other, mut ahead) = (0, 0, 0.0);
-    for found in tree
+    let around = tree
         .query(p)
         .nearest_n::<SquaredEuclidean<f64>>(wanted)
-        .execute()
-    {
-        let m = found.item as usize;
-        if m == k {
-            continue;
-        }
-        let facing = &normals[kept[m]];
-        if dot(facing, &normals[i]) > 0.0 {
-            own += 1;
-        } else if dot(facing, &normals[j]) > 0.0 {
-            other += 1;
-            let q = &positions[m];
-            ahead += dot(&std::array::from_fn(|a| q[a] - p[a]), &normals[i]);
-        }
-    }
-    match (own, other) {
-        (0, 1..) => Meeting::OneSheet(j),
-        (1.., 0) => Meeting::OneSheet(i),
-        _ => Meeting::Sheets { ahead },
-    }
+        .execute();
+    let around = around
+        .into_iter()
+        .map(|found| found.item as usize)
+        .filter(|&m| m != k)
+        .map(|m| (positions[m], normals[kept[m]]));
+    meeting(p, &normals[kept[k]], &normals[j], around)
 }
 
 /// Normals that point apart at one place, refused where the gradient is prescribed (it cannot

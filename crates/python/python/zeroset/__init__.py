@@ -663,6 +663,13 @@ def fit(
     ``report["flat_points"]`` counts the points where the field is nearly flat
     (``|∇f| < 0.1``), warned of above 1% of ``report["fitted_points"]``.
 
+    Points repeated at one position are fitted once (``report["merged"]`` for ``"rbf"``,
+    ``report["duplicates"]`` for ``"mras"``). Where their normals point apart — a mesh
+    touching itself, two solids touching — the points around say whether two sheets meet
+    there (counted in ``report["touching"]``: RBF offsets on the side they say, MRAS the two
+    normals' mean as the gradient) or one sheet carries a flipped normal (fitted with the
+    sheet's side).
+
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
     blob or a sheet of surface): those whose mean distance to their 8 nearest exceeds
     ``outlier_ratio`` times the median (default 3) and that do not lie on a surface with

@@ -294,6 +294,19 @@ fn bad_clouds_get_specific_errors() {
     let flipped_first = fit_mras(&q, &m, &o, &|_| true).unwrap();
     assert_eq!((flipped_first.duplicates, flipped_first.touching), (1, 0));
     assert_eq!(bits(&flipped_first), bits(&agreeing));
+    // A crease's split normals (87° apart, not pointing apart): their mean is fitted, the
+    // same field whichever copy comes first.
+    let tilted = [n[5][1], n[5][2], n[5][0]];
+    let crease = |first: P, second: P| {
+        let mut m = n.clone();
+        m[5] = first;
+        m.push(second);
+        let f = fit_mras(&q, &m, &o, &|_| true).unwrap();
+        assert_eq!((f.duplicates, f.touching), (1, 0));
+        bits(&f)
+    };
+    assert_eq!(crease(n[5], tilted), crease(tilted, n[5]));
+    assert_ne!(crease(n[5], tilted), bits(&agreeing));
     // 20 copies of 10 points: 10 distinct.
     let q: Vec<P> = (0..20).flat_map(|_| p[..10].to_vec()).collect();
     let m: Vec<P> = (0..20).flat_map(|_| n[..10].to_vec()).collect();
@@ -361,29 +374,15 @@ fn two_spheres_touching_at_one_sampled_point_fit_as_two_solids() {
         f.flat_points
     );
     let value = |x: P| f.field.value(&x);
-    assert!(
-        value([0.0; 3]).abs() < 2e-3,
-        "f = {} where they touch",
-        value([0.0; 3])
-    );
     for z in [0.5, 1.0, -0.5, -1.0] {
-        assert!(
-            value([0.0, 0.0, z]) < 0.0,
-            "inside at z = {z}: {}",
-            value([0.0, 0.0, z])
-        );
+        let v = value([0.0, 0.0, z]);
+        assert!(v < 0.0, "inside at z = {z}: {v}");
     }
     // Between the spheres near where they touch, and beside it: outside.
     for x in [0.3, 0.6] {
-        assert!(
-            value([x, 0.0, 0.0]) > 0.0,
-            "outside at x = {x}: {}",
-            value([x, 0.0, 0.0])
-        );
+        let v = value([x, 0.0, 0.0]);
+        assert!(v > 0.0, "outside at x = {x}: {v}");
     }
-    // Near where they touch the gap between the spheres closes as the square of the distance
-    // and no smooth field follows both sheets there: the shared sample must not make that
-    // worse than the same fit without it.
     let apart: Vec<usize> = (0..points.len())
         .filter(|&i| points[i] != [0.0; 3])
         .collect();
@@ -392,12 +391,29 @@ fn two_spheres_touching_at_one_sampled_point_fit_as_two_solids() {
         &apart.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
         &o,
     );
+    // The place's value 0 holds the field nearer 0 there than without its sample, and its
+    // gradient, the mean of two opposite normals, vanishes: a saddle between the two solids
+    // (keeping one of the two normals pulled it to 0.10).
+    let (at, without_at) = (value([0.0; 3]), without.field.value(&[0.0; 3]));
+    assert!(
+        at.abs() < without_at.abs(),
+        "f = {at} where they touch, {without_at} without"
+    );
+    let slope = geometry_norm(f.field.gradient(&[0.0; 3]));
+    assert!(slope < 0.03, "|∇f| = {slope} where they touch");
+    // Near where they touch the gap between the spheres closes as the square of the distance
+    // and no smooth field follows both sheets there (the place itself is not measured): the
+    // shared sample must not make the rest worse than the same fit without it.
     assert!(
         f.max_error() <= without.max_error(),
         "largest distance {:.2e} of the diagonal, {:.2e} without the shared sample",
         f.max_error(),
         without.max_error()
     );
+}
+
+fn geometry_norm(v: P) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 #[test]

@@ -777,17 +777,20 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
-    let cloud = match crate::mesh_points::read(path, &options)? {
-        Some(cloud) => cloud,
-        None => read_point_cloud_with(path, &options).map_err(|e| {
-            read_error(
-                path,
-                e,
-                "record",
-                "zeroset fit needs finite coordinates and normals (`zeroset info` counts them \
-                 all)",
-            )
-        })?,
+    let (cloud, wound) = match crate::mesh_points::read(path, &options)? {
+        Some(mesh) => (mesh.cloud, mesh.wound),
+        None => (
+            read_point_cloud_with(path, &options).map_err(|e| {
+                read_error(
+                    path,
+                    e,
+                    "record",
+                    "zeroset fit needs finite coordinates and normals (`zeroset info` counts \
+                     them all)",
+                )
+            })?,
+            false,
+        ),
     };
     // Curves in a plane first: a zero normal completed there would stand across the plane.
     check_not_curves(path, &cloud)?;
@@ -814,7 +817,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
-    let unoriented = (!args.orientation_checked)
+    let unoriented = (!args.orientation_checked && !wound)
         .then(|| crate::normals::unoriented(&cloud))
         .flatten();
     if let Some(o) = unoriented {

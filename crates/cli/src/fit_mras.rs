@@ -224,9 +224,10 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     if fit.touching > 0 {
         more(&format!(
-            "({} of them where normals pointing apart meet as two sheets (a mesh touching \
-                 itself, two solids touching, a crease's split normals), each fitted with value \
-                 0 and the mean of the two normals as the gradient)",
+            "(at {} of the places repeated, normals pointing apart meet as two sheets: a mesh \
+             touching itself, two solids touching, a crease's split normals; each fitted with \
+             value 0 and the mean of the two normals as the gradient, and not measured in the \
+             errors below: no smooth field follows two sheets into the place where they touch)",
             fit.touching
         ));
     }

@@ -385,7 +385,7 @@ fn read_scan(path: &std::path::Path, ratio: f64) -> anyhow::Result<Vec<[f64; 3]>
     if !zeroset_bases::outliers::valid_ratio(ratio) {
         bail!("the stray-point ratio must be 0 (off) or at least 1.5, got {ratio}");
     }
-    let cloud = crate::normals::read_positions(path, &Default::default(), "--scan", true)
+    let (cloud, _) = crate::normals::read_positions(path, &Default::default(), "--scan", true)
         .context("--scan")?;
     // The stray-point rule below reads the normals: none may be zero.
     let (cloud, _) = crate::normals::complete_normals(path, cloud, None).context("--scan")?;

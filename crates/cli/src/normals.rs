@@ -182,7 +182,7 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
     }
     let start = Instant::now();
     let options = read_options(args.format.as_deref(), args.formation.as_deref())?;
-    let cloud = read_positions(&args.scan, &options, "zeroset normals", true)?;
+    let (cloud, _) = read_positions(&args.scan, &options, "zeroset normals", true)?;
     crate::fit::check_extent(&args.scan, &cloud)?;
     if let Some(note) = formations_note(&args.scan, &options) {
         outln!("{:<14}{note}", "formations");
@@ -220,8 +220,22 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
 /// (the caller estimates normals where the file has none), where a normal is not finite (PCL
 /// writes NaN for the normals it could not estimate) or only some of an E57 file's scans have
 /// normals (the note says so). `command` names the caller in a
-/// non-finite value's error.
+/// non-finite value's error. The flag says the normals come from a mesh's winding
+/// ([`crate::mesh_points::MeshCloud::wound`]).
 pub(crate) fn read_positions(
+    path: &Path,
+    options: &ReadOptions,
+    command: &str,
+    normals_optional: bool,
+) -> anyhow::Result<(PointCloud3, bool)> {
+    if let Some(mesh) = crate::mesh_points::read(path, options)? {
+        return Ok((mesh.cloud, mesh.wound));
+    }
+    read_file_positions(path, options, command, normals_optional).map(|cloud| (cloud, false))
+}
+
+/// [`read_positions`] of a point-cloud file.
+fn read_file_positions(
     path: &Path,
     options: &ReadOptions,
     command: &str,
@@ -240,9 +254,6 @@ pub(crate) fn read_positions(
             &format!("{command} needs {needs} (`zeroset info` counts them all)"),
         )
     };
-    if let Some(cloud) = crate::mesh_points::read(path, options)? {
-        return Ok(cloud);
-    }
     let positions_only =
         || read_point_cloud_with(path, &options.clone().with_positions_only(true)).map_err(error);
     match read_point_cloud_with(path, options) {

@@ -342,7 +342,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     // Read once here for `auto`'s size rule and a bad file's error before any output exists;
     // the fit stage reads it again (milliseconds beside the fit).
     let options = crate::normals::read_options(args.format.as_deref(), args.formation.as_deref())?;
-    let cloud = crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
+    let (cloud, wound) =
+        crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     // Curves in a plane before zero normals are completed (across the plane, there).
     crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
     let (cloud, completed) =
@@ -357,8 +358,12 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         );
     }
     // Unoriented normals (signs set arbitrarily): their lines kept, signed by the orientation
-    // propagated over the scan, and the stages given that copy.
-    let (cloud, turned) = match crate::normals::unoriented(&cloud) {
+    // propagated over the scan, and the stages given that copy. (Not a mesh's winding: it is
+    // consistent by construction.)
+    let (cloud, turned) = match (!wound)
+        .then(|| crate::normals::unoriented(&cloud))
+        .flatten()
+    {
         Some(o) => {
             outln!(
                 "{:<14}{}: turned as the orientation propagated over the scan gives (their lines \

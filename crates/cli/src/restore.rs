@@ -855,7 +855,7 @@ impl Source {
             options = options.with_format(format.parse().context("--format")?);
         }
         let cloud = match crate::mesh_points::read(input, &options)? {
-            Some(cloud) => cloud,
+            Some(mesh) => mesh.cloud,
             None => read_point_cloud_with(input, &options).map_err(|e| {
                 crate::fit::read_error(
                     input,

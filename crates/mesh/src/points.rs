@@ -96,10 +96,13 @@ pub enum NormalSource {
     /// The winding of an open mesh, as wound.
     WindingOpen,
     /// The winding of an open mesh of several parts, `turned` of them turned over to agree
-    /// with the parts they meet along seams (edges at the same positions in two parts).
+    /// with the parts they meet along seams (edges at the same positions in two parts), and
+    /// `inward` closed parts (no boundary edge, no seam) wound inward turned over.
     WindingOpenParts {
-        /// Parts turned over.
+        /// Parts turned over to agree along seams.
         turned: usize,
+        /// Closed parts turned over, wound inward.
+        inward: usize,
         /// Parts (edge-connected components).
         parts: usize,
     },
@@ -133,11 +136,28 @@ impl fmt::Display for NormalSource {
                  part(s) wound inward"
             ),
             Self::WindingOpen => write!(f, "from the triangles' winding (an open mesh: as wound)"),
-            Self::WindingOpenParts { turned, parts } => write!(
-                f,
-                "from the triangles' winding (an open mesh: as wound, but {turned} of its {parts} \
-                 parts turned over to agree with the parts they meet along seams)"
-            ),
+            Self::WindingOpenParts {
+                turned,
+                inward,
+                parts,
+            } => {
+                write!(
+                    f,
+                    "from the triangles' winding (an open mesh: as wound, but "
+                )?;
+                if turned > 0 {
+                    write!(
+                        f,
+                        "{turned} of its {parts} parts turned over to agree with the parts they \
+                         meet along seams"
+                    )?;
+                }
+                if inward > 0 {
+                    let and = if turned > 0 { " and " } else { "" };
+                    write!(f, "{and}{inward} closed part(s) wound inward turned over")?;
+                }
+                write!(f, ")")
+            }
             Self::Inconsistent {
                 inconsistent_edges,
                 non_manifold_edges,
@@ -229,11 +249,21 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
     if flat > 0 {
         return (None, NormalSource::Flat { vertices: flat }, Vec::new());
     }
+    let (labels, parts) = components(mesh);
+    let volume = part_volumes(mesh, &labels, parts);
     if report.boundary_edges > 0 {
-        let (labels, parts) = components(mesh);
-        let turn = seam_turns(mesh, &labels, parts);
+        let mut turn = seam_turns(mesh, &labels, parts);
         let turned = turn.iter().filter(|&&t| t).count();
-        if turned == 0 {
+        // Closed parts meet no other along seams: each faces out by its own volume.
+        let closed = closed_parts(mesh, &labels, parts);
+        let mut inward = 0;
+        for part in 0..parts {
+            if closed[part] && volume[part] < 0.0 {
+                turn[part] = true;
+                inward += 1;
+            }
+        }
+        if turned + inward == 0 {
             return (
                 Some(normals),
                 NormalSource::WindingOpen,
@@ -247,17 +277,13 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
         turn_vertices(mesh, &sign, &mut normals);
         return (
             Some(normals),
-            NormalSource::WindingOpenParts { turned, parts },
+            NormalSource::WindingOpenParts {
+                turned,
+                inward,
+                parts,
+            },
             sign,
         );
-    }
-    // Each closed part's volume, from a corner of the box (for fewer cancelling digits).
-    let (labels, parts) = components(mesh);
-    let origin = mesh.bounds().map_or([0.0; 3], |b| b.min());
-    let mut volume = vec![0.0; parts];
-    for (t, &part) in labels.iter().enumerate() {
-        let [a, b, c] = mesh.corners(t).map(|p| sub(&p, &origin));
-        volume[part as usize] += dot(&a, &cross(&b, &c)) / 6.0;
     }
     let sign: Vec<f64> = labels
         .iter()
@@ -275,6 +301,39 @@ fn normals(mesh: &TriMesh) -> (Option<Vec<Point<3>>>, NormalSource, Vec<f64>) {
         closed_parts: parts,
     };
     (Some(normals), source, sign)
+}
+
+/// Each part's signed volume (`labels` per triangle), from a corner of the box (for fewer
+/// cancelling digits): the volume it encloses where it is closed.
+fn part_volumes(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<f64> {
+    let origin = mesh.bounds().map_or([0.0; 3], |b| b.min());
+    let mut volume = vec![0.0; parts];
+    for (t, &part) in labels.iter().enumerate() {
+        let [a, b, c] = mesh.corners(t).map(|p| sub(&p, &origin));
+        volume[part as usize] += dot(&a, &cross(&b, &c)) / 6.0;
+    }
+    volume
+}
+
+/// Which parts (`labels` per triangle) have no boundary edge (an edge of one triangle).
+fn closed_parts(mesh: &TriMesh, labels: &[u32], parts: usize) -> Vec<bool> {
+    let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
+    for tri in mesh.triangles() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let mut closed = vec![true; parts];
+    for (tri, &part) in mesh.triangles().iter().zip(labels) {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            if uses[&(a.min(b), a.max(b))] == 1 {
+                closed[part as usize] = false;
+            }
+        }
+    }
+    closed
 }
 
 /// Negates the normals of the vertices of the triangles whose `sign` is negative (turned

@@ -624,6 +624,7 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
                 p.source,
                 NormalSource::WindingOpenParts {
                     turned: 1,
+                    inward: 0,
                     parts: 2
                 }
             );
@@ -671,6 +672,7 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
         soup(&[[0.0; 3]], Some(5)),
         NormalSource::WindingOpenParts {
             turned: 1,
+            inward: 0,
             parts: 12
         }
     );
@@ -701,6 +703,7 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
             None => NormalSource::WindingOpen,
             Some(_) => NormalSource::WindingOpenParts {
                 turned: 1,
+                inward: 0,
                 parts: 4,
             },
         };
@@ -713,6 +716,41 @@ fn mesh_points_take_an_open_mesh_as_wound_and_give_none_for_bad_windings() {
                 .zip(&n)
                 .all(|(x, n)| { (0..3).map(|a| (x[a] - centroid[a]) * n[a]).sum::<f64>() > 0.0 })
         );
+    }
+    // A closed tetrahedron wound inward beside an open square (the mesh is open, so no
+    // closed-mesh rule applied; CGAL's `tetra_intersected_by_triangle.off` is such a pair):
+    // the closed part meets nothing along seams and faces out by its own volume.
+    let mut vertices = corners.to_vec();
+    vertices.extend(v.iter().map(|p| [p[0] + 3.0, p[1], p[2]]));
+    let mut triangles: Vec<[u32; 3]> = faces
+        .iter()
+        .map(|&[a, b, c]| [a as u32, c as u32, b as u32])
+        .collect();
+    triangles.extend([[4, 5, 6], [4, 6, 7]]);
+    let p = mesh_points(TriMesh::new(vertices, triangles).unwrap());
+    assert_eq!(
+        p.source,
+        NormalSource::WindingOpenParts {
+            turned: 0,
+            inward: 1,
+            parts: 2
+        }
+    );
+    assert!(
+        p.source
+            .to_string()
+            .contains("but 1 closed part(s) wound inward turned over)"),
+        "{}",
+        p.source
+    );
+    let n = p.normals.expect("normals");
+    for (x, n) in p.positions.iter().zip(&n) {
+        if x[0] < 2.0 {
+            let out: f64 = (0..3).map(|a| (x[a] - 0.25) * n[a]).sum();
+            assert!(out > 0.0, "{x:?} {n:?}");
+        } else {
+            assert_eq!(n[2], 1.0);
+        }
     }
     // The second triangle wound the other way: inconsistent, no normals.
     let p = mesh_points(TriMesh::new(v.clone(), vec![[0, 1, 2], [0, 3, 2]]).unwrap());

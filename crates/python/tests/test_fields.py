@@ -213,9 +213,12 @@ def test_two_spheres_touching_at_a_shared_sample_fit_by_rbf_and_mras():
     for method in ("rbf", "mras"):
         f = zeroset.fit(p, n, method=method)
         assert f.report["touching"] == 1, method
-        assert abs(f(np.zeros(3))) < 2e-3, method
         assert f(np.array([0.0, 0.0, 0.5])) < 0 and f(np.array([0.0, 0.0, -0.5])) < 0, method
         assert f(np.array([0.5, 0.0, 0.0])) > 0, method
+        if method == "mras":
+            # the gradient fitted there is the two normals' mean: a saddle, flat (keeping
+            # one normal of the two gives about 0.1)
+            assert np.linalg.norm(f.gradient(np.zeros(3))) < 0.03
 
 
 def test_rbf_and_mras_set_stray_points_aside():

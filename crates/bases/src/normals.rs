@@ -727,7 +727,7 @@ pub fn orient_normals(
 /// [`orient_normals`] at 16 neighbours): scans with oriented normals 0% (the bunny, the kitten,
 /// `bunny_2k`, CGAL's `hippo1`, `oni`, `point_set_3`; closed boxes 1 × 1 × 0.01–0.05 sampled
 /// every 0.01, walls thinner than their sampling), 0.04–0.3% (CGAL's noisy
-/// `sphere_20k_normal`, `ball`), 29.9% (CGAL's `building`, an open façade: 9.9% while every
+/// `sphere_20k_normal`, `ball`), 30.0% (CGAL's `building`, an open façade: 9.9% while every
 /// edge between normals pointing apart cost 3, 28–34% for wall weights 3–10), 25% where the
 /// orientation itself errs (CGAL's `spheres`: overlapping spheres, one taken for a cavity);
 /// unoriented normals 47% (the bunny's turned to face up; 49% its 2,000-point sample), 49.9% (CGAL's `cube.pwn`, a CAD
@@ -932,7 +932,10 @@ fn plane_normal<'a>(p: &Point<3>, others: impl Iterator<Item = &'a Point<3>>) ->
 /// every 0.01 with its own normals read 47% against the orientation — as unoriented normals
 /// do); along the surface, where unoriented normals change sign, it costs what it would
 /// unsigned (costing 3 there too, the walk crossed the sparse bunny's ears instead: 2,000
-/// points signed to face up read 1.7% inconsistent).
+/// points signed to face up read 1.7% inconsistent). An edge between given normals that
+/// point apart *and* either face each other or face away from each other along it
+/// (`(n_i · ê)(n_j · ê) < 0`: a gap between two objects, a wall's two faces) and run along
+/// them by at least [`GAP_REACH`] is not walked at all ([`f64::INFINITY`]): see there.
 fn edge_cost(
     positions: &[Point<3>],
     planes: &[Option<Point<3>>],
@@ -951,11 +954,11 @@ fn edge_cost(
         0.0
     };
     let cos = geometry::dot(a, b);
-    let across_weight = if signed && cos < -0.5 {
-        WALL_WEIGHT
-    } else {
-        1.0
-    };
+    let apart = signed && cos < -0.5;
+    if apart && across >= GAP_REACH && geometry::dot(a, &e) * geometry::dot(b, &e) < 0.0 {
+        return f64::INFINITY;
+    }
+    let across_weight = if apart { WALL_WEIGHT } else { 1.0 };
     1.0 - cos.abs() + across_weight * across
 }
 
@@ -965,6 +968,26 @@ fn edge_cost(
 /// costs from 2.25 up, above a rim's 1.7; along the surface (where unoriented normals change
 /// sign) it costs what it would unsigned, so the walk crosses there.
 const WALL_WEIGHT: f64 = 5.0;
+
+/// How far, at least, an edge between given normals that point apart and face each other (or
+/// away from each other) along it must run along them, `½ (|n_i · ê| + |n_j · ê|)`, to be
+/// left out of the walk ([`edge_cost`]). Costly as it is, such an edge was walked wherever no
+/// other joined two parts, and the walk carried one part's sign onto the other: two unit
+/// spheres 0.1 apart sampled every 0.15 with their own outward normals read 50%
+/// inconsistent — as unoriented — and `reconstruct` turned one inside out (the edge the walk
+/// took across the gap ran along the normals by 0.19). Left out, each is a piece of its own
+/// and turned outward by itself. Where unoriented normals change sign on a curved surface,
+/// the edge between them runs along them by the curvature, but the pair faces the same way
+/// along it (`(n_i · ê)(n_j · ê) > 0`), so it stays in the walk whatever its reach.
+/// Measured (2026-12-07, [`orient_normals`] at 16 neighbours, the share inconsistent of
+/// each scan's own normals, of them turned to face up, and of a hashed half turned): every
+/// reach from 0.03 to 0.1 gave two unit spheres 0.02–0.2 apart (sampled every 0.05–0.15)
+/// 0% with their own normals (50% before) and 50% turned; on the bunny, the kitten,
+/// `bunny_2k` and CGAL's `hippo1`, `oni`, `point_set_3`, `sphere926`, `sphere_20k_normal`,
+/// `ball`, `building`, `spheres` and `cube.pwn` no share moved by more than 0.06 points at
+/// 0.1 (0.9 at 0.03). Without the facing condition, reaches of 0.05 and below read the
+/// turned spheres and `sphere926` as oriented (0%).
+const GAP_REACH: f64 = 0.1;
 
 /// The minimum spanning forest of the `k`-nearest-neighbour graph under [`edge_cost`]
 /// (Kruskal; edges in order of cost, then of their ends), as adjacency lists.
@@ -1000,7 +1023,10 @@ fn spanning_forest(
     edges.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
     let mut parent: Vec<u32> = (0..n as u32).collect();
     let mut adjacent = vec![Vec::new(); n];
-    for (_, a, b) in edges {
+    for (cost, a, b) in edges {
+        if cost == f64::INFINITY {
+            break;
+        }
         let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
         if ra != rb {
             parent[ra.max(rb) as usize] = ra.min(rb);

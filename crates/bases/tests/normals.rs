@@ -243,6 +243,37 @@ fn separate_objects_are_each_turned_outward() {
 }
 
 #[test]
+fn objects_closer_than_their_sampling_keep_their_own_normals() {
+    // Two unit spheres 0.02–0.2 apart, sampled every 0.05–0.15, with their own outward
+    // normals: the walk's only edges between them cross the gap with normals facing each
+    // other, and carried one sphere's sign onto the other (50% read inconsistent, as
+    // unoriented normals do; `reconstruct` turned one sphere inside out).
+    let options = NormalOptions::default();
+    for (gap, n) in [(0.02, 2000), (0.1, 560), (0.2, 560)] {
+        let (mut points, mut truth) = sphere(n, [-1.0 - gap / 2.0, 0.0, 0.0], 1.0);
+        let (p2, n2) = sphere(n, [1.0 + gap / 2.0, 0.0, 0.0], 1.0);
+        points.extend(p2);
+        truth.extend(n2);
+        let o = orient_normals(&points, &truth, &options).expect("oriented");
+        assert_eq!((o.inconsistent, o.turned), (0, 0), "gap {gap}");
+        assert_eq!(o.estimated.pieces, 2, "gap {gap}");
+        // Turned to face up they are still told unoriented: on a curved surface neighbours
+        // whose signs differ face the same way along their edge, which stays in the walk.
+        let up: Vec<P> = truth
+            .iter()
+            .map(|t| if t[2] < 0.0 { t.map(|x| -x) } else { *t })
+            .collect();
+        let o = orient_normals(&points, &up, &options).expect("oriented");
+        assert!(
+            o.unoriented(),
+            "gap {gap}: {} of {}",
+            o.inconsistent,
+            points.len()
+        );
+    }
+}
+
+#[test]
 fn a_small_piece_takes_the_sign_of_the_large_one_beside_it() {
     // 30 points on a cap of the sphere of radius 1.25 (too few to read an inside from), beside
     // the unit sphere: their outward (radial) normals agree with the nearest sphere points'.

@@ -1238,6 +1238,43 @@ fn two_spheres_sampled_where_they_touch_are_fitted_by_either_method() {
 }
 
 #[test]
+fn two_objects_closer_than_their_sampling_keep_their_own_sides() {
+    // Two unit spheres 0.1 apart, sampled about every 0.15 with their own outward normals:
+    // the orientation check carried one sphere's sign across the gap, read the normals as
+    // unoriented (50%), turned them, and the mesh came out open with one sphere inside out.
+    let mut text = String::new();
+    for dx in [-1.05, 1.05] {
+        for (_, n) in sphere_points(560) {
+            text += &format!(
+                "{} {} {} {} {} {}\n",
+                n[0] + dx,
+                n[1],
+                n[2],
+                n[0],
+                n[1],
+                n[2]
+            );
+        }
+    }
+    let (dir, cloud) = temp_file("near.xyzn", &text);
+    let ply = dir.path().join("near.ply");
+    let o = zeroset([
+        "reconstruct",
+        cloud.to_str().unwrap(),
+        "-o",
+        ply.to_str().unwrap(),
+        "--no-preview",
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(!stdout(&o).contains("unoriented"), "{}", stdout(&o));
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    assert!(r.is_oriented_closed(), "{r}");
+    assert_eq!((r.components, r.euler_characteristic), (2, 4), "{r}");
+    // Both outward: the two balls' volume (4.19 each, less the marching cubes' cut corners).
+    assert!((r.signed_volume - 8.38).abs() < 0.1, "{r}");
+}
+
+#[test]
 fn an_inside_out_mesh_and_voxels_too_coarse_are_said() {
     // A sphere whose normals all point inward fits a field positive inside: the closed mesh
     // encloses a negative volume, which was reported as if nothing were wrong.

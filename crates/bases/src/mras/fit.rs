@@ -384,9 +384,9 @@ pub struct MrasFit {
     /// a cell split): no smooth field follows two sheets into the place where they touch (a
     /// neck or a gap forms around it, about as wide as without the place's sample), and
     /// neither `|f|` nor the Sampson distance `|f|/|∇f|` is a distance there. Where the points
-    /// around all face one of the two ways, the place is one sheet with a flipped normal, fitted with that side (not
-    /// counted here). Copies whose normals differ without pointing apart (a crease's split
-    /// normals) are fitted with the mean of their unit normals.
+    /// around all face one of the two ways, the place is one sheet with a flipped normal,
+    /// fitted with that side (not counted here). Copies whose normals differ without pointing
+    /// apart (a crease's split normals) are fitted with the mean of their unit normals.
     pub touching: usize,
     /// The input points set aside as outliers ([`MrasOptions::outlier_ratio`]), by index,
     /// increasing; the field is not fitted to them.
@@ -641,7 +641,8 @@ pub fn fit_mras(
         add_level(&field, &lvl, u, &mut f, &mut grad);
         let sampson = cloud.distances(&f, &grad);
         let max_error = sampson.iter().fold(0.0f64, |a, &b| a.max(b));
-        let mean_error = sampson.iter().sum::<f64>() / cloud.measured.max(1) as f64;
+        let measured = cloud.touching.iter().filter(|&&t| !t).count();
+        let mean_error = sampson.iter().sum::<f64>() / measured.max(1) as f64;
         // A cell splits where its own points need it after compression, or where step 2
         // promised the next level to its points (a cell not stored splits too).
         let mut next = Vec::new();
@@ -774,8 +775,6 @@ struct Cloud {
     /// Per point, whether two sheets meet there ([`sheets_meeting`]): the field is flat
     /// there by design, and the point is not measured ([`Cloud::distance`]).
     touching: Vec<bool>,
-    /// The points measured: those where two sheets do not meet.
-    measured: usize,
     origin: Point<3>,
     side: f64,
     diagonal: f64,
@@ -936,12 +935,10 @@ impl Cloud {
             })
             .collect();
         let touching: Vec<bool> = idx.iter().map(|i| touching.contains_key(i)).collect();
-        let measured = touching.iter().filter(|&&t| !t).count();
         Ok(Self {
             u,
             normals,
             touching,
-            measured,
             origin,
             side,
             diagonal,

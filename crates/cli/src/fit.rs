@@ -1211,8 +1211,9 @@ fn print_offset(auto: bool, r: &OffsetReport, points: usize) -> Vec<String> {
     let warning = (r.opposed_normals > 0).then(|| {
         let one = r.opposed_normals == 1;
         format!(
-            "{} normal{} point{} against most of {} nearest neighbours' (flipped?): the surface \
-             bulges or grows a bubble there",
+            "{} normal{} point{} against most of {} nearest neighbours' (flipped?): fitted \
+             through with value 0 only, without the offsets that would put a bump or a bubble \
+             there",
             r.opposed_normals,
             if one { "" } else { "s" },
             if one { "s" } else { "" },

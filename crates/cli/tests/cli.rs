@@ -1275,6 +1275,49 @@ fn two_objects_closer_than_their_sampling_keep_their_own_sides() {
 }
 
 #[test]
+fn flipped_normals_among_their_neighbours_make_no_bubbles() {
+    // A sphere of 3,000 points, every 50th normal flipped: each flipped offset put the
+    // field's other sign on its side of the surface, a bump or a bubble there. Fitted through
+    // with value 0 only, they leave one closed sphere.
+    let text: String = sphere_points(3000)
+        .iter()
+        .enumerate()
+        .map(|(k, (p, n))| {
+            let s = if k % 50 == 7 { -1.0 } else { 1.0 };
+            format!(
+                "{} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                s * n[0],
+                s * n[1],
+                s * n[2]
+            )
+        })
+        .collect();
+    let (dir, cloud) = temp_file("flipped.xyzn", &text);
+    let ply = dir.path().join("flipped.ply");
+    let o = zeroset([
+        "reconstruct",
+        cloud.to_str().unwrap(),
+        "-o",
+        ply.to_str().unwrap(),
+        "--no-preview",
+    ]);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("60 normals point against most of their nearest neighbours'"),
+        "{}",
+        stdout(&o)
+    );
+    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    assert!(r.is_oriented_closed(), "{r}");
+    assert_eq!((r.components, r.euler_characteristic), (1, 2), "{r}");
+    let sphere = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
+    assert!((r.signed_volume / sphere - 1.0).abs() < 0.01, "{r}");
+}
+
+#[test]
 fn an_inside_out_mesh_and_voxels_too_coarse_are_said() {
     // A sphere whose normals all point inward fits a field positive inside: the closed mesh
     // encloses a negative volume, which was reported as if nothing were wrong.

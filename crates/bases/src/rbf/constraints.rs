@@ -77,9 +77,12 @@ pub struct OffsetReport {
     pub merged: usize,
     /// Points whose normal points against those of most of their [`NORMAL_NEIGHBOURS`]
     /// nearest neighbours near their tangent plane (negative dot product with more than half of
-    /// those within [`TANGENT_SLOPE`] of it, or of all of them where fewer than 3 are): likely flipped normals, which put a bump or a
-    /// bubble into the surface there. Neighbours off the plane — the other face of a wall
-    /// thinner than the sampling, whose normals rightly point the other way — do not count.
+    /// those within [`TANGENT_SLOPE`] of it, or of all of them where fewer than 3 are): likely
+    /// flipped normals, whose offsets would put a bump or a bubble into the surface there.
+    /// They get value 0 only, no offsets (CGAL's `ball.ply`, 86 of 31,374: 39 components, 37
+    /// of them blobs, and Euler characteristic −8 with offsets; 4, 3 and −4 without). Neighbours
+    /// off the plane — the other face of a wall thinner than the sampling, whose normals
+    /// rightly point the other way — do not count.
     pub opposed_normals: usize,
     /// Points with two of their [`NORMAL_NEIGHBOURS`] nearest neighbours behind them, off their
     /// tangent plane ([`TANGENT_SLOPE`]) and facing the other way ([`WALL_FACES`]): they lie on
@@ -202,7 +205,8 @@ impl<const D: usize> Constraints<D> {
     /// see the [module docs](self). Normals are normalised here; points within
     /// [`MERGE_DISTANCE`] of an earlier one are merged into it ([`OffsetReport::merged`]),
     /// and where their normals point apart the place gets value 0 and no offset
-    /// ([`OffsetReport::touching`]).
+    /// ([`OffsetReport::touching`]). A point whose normal points against most of its
+    /// neighbours' (flipped?) gets value 0 only ([`OffsetReport::opposed_normals`]).
     ///
     /// # Errors
     /// [`RbfError::Empty`], [`RbfError::NonFinite`], [`RbfError::ZeroNormal`], a cloud
@@ -258,9 +262,15 @@ impl<const D: usize> Constraints<D> {
             merged: points.len() - kept.len(),
             ..OffsetReport::default()
         };
-        (report.opposed_normals, report.thin_wall) =
-            opposed_normals(&tree, &positions, &kept, &normals);
+        let (opposed, thin_wall) = opposed_normals(&tree, &positions, &kept, &normals);
+        report.opposed_normals = opposed.iter().filter(|&&o| o).count();
+        report.thin_wall = thin_wall;
         for (k, (p, &i)) in positions.iter().zip(&kept).enumerate() {
+            // A normal against its neighbours' (flipped?): its offsets would put the field's
+            // other sign on this side of the surface; the point keeps its value 0 only.
+            if opposed[k] && touching[i].is_none() {
+                continue;
+            }
             // Outside along the normal and inside against it; where two sheets meet, along
             // both normals on the side the sheets around say (none where they say nothing).
             let meets =
@@ -499,7 +509,7 @@ fn dot<const D: usize>(a: &Point<D>, b: &Point<D>) -> f64 {
     (0..D).map(|x| a[x] * b[x]).sum()
 }
 
-/// How many of the kept points have a normal with a negative dot product with more than half
+/// Which of the kept points have a normal with a negative dot product with more than half
 /// of their [`NORMAL_NEIGHBOURS`] nearest kept neighbours' normals, of those near its tangent
 /// plane ([`TANGENT_SLOPE`]); and how many lie on a wall thinner than the spacing
 /// ([`OffsetReport::thin_wall`]).
@@ -508,17 +518,17 @@ fn opposed_normals<const D: usize>(
     positions: &[Point<D>],
     kept: &[usize],
     normals: &[Point<D>],
-) -> (usize, usize) {
+) -> (Vec<bool>, usize) {
     let k = (NORMAL_NEIGHBOURS + 1).min(positions.len());
     let Some(k) = std::num::NonZero::new(k) else {
-        return (0, 0);
+        return (vec![false; positions.len()], 0);
     };
     let mut thin = 0;
     let opposed = positions
         .iter()
         .zip(kept)
-        .filter(|(p, i)| {
-            let n = &normals[**i];
+        .map(|(p, i)| {
+            let n = &normals[*i];
             let found = tree
                 .query(p)
                 .nearest_n::<SquaredEuclidean<f64>>(k)
@@ -550,7 +560,7 @@ fn opposed_normals<const D: usize>(
             let against = voters.iter().filter(|m| dot(n, m) < 0.0).count();
             !voters.is_empty() && 2 * against > voters.len()
         })
-        .count();
+        .collect();
     (opposed, thin)
 }
 
@@ -797,8 +807,10 @@ mod tests {
             n[i] = n[i].map(|v| -v);
         }
         let flipped = PointCloud::with_normals(p, n).unwrap();
-        let (_, report) = Constraints::off_surface(&flipped, Offset::default()).unwrap();
+        let (c, report) = Constraints::off_surface(&flipped, Offset::default()).unwrap();
         assert_eq!(report.opposed_normals, 2, "{report:?}");
+        // Value 0 only where flipped: 400 on the surface, two offsets for each of the others.
+        assert_eq!(c.len(), 400 + 2 * 398);
     }
 
     /// The unit normal of the triangle `a b c`.

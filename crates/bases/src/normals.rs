@@ -719,47 +719,8 @@ pub fn orient_normals(
         estimated,
         inconsistent,
         turned,
-        one_way: one_way(lines),
     })
 }
-
-/// The axis direction (`±x`, `±y` or `±z`) that all of `lines` but at most [`ONE_WAY_SHARE`]
-/// of them face (`l · a ≥ 0`; zero lines left out), if any: the one against which fewest
-/// point, ties in the order `+x, +y, +z, −x, −y, −z`.
-fn one_way(lines: &[Point<3>]) -> Option<Point<3>> {
-    let given = lines.iter().filter(|l| **l != [0.0; 3]).count();
-    (0..6)
-        .map(|a| {
-            let mut axis = [0.0; 3];
-            axis[a % 3] = if a < 3 { 1.0 } else { -1.0 };
-            let against = lines
-                .iter()
-                .filter(|l| geometry::dot(l, &axis) < 0.0)
-                .count();
-            (against, axis)
-        })
-        .min_by_key(|(against, _)| *against)
-        .filter(|(against, _)| given > 0 && *against as f64 <= ONE_WAY_SHARE * given as f64)
-        .map(|(_, axis)| axis)
-}
-
-/// The largest share of lines that may point against an axis direction for the lines to
-/// face it ([`Orientation::one_way`]): normals turned to face one direction (Open3D's
-/// `orient_normals_to_align_with_direction`, whose default is `+z`; CloudCompare's
-/// "preferred orientation") face it all but where a line lies square to it.
-pub const ONE_WAY_SHARE: f64 = 0.005;
-
-/// Normals that all face one axis direction ([`Orientation::one_way`]) whose
-/// [`Orientation::inconsistent`] share is at least this are unoriented: turned to face that
-/// direction, not outward. Where they face one way, only the surface facing against it reads
-/// inconsistent — below [`UNORIENTED_SHARE`] for a closed object whose lower side is smaller
-/// than its upper: CGAL's `oni` 33%, `point_set_3` 31% turned to face `+z` (the bunny 47%, the
-/// kitten 49%). Oriented normals that face one way are a scan of one side (terrain, a face,
-/// CGAL's `hippo1`: 0% inconsistent), as consistent as oriented normals elsewhere (0–0.3%,
-/// [`UNORIENTED_SHARE`]); the oriented scans measured that read inconsistent (`building`
-/// 30%, `spheres` 25%) do not face one way (30% and 45% of their normals against the best
-/// axis).
-pub const ONE_WAY_UNORIENTED_SHARE: f64 = 0.15;
 
 /// Normals whose [`Orientation::inconsistent`] share is at least this are unoriented: their
 /// signs about as often against their neighbours' as with them. Measured (2026-12-07,
@@ -771,8 +732,7 @@ pub const ONE_WAY_UNORIENTED_SHARE: f64 = 0.15;
 /// orientation itself errs (CGAL's `spheres`: overlapping spheres, one taken for a cavity);
 /// unoriented normals 47% (the bunny's turned to face up; 49% its 2,000-point sample), 49.9% (CGAL's `cube.pwn`, a CAD
 /// part whose every face's normal points along `+x`, `+y` or `+z`; the bunny's with a random
-/// half turned), 50% (a sphere's turned to face up). Lines that all face one axis direction
-/// are unoriented from [`ONE_WAY_UNORIENTED_SHARE`].
+/// half turned), 50% (a sphere's turned to face up).
 pub const UNORIENTED_SHARE: f64 = 0.4;
 
 /// What [`orient_normals`] found.
@@ -787,25 +747,15 @@ pub struct Orientation {
     pub inconsistent: usize,
     /// Points whose returned normal is the opposite of their line.
     pub turned: usize,
-    /// The axis direction (`±x`, `±y` or `±z`, unit) that the given lines all face, but at
-    /// most [`ONE_WAY_SHARE`] of them: lines turned towards one direction by their writer
-    /// where they were not a one-sided scan's.
-    pub one_way: Option<Point<3>>,
 }
 
 impl Orientation {
     /// Whether the lines were unoriented: [`inconsistent`](Self::inconsistent) at least
-    /// [`UNORIENTED_SHARE`] of the points, or at least [`ONE_WAY_UNORIENTED_SHARE`] where they
-    /// all face one way ([`one_way`](Self::one_way)).
+    /// [`UNORIENTED_SHARE`] of the points.
     #[must_use]
     pub fn unoriented(&self) -> bool {
-        let n = self.estimated.normals.len() as f64;
-        let share = if self.one_way.is_some() {
-            ONE_WAY_UNORIENTED_SHARE
-        } else {
-            UNORIENTED_SHARE
-        };
-        n > 0.0 && self.inconsistent as f64 >= share * n
+        let n = self.estimated.normals.len();
+        n > 0 && self.inconsistent as f64 >= UNORIENTED_SHARE * n as f64
     }
 }
 

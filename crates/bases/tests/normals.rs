@@ -273,61 +273,6 @@ fn objects_closer_than_their_sampling_keep_their_own_normals() {
     }
 }
 
-/// A smooth closed egg: the upper half of the unit sphere on the lower half of a spheroid 0.3
-/// deep, `2n` points on the top (uniform in `z`, so by area) and `1.2 n` below (by about the
-/// same density), with outward normals. 37.5% of the points face down.
-fn egg(n: usize) -> (Vec<P>, Vec<P>) {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let depth = 0.3;
-    let top = (0..2 * n).map(|i| {
-        let z = (i as f64 + 0.5) / (2 * n) as f64;
-        let r = (1.0 - z * z).sqrt();
-        let t = golden * i as f64;
-        let p = [r * t.cos(), r * t.sin(), z];
-        (p, p)
-    });
-    let below = 6 * n / 5;
-    let bottom = (0..below).map(move |i| {
-        let z = -(i as f64 + 0.5) / below as f64;
-        let r = (1.0 - z * z).sqrt();
-        let t = golden * i as f64;
-        let p = [r * t.cos(), r * t.sin(), depth * z];
-        let g = [p[0], p[1], p[2] / (depth * depth)];
-        let length = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-        (p, g.map(|x| x / length))
-    });
-    top.chain(bottom).unzip()
-}
-
-#[test]
-fn normals_turned_to_face_one_direction_are_unoriented() {
-    // Normals turned to face +z (Open3D's `orient_normals_to_align_with_direction` default):
-    // on an egg whose lower side is the smaller only that side (37.5%) reads inconsistent,
-    // under the 40% that tells arbitrary signs, and the fit got a bottom facing into the egg.
-    // All facing one way, they are unoriented from 15%, and turned back outward.
-    let options = NormalOptions::default();
-    let (points, truth) = egg(1000);
-    let up: Vec<P> = truth
-        .iter()
-        .map(|t| if t[2] < 0.0 { t.map(|x| -x) } else { *t })
-        .collect();
-    let o = orient_normals(&points, &up, &options).expect("oriented");
-    let share = o.inconsistent as f64 / points.len() as f64;
-    assert!((0.3..0.4).contains(&share), "{share}");
-    assert_eq!(o.one_way, Some([0.0, 0.0, 1.0]));
-    assert!(o.unoriented());
-    assert_eq!(o.turned, 1200);
-    assert_eq!(against(&o.estimated.normals, &truth).0, 0.0);
-    // Their own normals face every way: oriented, nothing turned.
-    let o = orient_normals(&points, &truth, &options).expect("oriented");
-    assert_eq!((o.inconsistent, o.turned, o.one_way), (0, 0, None));
-    assert!(!o.unoriented());
-    // A scan of the top alone faces up and is consistent: a one-sided scan, not unoriented.
-    let o = orient_normals(&points[..2000], &truth[..2000], &options).expect("oriented");
-    assert_eq!((o.inconsistent, o.one_way), (0, Some([0.0, 0.0, 1.0])));
-    assert!(!o.unoriented());
-}
-
 #[test]
 fn a_small_piece_takes_the_sign_of_the_large_one_beside_it() {
     // 30 points on a cap of the sphere of radius 1.25 (too few to read an inside from), beside

@@ -407,33 +407,13 @@ pub(crate) const ORIENTATION_SAMPLE: usize = 200_000;
 /// The line that says `orientation` found the normals of `path` unoriented.
 pub(crate) fn unoriented_text(path: &Path, o: &zeroset_bases::normals::Orientation) -> String {
     let n = o.estimated.normals.len();
-    let why = match o.one_way {
-        Some(axis) => format!(
-            "all of them, or nearly, face {}: turned towards one direction by the program \
-             that wrote them, so the side facing away from it is inward",
-            axis_name(&axis)
-        ),
-        None => "about half: signs set arbitrarily, as principal-component normals are written"
-            .to_owned(),
-    };
     format!(
         "{}'s normals look unoriented: {} of {n} ({}%) point against the sign the rest of their \
-         surface gives them ({why})",
+         surface gives them (about half: signs set arbitrarily, as principal-component normals \
+         are written)",
         path.display(),
         o.inconsistent,
         percent(o.inconsistent, n)
-    )
-}
-
-/// `+x`, `−y`, … for a unit axis direction.
-fn axis_name(axis: &[f64; 3]) -> String {
-    let a = (0..3)
-        .max_by(|&i, &j| axis[i].abs().total_cmp(&axis[j].abs()))
-        .unwrap_or(2);
-    format!(
-        "{}{}",
-        if axis[a] < 0.0 { "-" } else { "+" },
-        ["x", "y", "z"][a]
     )
 }
 

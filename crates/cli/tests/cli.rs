@@ -3040,63 +3040,6 @@ fn unoriented_normals_are_turned_by_reconstruct_and_warned_of_by_fit() {
         "{}",
         stdout(&o)
     );
-    // Normals turned to face +z on an egg whose lower side is the smaller: only that side
-    // (37.5%) read against the rest, under the 40% of arbitrary signs, and the egg was fitted
-    // with its bottom facing in. All facing one way, they are unoriented.
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let egg: String = (0..3200)
-        .map(|i| {
-            // 2,000 points on the upper unit hemisphere, 1,200 on a lower half-spheroid 0.3
-            // deep; each normal's z made positive.
-            let (z, depth) = if i < 2000 {
-                ((i as f64 + 0.5) / 2000.0, 1.0)
-            } else {
-                (-((i - 2000) as f64 + 0.5) / 1200.0, 0.3)
-            };
-            let (r, t) = ((1.0 - z * z).sqrt(), golden * i as f64);
-            let p = [r * t.cos(), r * t.sin(), depth * z];
-            let g = [p[0], p[1], p[2] / (depth * depth)];
-            let l = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt() * g[2].signum();
-            format!(
-                "{} {} {} {} {} {}\n",
-                p[0],
-                p[1],
-                p[2],
-                g[0] / l,
-                g[1] / l,
-                g[2] / l
-            )
-        })
-        .collect();
-    let (_e, egg) = temp_file("egg.xyzn", &egg);
-    let o = zeroset([
-        "reconstruct",
-        egg.to_str().unwrap(),
-        "-o",
-        dir.path().join("egg.ply").to_str().unwrap(),
-        "--no-preview",
-    ]);
-    let out = stdout(&o);
-    assert!(o.status.success(), "{out}{}", stderr(&o));
-    assert!(
-        out.contains("look unoriented: 1200 of 3200 (37.5%)") && out.contains("or nearly, face +z"),
-        "{out}"
-    );
-    assert!(
-        out.contains("report: closed, Euler characteristic 2, 1 component(s)"),
-        "{out}"
-    );
-    // The egg's volume: 2π/3 (1 + 0.3).
-    let volume: f64 = out
-        .split("signed volume ")
-        .nth(1)
-        .and_then(|s| s.split(',').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no volume in {out}"));
-    assert!(
-        (volume / (2.6 * std::f64::consts::PI / 3.0) - 1.0).abs() < 0.02,
-        "{out}"
-    );
     // Oriented normals draw no such line.
     let (_d, good) = temp_file("good.xyzn", &sphere_xyzn(800));
     let o = fit(

@@ -70,7 +70,7 @@ pub(crate) fn fill_missing_normals<'py>(
 }
 
 /// `normals` signed consistently over the scan (see `zeroset.orient_normals`) and what the
-/// orientation found: `inconsistent`, `turned`, `one_way` and `unoriented`.
+/// orientation found: `inconsistent`, `turned` and `unoriented`.
 #[pyfunction]
 #[pyo3(signature = (points, normals, neighbours, viewpoint=None))]
 pub(crate) fn orient_normals<'py>(
@@ -94,7 +94,6 @@ pub(crate) fn orient_normals<'py>(
     report.set_item("neighbours", options.neighbours)?;
     report.set_item("inconsistent", orientation.inconsistent)?;
     report.set_item("turned", orientation.turned)?;
-    report.set_item("one_way", orientation.one_way.map(|a| (a[0], a[1], a[2])))?;
     report.set_item("unoriented", orientation.unoriented())?;
     Ok((rows_array(py, orientation.estimated.normals), report))
 }

@@ -481,11 +481,9 @@ def orient_normals(
     without a plane does. Returns ``(oriented, report)``: unit normals, each ``±`` its line,
     and a :class:`Report` with ``inconsistent`` (of each piece, the smaller of the points
     that agree with the orientation and those that disagree: 0 for oriented normals, about
-    half the points for unoriented ones), ``turned`` (the normals reversed), ``one_way``
-    (the axis direction, such as ``(0.0, 0.0, 1.0)``, that all the normals but at most 0.5%
-    face — normals turned towards one direction, or a scan of one side — else ``None``) and
-    ``unoriented`` (``inconsistent`` at least 40% of the points, or 15% where they face one
-    way, where ``zeroset reconstruct`` turns them; oriented scans measure 0–0.3%).
+    half the points for unoriented ones), ``turned`` (the normals reversed) and
+    ``unoriented`` (``inconsistent`` at least 40% of the points, where ``zeroset
+    reconstruct`` turns them; oriented scans measure 0–0.3%).
 
     >>> import zeroset
     >>> points, normals = zeroset.sample_points()

@@ -5,9 +5,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::normals::{
-    EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
-    NormalOptions, default_neighbours, estimate_noise_unoriented, estimate_normals,
-    estimate_normals_from_scanners, fill_missing_normals, orient_normals,
+    EstimatedNormals, FACING_IN_VOTES, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS,
+    NormalError, NormalOptions, RayVotes, default_neighbours, estimate_noise_unoriented,
+    estimate_normals, estimate_normals_from_scanners, fill_missing_normals, orient_normals,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -271,6 +271,153 @@ fn objects_closer_than_their_sampling_keep_their_own_normals() {
             points.len()
         );
     }
+}
+
+/// A smooth closed egg: the upper half of the unit sphere on the lower half of a spheroid 0.3
+/// deep, `2n` points on the top (uniform in `z`, so by area) and `1.2 n` below (by about the
+/// same density), with outward normals. 37.5% of the points face down.
+fn egg(n: usize) -> (Vec<P>, Vec<P>) {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let depth = 0.3;
+    let top = (0..2 * n).map(|i| {
+        let z = (i as f64 + 0.5) / (2 * n) as f64;
+        let r = (1.0 - z * z).sqrt();
+        let t = golden * i as f64;
+        let p = [r * t.cos(), r * t.sin(), z];
+        (p, p)
+    });
+    let below = 6 * n / 5;
+    let bottom = (0..below).map(move |i| {
+        let z = -(i as f64 + 0.5) / below as f64;
+        let r = (1.0 - z * z).sqrt();
+        let t = golden * i as f64;
+        let p = [r * t.cos(), r * t.sin(), depth * z];
+        let g = [p[0], p[1], p[2] / (depth * depth)];
+        let length = dot(&g, &g).sqrt();
+        (p, g.map(|x| x / length))
+    });
+    top.chain(bottom).unzip()
+}
+
+/// The three upper faces of a regular tetrahedron of edge 1 standing on its base (no base),
+/// each sampled on a triangular grid of `m` rows, with exact outward normals: a one-sided
+/// scan with sharp creases, across which neighbouring normals are 109° apart.
+fn tetrahedron_top(m: usize) -> (Vec<P>, Vec<P>) {
+    let s3 = 3f64.sqrt();
+    let base = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, s3 / 2.0, 0.0]];
+    let apex = [0.5, s3 / 6.0, (2.0f64 / 3.0).sqrt()];
+    let middle = [0.5, s3 / 6.0, apex[2] / 4.0];
+    let mut points = Vec::new();
+    let mut normals = Vec::new();
+    for k in 0..3 {
+        let (a, b) = (base[k], base[(k + 1) % 3]);
+        let u = std::array::from_fn::<f64, 3, _>(|i| b[i] - a[i]);
+        let v = std::array::from_fn::<f64, 3, _>(|i| apex[i] - a[i]);
+        let c = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let length = dot(&c, &c).sqrt();
+        let mut n = c.map(|x| x / length);
+        if dot(&n, &std::array::from_fn(|i| a[i] - middle[i])) < 0.0 {
+            n = n.map(|x| -x);
+        }
+        for i in 0..m {
+            for j in 0..m - i {
+                let (x, y) = (
+                    (i as f64 + 1.0 / 3.0) / m as f64,
+                    (j as f64 + 1.0 / 3.0) / m as f64,
+                );
+                points.push(std::array::from_fn(|d| a[d] + x * u[d] + y * v[d]));
+                normals.push(n);
+            }
+        }
+    }
+    (points, normals)
+}
+
+#[test]
+fn a_closed_objects_side_turned_to_face_in_is_told_by_rays() {
+    let options = NormalOptions::default();
+    // Normals turned to face +z (Open3D's `orient_normals_to_align_with_direction` default):
+    // on an egg whose lower side is the smaller only that side (37.5%) reads inconsistent,
+    // under the share that tells arbitrary signs, and the fit got a bottom facing into the egg.
+    // Rays along those normals cross the top from inside: turned back outward.
+    let (points, truth) = egg(1000);
+    let up: Vec<P> = truth
+        .iter()
+        .map(|t| if t[2] < 0.0 { t.map(|x| -x) } else { *t })
+        .collect();
+    let o = orient_normals(&points, &up, &options).expect("oriented");
+    assert_eq!((o.inconsistent, o.turned), (1200, 1200));
+    assert!(!o.unoriented_by_share());
+    assert!(o.facing_in() && o.unoriented(), "{:?}", o.rays);
+    assert!(o.rays.inward * 10 >= o.rays.cast * 9, "{:?}", o.rays);
+    assert_eq!(against(&o.estimated.normals, &truth).0, 0.0);
+    // Their own normals: consistent, no ray cast.
+    let o = orient_normals(&points, &truth, &options).expect("oriented");
+    assert_eq!((o.inconsistent, o.rays.cast), (0, 0));
+    assert!(!o.unoriented());
+    // A patch flipped by hand, a fifth of a sphere (its cap above z = 0.6).
+    let (points, truth) = sphere(3000, [0.0; 3], 1.0);
+    let flipped: Vec<P> = points
+        .iter()
+        .zip(&truth)
+        .map(|(p, t)| if p[2] > 0.6 { t.map(|x| -x) } else { *t })
+        .collect();
+    let o = orient_normals(&points, &flipped, &options).expect("oriented");
+    assert!(o.facing_in() && o.unoriented(), "{:?}", o.rays);
+    assert_eq!(against(&o.estimated.normals, &truth).0, 0.0);
+    // A one-sided scan whose walk disagrees with its correct normals across sharp creases
+    // (the sign flips over an edge where neighbours are 109° apart): a third reads
+    // inconsistent, but rays along those normals leave the tetrahedron or meet a face from
+    // inside, as outward normals do. Nothing is turned.
+    let (points, truth) = tetrahedron_top(40);
+    let o = orient_normals(&points, &truth, &options).expect("oriented");
+    let share = o.inconsistent as f64 / points.len() as f64;
+    assert!((0.3..0.4).contains(&share), "{share}");
+    assert!(o.rays.cast > 100, "{:?}", o.rays);
+    assert_eq!(o.rays.inward, 0, "{:?}", o.rays);
+    assert!(!o.facing_in() && !o.unoriented());
+    // Two such sheets stacked, facing the same way (terraces, geological horizons): a ray up
+    // from the lower one meets the upper one from behind, whichever side of the walk its
+    // point falls on. Terrain rising at 30° to a crest, then falling at 65° (the walk
+    // disagrees across the crest), and a copy of it 0.3 higher.
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let (tan_gentle, tan_steep) = (30f64.to_radians().tan(), 65f64.to_radians().tan());
+    let height = |x: f64| {
+        if x <= 0.6 {
+            (tan_gentle * x, tan_gentle)
+        } else {
+            let z = tan_gentle * 0.6 - tan_steep * (x - 0.6);
+            if z > 0.0 { (z, -tan_steep) } else { (0.0, 0.0) }
+        }
+    };
+    let (mut points, mut truth) = (Vec::new(), Vec::new());
+    for lift in [0.0, 0.3] {
+        for i in 0..80 {
+            for j in 0..80 {
+                let x = (i as f64 + rng.random_range(-0.3..0.3)) / 80.0;
+                let y = (j as f64 + rng.random_range(-0.3..0.3)) / 80.0;
+                let (z, slope) = height(x);
+                let length = (1.0 + slope * slope).sqrt();
+                points.push([x, y, z + lift]);
+                truth.push([-slope / length, 0.0, 1.0 / length]);
+            }
+        }
+    }
+    let o = orient_normals(&points, &truth, &options).expect("oriented");
+    let share = |v: RayVotes| v.inward as f64 / v.cast as f64;
+    // Read from the inconsistent points alone, they would face in (96 of 253 rays inward,
+    // none outward); the others read so as often (91 of 251).
+    assert!(
+        share(o.rays) >= FACING_IN_VOTES && o.rays.outward == 0,
+        "{:?}",
+        o.rays
+    );
+    assert!(share(o.rays_consistent) > 0.25, "{:?}", o.rays_consistent);
+    assert!(!o.facing_in() && !o.unoriented());
 }
 
 #[test]

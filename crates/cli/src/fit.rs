@@ -824,10 +824,15 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         line(
             "normals",
             &format!(
-                "warning: {}: the fit takes them as they are, and half the surface comes out \
+                "warning: {}: the fit takes them as they are, and {} of the surface comes out \
                  inside out; estimate normals from the positions (`zeroset normals {} -o \
                  ORIENTED.ply`), or let `zeroset reconstruct` turn these",
                 crate::normals::unoriented_text(path, &o),
+                if o.unoriented_by_share() {
+                    "half"
+                } else {
+                    "that part"
+                },
                 path.display()
             ),
         );

@@ -407,6 +407,19 @@ pub(crate) const ORIENTATION_SAMPLE: usize = 200_000;
 /// The line that says `orientation` found the normals of `path` unoriented.
 pub(crate) fn unoriented_text(path: &Path, o: &zeroset_bases::normals::Orientation) -> String {
     let n = o.estimated.normals.len();
+    if !o.unoriented_by_share() {
+        return format!(
+            "{}'s normals face into the object on part of it: {} of {n} ({}%) point against \
+             the sign the rest of their surface gives them, and rays cast along them meet the \
+             surface as from inside ({} of {} cast; as where a program turned every normal \
+             towards one direction, and a closed object's far side came to face in)",
+            path.display(),
+            o.inconsistent,
+            percent(o.inconsistent, n),
+            o.rays.inward,
+            o.rays.cast
+        );
+    }
     format!(
         "{}'s normals look unoriented: {} of {n} ({}%) point against the sign the rest of their \
          surface gives them (about half: signs set arbitrarily, as principal-component normals \

@@ -1237,27 +1237,17 @@ fn two_spheres_sampled_where_they_touch_are_fitted_by_either_method() {
     }
 }
 
-#[test]
-fn two_objects_closer_than_their_sampling_keep_their_own_sides() {
-    // Two unit spheres 0.1 apart, sampled about every 0.15 with their own outward normals:
-    // the orientation check carried one sphere's sign across the gap, read the normals as
-    // unoriented (50%), turned them, and the mesh came out open with one sphere inside out.
-    let mut text = String::new();
-    for dx in [-1.05, 1.05] {
-        for (_, n) in sphere_points(560) {
-            text += &format!(
-                "{} {} {} {} {} {}\n",
-                n[0] + dx,
-                n[1],
-                n[2],
-                n[0],
-                n[1],
-                n[2]
-            );
-        }
-    }
-    let (dir, cloud) = temp_file("near.xyzn", &text);
-    let ply = dir.path().join("near.ply");
+/// `p` and `n` as a line of an `x y z nx ny nz` file.
+fn xyzn_line(p: [f64; 3], n: [f64; 3]) -> String {
+    format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2])
+}
+
+/// `zeroset reconstruct` (defaults, no preview) of the cloud `text`, written to a file named
+/// `name` in a temporary directory: its standard output and the mesh's check. Fails the test
+/// where the command fails.
+fn reconstruct_text(name: &str, text: &str) -> (String, zeroset_mesh::MeshReport) {
+    let (dir, cloud) = temp_file(name, text);
+    let ply = dir.path().join("mesh.ply");
     let o = zeroset([
         "reconstruct",
         cloud.to_str().unwrap(),
@@ -1266,8 +1256,25 @@ fn two_objects_closer_than_their_sampling_keep_their_own_sides() {
         "--no-preview",
     ]);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
-    assert!(!stdout(&o).contains("unoriented"), "{}", stdout(&o));
-    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    let report = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    (stdout(&o), report)
+}
+
+#[test]
+fn two_objects_closer_than_their_sampling_keep_their_own_sides() {
+    // Two unit spheres 0.1 apart, sampled about every 0.15 with their own outward normals:
+    // the orientation check carried one sphere's sign across the gap, read the normals as
+    // unoriented (50%), turned them, and the mesh came out open with one sphere inside out.
+    let text: String = [-1.05, 1.05]
+        .iter()
+        .flat_map(|dx| {
+            sphere_points(560)
+                .into_iter()
+                .map(move |(_, n)| xyzn_line([n[0] + dx, n[1], n[2]], n))
+        })
+        .collect();
+    let (out, r) = reconstruct_text("near.xyzn", &text);
+    assert!(!out.contains("unoriented"), "{out}");
     assert!(r.is_oriented_closed(), "{r}");
     assert_eq!((r.components, r.euler_characteristic), (2, 4), "{r}");
     // Both outward: the two balls' volume (4.19 each, less the marching cubes' cut corners).
@@ -1284,37 +1291,46 @@ fn flipped_normals_among_their_neighbours_make_no_bubbles() {
         .enumerate()
         .map(|(k, (p, n))| {
             let s = if k % 50 == 7 { -1.0 } else { 1.0 };
-            format!(
-                "{} {} {} {} {} {}\n",
-                p[0],
-                p[1],
-                p[2],
-                s * n[0],
-                s * n[1],
-                s * n[2]
-            )
+            xyzn_line(*p, n.map(|x| s * x))
         })
         .collect();
-    let (dir, cloud) = temp_file("flipped.xyzn", &text);
-    let ply = dir.path().join("flipped.ply");
-    let o = zeroset([
-        "reconstruct",
-        cloud.to_str().unwrap(),
-        "-o",
-        ply.to_str().unwrap(),
-        "--no-preview",
-    ]);
-    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let (out, r) = reconstruct_text("flipped.xyzn", &text);
     assert!(
-        stdout(&o).contains("60 normals point against most of their nearest neighbours'"),
-        "{}",
-        stdout(&o)
+        out.contains("60 normals point against most of their nearest neighbours'"),
+        "{out}"
     );
-    let r = zeroset_mesh::check(&zeroset_mesh::read_mesh(&ply).unwrap());
+    assert_one_closed_sphere(&r);
+}
+
+/// `r` is one closed sphere of radius [`RADIUS`], outward, its volume within 1%.
+fn assert_one_closed_sphere(r: &zeroset_mesh::MeshReport) {
     assert!(r.is_oriented_closed(), "{r}");
     assert_eq!((r.components, r.euler_characteristic), (1, 2), "{r}");
     let sphere = 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3);
     assert!((r.signed_volume / sphere - 1.0).abs() < 0.01, "{r}");
+}
+
+#[test]
+fn a_side_whose_normals_face_in_is_turned_back_out() {
+    // A sphere of 3,000 points whose normals above z = 0.6 (a fifth of them: what a program
+    // turning every normal to one direction does to a closed object's smaller side) face in:
+    // under the share that tells arbitrary signs, the fit took that cap as it was (open,
+    // Euler characteristic -153). Rays along those normals cross the sphere from inside, so
+    // the orientation turns them back.
+    let text: String = sphere_points(3000)
+        .iter()
+        .map(|(p, n)| {
+            let s = if n[2] > 0.6 { -1.0 } else { 1.0 };
+            xyzn_line(*p, n.map(|x| s * x))
+        })
+        .collect();
+    let (out, r) = reconstruct_text("cap_in.xyzn", &text);
+    assert!(
+        out.contains("normals face into the object on part of it: 600 of 3000 (20%)"),
+        "{out}"
+    );
+    assert!(out.contains("600 of them turned"), "{out}");
+    assert_one_closed_sphere(&r);
 }
 
 #[test]

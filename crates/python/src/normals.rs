@@ -70,7 +70,8 @@ pub(crate) fn fill_missing_normals<'py>(
 }
 
 /// `normals` signed consistently over the scan (see `zeroset.orient_normals`) and what the
-/// orientation found: `inconsistent`, `turned` and `unoriented`.
+/// orientation found: `inconsistent`, `turned`, `facing_in` (with `rays_cast`, `rays_inward`)
+/// and `unoriented`.
 #[pyfunction]
 #[pyo3(signature = (points, normals, neighbours, viewpoint=None))]
 pub(crate) fn orient_normals<'py>(
@@ -94,6 +95,9 @@ pub(crate) fn orient_normals<'py>(
     report.set_item("neighbours", options.neighbours)?;
     report.set_item("inconsistent", orientation.inconsistent)?;
     report.set_item("turned", orientation.turned)?;
+    report.set_item("facing_in", orientation.facing_in())?;
+    report.set_item("rays_cast", orientation.rays.cast)?;
+    report.set_item("rays_inward", orientation.rays.inward)?;
     report.set_item("unoriented", orientation.unoriented())?;
     Ok((rows_array(py, orientation.estimated.normals), report))
 }

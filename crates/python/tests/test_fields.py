@@ -619,7 +619,14 @@ def test_unoriented_normals_are_told_and_turned():
     oriented, report = zeroset.orient_normals(points, up)
     assert report.unoriented and report.turned == int((points[:, 2] < 0).sum())
     assert report.inconsistent > 0.4 * len(points) and report.points == 1000
+    assert not report.facing_in and report.rays_cast == 0  # told by the share
     np.testing.assert_allclose(oriented, truth, atol=1e-12)
+    # A cap of a fifth of the normals facing in: told by rays cast along them.
+    cap = np.where(points[:, 2:3] > 0.6, -truth, truth)
+    capped, cap_report = zeroset.orient_normals(points, cap)
+    assert cap_report.facing_in and cap_report.unoriented, cap_report
+    assert cap_report.rays_inward * 10 >= cap_report.rays_cast * 9 > 0, cap_report
+    np.testing.assert_allclose(capped, truth, atol=1e-12)
     # Oriented normals: consistent, none turned, returned as they were.
     again, clean = zeroset.orient_normals(points, truth)
     assert not clean.unoriented and clean.inconsistent == 0 and clean.turned == 0

@@ -481,9 +481,13 @@ def orient_normals(
     without a plane does. Returns ``(oriented, report)``: unit normals, each ``±`` its line,
     and a :class:`Report` with ``inconsistent`` (of each piece, the smaller of the points
     that agree with the orientation and those that disagree: 0 for oriented normals, about
-    half the points for unoriented ones), ``turned`` (the normals reversed) and
-    ``unoriented`` (``inconsistent`` at least 40% of the points, where ``zeroset
-    reconstruct`` turns them; oriented scans measure 0–0.3%).
+    half the points for unoriented ones), ``turned`` (the normals reversed),
+    ``facing_in`` (the inconsistent points' normals, 5–40% of the points, face into the
+    object: rays cast along them meet the surface as from inside, as on a closed object's
+    underside whose normals were turned to face up; ``rays_cast`` and ``rays_inward`` count
+    the rays) and ``unoriented`` (``inconsistent`` at least 40% of the points, or
+    ``facing_in``: where ``zeroset reconstruct`` turns them; oriented scans measure
+    0–0.3%).
 
     >>> import zeroset
     >>> points, normals = zeroset.sample_points()

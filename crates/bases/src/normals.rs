@@ -718,8 +718,8 @@ pub fn orient_normals(
         Some(v) => Facing::Viewpoint(v),
         None => Facing::Outward,
     };
-    let (estimated, inconsistent) =
-        estimate_from(positions, options.neighbours, &facing, Some(lines))?;
+    let (estimated, walk) = estimate_from(positions, options.neighbours, &facing, Some(lines))?;
+    let inconsistent = walk.inconsistent;
     let turned = lines
         .iter()
         .zip(&estimated.normals)
@@ -735,8 +735,8 @@ pub fn orient_normals(
             .filter(|&i| !is_inconsistent[i as usize])
             .collect();
         (
-            rays::facing_votes(positions, lines, &inconsistent),
-            rays::facing_votes(positions, lines, &consistent),
+            rays::facing_votes(positions, lines, &walk.piece_of, &inconsistent),
+            rays::facing_votes(positions, lines, &walk.piece_of, &consistent),
         )
     } else {
         (RayVotes::default(), RayVotes::default())
@@ -830,11 +830,14 @@ impl Orientation {
     /// read the normals a program turned to face one direction (Open3D's
     /// `orient_normals_to_align_with_direction`, `+z` by default) on a closed object: only its
     /// underside disagrees with the rest, a third of the points or less, and the rest face
-    /// out. The last condition is for open sheets stacked facing one way (geological
-    /// horizons, terraces), which read inward from a lower sheet's points whichever side of
-    /// the walk they fall on: two copies 0.3 apart of a terrain with sharp creases, its
-    /// normals right, read 38% and 36% inward from the inconsistent and the other points; on
-    /// the normals turned up listed at [`FACING_IN_VOTES`], the other points read 0–6%.
+    /// out. The last condition holds back where the walk itself errs, so that turning the
+    /// normals as it gives would not help: a closed regular tetrahedron with its base's
+    /// normals turned up reads 111 of 248 inward, but the other points 42 of 248 (the walk
+    /// disagrees across its creases with correct normals too); on the normals turned up
+    /// listed at [`FACING_IN_VOTES`], the other points read 0–6%. (Open sheets stacked facing
+    /// one way — terraces, geological horizons — read like a closed object's two sides ray by
+    /// ray, but are separate pieces of the walk, and a sheet of another piece says nothing
+    /// of a ray's side: see [`RayVotes`].)
     #[must_use]
     pub fn facing_in(&self) -> bool {
         let share = |v: RayVotes| v.inward as f64 / v.cast.max(1) as f64;
@@ -874,14 +877,22 @@ fn estimate(
     estimate_from(positions, k, facing, None).map(|(estimated, _)| estimated)
 }
 
+/// Where `lines` are given to [`estimate_from`]: the points inconsistent with them
+/// ([`Orientation::inconsistent`]) and each point's piece of the walk (its tree in the
+/// spanning forest).
+struct Walk {
+    inconsistent: Vec<u32>,
+    piece_of: Vec<u32>,
+}
+
 /// [`estimate`], with the planes' normals given as `lines` (unit or not; zero for none) where
-/// they are known; and the points inconsistent with them ([`Orientation::inconsistent`]).
+/// they are known; and how the walk read them ([`Walk`]: empty without `lines`).
 fn estimate_from(
     positions: &[Point<3>],
     k: usize,
     facing: &Facing<'_>,
     lines: Option<&[Point<3>]>,
-) -> Result<(EstimatedNormals, Vec<u32>), NormalError> {
+) -> Result<(EstimatedNormals, Walk), NormalError> {
     let n = positions.len();
     if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) {
         return Err(NormalError::Neighbours { got: k });
@@ -923,6 +934,14 @@ fn estimate_from(
     let signed = sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
     // Of each piece, the points on the smaller side of its split by agreement with the lines'
     // own signs: 0 for lines oriented consistently, whichever way the piece faces.
+    let mut piece_of = vec![0; if lines.is_some() { n } else { 0 }];
+    if lines.is_some() {
+        for (label, piece) in pieces.iter().enumerate() {
+            for &i in piece {
+                piece_of[i as usize] = label as u32;
+            }
+        }
+    }
     let inconsistent = lines.map_or_else(Vec::new, |lines| {
         pieces
             .iter()
@@ -948,7 +967,10 @@ fn estimate_from(
             nested: signed.nested,
             flat: signed.flat,
         },
-        inconsistent,
+        Walk {
+            inconsistent,
+            piece_of,
+        },
     ))
 }
 

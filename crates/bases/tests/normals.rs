@@ -5,9 +5,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zeroset_bases::noise::estimate_noise;
 use zeroset_bases::normals::{
-    EstimatedNormals, FACING_IN_VOTES, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS,
-    NormalError, NormalOptions, RayVotes, default_neighbours, estimate_noise_unoriented,
-    estimate_normals, estimate_normals_from_scanners, fill_missing_normals, orient_normals,
+    EstimatedNormals, MAX_NEIGHBOURS, NOISY_NORMAL_NEIGHBOURS, NORMAL_NEIGHBOURS, NormalError,
+    NormalOptions, default_neighbours, estimate_noise_unoriented, estimate_normals,
+    estimate_normals_from_scanners, fill_missing_normals, orient_normals,
 };
 use zeroset_field_core::io::read_point_cloud;
 
@@ -380,43 +380,42 @@ fn a_closed_objects_side_turned_to_face_in_is_told_by_rays() {
     assert!(o.rays.cast > 100, "{:?}", o.rays);
     assert_eq!(o.rays.inward, 0, "{:?}", o.rays);
     assert!(!o.facing_in() && !o.unoriented());
-    // Two such sheets stacked, facing the same way (terraces, geological horizons): a ray up
-    // from the lower one meets the upper one from behind, whichever side of the walk its
-    // point falls on. Terrain rising at 30° to a crest, then falling at 65° (the walk
-    // disagrees across the crest), and a copy of it 0.3 higher.
+    // Such a sheet under another, both facing up (a creased ground under a canopy, a faulted
+    // horizon under a smooth one): a ray up from the lower one meets the upper one from
+    // behind, as a closed object's top is met from its turned underside. But the two are
+    // separate pieces of the walk, and the upper one says nothing of the lower one's side.
+    // Terrain rising at 30° to a crest, then falling at 65° (the walk disagrees across the
+    // crest), under a flat sheet twice as wide at z = 0.6, both sampled every 1/80.
     let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut jitter = |i: usize| (i as f64 + rng.random_range(-0.3..0.3)) / 80.0;
     let (tan_gentle, tan_steep) = (30f64.to_radians().tan(), 65f64.to_radians().tan());
-    let height = |x: f64| {
-        if x <= 0.6 {
-            (tan_gentle * x, tan_gentle)
-        } else {
-            let z = tan_gentle * 0.6 - tan_steep * (x - 0.6);
-            if z > 0.0 { (z, -tan_steep) } else { (0.0, 0.0) }
-        }
-    };
     let (mut points, mut truth) = (Vec::new(), Vec::new());
-    for lift in [0.0, 0.3] {
-        for i in 0..80 {
-            for j in 0..80 {
-                let x = (i as f64 + rng.random_range(-0.3..0.3)) / 80.0;
-                let y = (j as f64 + rng.random_range(-0.3..0.3)) / 80.0;
-                let (z, slope) = height(x);
-                let length = (1.0 + slope * slope).sqrt();
-                points.push([x, y, z + lift]);
-                truth.push([-slope / length, 0.0, 1.0 / length]);
-            }
+    for i in 0..80 {
+        for j in 0..80 {
+            let (x, y) = (jitter(i), jitter(j));
+            let (z, slope) = if x <= 0.6 {
+                (tan_gentle * x, tan_gentle)
+            } else {
+                let z = tan_gentle * 0.6 - tan_steep * (x - 0.6);
+                if z > 0.0 { (z, -tan_steep) } else { (0.0, 0.0) }
+            };
+            let length = (1.0 + slope * slope).sqrt();
+            points.push([x, y, z]);
+            truth.push([-slope / length, 0.0, 1.0 / length]);
+        }
+    }
+    for i in 0..160 {
+        for j in 0..160 {
+            points.push([jitter(i) - 0.5, jitter(j) - 0.5, 0.6]);
+            truth.push([0.0, 0.0, 1.0]);
         }
     }
     let o = orient_normals(&points, &truth, &options).expect("oriented");
-    let share = |v: RayVotes| v.inward as f64 / v.cast as f64;
-    // Read from the inconsistent points alone, they would face in (96 of 253 rays inward,
-    // none outward); the others read so as often (91 of 251).
-    assert!(
-        share(o.rays) >= FACING_IN_VOTES && o.rays.outward == 0,
-        "{:?}",
-        o.rays
-    );
-    assert!(share(o.rays_consistent) > 0.25, "{:?}", o.rays_consistent);
+    let share = o.inconsistent as f64 / points.len() as f64;
+    assert!((0.05..0.1).contains(&share), "{share}");
+    // Read without the pieces, 187 of 253 rays were inward, the other points' 32 of 255: told.
+    assert!(o.rays.cast > 200, "{:?}", o.rays);
+    assert!(o.rays.inward * 10 < o.rays.cast, "{:?}", o.rays);
     assert!(!o.facing_in() && !o.unoriented());
 }
 

@@ -410,14 +410,16 @@ pub(crate) fn unoriented_text(path: &Path, o: &zeroset_bases::normals::Orientati
     if !o.unoriented_by_share() {
         return format!(
             "{}'s normals face into the object on part of it: {} of {n} ({}%) point against \
-             the sign the rest of their surface gives them, and rays cast along them meet the \
-             surface as from inside ({} of {} cast; as where a program turned every normal \
-             towards one direction, and a closed object's far side came to face in)",
+             the sign the rest of their surface gives them, and of the rays cast along them \
+             {} of {} meet the surface as from inside ({} as from outside): as where a program \
+             turned every normal towards one direction and a closed object's far side came to \
+             face in",
             path.display(),
             o.inconsistent,
             percent(o.inconsistent, n),
             o.rays.inward,
-            o.rays.cast
+            o.rays.cast,
+            o.rays.outward
         );
     }
     format!(

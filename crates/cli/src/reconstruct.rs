@@ -367,7 +367,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         Some(o) => {
             outln!(
                 "{:<14}{}: turned as the orientation propagated over the scan gives (their lines \
-                 kept, each piece outward; {} of them turned)",
+                 kept, each piece outward; {} of them turned; `zeroset fit` takes them as they \
+                 are)",
                 "normals",
                 crate::normals::unoriented_text(&args.scan, &o),
                 o.turned

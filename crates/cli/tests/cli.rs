@@ -3025,7 +3025,7 @@ fn unoriented_normals_are_turned_by_reconstruct_and_warned_of_by_fit() {
     assert!(o.status.success(), "{out}{}", stderr(&o));
     assert!(out.contains("normals look unoriented"), "{out}");
     assert!(
-        out.contains("(their lines kept, each piece outward; 400 of them turned)"),
+        out.contains("(their lines kept, each piece outward; 400 of them turned;"),
         "{out}"
     );
     assert!(

@@ -11,12 +11,19 @@
 //! outward or meet nothing.
 //!
 //! The surface is the cloud: along the ray, in steps of the tube radius `R` (1.5 × the median
-//! spacing), the points within `R` of it whose tangent planes (their lines, either sign) the
-//! ray crosses within `R` of the point, not at a grazing angle; their crossing distances,
-//! sorted, split into sheets where they leave a gap over `R`. The point's own sheet (closer
-//! than two spacings) is skipped. Holes let a ray out without a crossing, and a concave
-//! open surface (a valley) is crossed once by a ray that starts outside it: only rays on
-//! which the crossing count and the first sheet's facing agree vote.
+//! spacing to the nearest point elsewhere, so a cloud merged twice has the spacing it had),
+//! the points within `R` of it whose tangent planes (their lines, either sign) the ray
+//! crosses within `R` of the point, not at a grazing angle; their crossing distances, sorted,
+//! split into sheets where they leave a gap over `R`. Where the nearest point is farther than
+//! a step reaches, the ray skips the empty stretch (a far outlier's box costs a few steps,
+//! and leaves `R` as it was). The point's own sheet (closer than two spacings) is skipped.
+//! Holes let a ray out without a crossing, and a concave open surface (a valley) is crossed
+//! once by a ray that starts outside it: only rays on which the crossing count and the first
+//! sheet's facing agree vote. The first sheet's facing is read from its points in the ray's
+//! own piece of the walk only: a closed object's sides are one piece, while open sheets
+//! stacked facing one way (terraces, geological horizons), which a ray from the lower one
+//! meets exactly as a closed object's top is met from its turned underside, are separate
+//! pieces, and say nothing of each other's side.
 
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{self, Point};
@@ -39,9 +46,8 @@ const TUBE: f64 = 1.5;
 /// grazed, not crossed.
 const GRAZING: f64 = 0.3;
 
-/// The most steps a ray takes through the box (the tube widens past `diagonal / MAX_STEPS` for
-/// a cloud of duplicates or a far outlier).
-const MAX_STEPS: f64 = 2_000.0;
+/// The most steps a ray takes (it skips empty space, so this is only a bound on the work).
+const MAX_STEPS: usize = 100_000;
 
 /// How the rays cast from a set of points along their own normals and against them read
 /// ([`Orientation::rays`](super::Orientation::rays)): a ray from a point on a closed surface
@@ -64,8 +70,9 @@ pub struct RayVotes {
 struct Crossings {
     /// Sheets crossed.
     sheets: usize,
-    /// The first sheet's facing: points whose line (as given) faces along the ray, less those
-    /// facing back. 0 where it meets none.
+    /// The first sheet's facing: of its points in the ray's own piece of the walk, those whose
+    /// line (as given) faces along the ray, less those facing back. 0 where it meets none, or
+    /// only other pieces' points.
     first_facing: i64,
 }
 
@@ -74,6 +81,8 @@ struct Scene<'a> {
     tree: Tree,
     positions: &'a [Point<3>],
     lines: &'a [Point<3>],
+    /// Each point's piece of the walk.
+    piece_of: &'a [u32],
     lo: Point<3>,
     hi: Point<3>,
     /// The tube radius.
@@ -88,14 +97,32 @@ impl Scene<'_> {
         let p = &self.positions[from];
         let start = OWN_SHEET / TUBE * self.tube;
         let at = |t: f64| [p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]];
-        // Balls of radius √(R² + (R/2)²) every R cover the tube of radius R.
+        // Balls of radius √(R² + (R/2)²) every R cover the tube of radius R. Where the
+        // nearest point is farther than a ball reaches, the tube is empty for as far as that
+        // distance less R allows, and the ray skips ahead (past a far outlier's empty box in a
+        // few steps).
         let ball = self.tube * self.tube * 1.25;
         let mut near = Vec::new();
         let mut t = start;
-        while t < self.reach {
+        for _ in 0..MAX_STEPS {
+            if t >= self.reach {
+                break;
+            }
             let x = at(t);
             if (0..3).any(|a| x[a] < self.lo[a] - self.tube || x[a] > self.hi[a] + self.tube) {
                 break;
+            }
+            let nearest = self
+                .tree
+                .query(&x)
+                .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                .execute()
+                .distance;
+            if nearest > ball {
+                // No point within √nearest of x: the tube is empty up to t + √nearest − R,
+                // and the next ball covers from there.
+                t += (nearest.sqrt() - 0.5 * self.tube).max(self.tube);
+                continue;
             }
             near.extend(
                 self.tree
@@ -109,6 +136,7 @@ impl Scene<'_> {
         }
         near.sort_unstable();
         near.dedup();
+        let own = self.piece_of[from];
         let mut hits: Vec<(f64, i64)> = near
             .into_iter()
             .filter_map(|i| {
@@ -120,8 +148,15 @@ impl Scene<'_> {
                 }
                 let t = geometry::dot(&geometry::sub(q, p), &line) / cos;
                 let off = geometry::sub(&at(t), q);
+                let facing = if self.piece_of[i as usize] != own {
+                    0
+                } else if cos > 0.0 {
+                    1
+                } else {
+                    -1
+                };
                 (t >= start && geometry::dot(&off, &off) <= self.tube * self.tube)
-                    .then_some((t, if cos > 0.0 { 1 } else { -1 }))
+                    .then_some((t, facing))
             })
             .collect();
         hits.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -146,10 +181,15 @@ impl Scene<'_> {
 
 /// How rays from up to [`RAYS`] of `from` (spread evenly over it) along their `lines` and
 /// against them read: whether those lines face into the object the cloud `positions` (with
-/// `lines`, any sign, zero for none) samples. All zero where the cloud has no spacing
-/// (every point at one position).
-pub(super) fn facing_votes(positions: &[Point<3>], lines: &[Point<3>], from: &[u32]) -> RayVotes {
-    let Some(scene) = scene(positions, lines) else {
+/// `lines`, any sign, zero for none) samples, whose pieces of the walk are `piece_of`. All
+/// zero where the cloud has no spacing (every point at one position).
+pub(super) fn facing_votes(
+    positions: &[Point<3>],
+    lines: &[Point<3>],
+    piece_of: &[u32],
+    from: &[u32],
+) -> RayVotes {
+    let Some(scene) = scene(positions, lines, piece_of) else {
         return RayVotes::default();
     };
     let stride = from.len().div_ceil(RAYS).max(1);
@@ -185,7 +225,11 @@ pub(super) fn facing_votes(positions: &[Point<3>], lines: &[Point<3>], from: &[u
 }
 
 /// The cloud as rays see it; `None` where it has no spacing.
-fn scene<'a>(positions: &'a [Point<3>], lines: &'a [Point<3>]) -> Option<Scene<'a>> {
+fn scene<'a>(
+    positions: &'a [Point<3>],
+    lines: &'a [Point<3>],
+    piece_of: &'a [u32],
+) -> Option<Scene<'a>> {
     let tree = Tree::new_from_slice(positions).ok()?;
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -196,19 +240,22 @@ fn scene<'a>(positions: &'a [Point<3>], lines: &'a [Point<3>]) -> Option<Scene<'
         }
     }
     let diagonal = geometry::norm(&geometry::sub(&hi, &lo));
-    // The median distance to the nearest other point, over at most 2,000 points.
-    let two = std::num::NonZero::new(2).expect("2 > 0");
+    // The median distance to the nearest point elsewhere (past copies of the point itself,
+    // up to 7: a cloud merged twice or written face by face), over at most 2,000 points.
+    let eight = std::num::NonZero::new(8).expect("8 > 0");
     let mut spacings: Vec<f64> = positions
         .iter()
         .step_by(positions.len().div_ceil(2_000).max(1))
         .filter_map(|p| {
             let found = tree
                 .query(p)
-                .nearest_n::<kiddo::SquaredEuclidean<f64>>(two)
+                .nearest_n::<kiddo::SquaredEuclidean<f64>>(eight)
                 .execute();
-            found.get(1).map(|f| f.distance.sqrt())
+            found
+                .iter()
+                .find(|f| f.distance > 0.0)
+                .map(|f| f.distance.sqrt())
         })
-        .filter(|&s| s > 0.0)
         .collect();
     if spacings.is_empty() || !(diagonal > 0.0 && diagonal.is_finite()) {
         return None;
@@ -219,9 +266,10 @@ fn scene<'a>(positions: &'a [Point<3>], lines: &'a [Point<3>]) -> Option<Scene<'
         tree,
         positions,
         lines,
+        piece_of,
         lo,
         hi,
-        tube: (TUBE * spacing).max(diagonal / MAX_STEPS),
+        tube: TUBE * spacing,
         reach: diagonal,
     })
 }
@@ -258,7 +306,8 @@ mod tests {
     #[test]
     fn a_ray_counts_the_sheets_it_crosses_and_how_the_first_faces() {
         let (points, lines) = two_floors_and_a_wall();
-        let scene = scene(&points, &lines).expect("spaced");
+        let pieces = vec![0; points.len()];
+        let scene = scene(&points, &lines, &pieces).expect("spaced");
         assert!((scene.tube - 0.075).abs() < 1e-12, "{}", scene.tube);
         let lower = points
             .iter()
@@ -278,16 +327,43 @@ mod tests {
         // The lower floor's rays read inward (up they cross the upper floor from behind; down
         // they leave), the upper floor's outward.
         let from: Vec<u32> = (0..points.len() as u32).filter(|&i| i % 3 == 0).collect();
-        let votes = facing_votes(&points, &lines, &from);
+        let votes = facing_votes(&points, &lines, &pieces, &from);
         // Every second of the 400: the most that spreads evenly within `RAYS`.
+        let inward = RayVotes {
+            cast: 200,
+            inward: 200,
+            outward: 0,
+        };
+        assert_eq!(votes, inward);
+        // The floors as separate pieces of the walk (stacked open sheets, not one object's
+        // sides): the upper floor is met, but says nothing of the lower one's side.
+        let apart: Vec<u32> = points.iter().map(|p| u32::from(p[2] == 1.0)).collect();
+        let scene_apart = super::scene(&points, &lines, &apart).expect("spaced");
+        let up = scene_apart.cast(lower, &[0.0, 0.0, 1.0]);
+        assert_eq!((up.sheets, up.first_facing), (1, 0));
+        let votes = facing_votes(&points, &lines, &apart, &from);
+        assert_eq!((votes.inward, votes.outward), (0, 0), "{votes:?}");
+        // Every point twice (a cloud merged twice): the same spacing, the same votes.
+        let twice: Vec<Point<3>> = points.iter().flat_map(|p| [*p, *p]).collect();
+        let twice_lines: Vec<Point<3>> = lines.iter().flat_map(|l| [*l, *l]).collect();
+        let twice_pieces = vec![0; twice.len()];
+        let doubled = super::scene(&twice, &twice_lines, &twice_pieces).expect("spaced");
+        assert_eq!(doubled.tube, scene.tube);
+        let from_twice: Vec<u32> = from.iter().map(|&i| 2 * i).collect();
         assert_eq!(
-            votes,
-            RayVotes {
-                cast: 200,
-                inward: 200,
-                outward: 0
-            }
+            facing_votes(&twice, &twice_lines, &twice_pieces, &from_twice),
+            inward
         );
+        // A far outlier leaves the tube as it was and the votes too (the rays skip the empty
+        // box).
+        let mut far = points.clone();
+        far.push([1e4, 0.0, 0.0]);
+        let mut far_lines = lines.clone();
+        far_lines.push([0.0, 0.0, 1.0]);
+        let far_pieces = vec![0; far.len()];
+        let with_outlier = super::scene(&far, &far_lines, &far_pieces).expect("spaced");
+        assert_eq!(with_outlier.tube, scene.tube);
+        assert_eq!(facing_votes(&far, &far_lines, &far_pieces, &from), inward);
     }
 
     #[test]
@@ -295,7 +371,7 @@ mod tests {
         let points = vec![[1.0, 2.0, 3.0]; 10];
         let lines = vec![[0.0, 0.0, 1.0]; 10];
         assert_eq!(
-            facing_votes(&points, &lines, &[0, 1, 2]),
+            facing_votes(&points, &lines, &[0; 10], &[0, 1, 2]),
             RayVotes::default()
         );
     }

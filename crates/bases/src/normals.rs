@@ -734,9 +734,9 @@ pub fn orient_normals(
         let consistent: Vec<u32> = (0..positions.len() as u32)
             .filter(|&i| !is_inconsistent[i as usize])
             .collect();
-        (
-            rays::facing_votes(positions, lines, &walk.piece_of, &inconsistent),
-            rays::facing_votes(positions, lines, &walk.piece_of, &consistent),
+        rays::scene(positions, lines, &walk.piece_of).map_or_else(
+            || (RayVotes::default(), RayVotes::default()),
+            |scene| (scene.votes(&inconsistent), scene.votes(&consistent)),
         )
     } else {
         (RayVotes::default(), RayVotes::default())

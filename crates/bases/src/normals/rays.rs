@@ -26,7 +26,7 @@
 //! pieces, and say nothing of each other's side.
 
 use rayon::prelude::*;
-use zeroset_field_core::geometry::{self, Point};
+use zeroset_field_core::geometry::{self, Aabb, Point};
 
 use crate::noise::Tree;
 
@@ -77,7 +77,7 @@ struct Crossings {
 }
 
 /// The cloud a ray runs through.
-struct Scene<'a> {
+pub(super) struct Scene<'a> {
     tree: Tree,
     positions: &'a [Point<3>],
     lines: &'a [Point<3>],
@@ -177,69 +177,53 @@ impl Scene<'_> {
             first_facing,
         }
     }
-}
 
-/// How rays from up to [`RAYS`] of `from` (spread evenly over it) along their `lines` and
-/// against them read: whether those lines face into the object the cloud `positions` (with
-/// `lines`, any sign, zero for none) samples, whose pieces of the walk are `piece_of`. All
-/// zero where the cloud has no spacing (every point at one position).
-pub(super) fn facing_votes(
-    positions: &[Point<3>],
-    lines: &[Point<3>],
-    piece_of: &[u32],
-    from: &[u32],
-) -> RayVotes {
-    let Some(scene) = scene(positions, lines, piece_of) else {
-        return RayVotes::default();
-    };
-    let stride = from.len().div_ceil(RAYS).max(1);
-    let cast: Vec<u32> = from
-        .iter()
-        .step_by(stride)
-        .copied()
-        .filter(|&i| unit(&lines[i as usize]).is_some())
-        .collect();
-    let (inward, outward) = cast
-        .par_iter()
-        .map(|&i| {
-            let d = unit(&lines[i as usize]).expect("filtered");
-            let along = scene.cast(i as usize, &d);
-            let against = scene.cast(i as usize, &d.map(|x| -x));
-            let parity_in = along.sheets % 2 == 1 && against.sheets.is_multiple_of(2);
-            let parity_out = along.sheets.is_multiple_of(2) && against.sheets % 2 == 1;
-            // Along the normal the first sheet faces back where it is outward; against it,
-            // along the ray.
-            let met_in = along.first_facing > 0 || against.first_facing < 0;
-            let met_out = along.first_facing < 0 || against.first_facing > 0;
-            (
-                usize::from(parity_in && met_in && !met_out),
-                usize::from(parity_out && met_out && !met_in),
-            )
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-    RayVotes {
-        cast: cast.len(),
-        inward,
-        outward,
+    /// How rays from up to [`RAYS`] of `from` (spread evenly over it) along their lines and
+    /// against them read: whether those lines face into the object the cloud samples.
+    pub(super) fn votes(&self, from: &[u32]) -> RayVotes {
+        let stride = from.len().div_ceil(RAYS).max(1);
+        let cast: Vec<u32> = from
+            .iter()
+            .step_by(stride)
+            .copied()
+            .filter(|&i| unit(&self.lines[i as usize]).is_some())
+            .collect();
+        let (inward, outward) = cast
+            .par_iter()
+            .map(|&i| {
+                let d = unit(&self.lines[i as usize]).expect("filtered");
+                let along = self.cast(i as usize, &d);
+                let against = self.cast(i as usize, &d.map(|x| -x));
+                let parity_in = along.sheets % 2 == 1 && against.sheets.is_multiple_of(2);
+                let parity_out = along.sheets.is_multiple_of(2) && against.sheets % 2 == 1;
+                // Along the normal the first sheet faces back where it is outward; against it,
+                // along the ray.
+                let met_in = along.first_facing > 0 || against.first_facing < 0;
+                let met_out = along.first_facing < 0 || against.first_facing > 0;
+                (
+                    usize::from(parity_in && met_in && !met_out),
+                    usize::from(parity_out && met_out && !met_in),
+                )
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        RayVotes {
+            cast: cast.len(),
+            inward,
+            outward,
+        }
     }
 }
 
-/// The cloud as rays see it; `None` where it has no spacing.
-fn scene<'a>(
+/// The cloud `positions` (with `lines`, any sign, zero for none; its pieces of the walk
+/// `piece_of`) as rays see it; `None` where it has no spacing (every point at one position).
+pub(super) fn scene<'a>(
     positions: &'a [Point<3>],
     lines: &'a [Point<3>],
     piece_of: &'a [u32],
 ) -> Option<Scene<'a>> {
     let tree = Tree::new_from_slice(positions).ok()?;
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in positions {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
-    let diagonal = geometry::norm(&geometry::sub(&hi, &lo));
+    let bounds = Aabb::from_points(positions)?;
+    let diagonal = bounds.diagonal();
     // The median distance to the nearest point elsewhere (past copies of the point itself,
     // up to 7: a cloud merged twice or written face by face), over at most 2,000 points.
     let eight = std::num::NonZero::new(8).expect("8 > 0");
@@ -267,8 +251,8 @@ fn scene<'a>(
         positions,
         lines,
         piece_of,
-        lo,
-        hi,
+        lo: bounds.min(),
+        hi: bounds.max(),
         tube: TUBE * spacing,
         reach: diagonal,
     })
@@ -283,6 +267,16 @@ fn unit(v: &Point<3>) -> Option<Point<3>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`Scene::votes`] from `from` through the cloud, none where it has no spacing.
+    fn facing_votes(
+        points: &[Point<3>],
+        lines: &[Point<3>],
+        pieces: &[u32],
+        from: &[u32],
+    ) -> RayVotes {
+        scene(points, lines, pieces).map_or_else(RayVotes::default, |scene| scene.votes(from))
+    }
 
     /// Two squares `z = 0` and `z = 1`, 1 × 1, sampled every 0.05, their lines `+z`; and a
     /// wall `x = 2` beside them, its lines `+x`.

@@ -23,6 +23,8 @@
 //!   spacing (noisy scans are approximated, not interpolated).
 //! - [`normals`] — outward normals for a scan without them: local planes by PCA, signs
 //!   propagated along a minimum spanning forest (Hoppe et al. 1992), each piece turned outward.
+//! - [`thickness`] — whether a cloud samples a surface or fills a volume: its neighbourhoods'
+//!   thinnest spread against their widest, from 32 neighbours to 2048.
 //! - [`outliers`] — the stray samples of an oriented scan (isolated from the surface the rest
 //!   samples), set aside before a fit so that they do not become surface.
 
@@ -38,3 +40,4 @@ pub mod normals;
 pub mod outliers;
 pub mod rbf;
 pub mod tangent_plane;
+pub mod thickness;

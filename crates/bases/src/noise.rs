@@ -239,7 +239,8 @@ impl Noise {
 
 /// The noise of a scan's positions (see the [module docs](self)), its patches made of the
 /// neighbours whose normal faces the same way as the point's where `normals` are given (one per
-/// point, finite; otherwise they are not used). `None` for fewer than
+/// point, finite, not all zero; otherwise they are not used; a zero normal, which some writers
+/// put where a point has none, faces every way). `None` for fewer than
 /// [`MIN_POINTS_FOR_NOISE`] points, a coordinate that is not finite, a cloud where fewer
 /// than half the patches span a surface (points on a line, or all coincident), or a median
 /// spacing of 0 (most points repeated 8 or more times).
@@ -258,8 +259,9 @@ pub(crate) fn estimate_noise_over(
     if n < MIN_POINTS_FOR_NOISE || !finite(positions) {
         return None;
     }
-    // Normals that are not one per point, or not finite, are not used.
-    let normals = normals.filter(|v| v.len() == n && finite(v));
+    // Normals that are not one per point, or not finite, or all zero, are not used.
+    let is_zero = |v: &Point<3>| v.iter().all(|&x| x == 0.0);
+    let normals = normals.filter(|v| v.len() == n && finite(v) && !v.iter().all(is_zero));
     let tree = Tree::new_from_slice(positions).ok()?;
     // With normals, twice the neighbours to choose the patch's from.
     let wanted = if normals.is_some() { 2 } else { 1 } * NOISE_NEIGHBOURS + 1;
@@ -282,7 +284,12 @@ pub(crate) fn estimate_noise_over(
                 .sum::<f64>()
                 / others.len().clamp(1, SPACING_NEIGHBOURS) as f64;
             // The patch: the nearest that face the same way (the same sheet of a thin part).
-            let facing = |j: &usize| normals.is_none_or(|v| geometry::dot(&v[i], &v[*j]) > 0.0);
+            // (A zero normal, none there, faces every way.)
+            let facing = |j: &usize| {
+                normals.is_none_or(|v| {
+                    geometry::dot(&v[i], &v[*j]) > 0.0 || is_zero(&v[i]) || is_zero(&v[*j])
+                })
+            };
             let mut patch = vec![i as u32];
             patch.extend(
                 others
@@ -701,7 +708,7 @@ fn fit_sheets(
 }
 
 /// The median (the mean of the two middle values for an even count); `None` when empty.
-fn median(values: Vec<f64>) -> Option<f64> {
+pub(crate) fn median(values: Vec<f64>) -> Option<f64> {
     quantile(values, 0.5)
 }
 

@@ -702,7 +702,9 @@ pub fn fill_missing_normals(
 /// ```
 ///
 /// # Errors
-/// As [`estimate_normals`]; [`NormalError::Normals`] unless there is one line per point.
+/// As [`estimate_normals`]; [`NormalError::Normals`] unless there is one line per point,
+/// [`NormalError::NonFiniteNormal`] for a line with a NaN or infinite component (a zero line is
+/// a point without one).
 pub fn orient_normals(
     positions: &[Point<3>],
     lines: &[Point<3>],
@@ -712,6 +714,12 @@ pub fn orient_normals(
         return Err(NormalError::Normals {
             got: lines.len(),
             points: positions.len(),
+        });
+    }
+    if let Some(index) = first_non_finite(lines) {
+        return Err(NormalError::NonFiniteNormal {
+            index,
+            value: lines[index],
         });
     }
     let facing = match options.viewpoint {

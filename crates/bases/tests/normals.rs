@@ -1076,4 +1076,18 @@ fn unoriented_normals_are_told_from_oriented_ones_and_turned_outward() {
             points: points.len()
         })
     );
+    // A line with a NaN or infinite component is refused, named; a zero one is a point without
+    // a line, and takes its neighbours' normal.
+    for bad in [f64::NAN, f64::INFINITY] {
+        let mut lines = truth.clone();
+        lines[17][1] = bad;
+        assert!(matches!(
+            orient_normals(&points, &lines, &options),
+            Err(NormalError::NonFiniteNormal { index: 17, .. })
+        ));
+    }
+    let mut lines = truth.clone();
+    lines[17] = [0.0; 3];
+    let o = orient_normals(&points, &lines, &options).expect("oriented");
+    assert!(dot(&o.estimated.normals[17], &truth[17]) > 0.9);
 }

@@ -206,10 +206,11 @@ pub struct FitArgs {
     #[arg(skip)]
     pub points_shown_as: Option<String>,
 
-    /// Whether the normals' orientation was read already (`zeroset reconstruct` reads it, and
-    /// turns unoriented normals, before its fit stage); not an option.
+    /// Whether the points were checked already (`zeroset reconstruct` reads their thickness
+    /// and their normals' orientation, and turns unoriented normals, before its fit stage);
+    /// not an option.
     #[arg(skip)]
-    pub orientation_checked: bool,
+    pub checked_by_reconstruct: bool,
 
     /// The fitting method (rbf: radial basis functions; neural: a small MLP; mras: multilevel
     /// rational algebraic splines, stored at low rank).
@@ -817,7 +818,12 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
         );
     }
     check_extent(path, &cloud)?;
-    let unoriented = (!args.orientation_checked && !wound)
+    if !args.checked_by_reconstruct
+        && let Some(warning) = crate::thickness::warning(path, cloud.positions())
+    {
+        line("points", &warning);
+    }
+    let unoriented = (!args.checked_by_reconstruct && !wound)
         .then(|| crate::normals::unoriented(&cloud))
         .flatten();
     if let Some(o) = unoriented {

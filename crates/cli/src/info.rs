@@ -243,6 +243,11 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
                 |m| m.verdict(),
             ),
         );
+        line(
+            &mut s,
+            "thickness",
+            &crate::thickness::info_line(cloud.positions()),
+        );
     }
     match geology {
         None => {}

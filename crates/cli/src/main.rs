@@ -36,6 +36,7 @@ mod progress;
 mod reconstruct;
 mod restore;
 mod studio;
+mod thickness;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -103,7 +104,8 @@ fn parse_threads(text: &str) -> Result<usize, String> {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Describe a point-cloud file: format, point count, bounding box, normals, duplicates,
-    /// non-finite values, stray points, noise, and GemPy formations.
+    /// non-finite values, stray points, noise, thickness (a surface's points or a volume's),
+    /// and GemPy formations.
     #[command(after_help = info::EXAMPLES)]
     Info(info::InfoArgs),
     /// Run the main job on built-in sample data: describe the bundled point cloud, solve a

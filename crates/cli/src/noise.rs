@@ -8,11 +8,14 @@ use zeroset_field_core::PointCloud3;
 
 use crate::info::g;
 
-/// The estimate for `cloud` (its normals used where it has them; otherwise
-/// [`estimate_noise_unoriented`]), with its bounding-box diagonal.
+/// The estimate for `cloud` (its normals used where it has them; otherwise, or where they are
+/// all `0 0 0` placeholders, [`estimate_noise_unoriented`]), with its bounding-box diagonal.
 pub fn measure(cloud: &PointCloud3) -> Option<Measured> {
     let diagonal = cloud.bounds().map_or(0.0, |b| b.diagonal());
-    match cloud.normals() {
+    let given = cloud
+        .normals()
+        .filter(|normals| normals.iter().flatten().any(|&x| x != 0.0));
+    match given {
         Some(normals) => estimate_noise(cloud.positions(), Some(normals)),
         None => estimate_noise_unoriented(cloud.positions()),
     }

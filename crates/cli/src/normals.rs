@@ -198,6 +198,9 @@ pub fn run(args: &NormalsArgs) -> anyhow::Result<()> {
             ""
         }
     );
+    if let Some(warning) = crate::thickness::warning(&args.scan, cloud.positions()) {
+        outln!("{:<14}{warning}", "points");
+    }
     let facing = facing(args.viewpoint, &args.scan, &options, &cloud)?;
     let (oriented, _) = orient(&cloud, args.neighbours, &facing, args.quiet)?;
     if let (Some(given), Some(estimated)) = (cloud.normals(), oriented.normals()) {

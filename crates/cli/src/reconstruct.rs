@@ -346,6 +346,9 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     // Curves in a plane before zero normals are completed (across the plane, there).
     crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
+    if let Some(warning) = crate::thickness::warning(&args.scan, cloud.positions()) {
+        outln!("{:<14}{warning}", "points");
+    }
     let (cloud, completed) =
         crate::normals::complete_normals(&args.scan, cloud, args.normal_neighbours)?;
     // (After the completion: normals all 0 0 0 are none, and --viewpoint turns estimated ones.)
@@ -549,8 +552,8 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
     if scan != args.scan {
         fit_args.points_shown_as = Some(shown);
     }
-    // Their orientation was read above (and turned where they were unoriented).
-    fit_args.orientation_checked = true;
+    // Their thickness and orientation were read above (turned where they were unoriented).
+    fit_args.checked_by_reconstruct = true;
     crate::fit::run(&fit_args).context("reconstruct, stage 1 (fit)")?;
     times.push(("fit", t.elapsed()));
 

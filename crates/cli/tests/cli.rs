@@ -2887,6 +2887,12 @@ fn zero_normals_are_estimated_where_some_are_missing_and_read_as_none_where_all_
     let (dir, path) = temp_file("none.xyzn", &text(&|_| true));
     let described = stdout(&info(&path, &[]));
     assert!(described.contains("normals:     all 0 0 0"), "{described}");
+    // Their noise is measured from the positions (it was "not measured": no patch of points
+    // whose normals face the same way).
+    assert!(
+        described.contains("noise:       scatter about the local surface"),
+        "{described}"
+    );
     let field = dir.path().join("none.zsf");
     let o = fit(&path, &["-o", field.to_str().unwrap()]);
     assert_one_line_refusal(&o, "has no normals");
@@ -2910,6 +2916,59 @@ fn zero_normals_are_estimated_where_some_are_missing_and_read_as_none_where_all_
         "{out}"
     );
     assert!((volume(&out) / sphere - 1.0).abs() < 0.01, "{out}");
+}
+
+#[test]
+fn points_that_fill_a_volume_are_told_from_a_surfaces() {
+    // 2,000 points of a low-discrepancy (R₃) sequence filling a 2 × 1 × 1 brick, each with a
+    // made-up unit normal (away from the brick's centre), and 2,000 points on a sphere.
+    let phi: f64 = 1.220_744_084_605_759_5;
+    let step = [1.0 / phi, 1.0 / (phi * phi), 1.0 / (phi * phi * phi)];
+    let brick: String = (1..=2000)
+        .map(|i| {
+            let p: [f64; 3] = std::array::from_fn(|d| (0.5 + step[d] * i as f64) % 1.0);
+            let p = [2.0 * p[0], p[1], p[2]];
+            let away = [p[0] - 1.0, p[1] - 0.5, p[2] - 0.5];
+            let length = away.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let n = away.map(|x| x / length);
+            format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2])
+        })
+        .collect();
+    let (dir, path) = temp_file("brick.xyzn", &brick);
+    let said = "the points fill a volume rather than sample a surface: at 32 neighbours a point's \
+                neighbourhood is 0.";
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("thickness:   a volume's, not a surface's: at 32 neighbours"),
+        "{described}"
+    );
+    let o = fit(
+        &path,
+        &["-o", dir.path().join("brick.zsf").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "{}", stdout(&o));
+    let o = zeroset([
+        "normals",
+        path.to_str().unwrap(),
+        "-o",
+        dir.path().join("oriented.xyzn").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(said), "{}", stdout(&o));
+    // The sphere reads as a surface, and nothing is said.
+    let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(2000));
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("thickness:   a surface's: at 32 neighbours"),
+        "{described}"
+    );
+    let o = fit(
+        &path,
+        &["-o", dir.path().join("sphere.zsf").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("fill a volume"), "{}", stdout(&o));
 }
 
 #[test]

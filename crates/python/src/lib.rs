@@ -40,6 +40,7 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals::estimate_normals, m)?)?;
     m.add_function(wrap_pyfunction!(normals::fill_missing_normals, m)?)?;
     m.add_function(wrap_pyfunction!(normals::orient_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(normals::thickness, m)?)?;
     m.add_function(wrap_pyfunction!(io::sample_xyzn, m)?)?;
     m.add_function(wrap_pyfunction!(linalg::lstsq_native, m)?)?;
     m.add_function(wrap_pyfunction!(linalg::cp_als, m)?)?;

@@ -9,9 +9,30 @@ use zeroset_bases::normals::{
     NormalOptions, default_neighbours, estimate_normals as estimate,
     estimate_normals_from_scanners, fill_missing_normals as fill, orient_normals as orient,
 };
+use zeroset_bases::thickness::measure_thickness;
 
 use crate::arrays::{points as rows, rows_array};
 use crate::errors::to_py;
+
+/// How thick `points`' neighbourhoods are (`zeroset_bases::thickness`): `(smallest scale,
+/// largest scale, the thinnest scale's median thickness, whether they fill a volume)`, the
+/// scales in neighbours; `None` for fewer than 512 points or a non-finite coordinate.
+#[pyfunction]
+pub(crate) fn thickness<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Option<(usize, usize, f64, bool)>> {
+    let positions = rows(&points, "points", false)?;
+    Ok(py.detach(|| measure_thickness(positions)).map(|t| {
+        let (first, last) = (t.scales[0], t.scales[t.scales.len() - 1]);
+        (
+            first.neighbours,
+            last.neighbours,
+            t.thinnest().thickness,
+            t.fills_volume(),
+        )
+    }))
+}
 
 /// Outward unit normals for `points` (see `zeroset.estimate_normals`); with `scanners`, each
 /// point faces its own scanner.
@@ -98,6 +119,9 @@ pub(crate) fn orient_normals<'py>(
     report.set_item("facing_in", orientation.facing_in())?;
     report.set_item("rays_cast", orientation.rays.cast)?;
     report.set_item("rays_inward", orientation.rays.inward)?;
+    report.set_item("rays_outward", orientation.rays.outward)?;
+    report.set_item("consistent_rays_cast", orientation.rays_consistent.cast)?;
+    report.set_item("consistent_rays_inward", orientation.rays_consistent.inward)?;
     report.set_item("unoriented", orientation.unoriented())?;
     Ok((rows_array(py, orientation.estimated.normals), report))
 }

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -555,6 +556,28 @@ def test_estimate_normals_rejects_bad_input():
         zeroset.estimate_normals(points, viewpoint=(0, 0, 0), scanners=np.zeros((100, 3)))
 
 
+def test_points_that_fill_a_volume_are_warned_of():
+    # 600 random points filling a 2 x 1 x 1 brick, with made-up normals away from its centre.
+    brick = np.random.default_rng(3).random((600, 3)) * [2.0, 1.0, 1.0]
+    away = brick - brick.mean(axis=0)
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    said = "600 points fill a volume rather than sample a surface: at 32 neighbours"
+    with pytest.warns(UserWarning, match=said):
+        zeroset.estimate_normals(brick)
+    with pytest.warns(UserWarning, match=said):
+        field = zeroset.fit(brick, away, smoothing="auto")
+    assert field.report["thickness"] > 0.35
+    # A sphere's points: thin, and nothing said.
+    points, normals = sphere_cloud(600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        zeroset.estimate_normals(points)
+        field = zeroset.fit(points, normals)
+    assert field.report["thickness"] < 0.05
+    # Under 512 points nothing is read.
+    assert "thickness" not in zeroset.fit(*sphere_cloud(400)).report
+
+
 def test_missing_normals_are_completed_and_fit_like_the_command(tmp_path, zeroset_bin):
     points, truth = sphere_cloud(1200)
     holed = truth.copy()
@@ -626,6 +649,9 @@ def test_unoriented_normals_are_told_and_turned():
     capped, cap_report = zeroset.orient_normals(points, cap)
     assert cap_report.facing_in and cap_report.unoriented, cap_report
     assert cap_report.rays_inward * 10 >= cap_report.rays_cast * 9 > 0, cap_report
+    assert cap_report.rays_outward * 10 <= cap_report.rays_cast, cap_report
+    assert cap_report.consistent_rays_cast > 0, cap_report
+    assert cap_report.consistent_rays_inward * 10 <= cap_report.consistent_rays_cast, cap_report
     np.testing.assert_allclose(capped, truth, atol=1e-12)
     # Oriented normals: consistent, none turned, returned as they were.
     again, clean = zeroset.orient_normals(points, truth)

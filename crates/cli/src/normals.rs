@@ -657,11 +657,32 @@ pub(crate) fn orient(
     if let Some(clause) = two_sheets {
         outln!("{:<14}warning: {clause}", "normals");
     }
+    if let Some(warning) = few_points_warning(used, cloud.len()) {
+        outln!("{:<14}{warning}", "normals");
+    }
     // The normals move into the cloud; the report keeps the counts.
     let normals = std::mem::take(&mut estimated.normals);
     let oriented = PointCloud3::with_normals(cloud.positions().to_vec(), normals)
         .context("the oriented cloud")?;
     Ok((oriented, estimated))
+}
+
+/// A plane fitted to more than this share of a cloud's points is the cloud's overall shape,
+/// not a patch of its surface (8 points at a cube's corners: each plane through all 8, every
+/// normal a guess, and `reconstruct` meshed two pieces with "warnings: none").
+const MOST_OF_THE_CLOUD: f64 = 0.25;
+
+/// The warning where each normal's plane takes `used` of the `points` and that is more than
+/// [`MOST_OF_THE_CLOUD`].
+fn few_points_warning(used: usize, points: usize) -> Option<String> {
+    (used as f64 > MOST_OF_THE_CLOUD * points as f64).then(|| {
+        format!(
+            "warning: each normal's plane is fitted to {used} of the {points} points, more than \
+             a quarter of them: too few points for planes of patches of the surface, so the \
+             normals, and the surface fitted to them, are a guess at the cloud's overall shape; \
+             give more points, or their normals"
+        )
+    })
 }
 
 /// What became of the pieces too flat to have an inside (terrain, a wall), if any: their side

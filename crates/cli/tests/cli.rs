@@ -2972,6 +2972,41 @@ fn points_that_fill_a_volume_are_told_from_a_surfaces() {
 }
 
 #[test]
+fn normals_of_a_cloud_too_small_for_local_planes_are_called_a_guess() {
+    // The 8 corners of a cube (CGAL's cube.xyz): each plane is fitted to all the others.
+    let corners: String = (0..8)
+        .map(|i| format!("{} {} {}\n", i & 1, (i >> 1) & 1, i >> 2))
+        .collect();
+    let (dir, path) = temp_file("corners.xyz", &corners);
+    let normals = |path: &Path| {
+        let o = zeroset([
+            "normals",
+            path.to_str().unwrap(),
+            "-o",
+            dir.path().join("oriented.xyzn").to_str().unwrap(),
+            "--force",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let out = normals(&path);
+    assert!(
+        out.contains("warning: each normal's plane is fitted to 7 of the 8 points"),
+        "{out}"
+    );
+    // 100 points on a sphere, 16 neighbours each: patches of its surface.
+    let sphere: String = sphere_points(100)
+        .iter()
+        .map(|(p, _)| format!("{} {} {}\n", p[0], p[1], p[2]))
+        .collect();
+    let path = dir.path().join("sphere.xyz");
+    fs::write(&path, sphere).unwrap();
+    let out = normals(&path);
+    assert!(out.contains("estimated from 16 neighbours each"), "{out}");
+    assert!(!out.contains("a guess"), "{out}");
+}
+
+#[test]
 fn curves_in_a_plane_are_refused_as_2d_data_and_a_flat_sheet_is_fitted() {
     // Two circles on z = 0 with normals in the plane (CGAL's circles.ply is such a file).
     let circles: String = (0..200)

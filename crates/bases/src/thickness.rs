@@ -17,12 +17,20 @@
 //! is about as thick as it is wide, at every scale, until it reaches the volume's own
 //! boundary: `t_k ≈ 0.5–0.7` in the interior, ≥ 0.3 in a half ball at the boundary.
 //!
-//! So the cloud is read at the scales `k ∈ {32, 128, 512, 2048}` that hold at most a
-//! sixteenth of its points ([`THICKNESS_SCALES`], [`POINTS_PER_SCALE`]), on every
-//! `⌈n / 1000⌉`-th point ([`THICKNESS_SAMPLES`]), and each scale's median thickness kept; the
+//! So the cloud's distinct positions are read at the scales `k ∈ {32, 64, …, 2048}` that hold
+//! at most an eighth of them ([`THICKNESS_SCALES`], [`POINTS_PER_SCALE`]), on every
+//! `⌈n / 1000⌉`-th ([`THICKNESS_SAMPLES`]), and each scale's median thickness kept; the
 //! **thinnest** scale decides. A surface is thin at some scale — above its noise, below its
-//! curvature — and a volume at none: [`Thickness::fills_volume`] where even the thinnest reads
-//! at least [`VOLUME_THICKNESS`].
+//! curvature — and a volume at none: [`Thickness::thick_everywhere`] where even the thinnest
+//! reads at least [`VOLUME_THICKNESS`]. A few surfaces are thick everywhere too (a small cloud
+//! of a thin part, whose neighbourhoods span it, up to the scales it has points for), but their
+//! points lie on smooth sheets, where a volume's scatter about every local quadric:
+//! [`Thickness::fills_volume`] also asks the noise check ([`crate::noise`]) to read them noisy.
+//!
+//! **Not told**: a volume sampled in layers or along lines spaced more than about two of their
+//! own spacings apart (a CT segmentation whose slices lie 3–5 pixels apart) reads 0 at 32
+//! neighbours, each neighbourhood in one slice, as a stack of close parallel sheets does; and
+//! a cloud at least half of whose points sample a surface (the median decides).
 //!
 //! Why it matters: zeroset fits a surface through points that lie on one (the zero set of a
 //! field that vanishes at every point). Given a volume's points, every fit reads them as a
@@ -38,32 +46,38 @@ use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 use zeroset_field_core::geometry::{self, Point};
 
-use crate::noise::{Tree, median};
+use crate::noise::{Noise, Tree, median};
 
 /// The neighbourhood sizes the thickness is read at (those a cloud has points for:
 /// [`POINTS_PER_SCALE`]).
-pub const THICKNESS_SCALES: [usize; 4] = [32, 128, 512, 2048];
+pub const THICKNESS_SCALES: [usize; 7] = [32, 64, 128, 256, 512, 1024, 2048];
 
-/// A scale of `k` neighbours is read only on a cloud of at least `POINTS_PER_SCALE · k` points:
-/// a neighbourhood holding more than a sixteenth of a volume's points reaches its boundary from
-/// most of them (a uniform ball of 20,000 points read 0.68 at 512 neighbours, 0.55 at 2048).
-/// So the smallest cloud judged has `16 × 32 = 512` points.
-pub const POINTS_PER_SCALE: usize = 16;
+/// A scale of `k` neighbours is read only on a cloud of at least `POINTS_PER_SCALE · k`
+/// distinct positions: a neighbourhood holding a large share of a volume's points reaches its
+/// boundary from most of them, and reads thinner (a uniform ball of 20,000 points: 0.69 at 512
+/// neighbours, 0.47 at 2048; volumes of 512–3,300 points, read at a quarter of their points:
+/// 0.40–0.43). Larger scales matter on small clouds of thin parts: a tube sampled with 8 points
+/// round it reads 0.52 at 32 neighbours and 0.04 at 128. The smallest cloud judged has
+/// `8 × 32 = 256` points.
+pub const POINTS_PER_SCALE: usize = 8;
 
 /// The most points whose neighbourhoods are read per scale (every `⌈n / 1000⌉`-th): a median
-/// needs no more, and a million-point cloud is read in a fraction of a second.
+/// needs no more, and a million-point cloud is read in about a second.
 pub const THICKNESS_SAMPLES: usize = 1000;
 
-/// A cloud fills a volume ([`Thickness::fills_volume`]) where its median thickness is at least
-/// this at every scale read. Measured (2026-12-07, the thinnest scale's median): surfaces 0.001–0.02 (clean
-/// scans: the bunny, the kitten, CGAL's `hippo1`, `ball`, `spheres`, `cube.pwn`, `building`),
-/// 0.07 (CGAL's noisy `sphere_20k`), 0.12 (CGAL's sparse `oni`, 1,435 points), 0.19 (the
-/// bunny with Gaussian noise of 2% of its diagonal, twice its spacing; 0.10–0.14 at 0.25–1%),
-/// 0.27 (a sparse thin torus, 1,000 points on a tube of 1/20 its radius: the neighbourhoods
-/// span the tube); volumes 0.42 (CGAL's `oneK`: 1,000 random points in a cube), 0.46 (5,000
-/// in a cube), 0.51 (CGAL's `blobby`, 3,288 points filling a blob), 0.55–0.68 (50,000 in a
-/// cube, 20,000 in a ball). A slab 1/20 as thick as it is wide, filled with 50,000 points, reads
-/// 0.06 at 2048 neighbours: at that scale it is a surface, and meshing it as one is right.
+/// A cloud is thick everywhere ([`Thickness::thick_everywhere`]) where its median thickness is
+/// at least this at every scale read. Measured (2026-12-08, the thinnest scale's median):
+/// clean scans 0.000–0.012 (the bunny, the kitten, CGAL's `hippo1`, `ball`, `spheres`,
+/// `cube.pwn`), 0.035–0.058 (CGAL's `fin90_with_PCA_normals`, `building`), 0.047 (CGAL's noisy
+/// `sphere_20k`), 0.12 (its sparse `oni`, 1,435 points), the bunny with Gaussian noise of
+/// 0.25 / 0.5 / 1 / 2% of its diagonal 0.042 / 0.073 / 0.122 / 0.197, 400 random points on a
+/// torus 0.194; volumes 0.42 (CGAL's `oneK`: 1,000 random points in a cube), 0.44 (its
+/// `blobby`, 3,288 points filling a blob), 0.46–0.49 (5,000 and 50,000 random points in a
+/// cube, 20,000 in a ball), 0.37–0.39 (400 in a ball or a cube). Some surfaces are thick at
+/// every scale too — a small cloud of a thin part, whose neighbourhoods span it (two 12 × 12
+/// sheets two spacings apart: 0.50), an under-sampled lattice — but their points lie on smooth
+/// sheets, where a volume's points scatter about every quadric: [`Thickness::fills_volume`]
+/// asks the noise check too.
 pub const VOLUME_THICKNESS: f64 = 0.35;
 
 /// One scale's reading: the median thickness of the sampled points' neighbourhoods.
@@ -79,35 +93,48 @@ pub struct ScaleThickness {
 /// smallest first.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Thickness {
-    /// The scales read, `neighbours` ascending (at least one).
-    pub scales: Vec<ScaleThickness>,
+    /// The scales read, `neighbours` ascending; never empty.
+    scales: Vec<ScaleThickness>,
 }
 
 impl Thickness {
-    /// The scale whose median neighbourhood is thinnest (the first of equals).
-    pub fn thinnest(&self) -> ScaleThickness {
-        self.scales
-            .iter()
-            .copied()
-            .reduce(|a, b| if b.thickness < a.thickness { b } else { a })
-            .expect("at least one scale is read")
+    /// The scales read, `neighbours` ascending (at least one).
+    pub fn scales(&self) -> &[ScaleThickness] {
+        &self.scales
     }
 
-    /// Whether the points fill a volume: thick ([`VOLUME_THICKNESS`]) at every scale read.
-    pub fn fills_volume(&self) -> bool {
+    /// The scale whose median neighbourhood is thinnest (the first of equals).
+    pub fn thinnest(&self) -> ScaleThickness {
+        self.scales.iter().copied().fold(self.scales[0], |a, b| {
+            if b.thickness < a.thickness { b } else { a }
+        })
+    }
+
+    /// Whether the points are thick ([`VOLUME_THICKNESS`]) at every scale read.
+    pub fn thick_everywhere(&self) -> bool {
         self.thinnest().thickness >= VOLUME_THICKNESS
+    }
+
+    /// Whether the points fill a volume: thick at every scale read, and scattered about the
+    /// local quadrics of the noise check ([`Noise::is_noisy`]; `noise` measured on the same
+    /// points, `None` where it could not be). A volume's points are noisy as no surface's are
+    /// (uniform random points read 0.54–0.58 of their spacing); the surfaces that are thick at
+    /// every scale — small clouds of thin parts, a few copies of a scan out of register — lie
+    /// on smooth sheets (0.00–0.13).
+    pub fn fills_volume(&self, noise: Option<&Noise>) -> bool {
+        self.thick_everywhere() && noise.is_some_and(Noise::is_noisy)
     }
 }
 
-/// The thickness of `positions` at each scale it has points for (see the
-/// [module docs](self)). `None` for fewer than `POINTS_PER_SCALE · 32` = 512 points, a
-/// coordinate that is not finite, or a cloud whose sampled neighbourhoods are all single
-/// positions (points repeated more often than the scale).
+/// The thickness of `positions` at each scale its distinct positions are enough for (see the
+/// [module docs](self)). `None` for fewer than `POINTS_PER_SCALE · 32` = 256 distinct
+/// positions, or a coordinate that is not finite.
 ///
 /// ```
+/// use zeroset_bases::noise::estimate_noise;
 /// use zeroset_bases::thickness::measure_thickness;
 ///
-/// // 4,096 points on the unit sphere, and 4,096 filling a cube (a 16 × 16 × 16 grid).
+/// // 4,096 points on the unit sphere, and 4,096 filling a cube (a jittered 16 × 16 × 16 grid).
 /// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
 /// let sphere: Vec<[f64; 3]> = (0..4096)
 ///     .map(|i| {
@@ -116,42 +143,81 @@ impl Thickness {
 ///         [r * (golden * i as f64).cos(), r * (golden * i as f64).sin(), z]
 ///     })
 ///     .collect();
-/// let cube: Vec<[f64; 3]> = (0..4096).map(|i| [i % 16, i / 16 % 16, i / 256].map(f64::from)).collect();
-/// assert!(!measure_thickness(&sphere).unwrap().fills_volume());
-/// assert!(measure_thickness(&cube).unwrap().fills_volume());
+/// let jitter = |i: u32, axis: u32| f64::from((i * 7919 + axis * 104_729) % 1000) / 1000.0 - 0.5;
+/// let cube: Vec<[f64; 3]> = (0..4096u32)
+///     .map(|i| [i % 16, i / 16 % 16, i / 256].map(f64::from))
+///     .enumerate()
+///     .map(|(i, p)| std::array::from_fn(|a| p[a] + 0.8 * jitter(i as u32, a as u32)))
+///     .collect();
+/// let surface = measure_thickness(&sphere).unwrap();
+/// assert!(!surface.thick_everywhere());
+/// let volume = measure_thickness(&cube).unwrap();
+/// assert!(volume.thick_everywhere());
+/// assert!(volume.fills_volume(estimate_noise(&cube, None).as_ref()));
 /// ```
 pub fn measure_thickness(positions: &[Point<3>]) -> Option<Thickness> {
+    let positions = distinct(positions)?;
     let n = positions.len();
-    if !positions.iter().flatten().all(|x| x.is_finite()) {
-        return None;
-    }
-    let tree = Tree::new_from_slice(positions).ok()?;
-    let stride = n.div_ceil(THICKNESS_SAMPLES).max(1);
-    let samples: Vec<usize> = (0..n).step_by(stride).collect();
+    let tree = Tree::new_from_slice(&positions).ok()?;
     let scales: Vec<ScaleThickness> = THICKNESS_SCALES
         .iter()
         .filter(|&&k| n >= POINTS_PER_SCALE * k)
         .filter_map(|&k| {
-            let wanted = NonZero::new(k)?;
-            let each: Vec<f64> = samples
-                .par_iter()
-                .filter_map(|&i| {
-                    let around = tree
-                        .query(&positions[i])
-                        .nearest_n::<SquaredEuclidean<f64>>(wanted)
-                        .execute();
-                    let points: Vec<Point<3>> =
-                        around.iter().map(|f| positions[f.item as usize]).collect();
-                    neighbourhood_thickness(&points)
-                })
-                .collect();
-            median(each).map(|thickness| ScaleThickness {
+            median_thickness(&tree, &positions, k).map(|thickness| ScaleThickness {
                 neighbours: k,
                 thickness,
             })
         })
         .collect();
     (!scales.is_empty()).then_some(Thickness { scales })
+}
+
+/// The median thickness of the neighbourhoods of `neighbours` points (each point and its
+/// nearest, its distinct positions only; every `⌈n / 1000⌉`-th read), at one scale, for a
+/// cloud of any size: how well planes fitted to that many points can stand for a surface's
+/// (0 for a plane's points, 1 for a cube's 8 corners). `None` for fewer than 3 distinct
+/// positions, a coordinate that is not finite, or `neighbours` under 3.
+pub fn thickness_at(positions: &[Point<3>], neighbours: usize) -> Option<f64> {
+    let positions = distinct(positions)?;
+    if positions.len() < 3 || neighbours < 3 {
+        return None;
+    }
+    let tree = Tree::new_from_slice(&positions).ok()?;
+    median_thickness(&tree, &positions, neighbours.min(positions.len()))
+}
+
+/// The distinct positions of `positions`, each where it first occurs, in their order; `None`
+/// where a coordinate is not finite. (A point written several times would fill its own
+/// neighbourhood.)
+fn distinct(positions: &[Point<3>]) -> Option<Vec<Point<3>>> {
+    if !positions.iter().flatten().all(|x| x.is_finite()) {
+        return None;
+    }
+    let key = |i: &usize| positions[*i].map(f64::to_bits);
+    let mut order: Vec<usize> = (0..positions.len()).collect();
+    order.par_sort_unstable_by_key(|i| (key(i), *i));
+    order.dedup_by_key(|i| key(i));
+    order.sort_unstable();
+    Some(order.iter().map(|&i| positions[i]).collect())
+}
+
+/// The median over every `⌈n / 1000⌉`-th point of the thickness of its `k` nearest.
+fn median_thickness(tree: &Tree, positions: &[Point<3>], k: usize) -> Option<f64> {
+    let wanted = NonZero::new(k)?;
+    let stride = positions.len().div_ceil(THICKNESS_SAMPLES).max(1);
+    let samples: Vec<usize> = (0..positions.len()).step_by(stride).collect();
+    let each: Vec<f64> = samples
+        .par_iter()
+        .filter_map(|&i| {
+            let around = tree
+                .query(&positions[i])
+                .nearest_n::<SquaredEuclidean<f64>>(wanted)
+                .execute();
+            let points: Vec<Point<3>> = around.iter().map(|f| positions[f.item as usize]).collect();
+            neighbourhood_thickness(&points)
+        })
+        .collect();
+    median(each)
 }
 
 /// `λ₀ / λ₂` of the covariance of `points`; `None` where they all lie at one position.
@@ -177,6 +243,7 @@ fn neighbourhood_thickness(points: &[Point<3>]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::noise::estimate_noise;
 
     /// `n` points on the unit sphere (a Fibonacci lattice).
     fn sphere(n: usize) -> Vec<Point<3>> {
@@ -224,17 +291,19 @@ mod tests {
 
     #[test]
     fn surfaces_are_thin_and_volumes_thick_at_every_scale() {
-        let surface = measure_thickness(&sphere(40_000)).unwrap();
+        let points = sphere(40_000);
+        let surface = measure_thickness(&points).unwrap();
         assert_eq!(
             surface
-                .scales
+                .scales()
                 .iter()
                 .map(|s| s.neighbours)
                 .collect::<Vec<_>>(),
-            [32, 128, 512, 2048]
+            THICKNESS_SCALES
         );
         assert!(surface.thinnest().thickness < 0.01, "{surface:?}");
-        assert!(!surface.fills_volume());
+        assert!(!surface.thick_everywhere());
+        assert!(!surface.fills_volume(estimate_noise(&points, None).as_ref()));
         // The same sphere with uniform noise of ±0.06, twice its spacing: thick at 32 neighbours,
         // thin from 512 up, where the patches are wider than the noise.
         let mut state = 7u64;
@@ -244,37 +313,77 @@ mod tests {
                 .wrapping_add(1_442_695_040_888_963_407);
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
-        let noisy: Vec<Point<3>> = sphere(40_000)
+        let noisy: Vec<Point<3>> = points
             .into_iter()
             .map(|p| p.map(|x| x + 0.12 * (uniform() - 0.5)))
             .collect();
+        let noise = estimate_noise(&noisy, None);
+        assert!(noise.is_some_and(|n| n.is_noisy()));
         let noisy = measure_thickness(&noisy).unwrap();
-        assert!(noisy.scales[0].thickness > 0.3, "{noisy:?}");
+        assert!(noisy.scales()[0].thickness > 0.3, "{noisy:?}");
         assert!(noisy.thinnest().thickness < 0.1, "{noisy:?}");
-        assert!(!noisy.fills_volume());
-        // A filled cube, and a filled brick 4 × 2 × 1: thick at every scale read.
+        assert!(!noisy.fills_volume(noise.as_ref()));
+        // A filled cube, and a filled brick 4 × 2 × 1: thick at every scale read, and noisy.
         for size in [[1.0; 3], [4.0, 2.0, 1.0]] {
-            let volume = measure_thickness(&cube(20_000, size)).unwrap();
-            assert!(volume.fills_volume(), "{size:?}: {volume:?}");
+            let points = cube(20_000, size);
+            let volume = measure_thickness(&points).unwrap();
+            assert!(volume.thick_everywhere(), "{size:?}: {volume:?}");
+            assert!(volume.fills_volume(estimate_noise(&points, None).as_ref()));
+            // Without the noise check's word, not called a volume.
+            assert!(!volume.fills_volume(None));
         }
         // A slab 1/50 as thick as it is wide is a surface at the larger scales.
         let slab = measure_thickness(&cube(40_000, [1.0, 1.0, 0.02])).unwrap();
-        assert!(!slab.fills_volume(), "{slab:?}");
+        assert!(!slab.thick_everywhere(), "{slab:?}");
         // The smallest cloud read, at its one scale.
-        let small = measure_thickness(&cube(512, [1.0; 3])).unwrap();
-        assert_eq!(small.scales.len(), 1);
-        assert!(small.fills_volume());
-        assert!(!measure_thickness(&sphere(512)).unwrap().fills_volume());
+        let small = measure_thickness(&cube(256, [1.0; 3])).unwrap();
+        assert_eq!(small.scales().len(), 1);
+        assert!(small.thick_everywhere());
+        assert!(!measure_thickness(&sphere(256)).unwrap().thick_everywhere());
     }
 
     #[test]
-    fn too_few_points_or_a_non_finite_one_read_nothing() {
-        assert_eq!(measure_thickness(&cube(511, [1.0; 3])), None);
-        let mut bad = cube(1000, [1.0; 3]);
-        bad[10][2] = f64::NAN;
-        assert_eq!(measure_thickness(&bad), None);
-        // Every point repeated past the scale: each neighbourhood is one position.
-        assert_eq!(measure_thickness(&[[1.0, 2.0, 3.0]; 600]), None);
+    fn a_small_cloud_of_a_thin_tube_is_thick_but_clean_and_not_a_volume() {
+        // 2,000 points on a tube of radius 0.05, 8 round it and as far apart along it (a
+        // cylinder meshed with 8 segments): each 32-point neighbourhood spans the tube
+        // (thick), the 256-point ones run along it (thin).
+        let tube: Vec<Point<3>> = (0..2000)
+            .map(|i| {
+                let angle =
+                    (i % 8) as f64 * std::f64::consts::TAU / 8.0 + (i / 8 % 2) as f64 * 0.39;
+                [
+                    0.05 * angle.cos(),
+                    0.05 * angle.sin(),
+                    (i / 8) as f64 * 0.039,
+                ]
+            })
+            .collect();
+        let t = measure_thickness(&tube).unwrap();
+        assert!(t.scales()[0].thickness > VOLUME_THICKNESS, "{t:?}");
+        assert!(!t.thick_everywhere(), "{t:?}");
+        assert!(!t.fills_volume(estimate_noise(&tube, None).as_ref()));
+    }
+
+    #[test]
+    fn one_scale_reads_a_small_clouds_planes() {
+        // The 8 corners of a cube: every plane through all of them, as thick as it is wide.
+        let corners: Vec<Point<3>> = (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64])
+            .collect();
+        assert!((thickness_at(&corners, 8).unwrap() - 1.0).abs() < 1e-9);
+        // 40 points on a sphere, 17 at a time: caps of it, thin.
+        assert!(thickness_at(&sphere(40), 17).unwrap() < VOLUME_THICKNESS);
+        assert_eq!(thickness_at(&corners[..2], 8), None);
+        assert_eq!(thickness_at(&corners, 2), None);
+    }
+
+    #[test]
+    fn repeated_positions_are_read_once() {
+        // 2,000 random points in a cube, each written 4 times: the copies would fill every
+        // 32-point neighbourhood with 8 positions.
+        let points = cube(2000, [1.0; 3]);
+        let repeated: Vec<Point<3>> = points.iter().flat_map(|p| [*p; 4]).collect();
+        assert_eq!(measure_thickness(&repeated), measure_thickness(&points));
     }
 
     #[test]

@@ -819,7 +819,7 @@ pub(crate) fn load(args: &FitArgs) -> anyhow::Result<PointCloud3> {
     }
     check_extent(path, &cloud)?;
     if !args.checked_by_reconstruct
-        && let Some(warning) = crate::thickness::warning(path, cloud.positions())
+        && let Some(warning) = crate::thickness::warning(path, &cloud)
     {
         line("points", &warning);
     }

@@ -231,10 +231,11 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         write_outliers(&mut s, cloud.positions(), normals);
     }
     if stats.non_finite_positions == 0 {
+        let measured = crate::noise::measure(&cloud);
         line(
             &mut s,
             "noise",
-            &crate::noise::measure(&cloud).map_or_else(
+            &measured.as_ref().map_or_else(
                 || {
                     "not measured (fewer than 64 points, or too few neighbourhoods of 17 on one \
                      side of a surface)"
@@ -246,7 +247,7 @@ fn report(args: &InfoArgs) -> anyhow::Result<String> {
         line(
             &mut s,
             "thickness",
-            &crate::thickness::info_line(cloud.positions()),
+            &crate::thickness::info_line(cloud.positions(), measured.as_ref().map(|m| &m.noise)),
         );
     }
     match geology {

@@ -346,7 +346,7 @@ pub fn run(args: &ReconstructArgs) -> anyhow::Result<()> {
         crate::normals::read_positions(&args.scan, &options, "zeroset reconstruct", true)?;
     // Curves in a plane before zero normals are completed (across the plane, there).
     crate::fit::check_not_curves(&args.scan, &cloud).context("reconstruct, stage 1 (fit)")?;
-    if let Some(warning) = crate::thickness::warning(&args.scan, cloud.positions()) {
+    if let Some(warning) = crate::thickness::warning(&args.scan, &cloud) {
         outln!("{:<14}{warning}", "points");
     }
     let (cloud, completed) =

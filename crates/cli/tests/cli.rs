@@ -2935,11 +2935,11 @@ fn points_that_fill_a_volume_are_told_from_a_surfaces() {
         })
         .collect();
     let (dir, path) = temp_file("brick.xyzn", &brick);
-    let said = "the points fill a volume rather than sample a surface: at 32 neighbours a point's \
-                neighbourhood is 0.";
+    let said = "the points fill a volume rather than sample a surface: at every scale from 32 to \
+                128 neighbours a point's neighbourhood is at least 0.";
     let described = stdout(&info(&path, &[]));
     assert!(
-        described.contains("thickness:   a volume's, not a surface's: at 32 neighbours"),
+        described.contains("thickness:   a volume's, not a surface's: at every scale from 32"),
         "{described}"
     );
     let o = fit(
@@ -2956,6 +2956,72 @@ fn points_that_fill_a_volume_are_told_from_a_surfaces() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).contains(said), "{}", stdout(&o));
+    // A closed plate 0.6 × 0.6 × 0.04 sampled every 0.02 (2,042 points, the faces' shared
+    // edges once): thick at 32 neighbours, which span both faces (0.53: it was called a
+    // volume while only that scale was read under 2,048 points), thin at 128.
+    let mut plate = std::collections::BTreeSet::new();
+    for i in 0..=30 {
+        for j in 0..=30 {
+            for k in 0..=2 {
+                let on_face = i == 0 || i == 30 || j == 0 || j == 30 || k == 0 || k == 2;
+                if on_face {
+                    plate.insert((i, j, k));
+                }
+            }
+        }
+    }
+    let plate: String = plate
+        .iter()
+        .map(|&(i, j, k)| {
+            format!(
+                "{} {} {}\n",
+                0.02 * i as f64,
+                0.02 * j as f64,
+                0.02 * k as f64
+            )
+        })
+        .collect();
+    let path = dir.path().join("plate.xyz");
+    fs::write(&path, plate).unwrap();
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains("points:      2042 points"),
+        "{described}"
+    );
+    assert!(
+        described.contains("thickness:   a surface's: at 128 neighbours"),
+        "{described}"
+    );
+    // Two sheets of 12 × 12 points every 0.02, 0.04 apart (288 points): thick at the one scale
+    // read, but clean about the sheets: a surface's, and nothing is said.
+    let sheets: String = (0..288)
+        .map(|i| {
+            format!(
+                "{} {} {}\n",
+                0.02 * (i % 12) as f64,
+                0.02 * (i / 12 % 12) as f64,
+                0.04 * (i / 144) as f64
+            )
+        })
+        .collect();
+    let path = dir.path().join("sheets.xyz");
+    fs::write(&path, sheets).unwrap();
+    let described = stdout(&info(&path, &[]));
+    assert!(
+        described.contains(
+            "thickness:   a surface's: at 32 neighbours a point's neighbourhood is 0.50 as thick \
+             as it is wide (the median), as a volume's is, but the points lie on smooth sheets"
+        ),
+        "{described}"
+    );
+    let o = zeroset([
+        "normals",
+        path.to_str().unwrap(),
+        "-o",
+        dir.path().join("sheets.xyzn").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("fill a volume"), "{}", stdout(&o));
     // The sphere reads as a surface, and nothing is said.
     let (dir, path) = temp_file("sphere.xyzn", &sphere_xyzn(2000));
     let described = stdout(&info(&path, &[]));
@@ -2991,11 +3057,14 @@ fn normals_of_a_cloud_too_small_for_local_planes_are_called_a_guess() {
     };
     let out = normals(&path);
     assert!(
-        out.contains("warning: each normal's plane is fitted to 7 of the 8 points"),
+        out.contains(
+            "warning: each normal's plane is fitted to a point and its 7 nearest, 8 of the 8 \
+             points, and those planes are 1.00 as thick as they are wide"
+        ),
         "{out}"
     );
-    // 100 points on a sphere, 16 neighbours each: patches of its surface.
-    let sphere: String = sphere_points(100)
+    // 40 points on a sphere, 16 neighbours each: caps of it, thin enough to stand for it.
+    let sphere: String = sphere_points(40)
         .iter()
         .map(|(p, _)| format!("{} {} {}\n", p[0], p[1], p[2]))
         .collect();

@@ -5,32 +5,56 @@
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use zeroset_bases::noise::estimate_noise;
+use zeroset_bases::normals::estimate_noise_unoriented;
 use zeroset_bases::normals::{
     NormalOptions, default_neighbours, estimate_normals as estimate,
     estimate_normals_from_scanners, fill_missing_normals as fill, orient_normals as orient,
 };
-use zeroset_bases::thickness::measure_thickness;
+use zeroset_bases::thickness::{VOLUME_THICKNESS, measure_thickness};
 
 use crate::arrays::{points as rows, rows_array};
 use crate::errors::to_py;
 
+/// `(smallest scale, largest scale, thinnest median, fills a volume, threshold)`: see
+/// [`thickness`].
+type ThicknessReading = (usize, usize, f64, bool, f64);
+
 /// How thick `points`' neighbourhoods are (`zeroset_bases::thickness`): `(smallest scale,
-/// largest scale, the thinnest scale's median thickness, whether they fill a volume)`, the
-/// scales in neighbours; `None` for fewer than 512 points or a non-finite coordinate.
+/// largest scale, the thinnest scale's median thickness, whether they fill a volume, the
+/// threshold)`, the scales in neighbours; `None` for fewer than 256 distinct positions or a
+/// non-finite coordinate. Where they are thick at every scale, the noise check decides (with
+/// `normals` where given).
 #[pyfunction]
+#[pyo3(signature = (points, normals=None))]
 pub(crate) fn thickness<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
-) -> PyResult<Option<(usize, usize, f64, bool)>> {
+    normals: Option<PyReadonlyArray2<'py, f64>>,
+) -> PyResult<Option<ThicknessReading>> {
     let positions = rows(&points, "points", false)?;
-    Ok(py.detach(|| measure_thickness(positions)).map(|t| {
-        let (first, last) = (t.scales[0], t.scales[t.scales.len() - 1]);
-        (
-            first.neighbours,
-            last.neighbours,
+    let normals = normals
+        .as_ref()
+        .map(|n| rows(n, "normals", false))
+        .transpose()?;
+    Ok(py.detach(|| {
+        let t = measure_thickness(positions)?;
+        let noise = if t.thick_everywhere() {
+            match normals {
+                Some(normals) => estimate_noise(positions, Some(normals)),
+                None => estimate_noise_unoriented(positions),
+            }
+        } else {
+            None
+        };
+        let scales = t.scales();
+        Some((
+            scales[0].neighbours,
+            scales[scales.len() - 1].neighbours,
             t.thinnest().thickness,
-            t.fills_volume(),
-        )
+            t.fills_volume(noise.as_ref()),
+            VOLUME_THICKNESS,
+        ))
     }))
 }
 

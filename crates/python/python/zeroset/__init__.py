@@ -425,6 +425,9 @@ def estimate_normals(
     >>> bool(((estimated * normals).sum(axis=1) > 0).mean() > 0.95)
     True
 
+    Warns where the points fill a volume rather than sample a surface (see :func:`fit`): no
+    surface's normals can be estimated from them.
+
     Raises ``ValueError`` for fewer than 3 points, a NaN or infinite coordinate, ``neighbours``
     out of range, a cloud whose neighbourhoods mostly span no plane (points on a line), both
     ``viewpoint`` and ``scanners``, or ``scanners`` not one finite position per point."""
@@ -439,13 +442,15 @@ def estimate_normals(
     return estimated
 
 
-def _warn_of_a_volume(points: np.ndarray, thickness: Optional[Tuple[int, int, float, bool]]) -> None:
-    """Warns where ``thickness`` (``_native.thickness(points)``) says the points fill a volume
-    rather than sample a surface, as ``zeroset fit``, ``normals`` and ``reconstruct`` warn
-    (the warning names the caller of the caller)."""
+def _warn_of_a_volume(
+    points: np.ndarray, thickness: Optional[Tuple[int, int, float, bool, float]]
+) -> None:
+    """Warns where ``thickness`` (``_native.thickness(points, ...)``) says the points fill a
+    volume rather than sample a surface, as ``zeroset fit``, ``normals`` and ``reconstruct``
+    warn (the warning names the caller of the caller)."""
     if thickness is None or not thickness[3]:
         return
-    first, last, value, _ = thickness
+    first, last, value, _, threshold = thickness
     reading = (
         f"at {first} neighbours a point's neighbourhood is"
         if first == last
@@ -453,8 +458,9 @@ def _warn_of_a_volume(points: np.ndarray, thickness: Optional[Tuple[int, int, fl
     )
     warnings.warn(
         f"the {len(points)} points fill a volume rather than sample a surface: {reading} "
-        f"{value:.2f} as thick as it is wide (the median; a surface's is under 0.35 at some "
-        "scale). zeroset fits a surface through points that lie on one: fitted as a very noisy "
+        f"{value:.2f} as thick as it is wide (the median; a surface's is under {threshold:g} at "
+        "some scale, or lies on smooth sheets), and the points scatter about every local "
+        "surface. zeroset fits a surface through points that lie on one: fitted as a very noisy "
         "scan, these give a crumpled sheet through the volume, not its boundary; give points "
         "sampled on the boundary",
         stacklevel=3,
@@ -704,8 +710,9 @@ def fit(
 
     Every method reads how thick the points' neighbourhoods are against how wide, from 32
     neighbours up to 2048 (``report["thickness"]``, the median at the thinnest scale: about
-    0.01 on a clean scan, under 0.35 on any surface's points; absent under 512 points), and
-    warns where the points fill a volume rather than sample a surface (as
+    0.01 on a clean scan, under 0.35 on most surfaces' points; absent under 256 distinct
+    positions), and warns before fitting where the points fill a volume rather than sample a
+    surface: thick at every scale and scattered about every local surface (as
     :func:`estimate_normals` does).
 
     ``"rbf"`` and ``"mras"`` set stray points aside before fitting (each would become a
@@ -740,6 +747,8 @@ def fit(
         raise ValueError(
             f"{what} 0 0 0 (row {zero[0]} first), which marks a normal missing: {cure}"
         )
+    thickness = _native.thickness(p, n)
+    _warn_of_a_volume(p, thickness)
     neural_given = [
         name
         for name, value, default in (
@@ -830,8 +839,6 @@ def fit(
             )
     else:
         raise ValueError(f"method must be 'rbf', 'neural' or 'mras', got {method!r}")
-    thickness = _native.thickness(p)
-    _warn_of_a_volume(p, thickness)
     if thickness is not None:
         report["thickness"] = thickness[2]
     return Field(native, Report(report))

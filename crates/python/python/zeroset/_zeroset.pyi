@@ -74,7 +74,9 @@ def estimate_normals(
 def fill_missing_normals(
     points: _F64, normals: _F64, neighbours: int
 ) -> Tuple[_F64, List[int]]: ...
-def thickness(points: _F64) -> Optional[Tuple[int, int, float, bool]]: ...
+def thickness(
+    points: _F64, normals: Optional[_F64] = None
+) -> Optional[Tuple[int, int, float, bool, float]]: ...
 def orient_normals(
     points: _F64,
     normals: _F64,

@@ -36,10 +36,7 @@
 //! inward (half of their points); with the second term none of the points whose plane is
 //! right (all but 1% whose patch straddles both sheets) is (a test). Thinner
 //! still, the planes themselves fail (at 1.5 spacings a fifth of the patches straddle both
-//! sheets and stand up) and no propagation can help. Where the normals are given lines
-//! ([`orient_normals`]), which turn at once round a sharp crease, the sign crosses an edge
-//! whose lines turn by more than 60° as the planes fitted to the positions carry it (they turn
-//! gradually there): `n_child · n_parent > 0` would turn one face of a tetrahedron.
+//! sheets and stand up) and no propagation can help.
 //!
 //! **Which way is out.** The walk fixes the signs within each connected piece of the graph up
 //! to one sign per piece. By the divergence theorem `∮ (x − c) · n dA = 3V > 0` for the outward
@@ -786,8 +783,7 @@ pub const FACING_IN_SHARE: f64 = 0.05;
 /// read 238 of 240 inward (an egg; 225 and 159 with position noise σ of 0.27 and about 0.4 of its
 /// spacing), 126 of 239 (CGAL's `oni`), 103 of 251 (`point_set_3`), 205 of 232 (`fandisk`), 86 of
 /// 185 (`helmet`); every 10th normal of a sphere flipped, 150 of 150. Correct normals the walk
-/// disagreed with across sharp creases (before it read creases by the planes fitted to the
-/// positions) read outward or met nothing: 0 inward on a regular
+/// disagrees with across sharp creases read outward or meet nothing: 0 inward on a regular
 /// tetrahedron (closed, standing without its base, or its three upper faces), asymmetric ridges,
 /// open prisms and wedges; 13 of 244 on pointed terrain (`z = 0.15 √|sin 8x| √|sin 8y|`), 1 of 251
 /// on CGAL's overlapping `spheres`, 48 of 254 (against 63 outward) on CGAL's `building`, an open
@@ -940,20 +936,9 @@ fn estimate_from(
         });
     }
     let forest = spanning_forest(positions, &neighbours, k, &planes, lines.is_some());
-    // With lines, the planes fitted to the positions too: they turn gradually round a crease,
-    // where the lines turn at once ([`across_crease`]).
-    let fitted: Option<Vec<Option<Point<3>>>> = lines.map(|_| {
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let row = &neighbours[i * k..(i + 1) * k];
-                plane_normal(&positions[i], row.iter().map(|&j| &positions[j as usize]))
-            })
-            .collect()
-    });
     drop(neighbours);
     let mut normals = vec![[0.0; 3]; n];
-    let pieces = orient_pieces(&forest, &planes, fitted.as_deref(), &mut normals);
+    let pieces = orient_pieces(&forest, &planes, &mut normals);
     let signed = sign_pieces(positions, &pieces, facing, &planes, &forest, &mut normals);
     // Of each piece, the points on the smaller side of its split by agreement with the lines'
     // own signs: 0 for lines oriented consistently, whichever way the piece faces.
@@ -1183,7 +1168,6 @@ fn spanning_forest(
 fn orient_pieces(
     forest: &[Vec<u32>],
     planes: &[Option<Point<3>>],
-    fitted: Option<&[Option<Point<3>>]>,
     normals: &mut [Point<3>],
 ) -> Vec<Vec<u32>> {
     let n = forest.len();
@@ -1209,9 +1193,7 @@ fn orient_pieces(
                     continue;
                 }
                 seen[j] = true;
-                normals[j] = fitted
-                    .and_then(|fitted| across_crease(planes, fitted, &normals[i], i, j))
-                    .unwrap_or_else(|| agreeing(planes[j], &normals[i]));
+                normals[j] = agreeing(planes[j], &normals[i]);
                 piece.push(j as u32);
                 queue.push_back(j);
             }
@@ -1220,59 +1202,6 @@ fn orient_pieces(
     }
     pieces
 }
-
-/// Where the given lines at `i` and `j` turn by more than a crease does (`|l_i · l_j| <`
-/// [`CREASE_COS`]) and the planes fitted to the positions there (`p_i`, `p_j`, unsigned)
-/// agree and lie near both lines (each `|·|` at least [`CREASE_COS`]): `j`'s line signed as
-/// the fitted planes carry `i`'s normal `n_i` across,
-/// `sign(n_j · p_j) = sign(n_i · p_i) · sign(p_i · p_j)`. `None` elsewhere, where the sign
-/// crosses by `n_j · n_i > 0` ([`agreeing`]).
-///
-/// Across a crease sharper than a right angle (a tetrahedron's edge: its faces' normals
-/// 109.5° apart) `n_j · n_i > 0` turns one face's sign, and at a right angle its sign is
-/// arbitrary; the fitted planes bend through the crease (near the edge each takes both faces'
-/// points, its normal between theirs). Measured (2026-12-08, [`orient_normals`] at 16
-/// neighbours, 594 clouds and turnings of a review harness: synthetic terrain, ridges,
-/// prisms, tetrahedra, stacks, CGAL's `points_3` and mesh vertices, zeroset's samples): a
-/// closed, open and standing tetrahedron with their own normals 25 / 33 / 25% inconsistent → 0;
-/// cuestas 29–39% → 0; open prisms 20–25% → 0; stacked open prisms 40–47% (read as unoriented,
-/// so `reconstruct` would have turned correct normals) → 20–27%, not turned; a closed cube and
-/// a cylinder with every normal turned to face up 0% (not told) → 17% and 13%, told by rays
-/// and turned back. No other cloud's reading moved by more than half a point except a
-/// 4-vertex tetrahedron's; the same at 0.3 and 0.7.
-fn across_crease(
-    planes: &[Option<Point<3>>],
-    fitted: &[Option<Point<3>>],
-    parent: &Point<3>,
-    i: usize,
-    j: usize,
-) -> Option<Point<3>> {
-    let (li, lj, pi, pj) = (planes[i]?, planes[j]?, fitted[i]?, fitted[j]?);
-    if geometry::dot(&li, &lj).abs() >= CREASE_COS {
-        return None;
-    }
-    let (parent_side, child_side, fitted_turn) = (
-        geometry::dot(parent, &pi),
-        geometry::dot(&lj, &pj),
-        geometry::dot(&pi, &pj),
-    );
-    if [parent_side, child_side, fitted_turn]
-        .iter()
-        .any(|c| c.abs() < CREASE_COS)
-    {
-        return None;
-    }
-    let want = parent_side.signum() * fitted_turn.signum();
-    Some(if child_side.signum() == want {
-        lj
-    } else {
-        lj.map(|x| -x)
-    })
-}
-
-/// The cosine below which two given lines turn as at a crease, and above which a fitted plane
-/// lies near a line and two fitted planes agree ([`across_crease`]).
-const CREASE_COS: f64 = 0.5;
 
 /// The sign of `plane` that agrees with `reference` (`plane` itself where they are square),
 /// or `reference` where there is no plane: how a sign crosses an edge of the forest.

@@ -369,28 +369,20 @@ fn a_closed_objects_side_turned_to_face_in_is_told_by_rays() {
     let o = orient_normals(&points, &flipped, &options).expect("oriented");
     assert!(o.facing_in() && o.unoriented(), "{:?}", o.rays);
     assert_eq!(against(&o.estimated.normals, &truth).0, 0.0);
-    // A one-sided scan with sharp creases, its own normals: across an edge where neighbours'
-    // normals are 109° apart the sign follows the planes fitted to the positions, which bend
-    // through the crease (`n_child · n_parent > 0` flipped a face: a third read inconsistent).
+    // A one-sided scan whose walk disagrees with its correct normals across sharp creases
+    // (the sign flips over an edge where neighbours are 109° apart): a third reads
+    // inconsistent, but rays along those normals leave the tetrahedron or meet a face from
+    // inside, as outward normals do. Nothing is turned.
     let (points, truth) = tetrahedron_top(40);
     let o = orient_normals(&points, &truth, &options).expect("oriented");
-    assert_eq!((o.inconsistent, o.turned, o.rays.cast), (0, 0, 0));
-    // A closed box whose normals were all turned to face up: only the bottom faces in, and
-    // across its right-angled edges `n_child · n_parent = 0` kept any sign (0% inconsistent,
-    // not told). Told now, by rays up through the lid, and turned back.
-    let (points, truth) = closed_box(0.5, 0.025);
-    let up: Vec<P> = truth
-        .iter()
-        .map(|t| if t[2] < 0.0 { t.map(|x| -x) } else { *t })
-        .collect();
-    let o = orient_normals(&points, &up, &options).expect("oriented");
-    let bottom = truth.iter().filter(|t| t[2] < 0.0).count();
-    assert_eq!((o.inconsistent, o.turned), (bottom, bottom));
-    assert!(o.facing_in() && o.unoriented(), "{:?}", o.rays);
-    assert_eq!(against(&o.estimated.normals, &truth).0, 0.0);
-    // A creased sheet under another, both facing up (a creased ground under a canopy, a
-    // faulted horizon under a smooth one): a ray up from the lower one meets the upper one
-    // from behind, as a closed object's top is met from its turned underside; the two are
+    let share = o.inconsistent as f64 / points.len() as f64;
+    assert!((0.3..0.4).contains(&share), "{share}");
+    assert!(o.rays.cast > 100, "{:?}", o.rays);
+    assert_eq!(o.rays.inward, 0, "{:?}", o.rays);
+    assert!(!o.facing_in() && !o.unoriented());
+    // Such a sheet under another, both facing up (a creased ground under a canopy, a faulted
+    // horizon under a smooth one): a ray up from the lower one meets the upper one from
+    // behind, as a closed object's top is met from its turned underside. But the two are
     // separate pieces of the walk, and the upper one says nothing of the lower one's side.
     // Terrain rising at 30° to a crest, then falling at 65° (the walk disagrees across the
     // crest), under a flat sheet twice as wide at z = 0.6, both sampled every 1/80.
@@ -418,11 +410,12 @@ fn a_closed_objects_side_turned_to_face_in_is_told_by_rays() {
             truth.push([0.0, 0.0, 1.0]);
         }
     }
-    // The crest is read right now (the walk once disagreed across it: 5–10% inconsistent,
-    // and read without the pieces 187 of 253 rays were inward; the pieces' rule is tested with
-    // the rays themselves).
     let o = orient_normals(&points, &truth, &options).expect("oriented");
-    assert_eq!((o.inconsistent, o.turned), (0, 0));
+    let share = o.inconsistent as f64 / points.len() as f64;
+    assert!((0.05..0.1).contains(&share), "{share}");
+    // Read without the pieces, 187 of 253 rays were inward, the other points' 32 of 255: told.
+    assert!(o.rays.cast > 200, "{:?}", o.rays);
+    assert!(o.rays.inward * 10 < o.rays.cast, "{:?}", o.rays);
     assert!(!o.facing_in() && !o.unoriented());
 }
 

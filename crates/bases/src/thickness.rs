@@ -158,19 +158,40 @@ impl Thickness {
 /// assert!(volume.fills_volume(estimate_noise(&cube, None).as_ref()));
 /// ```
 pub fn measure_thickness(positions: &[Point<3>]) -> Option<Thickness> {
+    read_scales(positions, false)
+}
+
+/// [`measure_thickness`] where the points are thick at every scale
+/// ([`Thickness::thick_everywhere`]); `None` otherwise, and as there. The scales are read
+/// smallest first and the reading stops at the first thin one: a surface's costs one or two
+/// of them (the bunny's 32 neighbours, not the 2048 that take most of the time), so the
+/// commands' warning costs a fit little.
+pub fn thick_everywhere(positions: &[Point<3>]) -> Option<Thickness> {
+    read_scales(positions, true)
+}
+
+/// The scales of [`measure_thickness`], ending at the first thin one (`None`) where
+/// `stop_at_thin`.
+fn read_scales(positions: &[Point<3>], stop_at_thin: bool) -> Option<Thickness> {
     let positions = distinct(positions)?;
     let n = positions.len();
     let tree = Tree::new_from_slice(&positions).ok()?;
-    let scales: Vec<ScaleThickness> = THICKNESS_SCALES
+    let mut scales = Vec::new();
+    for &k in THICKNESS_SCALES
         .iter()
         .filter(|&&k| n >= POINTS_PER_SCALE * k)
-        .filter_map(|&k| {
-            median_thickness(&tree, &positions, k).map(|thickness| ScaleThickness {
-                neighbours: k,
-                thickness,
-            })
-        })
-        .collect();
+    {
+        let Some(thickness) = median_thickness(&tree, &positions, k) else {
+            continue;
+        };
+        if stop_at_thin && thickness < VOLUME_THICKNESS {
+            return None;
+        }
+        scales.push(ScaleThickness {
+            neighbours: k,
+            thickness,
+        });
+    }
     (!scales.is_empty()).then_some(Thickness { scales })
 }
 
@@ -330,6 +351,7 @@ mod tests {
             let points = cube(20_000, size);
             let volume = measure_thickness(&points).unwrap();
             assert!(volume.thick_everywhere(), "{size:?}: {volume:?}");
+            assert_eq!(thick_everywhere(&points).as_ref(), Some(&volume));
             assert!(volume.fills_volume(estimate_noise(&points, None).as_ref()));
             // Where the noise could not be measured, the thickness decides.
             assert!(volume.fills_volume(None));
@@ -363,6 +385,7 @@ mod tests {
         let t = measure_thickness(&tube).unwrap();
         assert!(t.scales()[0].thickness > VOLUME_THICKNESS, "{t:?}");
         assert!(!t.thick_everywhere(), "{t:?}");
+        assert_eq!(thick_everywhere(&tube), None);
         assert!(!t.fills_volume(estimate_noise(&tube, None).as_ref()));
     }
 
@@ -394,6 +417,19 @@ mod tests {
                 .unwrap()
                 .fills_volume(noise.as_ref())
         );
+    }
+
+    #[test]
+    fn too_few_points_or_a_non_finite_one_read_nothing() {
+        assert_eq!(measure_thickness(&cube(255, [1.0; 3])), None);
+        assert!(measure_thickness(&cube(256, [1.0; 3])).is_some());
+        let mut bad = cube(1000, [1.0; 3]);
+        bad[10][2] = f64::NAN;
+        assert_eq!(measure_thickness(&bad), None);
+        assert_eq!(thick_everywhere(&bad), None);
+        assert_eq!(thickness_at(&bad, 32), None);
+        // One position written 600 times.
+        assert_eq!(measure_thickness(&[[1.0, 2.0, 3.0]; 600]), None);
     }
 
     #[test]

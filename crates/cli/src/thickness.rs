@@ -7,6 +7,7 @@ use std::path::Path;
 use zeroset_bases::noise::Noise;
 use zeroset_bases::thickness::{
     POINTS_PER_SCALE, THICKNESS_SCALES, Thickness, VOLUME_THICKNESS, measure_thickness,
+    thick_everywhere,
 };
 use zeroset_field_core::PointCloud3;
 use zeroset_field_core::geometry::Point;
@@ -44,10 +45,11 @@ pub fn info_line(positions: &[Point<3>], noise: Option<&Noise>) -> String {
 }
 
 /// The warning for the points of `cloud` (`path` names them) where they fill a volume; `None`
-/// for a surface's, or a cloud too small to tell. The noise check runs only where the
+/// for a surface's, or a cloud too small to tell. The scales stop at the first thin one
+/// ([`thick_everywhere`]), and the noise check runs only where the
 /// thickness reads a volume.
 pub fn warning(path: &Path, cloud: &PointCloud3) -> Option<String> {
-    let t = measure_thickness(cloud.positions()).filter(Thickness::thick_everywhere)?;
+    let t = thick_everywhere(cloud.positions())?;
     let noise = crate::noise::measure(cloud).map(|m| m.noise);
     t.fills_volume(noise.as_ref()).then(|| {
         format!(
